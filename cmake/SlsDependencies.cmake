@@ -1,0 +1,38 @@
+# Third-party libraries. The core and the GPU path (sdk/core, sdk/decode, fusion,
+# drivers/sim) need only Eigen, libpng, yaml-cpp, nlohmann-json, spdlog and fmt, which the
+# GPU machine has too; OpenCV, Aravis, libusb and SuiteSparse are optional so that path
+# builds there (DESIGN.md section 9). scripts/install-deps installs all of them on Debian 12.
+find_package(Threads REQUIRED)
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(PNG REQUIRED)
+find_package(nlohmann_json 3 REQUIRED)
+find_package(yaml-cpp REQUIRED)
+find_package(fmt REQUIRED)
+find_package(spdlog REQUIRED)
+find_package(CLI11 QUIET CONFIG)
+if(NOT CLI11_FOUND)
+  find_path(CLI11_INCLUDE_DIR CLI/CLI.hpp REQUIRED)
+  add_library(CLI11::CLI11 INTERFACE IMPORTED)
+  target_include_directories(CLI11::CLI11 INTERFACE ${CLI11_INCLUDE_DIR})
+endif()
+find_package(OpenMP)
+
+find_package(OpenCV 4 QUIET COMPONENTS core imgproc imgcodecs calib3d structured_light)
+find_package(PkgConfig)
+if(PkgConfig_FOUND)
+  pkg_check_modules(ARAVIS QUIET IMPORTED_TARGET aravis-0.8)
+  pkg_check_modules(LIBUSB QUIET IMPORTED_TARGET libusb-1.0)
+  pkg_check_modules(UMOCKDEV QUIET IMPORTED_TARGET umockdev-1.0)
+endif()
+find_package(GTest)
+find_package(benchmark QUIET)
+
+# yaml-cpp 0.7 on Debian exports "yaml-cpp", newer ones "yaml-cpp::yaml-cpp".
+if(TARGET yaml-cpp::yaml-cpp)
+  set(SLS_YAML_TARGET yaml-cpp::yaml-cpp)
+else()
+  set(SLS_YAML_TARGET yaml-cpp)
+endif()
+
+message(STATUS "optional: OpenCV=${OpenCV_FOUND} Aravis=${ARAVIS_FOUND} libusb=${LIBUSB_FOUND} "
+               "umockdev=${UMOCKDEV_FOUND} GTest=${GTest_FOUND} benchmark=${benchmark_FOUND} OpenMP=${OpenMP_FOUND}")

@@ -1,0 +1,46 @@
+// Scanner calibration: camera and projector intrinsics (the projector is modelled as an
+// inverse camera), their relative pose and, when calibrated, the turntable axis.
+// Stored as OpenCV FileStorage YAML ("%YAML:1.0", !!opencv-matrix), readable by
+// cv::FileStorage and by this SDK on machines without OpenCV. Lengths in metres.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "sdk/core/camera_model_shared.h"
+#include "sdk/core/pose.h"
+
+namespace sls {
+
+// The turntable's rotation axis in the camera frame.
+struct TurntableAxis {
+  Eigen::Vector3d point_camera = Eigen::Vector3d::Zero();       // a point on the axis (m)
+  Eigen::Vector3d direction_camera = Eigen::Vector3d::UnitY();  // unit direction, right-handed turn
+};
+
+struct ScannerCalibration {
+  static constexpr int kFormatVersion = 1;
+
+  CameraIntrinsics camera;
+  CameraIntrinsics projector;
+  Pose T_camera_projector;  // projector frame -> camera frame
+  std::optional<TurntableAxis> turntable;
+  double reprojection_rms_px = -1.0;  // from the calibration that produced it; < 0 if unknown
+  std::string description;            // free text: rig name, date, tool
+
+  // Throws sls::Error (invalid argument) naming the first problem: non-positive image size
+  // or focal length, principal point far outside the image, non-finite values, a zero axis.
+  void validate() const;
+};
+
+// Writes the calibration; throws sls::Error (I/O) naming the path on failure. The file is
+// written to a temporary name and renamed, so a crash never leaves half a calibration.
+void write_calibration(const std::string& path, const ScannerCalibration& calibration);
+
+// Reads and validates a calibration; throws sls::Error naming the file and the problem
+// (missing key, wrong matrix size, unparsable YAML with its line, invalid values).
+ScannerCalibration read_calibration(const std::string& path);
+
+}  // namespace sls

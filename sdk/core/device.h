@@ -1,0 +1,38 @@
+// Where an algorithm runs: Device{cpu} or Device{cuda, id}, chosen at run time
+// (DESIGN.md section 6). Asking for CUDA in a build without it, or on a machine without a
+// GPU, is a clear sls::Error (unsupported / device), never a silent fallback.
+#pragma once
+
+#include <string>
+
+namespace sls {
+
+struct Device {
+  enum class Kind { kCpu, kCuda };
+  Kind kind = Kind::kCpu;
+  int id = 0;  // CUDA device ordinal
+
+  static Device cpu() { return {Kind::kCpu, 0}; }
+  static Device cuda(int id = 0) { return {Kind::kCuda, id}; }
+  bool is_cuda() const { return kind == Kind::kCuda; }
+  bool operator==(const Device& other) const { return kind == other.kind && id == other.id; }
+  std::string to_string() const;  // "cpu", "cuda:0"
+};
+
+// Parses "cpu", "cuda" or "cuda:N"; throws sls::Error (invalid argument) otherwise.
+Device parse_device(const std::string& text);
+
+// True when this build has the CUDA backends compiled in.
+bool cuda_compiled();
+
+// Number of usable CUDA devices: 0 in a build without CUDA or with no GPU/driver present.
+int cuda_device_count();
+
+// Name of a CUDA device, e.g. "NVIDIA H100 80GB HBM3"; throws when it does not exist.
+std::string cuda_device_name(int id);
+
+// Throws sls::Error unless `device` can run work now: unsupported when CUDA was not built,
+// device error when the ordinal has no GPU behind it. Selects the device for this thread.
+void require_device(const Device& device);
+
+}  // namespace sls

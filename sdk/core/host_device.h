@@ -1,0 +1,12 @@
+// Marks functions that compile for both the CPU and CUDA backends (DESIGN.md section 6).
+// Per-element math lives in *_shared.h headers as SLS_HOST_DEVICE inline free functions
+// over plain structs, so nvcc and the host compiler see one body of code.
+#pragma once
+
+#if defined(__CUDACC__)
+#define SLS_HOST_DEVICE __host__ __device__
+#define SLS_DEVICE __device__
+#else
+#define SLS_HOST_DEVICE
+#define SLS_DEVICE
+#endif

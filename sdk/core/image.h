@@ -1,0 +1,117 @@
+// Images: owning buffers (Image<T>) and non-owning views (ImageView<T>) for 8/16-bit
+// integer and float pixels. Views are trivially copyable plain structs so kernels and
+// *_shared.h code take them by value; rows are addressed through a byte stride so a view
+// can describe a pitched CUDA allocation or a sub-rectangle.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <type_traits>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "sdk/core/error.h"
+#include "sdk/core/host_device.h"
+
+namespace sls {
+
+template <typename T>
+struct ImageView {
+  T* data = nullptr;
+  int width = 0;
+  int height = 0;
+  std::size_t stride_bytes = 0;  // bytes from one row to the next
+
+  SLS_HOST_DEVICE T* row(int y) const {
+    return reinterpret_cast<T*>(reinterpret_cast<
+        std::conditional_t<std::is_const_v<T>, const unsigned char*, unsigned char*>>(data) +
+        static_cast<std::size_t>(y) * stride_bytes);
+  }
+  SLS_HOST_DEVICE T& operator()(int x, int y) const { return row(y)[x]; }
+  SLS_HOST_DEVICE bool contains(int x, int y) const {
+    return x >= 0 && y >= 0 && x < width && y < height;
+  }
+  SLS_HOST_DEVICE bool empty() const { return width <= 0 || height <= 0; }
+  SLS_HOST_DEVICE std::size_t pixel_count() const {
+    return static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  }
+  // A view is implicitly a view of const pixels.
+  SLS_HOST_DEVICE operator ImageView<const T>() const { return {data, width, height, stride_bytes}; }
+};
+
+template <typename T>
+class Image {
+  static_assert(std::is_arithmetic_v<T>, "pixels are integers or floats");
+
+ public:
+  Image() = default;
+  Image(int width, int height, T fill = T{}) { resize(width, height, fill); }
+
+  void resize(int width, int height, T fill = T{}) {
+    if (width < 0 || height < 0) {
+      throw_error(ErrorCode::kInvalidArgument, "image size {}x{} is negative", width, height);
+    }
+    width_ = width;
+    height_ = height;
+    pixels_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), fill);
+  }
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+  bool empty() const { return pixels_.empty(); }
+  std::size_t pixel_count() const { return pixels_.size(); }
+  std::size_t size_bytes() const { return pixels_.size() * sizeof(T); }
+  std::size_t stride_bytes() const { return static_cast<std::size_t>(width_) * sizeof(T); }
+
+  T* data() { return pixels_.data(); }
+  const T* data() const { return pixels_.data(); }
+  T& operator()(int x, int y) { return pixels_[index(x, y)]; }
+  const T& operator()(int x, int y) const { return pixels_[index(x, y)]; }
+
+  ImageView<T> view() { return {pixels_.data(), width_, height_, stride_bytes()}; }
+  ImageView<const T> view() const { return {pixels_.data(), width_, height_, stride_bytes()}; }
+
+  bool operator==(const Image& other) const {
+    return width_ == other.width_ && height_ == other.height_ && pixels_ == other.pixels_;
+  }
+  bool operator!=(const Image& other) const { return !(*this == other); }
+
+ private:
+  std::size_t index(int x, int y) const {
+    return static_cast<std::size_t>(y) * static_cast<std::size_t>(width_) + static_cast<std::size_t>(x);
+  }
+
+  int width_ = 0;
+  int height_ = 0;
+  std::vector<T> pixels_;
+};
+
+using Image8u = Image<std::uint8_t>;
+using Image16u = Image<std::uint16_t>;
+using Image32f = Image<float>;
+
+// An image whose pixel type is known only at run time (e.g. read from a file).
+using AnyImage = std::variant<Image8u, Image16u, Image32f>;
+
+template <typename T>
+struct NonDeduced {
+  using type = T;
+};
+
+// Copies pixels between views of the same size (any strides). T is deduced from the
+// destination so a mutable source view converts.
+template <typename T>
+void copy_pixels(typename NonDeduced<ImageView<const T>>::type source, ImageView<T> destination) {
+  if (source.width != destination.width || source.height != destination.height) {
+    throw_error(ErrorCode::kInvalidArgument, "copy_pixels: size {}x{} differs from {}x{}",
+                source.width, source.height, destination.width, destination.height);
+  }
+  for (int y = 0; y < source.height; ++y) {
+    const T* in = source.row(y);
+    T* out = destination.row(y);
+    for (int x = 0; x < source.width; ++x) out[x] = in[x];
+  }
+}
+
+}  // namespace sls

@@ -1,0 +1,37 @@
+#include "tests/support/test_support.h"
+
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <filesystem>
+
+#include "sdk/core/device.h"
+
+namespace sls::test {
+
+TemporaryDirectory::TemporaryDirectory() {
+  static std::atomic<int> counter{0};
+  const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string name = info != nullptr ? std::string(info->test_suite_name()) + "." + info->name() : "test";
+  for (char& c : name) {
+    if (c == '/') c = '_';
+  }
+  path_ = std::string(SLS_TEST_BINARY_DIR) + "/tmp/" + name + "-" + std::to_string(::getpid()) + "-" +
+          std::to_string(counter++);
+  std::filesystem::remove_all(path_);
+  std::filesystem::create_directories(path_);
+}
+
+TemporaryDirectory::~TemporaryDirectory() {
+  if (std::getenv("SLS_KEEP_TEST_FILES") == nullptr) {
+    std::error_code ignored;
+    std::filesystem::remove_all(path_, ignored);
+  }
+}
+
+std::string shared_data_path(const std::string& relative) { return std::string(SLS_SHARED_DATA_DIR) + "/" + relative; }
+
+bool has_cuda_device() { return sls::cuda_device_count() > 0; }
+
+}  // namespace sls::test

@@ -1,0 +1,36 @@
+// Helpers shared by the tests: temporary folders, paths to test data, GPU skipping.
+#pragma once
+
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace sls::test {
+
+// A fresh empty directory under the build tree, removed when the object is destroyed
+// (kept when the environment variable SLS_KEEP_TEST_FILES is set, for debugging).
+class TemporaryDirectory {
+ public:
+  TemporaryDirectory();
+  ~TemporaryDirectory();
+  TemporaryDirectory(const TemporaryDirectory&) = delete;
+  TemporaryDirectory& operator=(const TemporaryDirectory&) = delete;
+  const std::string& path() const { return path_; }
+  std::string file(const std::string& name) const { return path_ + "/" + name; }
+
+ private:
+  std::string path_;
+};
+
+// ../shared/data/<relative>
+std::string shared_data_path(const std::string& relative);
+
+bool has_cuda_device();
+
+}  // namespace sls::test
+
+// Skips the current test (reported by ctest as skipped, not passed) when no GPU is present.
+#define SLS_REQUIRE_CUDA_DEVICE()                                              \
+  do {                                                                         \
+    if (!::sls::test::has_cuda_device()) GTEST_SKIP() << "no CUDA device";     \
+  } while (0)

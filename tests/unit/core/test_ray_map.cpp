@@ -1,0 +1,1 @@
+// tests written by their issue-2 task
