@@ -26,3 +26,4 @@ function(sls_target_defaults target)
   endif()
   target_include_directories(${target} PUBLIC $<BUILD_INTERFACE:${SLS_SOURCE_ROOT}>)
 endfunction()
+

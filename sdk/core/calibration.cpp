@@ -1,1 +1,362 @@
-// implemented by its issue-2 task
+#include "sdk/core/calibration.h"
+
+#include <array>
+#include <cmath>
+#include <initializer_list>
+#include <iterator>
+#include <vector>
+
+#include <fmt/format.h>
+#include <yaml-cpp/yaml.h>
+
+#include "sdk/core/error.h"
+#include "sdk/core/file_util.h"
+
+namespace sls {
+namespace {
+
+// File keys. Distortion vectors use OpenCV's order k1 k2 p1 p2 k3.
+constexpr const char* kVersionKey = "slscan_calibration_version";
+
+struct DeviceKeys {
+  const char* name;  // "camera" / "projector", for messages
+  const char* width;
+  const char* height;
+  const char* matrix;
+  const char* distortion;
+};
+constexpr DeviceKeys kCameraKeys = {"camera", "camera_width", "camera_height", "camera_matrix", "camera_distortion"};
+constexpr DeviceKeys kProjectorKeys = {"projector", "projector_width", "projector_height", "projector_matrix",
+                                       "projector_distortion"};
+
+// ---- validation -----------------------------------------------------------------------------
+
+void validate_intrinsics(const CameraIntrinsics& c, const DeviceKeys& keys) {
+  if (c.width <= 0 || c.height <= 0) {
+    throw_error(ErrorCode::kInvalidArgument, "{}/{}: {} image size {}x{} is not positive", keys.width, keys.height,
+                keys.name, c.width, c.height);
+  }
+  if (!std::isfinite(c.fx) || !std::isfinite(c.fy) || !(c.fx > 0.0) || !(c.fy > 0.0)) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: {} focal length (fx {}, fy {}) must be positive and finite",
+                keys.matrix, keys.name, c.fx, c.fy);
+  }
+  // A principal point more than an image size outside the image is a unit or order mix-up,
+  // not a lens.
+  if (!std::isfinite(c.cx) || !std::isfinite(c.cy) || c.cx < -c.width || c.cx > 2.0 * c.width ||
+      c.cy < -c.height || c.cy > 2.0 * c.height) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: {} principal point ({}, {}) is far outside the {}x{} image",
+                keys.matrix, keys.name, c.cx, c.cy, c.width, c.height);
+  }
+  const std::array<double, 5> distortion = {c.k1, c.k2, c.p1, c.p2, c.k3};
+  for (const double d : distortion) {
+    if (!std::isfinite(d)) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: {} distortion coefficient {} is not finite", keys.distortion,
+                  keys.name, d);
+    }
+  }
+}
+
+bool all_finite(const Eigen::Vector3d& v) { return v.allFinite(); }
+
+// ---- writing --------------------------------------------------------------------------------
+
+// Shortest text that reads back to the same double; always with a '.' or exponent so both
+// cv::FileStorage and YAML see a real, not an integer.
+std::string format_real(double value) {
+  std::string text = fmt::format("{}", value);
+  if (text.find_first_of(".eEn") == std::string::npos) text += '.';
+  return text;
+}
+
+// A YAML double-quoted scalar, escaped the way both yaml-cpp and cv::FileStorage read back.
+std::string quote(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\r': out += "\\r"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
+          out += fmt::format("\\x{:02x}", static_cast<unsigned>(static_cast<unsigned char>(c)));
+        } else {
+          out += c;  // UTF-8 bytes pass through
+        }
+    }
+  }
+  out += '"';
+  return out;
+}
+
+// OpenCV's own layout: three-space indent, data wrapped a few values per line.
+void write_matrix(std::string& out, const char* key, int rows, int cols, const double* row_major) {
+  auto it = std::back_inserter(out);
+  fmt::format_to(it, "{}: !!opencv-matrix\n   rows: {}\n   cols: {}\n   dt: d\n   data: [ ", key, rows, cols);
+  const int count = rows * cols;
+  for (int i = 0; i < count; ++i) {
+    if (i > 0) out += (i % 4 == 0) ? ",\n       " : ", ";
+    out += format_real(row_major[i]);
+  }
+  out += " ]\n";
+}
+
+void write_intrinsics(std::string& out, const CameraIntrinsics& c, const DeviceKeys& keys) {
+  auto it = std::back_inserter(out);
+  fmt::format_to(it, "{}: {}\n{}: {}\n", keys.width, c.width, keys.height, c.height);
+  const std::array<double, 9> k = {c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0};
+  write_matrix(out, keys.matrix, 3, 3, k.data());
+  const std::array<double, 5> d = {c.k1, c.k2, c.p1, c.p2, c.k3};
+  write_matrix(out, keys.distortion, 1, 5, d.data());
+}
+
+// ---- reading --------------------------------------------------------------------------------
+
+struct Shape {
+  int rows, cols;
+};
+
+struct Matrix {
+  int rows = 0, cols = 0;
+  std::vector<double> data;  // row-major
+};
+
+// Reads typed values from the top-level mapping; every error names the file, the key and,
+// where yaml-cpp knows it, the line.
+class Reader {
+ public:
+  Reader(const std::string& path, const YAML::Node& root) : path_(path), root_(root) {}
+
+  [[noreturn]] void fail(const std::string& key, const YAML::Node* node, const std::string& problem) const {
+    if (node != nullptr && node->IsDefined() && node->Mark().line >= 0) {
+      throw_error(ErrorCode::kFormat, "{}:{}: key '{}': {}", path_, node->Mark().line + 1, key, problem);
+    }
+    throw_error(ErrorCode::kFormat, "{}: key '{}': {}", path_, key, problem);
+  }
+
+  bool has(const char* key) const {
+    const YAML::Node node = root_[key];
+    return node.IsDefined() && !node.IsNull();
+  }
+
+  YAML::Node required(const char* key) const {
+    const YAML::Node node = root_[key];
+    if (!node.IsDefined()) fail(key, nullptr, "missing");
+    if (node.IsNull()) fail(key, &node, "has no value");
+    return node;
+  }
+
+  int read_int(const char* key) const {
+    const YAML::Node node = required(key);
+    return scalar<int>(key, node, "an integer");
+  }
+
+  double read_real(const char* key) const {
+    const YAML::Node node = required(key);
+    return scalar<double>(key, node, "a number");
+  }
+
+  std::string read_string(const char* key) const {
+    const YAML::Node node = required(key);
+    return scalar<std::string>(key, node, "a string");
+  }
+
+  // A !!opencv-matrix of doubles with one of the allowed shapes.
+  Matrix read_matrix(const char* key, std::initializer_list<Shape> shapes) const {
+    const YAML::Node node = required(key);
+    if (!node.IsMap()) fail(key, &node, "expected an !!opencv-matrix (rows, cols, dt, data)");
+    Matrix m;
+    for (const char* field : {"rows", "cols", "dt", "data"}) {
+      if (!node[field].IsDefined()) fail(key, &node, fmt::format("matrix has no '{}'", field));
+    }
+    m.rows = scalar<int>(key, node["rows"], "an integer row count");
+    m.cols = scalar<int>(key, node["cols"], "an integer column count");
+    const std::string dt = scalar<std::string>(key, node["dt"], "a type code");
+    // Single-channel float or double; both hold the values exactly as doubles.
+    if (dt != "d" && dt != "f") {
+      fail(key, &node, fmt::format("matrix element type '{}' is not supported (expected 'd')", dt));
+    }
+    bool shape_ok = false;
+    std::string expected;
+    for (const Shape& shape : shapes) {
+      shape_ok = shape_ok || (shape.rows == m.rows && shape.cols == m.cols);
+      expected += fmt::format("{}{}x{}", expected.empty() ? "" : " or ", shape.rows, shape.cols);
+    }
+    if (!shape_ok) fail(key, &node, fmt::format("expected a {} matrix, found {}x{}", expected, m.rows, m.cols));
+    const YAML::Node data = node["data"];
+    if (!data.IsSequence()) fail(key, &data, "matrix 'data' is not a sequence");
+    const std::size_t count = static_cast<std::size_t>(m.rows) * static_cast<std::size_t>(m.cols);
+    if (data.size() != count) {
+      fail(key, &data, fmt::format("matrix is {}x{} but 'data' has {} values", m.rows, m.cols, data.size()));
+    }
+    m.data.reserve(count);
+    for (std::size_t i = 0; i < count; ++i) {
+      const double value = scalar<double>(key, data[i], fmt::format("a number at data[{}]", i).c_str());
+      if (!std::isfinite(value)) fail(key, &node, fmt::format("data[{}] is not finite ({})", i, value));
+      m.data.push_back(value);
+    }
+    return m;
+  }
+
+ private:
+  template <typename T>
+  T scalar(const char* key, const YAML::Node& node, const char* what) const {
+    if (!node.IsScalar()) fail(key, &node, fmt::format("expected {}", what));
+    try {
+      return node.as<T>();
+    } catch (const YAML::Exception&) {
+      fail(key, &node, fmt::format("expected {}, found '{}'", what, node.Scalar()));
+    }
+  }
+
+  const std::string& path_;
+  const YAML::Node& root_;
+};
+
+CameraIntrinsics read_intrinsics(const Reader& reader, const DeviceKeys& keys) {
+  CameraIntrinsics c;
+  c.width = reader.read_int(keys.width);
+  c.height = reader.read_int(keys.height);
+  const Matrix k = reader.read_matrix(keys.matrix, {{3, 3}});
+  // The model has no skew: anything but [fx 0 cx; 0 fy cy; 0 0 1] would be silently wrong.
+  const double* m = k.data.data();
+  if (std::fabs(m[1]) > 1e-9 * std::fabs(m[0]) || m[3] != 0.0 || m[6] != 0.0 || m[7] != 0.0 || m[8] != 1.0) {
+    const YAML::Node node = reader.required(keys.matrix);
+    reader.fail(keys.matrix, &node, "expected a camera matrix [fx 0 cx; 0 fy cy; 0 0 1] (skew is not supported)");
+  }
+  c.fx = m[0];
+  c.cx = m[2];
+  c.fy = m[4];
+  c.cy = m[5];
+  const Matrix d = reader.read_matrix(keys.distortion, {{1, 5}, {5, 1}, {1, 4}, {4, 1}});
+  c.k1 = d.data[0];
+  c.k2 = d.data[1];
+  c.p1 = d.data[2];
+  c.p2 = d.data[3];
+  c.k3 = d.data.size() > 4 ? d.data[4] : 0.0;
+  return c;
+}
+
+Eigen::Vector3d read_vector3(const Reader& reader, const char* key) {
+  const Matrix m = reader.read_matrix(key, {{3, 1}, {1, 3}});
+  return {m.data[0], m.data[1], m.data[2]};
+}
+
+// yaml-cpp rejects OpenCV's "%YAML:1.0" directive; turning that line into a comment keeps
+// the line numbers of parse errors right.
+std::string strip_opencv_directive(std::string text) {
+  if (text.rfind("%YAML", 0) == 0) text[0] = '#';
+  return text;
+}
+
+}  // namespace
+
+void ScannerCalibration::validate() const {
+  validate_intrinsics(camera, kCameraKeys);
+  validate_intrinsics(projector, kProjectorKeys);
+  if (!T_camera_projector.translation().allFinite() || !T_camera_projector.quaternion().coeffs().allFinite()) {
+    throw_error(ErrorCode::kInvalidArgument, "T_camera_projector: the pose is not finite");
+  }
+  if (turntable) {
+    if (!all_finite(turntable->point_camera)) {
+      throw_error(ErrorCode::kInvalidArgument, "turntable_axis_point: not finite");
+    }
+    const double length = turntable->direction_camera.norm();
+    if (!std::isfinite(length) || !(std::fabs(length - 1.0) <= 1e-6)) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "turntable_axis_direction: length {} (expected a unit vector; a zero axis has no direction)",
+                  length);
+    }
+  }
+  if (!std::isfinite(reprojection_rms_px)) {
+    throw_error(ErrorCode::kInvalidArgument, "reprojection_rms_px: {} is not finite (use -1 for unknown)",
+                reprojection_rms_px);
+  }
+}
+
+void write_calibration(const std::string& path, const ScannerCalibration& calibration) {
+  try {
+    calibration.validate();
+  } catch (const Error& error) {
+    throw_error(ErrorCode::kInvalidArgument, "not writing calibration {}: {}", path, error.what());
+  }
+  std::string out = "%YAML:1.0\n---\n";
+  auto it = std::back_inserter(out);
+  fmt::format_to(it, "{}: {}\n", kVersionKey, ScannerCalibration::kFormatVersion);
+  fmt::format_to(it, "description: {}\n", quote(calibration.description));
+  write_intrinsics(out, calibration.camera, kCameraKeys);
+  write_intrinsics(out, calibration.projector, kProjectorKeys);
+  // Eigen is column-major; the file is row-major.
+  const Eigen::Matrix<double, 4, 4, Eigen::RowMajor> t = calibration.T_camera_projector.matrix();
+  write_matrix(out, "T_camera_projector", 4, 4, t.data());
+  if (calibration.turntable) {
+    write_matrix(out, "turntable_axis_point", 3, 1, calibration.turntable->point_camera.data());
+    write_matrix(out, "turntable_axis_direction", 3, 1, calibration.turntable->direction_camera.data());
+  }
+  fmt::format_to(it, "reprojection_rms_px: {}\n", format_real(calibration.reprojection_rms_px));
+  write_file_atomic(path, out);
+}
+
+ScannerCalibration read_calibration(const std::string& path) {
+  const std::string text = strip_opencv_directive(read_file_text(path));
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::ParserException& error) {
+    throw_error(ErrorCode::kFormat, "{}:{}:{}: not valid YAML: {}", path, error.mark.line + 1,
+                error.mark.column + 1, error.msg);
+  } catch (const YAML::Exception& error) {
+    throw_error(ErrorCode::kFormat, "{}: not valid YAML: {}", path, error.what());
+  }
+  if (!root.IsMap()) {
+    throw_error(ErrorCode::kFormat, "{}: not a calibration file (expected a YAML mapping of keys)", path);
+  }
+  const Reader reader(path, root);
+
+  const int version = reader.read_int(kVersionKey);
+  if (version > ScannerCalibration::kFormatVersion) {
+    throw_error(ErrorCode::kVersionMismatch,
+                "{}: key '{}': calibration format version {} is newer than this SDK reads ({})", path, kVersionKey,
+                version, ScannerCalibration::kFormatVersion);
+  }
+  if (version < 1) {
+    const YAML::Node node = reader.required(kVersionKey);
+    reader.fail(kVersionKey, &node, fmt::format("version {} is not valid", version));
+  }
+
+  ScannerCalibration calibration;
+  if (reader.has("description")) calibration.description = reader.read_string("description");
+  calibration.camera = read_intrinsics(reader, kCameraKeys);
+  calibration.projector = read_intrinsics(reader, kProjectorKeys);
+
+  const Matrix t = reader.read_matrix("T_camera_projector", {{4, 4}});
+  try {
+    calibration.T_camera_projector =
+        Pose::from_matrix(Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(t.data.data()));
+  } catch (const Error& error) {
+    const YAML::Node node = reader.required("T_camera_projector");
+    reader.fail("T_camera_projector", &node, error.what());
+  }
+
+  const bool has_point = reader.has("turntable_axis_point");
+  const bool has_direction = reader.has("turntable_axis_direction");
+  if (has_point != has_direction) {
+    const char* missing = has_point ? "turntable_axis_direction" : "turntable_axis_point";
+    reader.fail(missing, nullptr, "missing (the turntable axis needs both a point and a direction)");
+  }
+  if (has_point) {
+    calibration.turntable = TurntableAxis{read_vector3(reader, "turntable_axis_point"),
+                                          read_vector3(reader, "turntable_axis_direction")};
+  }
+  if (reader.has("reprojection_rms_px")) calibration.reprojection_rms_px = reader.read_real("reprojection_rms_px");
+
+  try {
+    calibration.validate();
+  } catch (const Error& error) {
+    throw_error(ErrorCode::kFormat, "{}: invalid calibration: {}", path, error.what());
+  }
+  return calibration;
+}
+
+}  // namespace sls

@@ -64,8 +64,43 @@ SLS_HOST_DEVICE inline void distortion_jacobian(const CameraIntrinsicsT<T>& c, V
   jacobian[3] = radial + n.y * dradial_dy + T(6) * c.p1 * n.y + T(2) * c.p2 * n.x;
 }
 
+// d(r·radial(r²))/dr at t = r²: positive while the radial distortion is still unfolding.
+template <typename T>
+SLS_HOST_DEVICE inline T radial_slope(const CameraIntrinsicsT<T>& c, T t) {
+  return T(1) + t * (T(3) * c.k1 + t * (T(5) * c.k2 + t * T(7) * c.k3));
+}
+
+// True when r -> r·radial(r²) increases on all of [0, sqrt(r2)], i.e. the undistorted point
+// lies inside the lens's first fold. Beyond it Newton can converge to a "preimage" that is
+// physically meaningless (e.g. mirrored through the centre where radial < 0). The slope is
+// a cubic in t = r², so its minimum on [0, r2] is at an end or at a root of its derivative
+// 3k1 + 10k2 t + 21k3 t². Tangential terms are ignored: they are orders of magnitude smaller.
+template <typename T>
+SLS_HOST_DEVICE inline bool inside_first_fold(const CameraIntrinsicsT<T>& c, T r2) {
+  if (!(radial_slope(c, r2) > T(0))) return false;
+  const T a = T(21) * c.k3, b = T(10) * c.k2, c0 = T(3) * c.k1;
+  T roots[2];
+  int count = 0;
+  if (a == T(0)) {
+    if (b != T(0)) roots[count++] = -c0 / b;
+  } else {
+    const T discriminant = b * b - T(4) * a * c0;
+    if (discriminant >= T(0)) {
+      const T root = std::sqrt(discriminant);
+      roots[count++] = (-b + root) / (T(2) * a);
+      roots[count++] = (-b - root) / (T(2) * a);
+    }
+  }
+  for (int i = 0; i < count; ++i) {
+    if (roots[i] > T(0) && roots[i] < r2 && !(radial_slope(c, roots[i]) > T(0))) return false;
+  }
+  return true;
+}
+
 // Inverts the distortion by Newton's method, starting at the distorted point. Returns false
-// when it does not converge (far outside the calibrated field, where the polynomial folds).
+// when it does not converge, or converges beyond the lens's first fold (far outside the
+// calibrated field, where the polynomial folds back and a distorted point has no physical
+// preimage).
 template <typename T>
 SLS_HOST_DEVICE inline bool undistort_normalized(const CameraIntrinsicsT<T>& c, Vec2T<T> distorted,
                                                  Vec2T<T>* undistorted) {
@@ -74,13 +109,17 @@ SLS_HOST_DEVICE inline bool undistort_normalized(const CameraIntrinsicsT<T>& c, 
     *undistorted = n;
     return true;
   }
-  // Converged when the residual is a few ulps of the coordinate (1e-15 for double, 1e-6 for float).
-  const T tolerance = sizeof(T) >= 8 ? T(1e-15) : T(2e-7);
+  // Converged when the residual is a few ulps of the coordinate (1e-15 for double, 2e-7 for
+  // float at unit scale; relative for larger coordinates so wide lenses converge too).
+  const T scale = T(1) + std::fabs(distorted.x) + std::fabs(distorted.y);
+  const T tolerance = (sizeof(T) >= 8 ? T(1e-15) : T(2e-7)) * scale;
+  constexpr bool kIsDouble = sizeof(T) >= 8;
   for (int iteration = 0; iteration < 20; ++iteration) {
     const Vec2T<T> residual = distort_normalized(c, n) - distorted;
-    if (std::fabs(residual.x) <= tolerance && std::fabs(residual.y) <= tolerance) {
+    const bool converged = std::fabs(residual.x) <= tolerance && std::fabs(residual.y) <= tolerance;
+    if (converged && kIsDouble) {
       *undistorted = n;
-      return true;
+      return inside_first_fold(c, n.x * n.x + n.y * n.y);
     }
     T j[4];
     distortion_jacobian(c, n, j);
@@ -88,13 +127,21 @@ SLS_HOST_DEVICE inline bool undistort_normalized(const CameraIntrinsicsT<T>& c, 
     if (!(std::fabs(det) > T(1e-12))) break;
     n.x -= (j[3] * residual.x - j[1] * residual.y) / det;
     n.y -= (-j[2] * residual.x + j[0] * residual.y) / det;
+    // In float the tolerance sits just above the rounding noise, so a point that meets it
+    // may still be ~2e-7 off (1e-3 px at f = 5000 px): one more, quadratically convergent,
+    // step brings it down to the noise floor for the price of one Jacobian.
+    if (converged) {
+      *undistorted = n;
+      return inside_first_fold(c, n.x * n.x + n.y * n.y);
+    }
   }
   const Vec2T<T> residual = distort_normalized(c, n) - distorted;
   *undistorted = n;
   // Float iterations can stall a few ulps above the tolerance: accept 2e-6 normalized units
   // (0.01 px at f = 5000 px) for float, 1e-12 for double.
-  const T accept = sizeof(T) >= 8 ? T(1e-12) : T(2e-6);
-  return std::fabs(residual.x) <= accept && std::fabs(residual.y) <= accept;
+  const T accept = (sizeof(T) >= 8 ? T(1e-12) : T(2e-6)) * scale;
+  return std::fabs(residual.x) <= accept && std::fabs(residual.y) <= accept &&
+         inside_first_fold(c, n.x * n.x + n.y * n.y);
 }
 
 template <typename T>

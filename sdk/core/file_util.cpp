@@ -1,13 +1,12 @@
 #include "sdk/core/file_util.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 
 #include "sdk/core/error.h"
 
@@ -18,14 +17,34 @@ std::string describe_errno(const std::string& path, int error_number) {
 }
 
 std::vector<std::uint8_t> read_file_bytes(const std::string& path) {
-  std::ifstream stream(path, std::ios::binary);
-  if (!stream) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
     const int error_number = errno;
     throw Error(error_number == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
                 "cannot open " + describe_errno(path, error_number));
   }
-  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(stream)), std::istreambuf_iterator<char>());
-  if (stream.bad()) throw_error(ErrorCode::kIo, "cannot read {}", path);
+  struct stat status {};
+  if (::fstat(fd, &status) != 0 || !S_ISREG(status.st_mode)) {
+    ::close(fd);
+    throw_error(ErrorCode::kIo, "cannot read {}: not a regular file", path);
+  }
+  // One sized read (files are tens of MB: images, clouds), then whatever a growing file adds.
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(status.st_size));
+  std::size_t filled = 0;
+  for (;;) {
+    if (filled == bytes.size()) bytes.resize(bytes.size() + 65536);
+    const ssize_t n = ::read(fd, bytes.data() + filled, bytes.size() - filled);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const int error_number = errno;
+      ::close(fd);
+      throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path, error_number));
+    }
+    if (n == 0) break;
+    filled += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  bytes.resize(filled);
   return bytes;
 }
 

@@ -1,1 +1,457 @@
-// implemented by its issue-2 task
+#include "sdk/core/image_io.h"
+
+#include <fcntl.h>
+#include <png.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <new>
+
+#include "sdk/core/error.h"
+#include "sdk/core/file_util.h"
+
+// libpng reports errors by calling our error callback, which must not return: it longjmps
+// back to the setjmp in run_guarded(). Nothing with a destructor may live in the frames
+// that longjmp skips (the lambda bodies below and libpng's C frames), so the libpng structs
+// and all buffers are owned by objects outside them, and the sls::Error is thrown only after
+// run_guarded() has returned. No C++ exception ever crosses a libpng frame.
+
+namespace sls {
+namespace {
+
+constexpr std::size_t kSignatureSize = 8;
+// Signature + IHDR chunk (length, type, 13 data bytes, CRC).
+constexpr std::size_t kHeaderBytes = kSignatureSize + 4 + 4 + 13 + 4;
+// Refuse absurd sizes from a corrupt header before allocating (libpng's default limit is
+// 1e6 per side; 4000x3000 scans are far below both).
+constexpr png_uint_32 kMaxSide = 1u << 20;
+constexpr std::size_t kMaxImageBytes = std::size_t{1} << 32;
+
+bool host_is_little_endian() {
+  const std::uint16_t probe = 1;
+  unsigned char first = 0;
+  std::memcpy(&first, &probe, 1);
+  return first == 1;
+}
+
+// Where the error callback leaves libpng's message (fixed size: the callback must not
+// allocate, an exception there would cross C frames).
+struct ErrorSink {
+  char message[256] = {};
+};
+
+void on_png_error(png_structp png, png_const_charp message) {
+  auto* sink = static_cast<ErrorSink*>(png_get_error_ptr(png));
+  if (sink != nullptr) {
+    std::snprintf(sink->message, sizeof(sink->message), "%s", message != nullptr ? message : "unknown libpng error");
+  }
+  png_longjmp(png, 1);
+}
+
+// Warnings (e.g. a CRC error in an ancillary chunk, which libpng then skips) are not fatal:
+// the pixels are intact.
+void on_png_warning(png_structp, png_const_charp) {}
+
+// Runs `body` under a setjmp; returns false when libpng reported an error inside it.
+template <typename Body>
+bool run_guarded(png_structp png, Body&& body) {
+  if (setjmp(png_jmpbuf(png)) != 0) return false;
+  body();
+  return true;
+}
+
+ErrorCode code_for_libpng_message(const char* message) {
+  return std::strstr(message, "memory") != nullptr ? ErrorCode::kOutOfMemory : ErrorCode::kFormat;
+}
+
+// ---------------------------------------------------------------------------------------
+// Reading
+
+struct ReadContext {
+  ErrorSink sink;
+  const std::uint8_t* data = nullptr;
+  std::size_t size = 0;
+  std::size_t offset = 0;
+  png_structp png = nullptr;
+  png_infop info = nullptr;
+
+  ReadContext() = default;
+  ReadContext(const ReadContext&) = delete;
+  ReadContext& operator=(const ReadContext&) = delete;
+  ~ReadContext() {
+    if (png != nullptr) png_destroy_read_struct(&png, &info, nullptr);
+  }
+};
+
+void read_from_memory(png_structp png, png_bytep out, std::size_t length) {
+  auto* context = static_cast<ReadContext*>(png_get_io_ptr(png));
+  if (length > context->size - context->offset) png_error(png, "file is truncated (unexpected end of data)");
+  std::memcpy(out, context->data + context->offset, length);
+  context->offset += length;
+}
+
+// The layout after our transforms (png_read_update_info).
+struct DecodedLayout {
+  png_uint_32 width = 0;
+  png_uint_32 height = 0;
+  int bit_depth = 0;
+  int channels = 0;
+  std::size_t row_bytes = 0;
+};
+
+void set_up_transforms(png_structp png, png_infop info, DecodedLayout* layout) {
+  png_set_user_limits(png, kMaxSide, kMaxSide);
+  png_read_info(png, info);
+  const int color_type = png_get_color_type(png, info);
+  const int bit_depth = png_get_bit_depth(png, info);
+  if (color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
+  if (color_type == PNG_COLOR_TYPE_GRAY && bit_depth < 8) png_set_expand_gray_1_2_4_to_8(png);
+  // Transparency carries no intensity: drop alpha channels and tRNS.
+  png_set_strip_alpha(png);
+  if ((color_type & PNG_COLOR_MASK_COLOR) != 0) {
+    png_set_rgb_to_gray_fixed(png, 1 /* silently */, -1, -1);  // default luma weights
+  }
+  if (bit_depth == 16 && host_is_little_endian()) png_set_swap(png);
+  (void)png_set_interlace_handling(png);
+  png_read_update_info(png, info);
+  layout->width = png_get_image_width(png, info);
+  layout->height = png_get_image_height(png, info);
+  layout->bit_depth = png_get_bit_depth(png, info);
+  layout->channels = png_get_channels(png, info);
+  layout->row_bytes = png_get_rowbytes(png, info);
+}
+
+void read_rows(png_structp png, png_bytepp rows) {
+  png_read_image(png, rows);
+  png_read_end(png, nullptr);  // checks the chunks after the image data up to IEND
+}
+
+template <typename T>
+AnyImage decode_into(ReadContext& context, const DecodedLayout& layout, const std::string& name) {
+  Image<T> image(static_cast<int>(layout.width), static_cast<int>(layout.height));
+  std::vector<png_bytep> rows(layout.height);
+  for (png_uint_32 y = 0; y < layout.height; ++y) {
+    rows[y] = reinterpret_cast<png_bytep>(image.data() + static_cast<std::size_t>(y) * layout.width);
+  }
+  png_structp png = context.png;
+  png_bytepp row_pointers = rows.data();
+  if (!run_guarded(png, [png, row_pointers] { read_rows(png, row_pointers); })) {
+    throw Error(code_for_libpng_message(context.sink.message),
+                fmt::format("{}: corrupt PNG: {}", name, context.sink.message));
+  }
+  return image;
+}
+
+// ---------------------------------------------------------------------------------------
+// Writing
+
+struct WriteContext {
+  ErrorSink sink;
+  std::vector<std::uint8_t> bytes;
+  png_structp png = nullptr;
+  png_infop info = nullptr;
+
+  WriteContext() = default;
+  WriteContext(const WriteContext&) = delete;
+  WriteContext& operator=(const WriteContext&) = delete;
+  ~WriteContext() {
+    if (png != nullptr) png_destroy_write_struct(&png, &info);
+  }
+};
+
+bool append_bytes(std::vector<std::uint8_t>& bytes, const std::uint8_t* data, std::size_t length) noexcept {
+  try {
+    bytes.insert(bytes.end(), data, data + length);
+    return true;
+  } catch (...) {
+    return false;
+  }
+}
+
+void write_to_memory(png_structp png, png_bytep data, std::size_t length) {
+  auto* context = static_cast<WriteContext*>(png_get_io_ptr(png));
+  if (!append_bytes(context->bytes, data, length)) png_error(png, "out of memory for the encoded PNG");
+}
+
+void flush_nothing(png_structp) {}
+
+struct WriteJob {
+  const unsigned char* first_row = nullptr;
+  std::size_t stride_bytes = 0;
+  png_uint_32 width = 0;
+  png_uint_32 height = 0;
+  int bit_depth = 0;
+  int compression_level = 1;
+  bool fast = true;
+};
+
+void write_image(png_structp png, png_infop info, const WriteJob& job) {
+  png_set_IHDR(png, info, job.width, job.height, job.bit_depth, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_compression_level(png, job.compression_level);
+  if (job.fast) {
+    // Camera noise defeats LZ matching, so deflate's match search is mostly wasted time;
+    // UP + Z_RLE keeps the entropy coding and the long runs of flat (rendered) regions.
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_UP);
+    png_set_compression_strategy(png, Z_RLE);
+  } else {
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_ALL_FILTERS);
+  }
+  // Larger IDAT chunks: less per-chunk overhead on 24 MB images.
+  png_set_compression_buffer_size(png, 256 * 1024);
+  png_write_info(png, info);
+  if (job.bit_depth == 16 && host_is_little_endian()) png_set_swap(png);  // PNG is big-endian
+  for (png_uint_32 y = 0; y < job.height; ++y) {
+    png_write_row(png, job.first_row + static_cast<std::size_t>(y) * job.stride_bytes);
+  }
+  png_write_end(png, nullptr);
+}
+
+template <typename T>
+std::vector<std::uint8_t> encode_any(ImageView<const T> image, const PngWriteOptions& options) {
+  if (image.empty() || image.data == nullptr) {
+    throw_error(ErrorCode::kInvalidArgument, "encode_png: the image is empty ({}x{})", image.width, image.height);
+  }
+  if (static_cast<png_uint_32>(image.width) > kMaxSide || static_cast<png_uint_32>(image.height) > kMaxSide) {
+    throw_error(ErrorCode::kInvalidArgument, "encode_png: image size {}x{} is too large", image.width, image.height);
+  }
+  if (options.compression_level < 0 || options.compression_level > 9) {
+    throw_error(ErrorCode::kInvalidArgument, "encode_png: compression level {} is outside 0..9",
+                options.compression_level);
+  }
+  WriteContext context;
+  const std::size_t raw_bytes = image.pixel_count() * sizeof(T);
+  // Camera images rarely compress below half; reserving avoids most regrowth copies.
+  context.bytes.reserve(raw_bytes / 2 + 1024);
+  context.png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &context.sink, on_png_error, on_png_warning);
+  if (context.png == nullptr) throw_error(ErrorCode::kOutOfMemory, "encode_png: cannot create the libpng writer");
+  context.info = png_create_info_struct(context.png);
+  if (context.info == nullptr) throw_error(ErrorCode::kOutOfMemory, "encode_png: cannot create the libpng info");
+  png_set_write_fn(context.png, &context, write_to_memory, flush_nothing);
+
+  WriteJob job;
+  job.first_row = reinterpret_cast<const unsigned char*>(image.data);
+  job.stride_bytes = image.stride_bytes;
+  job.width = static_cast<png_uint_32>(image.width);
+  job.height = static_cast<png_uint_32>(image.height);
+  job.bit_depth = static_cast<int>(sizeof(T) * 8);
+  job.compression_level = options.compression_level;
+  job.fast = options.fast;
+  png_structp png = context.png;
+  png_infop info = context.info;
+  const WriteJob* job_pointer = &job;
+  if (!run_guarded(png, [png, info, job_pointer] { write_image(png, info, *job_pointer); })) {
+    throw Error(code_for_libpng_message(context.sink.message),
+                fmt::format("encode_png: libpng failed: {}", context.sink.message));
+  }
+  return std::move(context.bytes);
+}
+
+// Reads a whole file with one allocation (large scans: 24 MB per image).
+std::vector<std::uint8_t> read_whole_file(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    const int error_number = errno;
+    throw Error(error_number == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
+                "cannot open " + describe_errno(path, error_number));
+  }
+  struct FdCloser {
+    int fd;
+    ~FdCloser() { ::close(fd); }
+  } closer{fd};
+  struct stat status {};
+  if (::fstat(fd, &status) != 0) throw Error(ErrorCode::kIo, "cannot stat " + describe_errno(path, errno));
+  if (!S_ISREG(status.st_mode)) throw_error(ErrorCode::kIo, "{}: not a regular file", path);
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(status.st_size));
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::read(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path, errno));
+    }
+    if (n == 0) break;  // shrank while reading: decode what is there, it will say truncated
+    done += static_cast<std::size_t>(n);
+  }
+  bytes.resize(done);
+  return bytes;
+}
+
+std::uint32_t big_endian_u32(const std::uint8_t* p) {
+  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | std::uint32_t{p[3]};
+}
+
+bool has_png_signature(const std::uint8_t* data, std::size_t size) {
+  return size >= kSignatureSize && png_sig_cmp(data, 0, kSignatureSize) == 0;
+}
+
+[[noreturn]] void throw_not_png(const std::string& name, std::size_t size) {
+  if (size < kSignatureSize) {
+    throw_error(ErrorCode::kFormat, "{}: not a PNG file (only {} bytes)", name, size);
+  }
+  throw_error(ErrorCode::kFormat, "{}: not a PNG file (bad signature)", name);
+}
+
+}  // namespace
+
+PngHeader read_png_header(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    const int error_number = errno;
+    throw Error(error_number == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
+                "cannot open " + describe_errno(path, error_number));
+  }
+  std::uint8_t bytes[kHeaderBytes] = {};
+  std::size_t size = 0;
+  int read_errno = 0;
+  while (size < kHeaderBytes) {
+    const ssize_t n = ::read(fd, bytes + size, kHeaderBytes - size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) read_errno = errno;
+    if (n <= 0) break;
+    size += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  if (read_errno != 0) throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path, read_errno));
+  if (!has_png_signature(bytes, size)) throw_not_png(path, size);
+  if (size < kHeaderBytes) throw_error(ErrorCode::kFormat, "{}: corrupt PNG: file is truncated inside the header", path);
+  const std::uint8_t* chunk = bytes + kSignatureSize;
+  if (big_endian_u32(chunk) != 13 || std::memcmp(chunk + 4, "IHDR", 4) != 0) {
+    throw_error(ErrorCode::kFormat, "{}: corrupt PNG: the first chunk is not a valid IHDR", path);
+  }
+  const std::uint32_t crc = static_cast<std::uint32_t>(crc32(crc32(0L, Z_NULL, 0), chunk + 4, 4 + 13));
+  if (crc != big_endian_u32(chunk + 4 + 4 + 13)) throw_error(ErrorCode::kFormat, "{}: corrupt PNG: IHDR CRC error", path);
+  const std::uint8_t* data = chunk + 8;
+  const std::uint32_t width = big_endian_u32(data);
+  const std::uint32_t height = big_endian_u32(data + 4);
+  const int bit_depth = data[8];
+  const int color_type = data[9];
+  const int interlace = data[12];
+  if (width == 0 || height == 0 || width > kMaxSide || height > kMaxSide) {
+    throw_error(ErrorCode::kFormat, "{}: corrupt or unsupported PNG: image size {}x{}", path, width, height);
+  }
+  PngHeader header;
+  header.width = static_cast<int>(width);
+  header.height = static_cast<int>(height);
+  header.bit_depth = bit_depth;
+  header.interlaced = interlace == 1;
+  bool depth_ok = false;
+  switch (color_type) {
+    case 0:  // gray
+      header.channels = 1;
+      depth_ok = bit_depth == 1 || bit_depth == 2 || bit_depth == 4 || bit_depth == 8 || bit_depth == 16;
+      break;
+    case 3:  // palette
+      header.channels = 3;
+      header.palette = true;
+      depth_ok = bit_depth == 1 || bit_depth == 2 || bit_depth == 4 || bit_depth == 8;
+      break;
+    case 2:  // RGB
+    case 4:  // gray + alpha
+    case 6:  // RGBA
+      header.channels = color_type == 2 ? 3 : color_type == 4 ? 2 : 4;
+      depth_ok = bit_depth == 8 || bit_depth == 16;
+      break;
+    default:
+      throw_error(ErrorCode::kFormat, "{}: corrupt PNG: invalid colour type {}", path, color_type);
+  }
+  if (!depth_ok) {
+    throw_error(ErrorCode::kFormat, "{}: corrupt PNG: bit depth {} is invalid for colour type {}", path, bit_depth,
+                color_type);
+  }
+  if (interlace > 1) throw_error(ErrorCode::kFormat, "{}: corrupt PNG: invalid interlace method {}", path, interlace);
+  return header;
+}
+
+AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name) {
+  if (data == nullptr || !has_png_signature(data, size)) throw_not_png(name, data == nullptr ? 0 : size);
+  ReadContext context;
+  context.data = data;
+  context.size = size;
+  context.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &context.sink, on_png_error, on_png_warning);
+  if (context.png == nullptr) throw_error(ErrorCode::kOutOfMemory, "{}: cannot create the libpng reader", name);
+  context.info = png_create_info_struct(context.png);
+  if (context.info == nullptr) throw_error(ErrorCode::kOutOfMemory, "{}: cannot create the libpng info", name);
+  png_set_read_fn(context.png, &context, read_from_memory);
+
+  DecodedLayout layout;
+  png_structp png = context.png;
+  png_infop info = context.info;
+  DecodedLayout* layout_pointer = &layout;
+  if (!run_guarded(png, [png, info, layout_pointer] { set_up_transforms(png, info, layout_pointer); })) {
+    throw Error(code_for_libpng_message(context.sink.message),
+                fmt::format("{}: corrupt PNG: {}", name, context.sink.message));
+  }
+  if (layout.channels != 1 || (layout.bit_depth != 8 && layout.bit_depth != 16)) {
+    throw_error(ErrorCode::kFormat, "{}: unsupported PNG layout ({} channels of {} bits after conversion to gray)",
+                name, layout.channels, layout.bit_depth);
+  }
+  const std::size_t bytes_per_pixel = layout.bit_depth == 16 ? 2 : 1;
+  if (layout.row_bytes != std::size_t{layout.width} * bytes_per_pixel ||
+      std::size_t{layout.height} * layout.row_bytes > kMaxImageBytes) {
+    throw_error(ErrorCode::kFormat, "{}: unsupported PNG: {}x{} pixels, {} bytes per row", name, layout.width,
+                layout.height, layout.row_bytes);
+  }
+  return layout.bit_depth == 16 ? decode_into<std::uint16_t>(context, layout, name)
+                                : decode_into<std::uint8_t>(context, layout, name);
+}
+
+AnyImage read_png(const std::string& path) {
+  const std::vector<std::uint8_t> bytes = read_whole_file(path);
+  return decode_png(bytes.data(), bytes.size(), path);
+}
+
+Image8u read_png_u8(const std::string& path) {
+  AnyImage image = read_png(path);
+  if (auto* image8 = std::get_if<Image8u>(&image)) return std::move(*image8);
+  throw_error(ErrorCode::kFormat, "{}: is a 16-bit PNG where an 8-bit image was expected", path);
+}
+
+Image16u read_png_u16(const std::string& path) {
+  AnyImage image = read_png(path);
+  if (auto* image16 = std::get_if<Image16u>(&image)) return std::move(*image16);
+  const Image8u& image8 = std::get<Image8u>(image);
+  Image16u widened(image8.width(), image8.height());
+  std::copy(image8.data(), image8.data() + image8.pixel_count(), widened.data());
+  return widened;
+}
+
+std::vector<std::uint8_t> encode_png(ImageView<const std::uint8_t> image, const PngWriteOptions& options) {
+  return encode_any(image, options);
+}
+
+std::vector<std::uint8_t> encode_png(ImageView<const std::uint16_t> image, const PngWriteOptions& options) {
+  return encode_any(image, options);
+}
+
+namespace {
+
+template <typename T>
+void write_any(const std::string& path, ImageView<const T> image, const PngWriteOptions& options) {
+  std::vector<std::uint8_t> bytes;
+  try {
+    bytes = encode_any(image, options);
+  } catch (const Error& error) {
+    throw Error(error.code(), path + ": " + error.what());
+  }
+  write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
+}  // namespace
+
+void write_png(const std::string& path, ImageView<const std::uint8_t> image, const PngWriteOptions& options) {
+  write_any(path, image, options);
+}
+
+void write_png(const std::string& path, ImageView<const std::uint16_t> image, const PngWriteOptions& options) {
+  write_any(path, image, options);
+}
+
+}  // namespace sls

@@ -1,1 +1,674 @@
-// implemented by its issue-2 task
+#include "sdk/core/recording.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <algorithm>
+#include <atomic>
+#include <ctime>
+#include <exception>
+#include <filesystem>
+#include <limits>
+#include <mutex>
+#include <thread>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "sdk/core/error.h"
+#include "sdk/core/file_util.h"
+#include "sdk/core/image_io.h"
+
+namespace sls {
+namespace {
+
+namespace fs = std::filesystem;
+// ordered_json keeps "format" first and the caller's pattern-set key order: easier to read.
+using Json = nlohmann::ordered_json;
+
+constexpr const char* kFormatName = "slscan-recording";
+constexpr const char* kManifestName = "manifest.json";
+constexpr const char* kCalibrationName = "calibration.yml";
+constexpr const char* kGroundtruthName = "groundtruth";
+constexpr const char* kFramesName = "frames";
+constexpr const char* kDepthFormat = "png16";
+constexpr int kMaxSide = 1 << 20;
+
+std::string absolute_folder(const std::string& folder) {
+  if (folder.empty()) throw_error(ErrorCode::kInvalidArgument, "recording folder path is empty");
+  fs::path path = fs::absolute(fs::path(folder)).lexically_normal();
+  std::string text = path.string();
+  while (text.size() > 1 && text.back() == '/') text.pop_back();
+  return text;
+}
+
+std::string utc_now_iso8601() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char text[32] = {};
+  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return text;
+}
+
+std::string frame_folder_relative(int index) { return fmt::format("{}/{:06d}", kFramesName, index); }
+
+// Writes a file in place and fsyncs it. Frame files need no rename: the manifest lists them
+// only after they are complete, and a stray half file is never read.
+void write_file_synced(const std::string& path, const std::vector<std::uint8_t>& bytes, bool sync) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw Error(ErrorCode::kIo, "cannot create " + describe_errno(path, errno));
+  std::size_t written = 0;
+  int error_number = 0;
+  while (written < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + written, bytes.size() - written);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      error_number = errno;
+      break;
+    }
+    written += static_cast<std::size_t>(n);
+  }
+  if (error_number == 0 && sync && ::fsync(fd) != 0) error_number = errno;
+  if (::close(fd) != 0 && error_number == 0) error_number = errno;
+  if (error_number != 0) throw Error(ErrorCode::kIo, "cannot write " + describe_errno(path, error_number));
+}
+
+// Depth steps on disk <-> metres in memory (see recording.h).
+Image16u depth_to_steps(const Image32f& depth_m, double unit_m, double offset_m, std::size_t* out_of_range) {
+  Image16u steps(depth_m.width(), depth_m.height());
+  const float* in = depth_m.data();
+  std::uint16_t* out = steps.data();
+  for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) {
+    const float d = in[i];
+    if (!std::isfinite(d) || d <= 0.0f) continue;  // invalid stays 0
+    const double step = std::round((static_cast<double>(d) - offset_m) / unit_m);
+    if (step < 1.0 || step > 65535.0) {
+      ++*out_of_range;
+      continue;
+    }
+    out[i] = static_cast<std::uint16_t>(step);
+  }
+  return steps;
+}
+
+Image32f steps_to_depth(const Image16u& steps, double unit_m, double offset_m) {
+  Image32f depth(steps.width(), steps.height());
+  const std::uint16_t* in = steps.data();
+  float* out = depth.data();
+  for (std::size_t i = 0; i < steps.pixel_count(); ++i) {
+    if (in[i] != 0) out[i] = static_cast<float>(offset_m + static_cast<double>(in[i]) * unit_m);
+  }
+  return depth;
+}
+
+std::string normalised_pattern_set(const std::string& text, const std::string& folder) {
+  Json parsed;
+  try {
+    parsed = Json::parse(text);
+  } catch (const Json::parse_error& error) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: pattern_set_json is not valid JSON (byte {}): {}", folder,
+                error.byte, error.what());
+  }
+  if (!parsed.is_object()) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: pattern_set_json must be a JSON object, got {}", folder,
+                parsed.type_name());
+  }
+  return parsed.dump();
+}
+
+void validate_info(const RecordingInfo& info, const std::string& folder) {
+  const RecordingCamera& camera = info.camera;
+  if (camera.width <= 0 || camera.height <= 0 || camera.width > kMaxSide || camera.height > kMaxSide) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: camera size {}x{} is invalid", folder, camera.width, camera.height);
+  }
+  if (camera.bit_depth < 1 || camera.bit_depth > 16) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: camera bit depth {} is outside 1..16", folder, camera.bit_depth);
+  }
+  if (info.images_per_frame < 1) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: images_per_frame {} must be at least 1", folder,
+                info.images_per_frame);
+  }
+  if (!(std::isfinite(info.depth_unit_m) && info.depth_unit_m > 0.0) ||
+      !(std::isfinite(info.depth_offset_m) && info.depth_offset_m >= 0.0)) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: depth unit {} m / offset {} m is invalid (unit > 0, offset >= 0)",
+                folder, info.depth_unit_m, info.depth_offset_m);
+  }
+}
+
+Json frame_to_json(const FrameInfo& frame) {
+  Json json;
+  json["index"] = frame.index;
+  json["timestamp_ns"] = frame.timestamp_ns;
+  json["turntable_angle_deg"] = frame.turntable_angle_deg ? Json(*frame.turntable_angle_deg) : Json(nullptr);
+  json["images"] = frame.image_files;
+  if (frame.has_depth()) json["depth"] = frame.depth_file;
+  json["status"] = frame.complete ? "complete" : "incomplete";
+  if (!frame.note.empty()) json["note"] = frame.note;
+  return json;
+}
+
+// ---------------------------------------------------------------------------------------
+// Manifest parsing: every accessor names the file and the key path in its error.
+
+class ManifestParser {
+ public:
+  explicit ManifestParser(std::string path) : path_(std::move(path)) {}
+
+  [[noreturn]] void fail(const std::string& what) const {
+    throw_error(ErrorCode::kFormat, "{}: {}", path_, what);
+  }
+
+  const Json& member(const Json& object, const char* key, const std::string& where) const {
+    const auto it = object.find(key);
+    if (it == object.end()) fail(fmt::format("missing key '{}'", join(where, key)));
+    return *it;
+  }
+  const Json* optional_member(const Json& object, const char* key) const {
+    const auto it = object.find(key);
+    return it == object.end() || it->is_null() ? nullptr : &*it;
+  }
+  const Json& object(const Json& parent, const char* key, const std::string& where) const {
+    const Json& value = member(parent, key, where);
+    if (!value.is_object()) fail(fmt::format("'{}' must be an object, not {}", join(where, key), value.type_name()));
+    return value;
+  }
+  std::string string(const Json& value, const std::string& name) const {
+    if (!value.is_string()) fail(fmt::format("'{}' must be a string, not {}", name, value.type_name()));
+    return value.get<std::string>();
+  }
+  std::string string(const Json& parent, const char* key, const std::string& where) const {
+    return string(member(parent, key, where), join(where, key));
+  }
+  std::int64_t integer(const Json& parent, const char* key, const std::string& where, std::int64_t min,
+                       std::int64_t max) const {
+    const Json& value = member(parent, key, where);
+    const std::string name = join(where, key);
+    if (!value.is_number_integer()) fail(fmt::format("'{}' must be an integer, not {}", name, value.type_name()));
+    if (value.is_number_unsigned() && value.get<std::uint64_t>() > static_cast<std::uint64_t>(max)) {
+      fail(fmt::format("'{}' = {} is outside {}..{}", name, value.get<std::uint64_t>(), min, max));
+    }
+    const auto number = value.get<std::int64_t>();
+    if (number < min || number > max) fail(fmt::format("'{}' = {} is outside {}..{}", name, number, min, max));
+    return number;
+  }
+  double number(const Json& value, const std::string& name) const {
+    if (!value.is_number()) fail(fmt::format("'{}' must be a number, not {}", name, value.type_name()));
+    return value.get<double>();
+  }
+  // A path inside the recording folder: relative, no "..", no root.
+  std::string relative_path(const Json& value, const std::string& name) const {
+    const std::string text = string(value, name);
+    const fs::path path(text);
+    if (text.empty()) fail(fmt::format("'{}' is an empty path", name));
+    if (path.has_root_path()) fail(fmt::format("'{}' = \"{}\" is absolute; paths must stay inside the recording", name, text));
+    for (const fs::path& part : path) {
+      if (part == "..") fail(fmt::format("'{}' = \"{}\" leaves the recording folder", name, text));
+    }
+    return text;
+  }
+
+  static std::string join(const std::string& where, const char* key) {
+    return where.empty() ? std::string(key) : where + "." + key;
+  }
+
+ private:
+  std::string path_;
+};
+
+FrameInfo parse_frame(const ManifestParser& parser, const Json& json, std::size_t position, int images_per_frame) {
+  const std::string where = fmt::format("frames[{}]", position);
+  if (!json.is_object()) parser.fail(fmt::format("'{}' must be an object, not {}", where, json.type_name()));
+  FrameInfo frame;
+  frame.index = static_cast<int>(parser.integer(json, "index", where, 0, std::numeric_limits<int>::max()));
+  frame.timestamp_ns = parser.integer(json, "timestamp_ns", where, std::numeric_limits<std::int64_t>::min(),
+                                      std::numeric_limits<std::int64_t>::max());
+  if (const Json* angle = parser.optional_member(json, "turntable_angle_deg")) {
+    frame.turntable_angle_deg = parser.number(*angle, where + ".turntable_angle_deg");
+  }
+  const std::string status = parser.string(json, "status", where);
+  if (status != "complete" && status != "incomplete") {
+    parser.fail(fmt::format("'{}.status' = \"{}\" must be \"complete\" or \"incomplete\"", where, status));
+  }
+  frame.complete = status == "complete";
+  if (const Json* note = parser.optional_member(json, "note")) frame.note = parser.string(*note, where + ".note");
+  const Json& images = parser.member(json, "images", where);
+  if (!images.is_array()) parser.fail(fmt::format("'{}.images' must be an array, not {}", where, images.type_name()));
+  const std::size_t expected = static_cast<std::size_t>(images_per_frame);
+  if (frame.complete ? images.size() != expected : images.size() > expected) {
+    parser.fail(fmt::format("'{}.images' lists {} images; images_per_frame is {}{}", where, images.size(),
+                            images_per_frame, frame.complete ? "" : " (an incomplete frame may have fewer, not more)"));
+  }
+  for (std::size_t k = 0; k < images.size(); ++k) {
+    frame.image_files.push_back(parser.relative_path(images[k], fmt::format("{}.images[{}]", where, k)));
+  }
+  if (const Json* depth = parser.optional_member(json, "depth")) {
+    frame.depth_file = parser.relative_path(*depth, where + ".depth");
+  }
+  return frame;
+}
+
+// Runs job(0..count-1) on up to `threads` threads (0: one per hardware thread). PNG
+// encoding is CPU-bound and a frame holds tens of 24 MB images, so they are encoded side by
+// side. Rethrows the first job's exception after all threads have joined.
+template <typename Job>
+void run_parallel(std::size_t count, int threads, const Job& job) {
+  std::size_t workers = threads > 0 ? static_cast<std::size_t>(threads) : std::thread::hardware_concurrency();
+  workers = std::max<std::size_t>(1, std::min(workers, count));
+  if (workers <= 1) {
+    for (std::size_t k = 0; k < count; ++k) job(k);
+    return;
+  }
+  std::atomic<std::size_t> next{0};
+  std::atomic<bool> failed{false};
+  std::exception_ptr first_error;
+  std::mutex error_mutex;
+  const auto work = [&] {
+    for (std::size_t k = next++; k < count && !failed; k = next++) {
+      try {
+        job(k);
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(error_mutex);
+        if (!first_error) first_error = std::current_exception();
+        failed = true;
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  pool.reserve(workers - 1);
+  try {
+    for (std::size_t t = 1; t < workers; ++t) pool.emplace_back(work);
+  } catch (...) {
+    // Could not start more threads: the ones running and this one finish the work.
+  }
+  work();
+  for (std::thread& thread : pool) thread.join();
+  if (first_error) std::rethrow_exception(first_error);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+// Writer
+
+RecordingWriter RecordingWriter::create(const std::string& folder, const RecordingInfo& info,
+                                        const std::optional<ScannerCalibration>& calibration,
+                                        const RecordingWriterOptions& options) {
+  validate_info(info, folder);
+  if (options.png_compression_level < 0 || options.png_compression_level > 9) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: PNG compression level {} is outside 0..9", folder,
+                options.png_compression_level);
+  }
+  if (calibration &&
+      (calibration->camera.width != info.camera.width || calibration->camera.height != info.camera.height)) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: the calibration is for a {}x{} camera, the recording is {}x{}",
+                folder, calibration->camera.width, calibration->camera.height, info.camera.width, info.camera.height);
+  }
+  // Everything is checked before anything is created, so a refused call leaves no folder.
+  if (calibration) calibration->validate();
+  RecordingWriter writer;
+  writer.folder_ = absolute_folder(folder);
+  writer.info_ = info;
+  writer.info_.pattern_set_json = normalised_pattern_set(info.pattern_set_json, folder);
+  writer.info_.created_utc = utc_now_iso8601();
+  writer.has_calibration_ = calibration.has_value();
+  writer.options_ = options;
+
+  std::error_code error;
+  const fs::file_status status = fs::status(writer.folder_, error);
+  if (fs::exists(status)) {
+    if (!fs::is_directory(status)) {
+      throw_error(ErrorCode::kInvalidArgument, "recording {}: exists and is not a folder", writer.folder_);
+    }
+    if (!fs::is_empty(writer.folder_, error) || error) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "recording {}: the folder exists and is not empty; refusing to write a recording into it",
+                  writer.folder_);
+    }
+  }
+  create_directories(writer.folder_);
+  create_directories(writer.folder_ + "/" + kFramesName);
+  if (info.has_groundtruth) create_directories(writer.folder_ + "/" + kGroundtruthName);
+  if (calibration) write_calibration(writer.folder_ + "/" + kCalibrationName, *calibration);
+  writer.write_manifest();
+  sync_directory(writer.folder_);
+  const fs::path parent = fs::path(writer.folder_).parent_path();
+  if (!parent.empty()) sync_directory(parent.string());
+  return writer;
+}
+
+const FrameInfo& RecordingWriter::frame(std::size_t position) const {
+  if (position >= frames_.size()) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: frame {} does not exist ({} frames)", folder_, position,
+                frames_.size());
+  }
+  return frames_[position];
+}
+
+std::string RecordingWriter::groundtruth_folder() const {
+  return info_.has_groundtruth ? folder_ + "/" + kGroundtruthName : std::string();
+}
+
+void RecordingWriter::close() { closed_ = true; }
+
+int RecordingWriter::append_frame(const std::vector<Image16u>& images, const FrameMetadata& metadata,
+                                  const Image32f* depth_m) {
+  return append_any(images, metadata, depth_m);
+}
+
+int RecordingWriter::append_frame(const std::vector<Image8u>& images, const FrameMetadata& metadata,
+                                  const Image32f* depth_m) {
+  return append_any(images, metadata, depth_m);
+}
+
+template <typename T>
+int RecordingWriter::append_any(const std::vector<Image<T>>& images, const FrameMetadata& metadata,
+                                const Image32f* depth_m) {
+  if (closed_) throw_error(ErrorCode::kInvalidArgument, "recording {}: append_frame after close()", folder_);
+  const RecordingCamera& camera = info_.camera;
+  const std::size_t expected = static_cast<std::size_t>(info_.images_per_frame);
+  if (metadata.complete ? images.size() != expected : images.size() > expected) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: {} frame with {} images; images_per_frame is {}", folder_,
+                metadata.complete ? "complete" : "incomplete", images.size(), expected);
+  }
+  if (metadata.turntable_angle_deg && !std::isfinite(*metadata.turntable_angle_deg)) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: turntable angle is not finite", folder_);
+  }
+  if (sizeof(T) == 1 && camera.bit_depth > 8) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: 8-bit images for a {}-bit camera", folder_,
+                camera.bit_depth);
+  }
+  // Values must fit the camera's bit depth: an 8-bit recording stores 8-bit PNGs, and a
+  // reader relies on 0..2^bit_depth-1 for any depth.
+  const unsigned max_value = (1u << camera.bit_depth) - 1u;
+  for (std::size_t k = 0; k < images.size(); ++k) {
+    const Image<T>& image = images[k];
+    if (image.width() != camera.width || image.height() != camera.height) {
+      throw_error(ErrorCode::kInvalidArgument, "recording {}: image {} is {}x{}, the camera is {}x{}", folder_, k,
+                  image.width(), image.height(), camera.width, camera.height);
+    }
+    if (max_value < std::numeric_limits<T>::max()) {
+      const T* pixels = image.data();
+      for (std::size_t i = 0; i < image.pixel_count(); ++i) {
+        if (pixels[i] > max_value) {
+          throw_error(ErrorCode::kInvalidArgument, "recording {}: image {} has value {} at ({}, {}), above the {}-bit range",
+                      folder_, k, pixels[i], i % static_cast<std::size_t>(camera.width),
+                      i / static_cast<std::size_t>(camera.width), camera.bit_depth);
+        }
+      }
+    }
+  }
+  if (depth_m != nullptr && (depth_m->width() != camera.width || depth_m->height() != camera.height)) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: depth map is {}x{}, the camera is {}x{}", folder_,
+                depth_m->width(), depth_m->height(), camera.width, camera.height);
+  }
+
+  FrameInfo frame;
+  frame.index = static_cast<int>(frames_.size());
+  frame.timestamp_ns = metadata.timestamp_ns;
+  frame.turntable_angle_deg = metadata.turntable_angle_deg;
+  frame.complete = metadata.complete;
+  frame.note = metadata.note;
+  const std::string frame_relative = frame_folder_relative(frame.index);
+  const std::string frame_folder = folder_ + "/" + frame_relative;
+  create_directories(frame_folder);
+
+  PngWriteOptions png_options;
+  png_options.compression_level = options_.png_compression_level;
+  for (std::size_t k = 0; k < images.size(); ++k) {
+    frame.image_files.push_back(fmt::format("{}/pattern_{:03d}.png", frame_relative, k));
+  }
+  if (depth_m != nullptr) frame.depth_file = frame_relative + "/depth.png";
+  std::size_t depth_out_of_range = 0;
+  const std::string& root = folder_;
+  const RecordingInfo& info = info_;
+  const bool sync = options_.sync;
+  // Job k < images.size() writes image k; the last job (when present) the depth map.
+  const auto write_job = [&](std::size_t k) {
+    if (k < images.size()) {
+      const Image<T>& image = images[k];
+      std::vector<std::uint8_t> bytes;
+      if constexpr (sizeof(T) == 2) {
+        if (info.camera.bit_depth <= 8) {
+          Image8u narrow(image.width(), image.height());
+          const T* in = image.data();
+          std::uint8_t* out = narrow.data();
+          for (std::size_t i = 0; i < narrow.pixel_count(); ++i) out[i] = static_cast<std::uint8_t>(in[i]);
+          bytes = encode_png(narrow.view(), png_options);
+        } else {
+          bytes = encode_png(image.view(), png_options);
+        }
+      } else {
+        bytes = encode_png(image.view(), png_options);
+      }
+      write_file_synced(root + "/" + frame.image_files[k], bytes, sync);
+    } else {
+      const Image16u steps = depth_to_steps(*depth_m, info.depth_unit_m, info.depth_offset_m, &depth_out_of_range);
+      write_file_synced(root + "/" + frame.depth_file, encode_png(steps.view(), png_options), sync);
+    }
+  };
+  run_parallel(images.size() + (depth_m != nullptr ? 1 : 0), options_.encode_threads, write_job);
+  if (depth_out_of_range > 0) {
+    spdlog::warn("recording {}: frame {}: {} depth pixels outside the storable range {} .. {} m stored as invalid",
+                 folder_, frame.index, depth_out_of_range, info_.depth_offset_m + info_.depth_unit_m,
+                 info_.depth_offset_m + 65535.0 * info_.depth_unit_m);
+  }
+  if (options_.sync) {
+    sync_directory(frame_folder);
+    sync_directory(folder_ + "/" + kFramesName);
+  }
+  // Only now does the frame become part of the recording.
+  frames_.push_back(std::move(frame));
+  try {
+    write_manifest();
+  } catch (...) {
+    frames_.pop_back();
+    throw;
+  }
+  return frames_.back().index;
+}
+
+void RecordingWriter::write_manifest() const {
+  Json manifest;
+  manifest["format"] = kFormatName;
+  manifest["format_version"] = RecordingInfo::kFormatVersion;
+  manifest["created_utc"] = info_.created_utc;
+  manifest["device"] = {{"uri", info_.device.uri}, {"model", info_.device.model}, {"serial", info_.device.serial}};
+  manifest["camera"] = {
+      {"width", info_.camera.width}, {"height", info_.camera.height}, {"bit_depth", info_.camera.bit_depth}};
+  manifest["pattern_set"] = Json::parse(info_.pattern_set_json);
+  manifest["images_per_frame"] = info_.images_per_frame;
+  manifest["calibration"] = has_calibration_ ? Json(kCalibrationName) : Json(nullptr);
+  if (info_.has_groundtruth) manifest["groundtruth"] = kGroundtruthName;
+  manifest["depth_encoding"] = {
+      {"format", kDepthFormat}, {"unit_m", info_.depth_unit_m}, {"offset_m", info_.depth_offset_m}};
+  Json frames = Json::array();
+  for (const FrameInfo& frame : frames_) frames.push_back(frame_to_json(frame));
+  manifest["frames"] = std::move(frames);
+  write_file_atomic(folder_ + "/" + kManifestName, manifest.dump(1) + "\n");
+}
+
+// ---------------------------------------------------------------------------------------
+// Reader
+
+RecordingReader RecordingReader::open(const std::string& folder) {
+  RecordingReader reader;
+  reader.folder_ = absolute_folder(folder);
+  std::error_code error;
+  if (!fs::is_directory(reader.folder_, error)) {
+    throw_error(ErrorCode::kNotFound, "recording {}: no such folder", reader.folder_);
+  }
+  const std::string manifest_path = reader.folder_ + "/" + kManifestName;
+  const std::string text = read_file_text(manifest_path);  // kNotFound naming the file
+  Json root;
+  try {
+    root = Json::parse(text);
+  } catch (const Json::parse_error& parse_error) {
+    throw_error(ErrorCode::kFormat, "{}: corrupt manifest, invalid JSON at byte {}{}: {}", manifest_path,
+                parse_error.byte,
+                parse_error.byte > text.size() ? fmt::format(" (the file ends at byte {}: truncated?)", text.size())
+                                               : std::string(),
+                parse_error.what());
+  }
+  const ManifestParser parser(manifest_path);
+  if (!root.is_object()) parser.fail(fmt::format("the manifest must be a JSON object, not {}", root.type_name()));
+  const std::string format = parser.string(root, "format", "");
+  if (format != kFormatName) parser.fail(fmt::format("format is \"{}\", not \"{}\"", format, kFormatName));
+  const std::int64_t version = parser.integer(root, "format_version", "", 1, std::numeric_limits<int>::max());
+  if (version > RecordingInfo::kFormatVersion) {
+    throw_error(ErrorCode::kVersionMismatch,
+                "{}: recording format_version {} is newer than this SDK reads (up to {}); update slscan",
+                manifest_path, version, RecordingInfo::kFormatVersion);
+  }
+
+  RecordingInfo& info = reader.info_;
+  info.created_utc = parser.string(root, "created_utc", "");
+  const Json& device = parser.object(root, "device", "");
+  info.device.uri = parser.string(device, "uri", "device");
+  info.device.model = parser.string(device, "model", "device");
+  info.device.serial = parser.string(device, "serial", "device");
+  const Json& camera = parser.object(root, "camera", "");
+  info.camera.width = static_cast<int>(parser.integer(camera, "width", "camera", 1, kMaxSide));
+  info.camera.height = static_cast<int>(parser.integer(camera, "height", "camera", 1, kMaxSide));
+  info.camera.bit_depth = static_cast<int>(parser.integer(camera, "bit_depth", "camera", 1, 16));
+  info.pattern_set_json = parser.object(root, "pattern_set", "").dump();
+  info.images_per_frame =
+      static_cast<int>(parser.integer(root, "images_per_frame", "", 1, std::numeric_limits<int>::max()));
+  if (const Json* encoding = parser.optional_member(root, "depth_encoding")) {
+    if (!encoding->is_object()) parser.fail("'depth_encoding' must be an object");
+    const std::string depth_format = parser.string(*encoding, "format", "depth_encoding");
+    if (depth_format != kDepthFormat) {
+      parser.fail(fmt::format("depth_encoding.format \"{}\" is not supported (only \"{}\")", depth_format, kDepthFormat));
+    }
+    info.depth_unit_m = parser.number(parser.member(*encoding, "unit_m", "depth_encoding"), "depth_encoding.unit_m");
+    info.depth_offset_m =
+        parser.number(parser.member(*encoding, "offset_m", "depth_encoding"), "depth_encoding.offset_m");
+    if (!(info.depth_unit_m > 0.0) || !(info.depth_offset_m >= 0.0)) {
+      parser.fail("depth_encoding needs unit_m > 0 and offset_m >= 0");
+    }
+  }
+  if (const Json* groundtruth = parser.optional_member(root, "groundtruth")) {
+    reader.groundtruth_relative_ = parser.relative_path(*groundtruth, "groundtruth");
+    info.has_groundtruth = true;
+  }
+
+  const Json& frames = parser.member(root, "frames", "");
+  if (!frames.is_array()) parser.fail(fmt::format("'frames' must be an array, not {}", frames.type_name()));
+  reader.frames_.reserve(frames.size());
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    FrameInfo frame = parse_frame(parser, frames[i], i, info.images_per_frame);
+    if (!reader.frames_.empty() && frame.index <= reader.frames_.back().index) {
+      parser.fail(fmt::format("frames[{}].index {} does not increase (previous {})", i, frame.index,
+                              reader.frames_.back().index));
+    }
+    reader.frames_.push_back(std::move(frame));
+  }
+
+  // Calibration: a missing key means the default name (every recording written by this SDK
+  // has the key); null means recorded uncalibrated.
+  std::string calibration_relative = kCalibrationName;
+  const auto calibration_it = root.find("calibration");
+  if (calibration_it != root.end()) {
+    calibration_relative = calibration_it->is_null() ? std::string() : parser.relative_path(*calibration_it, "calibration");
+  }
+  if (!calibration_relative.empty()) {
+    const std::string calibration_path = reader.file_path(calibration_relative);
+    if (!fs::exists(calibration_path, error)) {
+      throw_error(ErrorCode::kNotFound, "recording {}: calibration file {} is missing", reader.folder_,
+                  calibration_path);
+    }
+    reader.calibration_ = read_calibration(calibration_path);
+  }
+  if (info.has_groundtruth && !fs::is_directory(reader.groundtruth_folder(), error)) {
+    throw_error(ErrorCode::kNotFound, "recording {}: groundtruth folder {} is missing", reader.folder_,
+                reader.groundtruth_folder());
+  }
+  return reader;
+}
+
+const ScannerCalibration& RecordingReader::calibration() const {
+  if (!calibration_) throw_error(ErrorCode::kNotFound, "recording {}: recorded without calibration", folder_);
+  return *calibration_;
+}
+
+const FrameInfo& RecordingReader::frame(std::size_t position) const {
+  if (position >= frames_.size()) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: frame {} does not exist ({} frames)", folder_, position,
+                frames_.size());
+  }
+  return frames_[position];
+}
+
+std::string RecordingReader::file_path(const std::string& relative) const { return folder_ + "/" + relative; }
+
+std::string RecordingReader::groundtruth_folder() const {
+  return groundtruth_relative_.empty() ? std::string() : file_path(groundtruth_relative_);
+}
+
+namespace {
+
+template <typename T>
+void check_size(const Image<T>& image, const RecordingCamera& camera, const std::string& path, const char* what) {
+  if (image.width() != camera.width || image.height() != camera.height) {
+    throw_error(ErrorCode::kFormat, "{}: {} is {}x{}, the recording's camera is {}x{}", path, what, image.width(),
+                image.height(), camera.width, camera.height);
+  }
+}
+
+}  // namespace
+
+Image16u RecordingReader::load_image(std::size_t position, std::size_t image) const {
+  const FrameInfo& info = frame(position);
+  if (image >= info.image_files.size()) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: frame {} has {} images, no image {}", folder_, position,
+                info.image_files.size(), image);
+  }
+  const std::string path = file_path(info.image_files[image]);
+  Image16u pixels = read_png_u16(path);
+  check_size(pixels, info_.camera, path, "image");
+  return pixels;
+}
+
+std::vector<Image16u> RecordingReader::load_images(std::size_t position) const {
+  const FrameInfo& info = frame(position);
+  // Decoding is CPU-bound (~0.3 s per 24 MB image): decode the frame's images side by side.
+  std::vector<Image16u> images(info.image_files.size());
+  run_parallel(images.size(), 0, [&](std::size_t k) { images[k] = load_image(position, k); });
+  return images;
+}
+
+std::optional<Image32f> RecordingReader::load_depth_m(std::size_t position) const {
+  const FrameInfo& info = frame(position);
+  if (!info.has_depth()) return std::nullopt;
+  const std::string path = file_path(info.depth_file);
+  AnyImage stored = read_png(path);
+  const auto* steps = std::get_if<Image16u>(&stored);
+  if (steps == nullptr) throw_error(ErrorCode::kFormat, "{}: depth map must be a 16-bit PNG, it is 8-bit", path);
+  check_size(*steps, info_.camera, path, "depth map");
+  return steps_to_depth(*steps, info_.depth_unit_m, info_.depth_offset_m);
+}
+
+void RecordingReader::verify(bool decode_pixels) const {
+  for (std::size_t i = 0; i < frames_.size(); ++i) {
+    const FrameInfo& info = frames_[i];
+    std::vector<std::string> files = info.image_files;
+    if (info.has_depth()) files.push_back(info.depth_file);
+    for (const std::string& relative : files) {
+      const std::string path = file_path(relative);
+      const PngHeader header = read_png_header(path);
+      if (header.width != info_.camera.width || header.height != info_.camera.height) {
+        throw_error(ErrorCode::kFormat, "{}: image is {}x{}, the recording's camera is {}x{}", path, header.width,
+                    header.height, info_.camera.width, info_.camera.height);
+      }
+    }
+    if (decode_pixels) {
+      (void)load_images(i);
+      (void)load_depth_m(i);
+    }
+  }
+}
+
+}  // namespace sls

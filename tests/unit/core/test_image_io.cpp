@@ -1,1 +1,320 @@
-// tests written by their issue-2 task
+// PNG I/O: exact round trips, byte order, the conversions on reading, and that every kind of
+// broken file gives an sls::Error naming the file (never a crash).
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "sdk/core/error.h"
+#include "sdk/core/file_util.h"
+#include "sdk/core/image_io.h"
+#include "tests/support/test_support.h"
+
+namespace sls {
+namespace {
+
+using Bytes = std::vector<std::uint8_t>;
+
+// --- A minimal PNG writer (stored deflate blocks), independent of libpng, to feed the
+// reader colour types and bit depths our writer never produces.
+
+std::uint32_t crc32_of(const std::uint8_t* data, std::size_t size) {
+  std::uint32_t crc = 0xffffffffu;
+  for (std::size_t i = 0; i < size; ++i) {
+    crc ^= data[i];
+    for (int bit = 0; bit < 8; ++bit) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+  }
+  return crc ^ 0xffffffffu;
+}
+
+void put_u32(Bytes& out, std::uint32_t value) {
+  for (int shift = 24; shift >= 0; shift -= 8) out.push_back(static_cast<std::uint8_t>(value >> shift));
+}
+
+void put_chunk(Bytes& out, const char* type, const Bytes& data) {
+  put_u32(out, static_cast<std::uint32_t>(data.size()));
+  Bytes typed(type, type + 4);
+  typed.insert(typed.end(), data.begin(), data.end());
+  out.insert(out.end(), typed.begin(), typed.end());
+  put_u32(out, crc32_of(typed.data(), typed.size()));
+}
+
+// `scanlines`: each row already prefixed with its filter byte (0 = none).
+Bytes make_png(std::uint32_t width, std::uint32_t height, int bit_depth, int color_type, const Bytes& scanlines,
+               const std::vector<std::pair<const char*, Bytes>>& extra_chunks = {}, bool interlaced = false) {
+  Bytes out = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  Bytes ihdr;
+  put_u32(ihdr, width);
+  put_u32(ihdr, height);
+  ihdr.push_back(static_cast<std::uint8_t>(bit_depth));
+  ihdr.push_back(static_cast<std::uint8_t>(color_type));
+  ihdr.push_back(0);
+  ihdr.push_back(0);
+  ihdr.push_back(interlaced ? 1 : 0);
+  put_chunk(out, "IHDR", ihdr);
+  for (const auto& [type, data] : extra_chunks) put_chunk(out, type, data);
+  // zlib stream: header, one stored block (data < 64 KiB), Adler-32.
+  Bytes z = {0x78, 0x01, 0x01};
+  const auto length = static_cast<std::uint16_t>(scanlines.size());
+  z.push_back(static_cast<std::uint8_t>(length & 0xff));
+  z.push_back(static_cast<std::uint8_t>(length >> 8));
+  z.push_back(static_cast<std::uint8_t>(~length & 0xff));
+  z.push_back(static_cast<std::uint8_t>((~length >> 8) & 0xff));
+  z.insert(z.end(), scanlines.begin(), scanlines.end());
+  std::uint32_t a = 1, b = 0;
+  for (std::uint8_t byte : scanlines) {
+    a = (a + byte) % 65521u;
+    b = (b + a) % 65521u;
+  }
+  put_u32(z, (b << 16) | a);
+  put_chunk(out, "IDAT", z);
+  put_chunk(out, "IEND", {});
+  return out;
+}
+
+void write_bytes(const std::string& path, const Bytes& bytes) {
+  std::ofstream stream(path, std::ios::binary | std::ios::trunc);
+  stream.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+template <typename T>
+Image<T> random_image(int width, int height, std::uint32_t seed) {
+  std::mt19937 random(seed);
+  std::uniform_int_distribution<int> value(0, std::numeric_limits<T>::max());
+  Image<T> image(width, height);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) image(x, y) = static_cast<T>(value(random));
+  }
+  return image;
+}
+
+// Expects `call` to throw sls::Error with `code` and a message containing `needle`.
+template <typename Call>
+void expect_error(Call&& call, ErrorCode code, const std::string& needle) {
+  try {
+    call();
+    ADD_FAILURE() << "no error thrown";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), code) << error.what();
+    EXPECT_NE(std::string(error.what()).find(needle), std::string::npos) << error.what();
+  }
+}
+
+TEST(Png, RoundTrip8BitExact) {
+  test::TemporaryDirectory dir;
+  const Image8u image = random_image<std::uint8_t>(37, 23, 1);
+  write_png(dir.file("a.png"), image);
+  const AnyImage read = read_png(dir.file("a.png"));
+  ASSERT_TRUE(std::holds_alternative<Image8u>(read));
+  EXPECT_EQ(std::get<Image8u>(read), image);
+  EXPECT_EQ(read_png_u8(dir.file("a.png")), image);
+}
+
+TEST(Png, RoundTrip16BitExact) {
+  test::TemporaryDirectory dir;
+  Image16u image = random_image<std::uint16_t>(37, 23, 2);
+  image(0, 0) = 0;
+  image(1, 0) = 65535;
+  write_png(dir.file("a.png"), image);
+  const AnyImage read = read_png(dir.file("a.png"));
+  ASSERT_TRUE(std::holds_alternative<Image16u>(read));
+  EXPECT_EQ(std::get<Image16u>(read), image);
+  const PngHeader header = read_png_header(dir.file("a.png"));
+  EXPECT_EQ(header.width, 37);
+  EXPECT_EQ(header.height, 23);
+  EXPECT_EQ(header.bit_depth, 16);
+  EXPECT_EQ(header.channels, 1);
+}
+
+TEST(Png, EveryCompressionSettingRoundTrips) {
+  const Image16u image = random_image<std::uint16_t>(64, 9, 3);
+  for (int level = 0; level <= 9; ++level) {
+    for (bool fast : {true, false}) {
+      PngWriteOptions options;
+      options.compression_level = level;
+      options.fast = fast;
+      const Bytes bytes = encode_png(image, options);
+      EXPECT_EQ(std::get<Image16u>(decode_png(bytes.data(), bytes.size(), "memory")), image) << level;
+    }
+  }
+}
+
+TEST(Png, StridedViewWritesOnlyItsPixels) {
+  test::TemporaryDirectory dir;
+  const Image8u big = random_image<std::uint8_t>(40, 30, 4);
+  ImageView<const std::uint8_t> window = big.view();
+  window.data = &big(5, 7);
+  window.width = 11;
+  window.height = 13;
+  write_png(dir.file("w.png"), window);
+  const Image8u read = read_png_u8(dir.file("w.png"));
+  ASSERT_EQ(read.width(), 11);
+  ASSERT_EQ(read.height(), 13);
+  for (int y = 0; y < 13; ++y) {
+    for (int x = 0; x < 11; ++x) ASSERT_EQ(read(x, y), big(x + 5, y + 7));
+  }
+}
+
+TEST(Png, SixteenBitIsBigEndianOnDisk) {
+  // Written by us: at level 0 the IDAT holds the raw row, [filter][0x01][0x02] for one pixel
+  // (no filter changes the first pixel of the first row).
+  Image16u one(1, 1, 0x0102);
+  PngWriteOptions stored;
+  stored.compression_level = 0;
+  const Bytes bytes = encode_png(one, stored);
+  const std::string text(bytes.begin(), bytes.end());
+  const std::size_t idat = text.find("IDAT");
+  ASSERT_NE(idat, std::string::npos);
+  const std::size_t row = idat + 4 + 2 /* zlib header */ + 5 /* stored block header */;
+  ASSERT_LT(row + 2, bytes.size());
+  EXPECT_EQ(bytes[row + 1], 0x01);
+  EXPECT_EQ(bytes[row + 2], 0x02);
+  EXPECT_EQ(std::get<Image16u>(decode_png(bytes.data(), bytes.size(), "memory"))(0, 0), 0x0102);
+
+  // Written by someone else: big-endian bytes 01 02 read back as 0x0102.
+  const Bytes crafted = make_png(1, 1, 16, 0, {0, 0x01, 0x02});
+  EXPECT_EQ(std::get<Image16u>(decode_png(crafted.data(), crafted.size(), "crafted"))(0, 0), 0x0102);
+}
+
+TEST(Png, ReadsLowBitDepthGray) {
+  // 1-bit: 8 pixels 10110001 -> 255 0 255 255 0 0 0 255 (libpng scales up to 8 bits).
+  Bytes png = make_png(8, 1, 1, 0, {0, 0xb1});
+  Image8u image = std::get<Image8u>(decode_png(png.data(), png.size(), "1bit"));
+  const std::uint8_t expected1[] = {255, 0, 255, 255, 0, 0, 0, 255};
+  for (int x = 0; x < 8; ++x) EXPECT_EQ(image(x, 0), expected1[x]) << x;
+  // 2-bit: 0..3 -> 0, 85, 170, 255.
+  png = make_png(4, 1, 2, 0, {0, 0x1b});
+  image = std::get<Image8u>(decode_png(png.data(), png.size(), "2bit"));
+  const std::uint8_t expected2[] = {0, 85, 170, 255};
+  for (int x = 0; x < 4; ++x) EXPECT_EQ(image(x, 0), expected2[x]) << x;
+  // 4-bit, odd width: 0x0 0xf 0x8 -> 0, 255, 136.
+  png = make_png(3, 1, 4, 0, {0, 0x0f, 0x80});
+  image = std::get<Image8u>(decode_png(png.data(), png.size(), "4bit"));
+  EXPECT_EQ(image(0, 0), 0);
+  EXPECT_EQ(image(1, 0), 255);
+  EXPECT_EQ(image(2, 0), 136);
+}
+
+TEST(Png, ReadsInterlaced) {
+  // Adam7 on 2x2: pass 1 holds (0,0), pass 6 (1,0), pass 7 the second row.
+  const Bytes png = make_png(2, 2, 8, 0, {0, 11, 0, 22, 0, 33, 44}, {}, true);
+  const Image8u image = std::get<Image8u>(decode_png(png.data(), png.size(), "adam7"));
+  EXPECT_EQ(image(0, 0), 11);
+  EXPECT_EQ(image(1, 0), 22);
+  EXPECT_EQ(image(0, 1), 33);
+  EXPECT_EQ(image(1, 1), 44);
+}
+
+TEST(Png, ConvertsAlphaColourAndPaletteToGray) {
+  // Gray + alpha, 8 bit: the alpha is dropped.
+  Bytes png = make_png(2, 1, 8, 4, {0, 10, 255, 200, 0});
+  Image8u image = std::get<Image8u>(decode_png(png.data(), png.size(), "ga"));
+  EXPECT_EQ(image(0, 0), 10);
+  EXPECT_EQ(image(1, 0), 200);
+  // Gray + alpha, 16 bit.
+  png = make_png(1, 1, 16, 4, {0, 0x12, 0x34, 0xff, 0xff});
+  EXPECT_EQ(std::get<Image16u>(decode_png(png.data(), png.size(), "ga16"))(0, 0), 0x1234);
+  // RGB and RGBA with equal channels give that value; pure red gives its luma.
+  png = make_png(2, 1, 8, 2, {0, 77, 77, 77, 255, 0, 0});
+  image = std::get<Image8u>(decode_png(png.data(), png.size(), "rgb"));
+  EXPECT_EQ(image(0, 0), 77);
+  EXPECT_NEAR(image(1, 0), 54, 1);  // 0.2126 * 255
+  png = make_png(1, 1, 8, 6, {0, 99, 99, 99, 7});
+  EXPECT_EQ(std::get<Image8u>(decode_png(png.data(), png.size(), "rgba"))(0, 0), 99);
+  // Palette (2-bit indices) with a tRNS chunk.
+  png = make_png(3, 1, 2, 3, {0, 0x24}, {{"PLTE", {0, 0, 0, 50, 50, 50, 200, 200, 200}}, {"tRNS", {0, 128}}});
+  image = std::get<Image8u>(decode_png(png.data(), png.size(), "palette"));
+  EXPECT_EQ(image(0, 0), 0);
+  EXPECT_EQ(image(1, 0), 200);
+  EXPECT_EQ(image(2, 0), 50);
+}
+
+TEST(Png, TypedReadersConvertOrReject) {
+  test::TemporaryDirectory dir;
+  const Image8u image8 = random_image<std::uint8_t>(5, 4, 5);
+  write_png(dir.file("8.png"), image8);
+  const Image16u widened = read_png_u16(dir.file("8.png"));
+  ASSERT_EQ(widened.width(), 5);
+  for (int y = 0; y < 4; ++y) {
+    for (int x = 0; x < 5; ++x) EXPECT_EQ(widened(x, y), image8(x, y));
+  }
+  write_png(dir.file("16.png"), random_image<std::uint16_t>(5, 4, 6));
+  expect_error([&] { read_png_u8(dir.file("16.png")); }, ErrorCode::kFormat, "16.png");
+}
+
+TEST(Png, MissingFileIsNotFound) {
+  test::TemporaryDirectory dir;
+  expect_error([&] { read_png(dir.file("absent.png")); }, ErrorCode::kNotFound, "absent.png");
+  expect_error([&] { read_png_header(dir.file("absent.png")); }, ErrorCode::kNotFound, "absent.png");
+}
+
+TEST(Png, NotAPngNamesTheFile) {
+  test::TemporaryDirectory dir;
+  write_file_atomic(dir.file("text.png"), "this is plain text, not an image");
+  expect_error([&] { read_png(dir.file("text.png")); }, ErrorCode::kFormat, "text.png: not a PNG");
+  expect_error([&] { read_png_header(dir.file("text.png")); }, ErrorCode::kFormat, "text.png: not a PNG");
+  write_file_atomic(dir.file("empty.png"), "");
+  expect_error([&] { read_png(dir.file("empty.png")); }, ErrorCode::kFormat, "empty.png");
+  expect_error([&] { read_png_header(dir.file("empty.png")); }, ErrorCode::kFormat, "empty.png");
+}
+
+TEST(Png, TruncatedPngNamesTheFile) {
+  test::TemporaryDirectory dir;
+  const Bytes full = encode_png(random_image<std::uint16_t>(37, 23, 7));
+  // Cut inside the image data, just before IEND, and inside the header.
+  for (std::size_t keep : {full.size() / 2, full.size() - 12, full.size() - 1, std::size_t{20}}) {
+    const std::string name = "cut" + std::to_string(keep) + ".png";
+    write_bytes(dir.file(name), Bytes(full.begin(), full.begin() + static_cast<std::ptrdiff_t>(keep)));
+    expect_error([&] { read_png(dir.file(name)); }, ErrorCode::kFormat, name);
+  }
+  expect_error([&] { read_png(dir.file("cut" + std::to_string(full.size() / 2) + ".png")); }, ErrorCode::kFormat,
+               "truncated");
+  // The header alone is readable from a file cut after IHDR, but not from one cut inside it.
+  EXPECT_EQ(read_png_header(dir.file("cut" + std::to_string(full.size() / 2) + ".png")).width, 37);
+  expect_error([&] { read_png_header(dir.file("cut20.png")); }, ErrorCode::kFormat, "cut20.png");
+}
+
+TEST(Png, CorruptDataNamesTheFile) {
+  test::TemporaryDirectory dir;
+  const Bytes good = encode_png(random_image<std::uint8_t>(37, 23, 8));
+  const std::string text(good.begin(), good.end());
+  // A flipped bit in the image data: CRC error.
+  Bytes bad = good;
+  bad[text.find("IDAT") + 20] ^= 0x10;
+  write_bytes(dir.file("crc.png"), bad);
+  expect_error([&] { read_png(dir.file("crc.png")); }, ErrorCode::kFormat, "crc.png");
+  // A flipped bit in IHDR: caught by the header reader too.
+  bad = good;
+  bad[18] ^= 0x01;
+  write_bytes(dir.file("ihdr.png"), bad);
+  expect_error([&] { read_png(dir.file("ihdr.png")); }, ErrorCode::kFormat, "ihdr.png");
+  expect_error([&] { read_png_header(dir.file("ihdr.png")); }, ErrorCode::kFormat, "CRC");
+  // Valid CRCs around garbage compressed data: a zlib error.
+  Bytes scan(1 + 4, 0);
+  Bytes garbage = make_png(4, 1, 8, 0, scan);
+  const std::string garbage_text(garbage.begin(), garbage.end());
+  const std::size_t idat = garbage_text.find("IDAT");
+  garbage[idat + 4 + 2] = 0xff;  // invalid deflate block type; the chunk CRC is then fixed
+  const std::uint32_t length = (std::uint32_t{garbage[idat - 4]} << 24) | (std::uint32_t{garbage[idat - 3]} << 16) |
+                               (std::uint32_t{garbage[idat - 2]} << 8) | garbage[idat - 1];
+  const std::uint32_t crc = crc32_of(garbage.data() + idat, 4 + length);
+  for (int i = 0; i < 4; ++i) garbage[idat + 4 + length + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(crc >> (24 - 8 * i));
+  write_bytes(dir.file("zlib.png"), garbage);
+  expect_error([&] { read_png(dir.file("zlib.png")); }, ErrorCode::kFormat, "zlib.png");
+}
+
+TEST(Png, RejectsUnwritableInput) {
+  test::TemporaryDirectory dir;
+  expect_error([&] { write_png(dir.file("e.png"), Image8u()); }, ErrorCode::kInvalidArgument, "e.png");
+  PngWriteOptions options;
+  options.compression_level = 12;
+  expect_error([&] { write_png(dir.file("l.png"), Image8u(2, 2), options); }, ErrorCode::kInvalidArgument, "level");
+  expect_error([&] { write_png(dir.file("no/such/dir/x.png"), Image8u(2, 2)); }, ErrorCode::kIo, "x.png");
+}
+
+}  // namespace
+}  // namespace sls

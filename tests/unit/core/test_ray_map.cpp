@@ -1,1 +1,234 @@
-// tests written by their issue-2 task
+// The per-pixel ray map: the CPU backend equals direct unprojection, CUDA equals CPU, a
+// full 4000x3000 map is fast, and the error cases are clear.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include <gtest/gtest.h>
+
+#include "sdk/core/camera_model_shared.h"
+#include "sdk/core/device.h"
+#include "sdk/core/error.h"
+#include "sdk/core/ray_map.h"
+#include "tests/support/test_support.h"
+
+namespace sls {
+namespace {
+
+// The 4000x3000 high-resolution camera of the paper's setup, with a realistic lens.
+CameraIntrinsics high_resolution_camera() {
+  CameraIntrinsics c;
+  c.width = 4000;
+  c.height = 3000;
+  c.fx = 13012.5;
+  c.fy = 13008.25;
+  c.cx = 2011.3;
+  c.cy = 1489.6;
+  c.k1 = -0.112;
+  c.k2 = 0.53;
+  c.k3 = -1.9;
+  c.p1 = 4.1e-4;
+  c.p2 = -2.7e-4;
+  return c;
+}
+
+CameraIntrinsics wide_camera() {
+  CameraIntrinsics c;
+  c.width = 640;
+  c.height = 480;
+  c.fx = 420.0;
+  c.fy = 421.0;
+  c.cx = 319.5;
+  c.cy = 240.5;
+  c.k1 = -0.3;
+  c.k2 = 0.1;
+  c.k3 = -0.015;
+  c.p1 = 1e-3;
+  c.p2 = -1e-3;
+  return c;
+}
+
+// A lens that folds inside the image: r_d = r (1 − 0.5 r²) reaches at most ≈ 0.544, so the
+// outer pixels have no ray.
+CameraIntrinsics folding_camera() {
+  CameraIntrinsics c;
+  c.width = 400;
+  c.height = 300;
+  c.fx = 200.0;
+  c.fy = 200.0;
+  c.cx = 199.5;
+  c.cy = 149.5;
+  c.k1 = -0.5;
+  return c;
+}
+
+bool is_sanitized_build() {
+#if defined(__SANITIZE_ADDRESS__)
+  return true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+  return true;
+#else
+  return false;
+#endif
+#else
+  return false;
+#endif
+}
+
+void expect_matches_direct_unproject(const CameraIntrinsics& c, const RayMap& map) {
+  ASSERT_EQ(map.width, c.width);
+  ASSERT_EQ(map.height, c.height);
+  ASSERT_EQ(map.rays.size(), static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height));
+  ASSERT_EQ(map.valid.size(), map.rays.size());
+  int mismatches = 0;
+  for (int y = 0; y < c.height; ++y) {
+    for (int x = 0; x < c.width; ++x) {
+      Vec3d ray;
+      const bool ok = unproject(c, Vec2d{static_cast<double>(x), static_cast<double>(y)}, &ray);
+      const Vec3f& stored = map.ray(x, y);
+      if (ok != map.is_valid(x, y)) {
+        ++mismatches;
+      } else if (ok) {
+        // The stored float is the double ray, correctly rounded.
+        if (stored.x != static_cast<float>(ray.x) || stored.y != static_cast<float>(ray.y) || stored.z != 1.0f) {
+          ++mismatches;
+        }
+      } else if (stored.x != 0.0f || stored.y != 0.0f || stored.z != 0.0f) {
+        ++mismatches;
+      }
+    }
+  }
+  EXPECT_EQ(mismatches, 0);
+}
+
+TEST(RayMap, CpuEqualsDirectUnprojection) {
+  const CameraIntrinsics c = wide_camera();
+  const RayMap map = compute_ray_map(c, Device::cpu());
+  expect_matches_direct_unproject(c, map);
+  EXPECT_EQ(map.valid_count(), map.rays.size());
+}
+
+TEST(RayMap, PixelsWithoutARayAreMarkedInvalid) {
+  const CameraIntrinsics c = folding_camera();
+  const RayMap map = compute_ray_map(c);
+  expect_matches_direct_unproject(c, map);
+  EXPECT_TRUE(map.is_valid(200, 150));  // the centre always has a ray
+  EXPECT_FALSE(map.is_valid(0, 0));     // r_d ≈ 0.9 in the corner: past the fold
+  EXPECT_GT(map.valid_count(), 0u);
+  EXPECT_LT(map.valid_count(), map.rays.size());
+}
+
+TEST(RayMap, RaysProjectBackToTheirPixels) {
+  const CameraIntrinsics c = high_resolution_camera();
+  const RayMap map = compute_ray_map(c);
+  double max_error = 0.0;
+  for (int y = 0; y < c.height; y += 7) {
+    for (int x = 0; x < c.width; x += 7) {
+      ASSERT_TRUE(map.is_valid(x, y));
+      const Vec3f& r = map.ray(x, y);
+      Vec2d pixel;
+      ASSERT_TRUE(project(c, Vec3d{r.x, r.y, r.z}, &pixel));
+      max_error = std::max({max_error, std::fabs(pixel.x - x), std::fabs(pixel.y - y)});
+    }
+  }
+  // Float storage: half an ulp of a normalized coordinate (≈ 1.5e-8 at 0.15) times f = 13000.
+  EXPECT_LE(max_error, 1e-3);
+  std::printf("ray map reprojection: max |error| = %.3g px\n", max_error);
+}
+
+TEST(RayMap, FullResolutionCpuIsFast) {
+  const CameraIntrinsics c = high_resolution_camera();
+  const auto start = std::chrono::steady_clock::now();
+  const RayMap map = compute_ray_map(c, Device::cpu());
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(map.valid_count(), map.rays.size());
+  std::printf("ray map 4000x3000 on the CPU: %.3f s\n", seconds);
+  // Generous for a shared 2-core machine; sanitizers make everything many times slower.
+  if (!is_sanitized_build()) {
+    EXPECT_LT(seconds, 3.0);
+  }
+}
+
+TEST(RayMap, InvalidIntrinsicsAreRejected) {
+  CameraIntrinsics c = wide_camera();
+  c.width = 0;
+  EXPECT_THROW(compute_ray_map(c), Error);
+  c = wide_camera();
+  c.fx = -1.0;
+  try {
+    compute_ray_map(c);
+    FAIL() << "expected an error";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument);
+  }
+}
+
+TEST(RayMap, CudaWithoutCudaBuildIsUnsupported) {
+  if (cuda_compiled()) GTEST_SKIP() << "this build has CUDA";
+  try {
+    compute_ray_map(wide_camera(), Device::cuda(0));
+    FAIL() << "expected an error";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kUnsupported);
+  }
+}
+
+TEST(RayMap, CudaWithoutGpuIsADeviceError) {
+  if (!cuda_compiled() || test::has_cuda_device()) GTEST_SKIP() << "needs a CUDA build on a machine with no GPU";
+  try {
+    compute_ray_map(wide_camera(), Device::cuda(0));
+    FAIL() << "expected an error";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kDevice);
+  }
+}
+
+void expect_cuda_equals_cpu(const CameraIntrinsics& c) {
+  const RayMap cpu = compute_ray_map(c, Device::cpu());
+  const RayMap gpu = compute_ray_map(c, Device::cuda(0));
+  ASSERT_EQ(gpu.width, cpu.width);
+  ASSERT_EQ(gpu.height, cpu.height);
+  ASSERT_EQ(gpu.rays.size(), cpu.rays.size());
+  double max_difference = 0.0;
+  std::size_t valid_mismatches = 0;
+  for (std::size_t i = 0; i < cpu.rays.size(); ++i) {
+    if (cpu.valid[i] != gpu.valid[i]) {
+      ++valid_mismatches;
+      continue;
+    }
+    const Vec3f a = cpu.rays[i], b = gpu.rays[i];
+    max_difference = std::max({max_difference, std::fabs(static_cast<double>(a.x) - static_cast<double>(b.x)),
+                               std::fabs(static_cast<double>(a.y) - static_cast<double>(b.y)),
+                               std::fabs(static_cast<double>(a.z) - static_cast<double>(b.z))});
+  }
+  // The fold's edge may land either side in a handful of pixels (FMA on the GPU).
+  EXPECT_LE(valid_mismatches, cpu.rays.size() / 10000);
+  EXPECT_LE(max_difference, 1e-6);
+  std::printf("CPU vs CUDA: max difference %.3g, valid mismatches %zu\n", max_difference, valid_mismatches);
+}
+
+TEST(RayMapCuda, EqualsCpuFullResolution) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  expect_cuda_equals_cpu(high_resolution_camera());
+}
+
+TEST(RayMapCuda, EqualsCpuWithInvalidPixels) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  expect_cuda_equals_cpu(folding_camera());
+  expect_cuda_equals_cpu(wide_camera());
+}
+
+TEST(RayMapCuda, BadOrdinalIsADeviceError) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  try {
+    compute_ray_map(wide_camera(), Device::cuda(cuda_device_count()));
+    FAIL() << "expected an error";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kDevice);
+  }
+}
+
+}  // namespace
+}  // namespace sls

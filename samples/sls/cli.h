@@ -1,0 +1,42 @@
+// What the `sls` subcommands share: global options, JSON or human output, exit codes, and
+// the guard that turns sls::Error into a message and an exit status.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "samples/sls/progress_display.h"
+
+namespace sls::cli {
+
+// Exit statuses, listed in `sls --help`.
+enum ExitCode : int {
+  kExitOk = 0,
+  kExitError = 1,        // the work failed: the message says why
+  kExitUsage = 2,        // bad command line
+  kExitUnavailable = 3,  // the feature is not in this build / not implemented yet
+};
+
+struct GlobalOptions {
+  bool json = false;   // machine-readable JSON on stdout, nothing else there
+  bool quiet = false;  // no progress display
+  int verbosity = 0;   // -v: info, -vv: debug
+};
+
+// The state a subcommand runs with.
+struct Context {
+  GlobalOptions options;
+  // A progress callback drawing on stderr, or empty with --quiet / --json.
+  ProgressCallback progress_callback(const std::string& stage) const;
+  // Prints `result` as JSON (with --json) or through `human` (without).
+  void emit(const nlohmann::json& result, const std::function<void()>& human) const;
+};
+
+// Runs a subcommand body: sls::Error -> message on stderr (and a JSON error object on
+// stdout with --json) and the matching exit status. Sets *exit_code.
+void run_command(const Context& context, const std::string& name, const std::function<int()>& body, int* exit_code);
+
+}  // namespace sls::cli

@@ -1,0 +1,15 @@
+// One function per `sls` subcommand, each in its own cmd_<name>.cpp. A subcommand adds its
+// options to `app` and sets a callback that runs through cli::run_command.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include "samples/sls/cli.h"
+
+namespace sls::cli {
+
+void add_info_command(CLI::App& app, Context& context, int* exit_code);
+void add_inspect_command(CLI::App& app, Context& context, int* exit_code);
+void add_scan_command(CLI::App& app, Context& context, int* exit_code);
+
+}  // namespace sls::cli

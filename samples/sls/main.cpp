@@ -1,0 +1,40 @@
+// sls: the slscan command-line tool.
+#include <iostream>
+
+#include <spdlog/spdlog.h>
+
+#include "samples/sls/commands.h"
+
+int main(int argc, char** argv) {
+  using namespace sls::cli;
+  CLI::App app{"sls: structured-light scanning and high-resolution fusion (slscan)", "sls"};
+  app.set_version_flag("--version", std::string("sls ") + SLS_VERSION);
+  app.require_subcommand(1);
+  app.footer(
+      "Run `sls COMMAND --help` for a command's options.\n"
+      "Exit status: 0 ok, 1 the work failed (the message says why), 2 bad command line,\n"
+      "3 the feature is not available in this build or not implemented yet.");
+
+  Context context;
+  app.add_flag("--json", context.options.json, "Print machine-readable JSON on stdout (and nothing else there)");
+  app.add_flag("-q,--quiet", context.options.quiet, "No progress display");
+  app.add_flag("-v,--verbose", context.options.verbosity, "More log output (-vv for debug)");
+
+  int exit_code = kExitOk;
+  add_info_command(app, context, &exit_code);
+  add_inspect_command(app, context, &exit_code);
+  add_scan_command(app, context, &exit_code);
+
+  app.parse_complete_callback([&context] {
+    spdlog::set_level(context.options.verbosity >= 2   ? spdlog::level::debug
+                      : context.options.verbosity == 1 ? spdlog::level::info
+                                                       : spdlog::level::warn);
+  });
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& error) {
+    const int status = app.exit(error);
+    return status == 0 ? kExitOk : kExitUsage;
+  }
+  return exit_code;
+}

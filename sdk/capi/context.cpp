@@ -1,0 +1,120 @@
+// sls_context: version check, configuration, backend selection.
+#include <spdlog/spdlog.h>
+
+#include <cstring>
+#include <new>
+
+#include "sdk/capi/capi_guard.h"
+#include "sdk/core/device.h"
+#include "sdk/core/error.h"
+#include "sls/sls_context.h"
+#include "sls/sls_version.h"
+
+struct sls_context {
+  sls_context_config config;
+  sls::Device device;
+};
+
+namespace {
+
+spdlog::level::level_enum to_spdlog(sls_log_level level) {
+  switch (level) {
+    case SLS_LOG_TRACE: return spdlog::level::trace;
+    case SLS_LOG_DEBUG: return spdlog::level::debug;
+    case SLS_LOG_INFO: return spdlog::level::info;
+    case SLS_LOG_WARNING: return spdlog::level::warn;
+    case SLS_LOG_ERROR: return spdlog::level::err;
+    case SLS_LOG_OFF: return spdlog::level::off;
+  }
+  sls::throw_error(sls::ErrorCode::kInvalidArgument, "log_level {} is not an sls_log_level", static_cast<int>(level));
+}
+
+// Copies the caller's config, which may come from older headers (smaller struct_size):
+// fields it lacks keep their defaults.
+sls_context_config read_config(const sls_context_config* user) {
+  sls_context_config config;
+  sls_context_config_init(&config);
+  if (user == nullptr) return config;
+  constexpr std::size_t kFirstVersionSize = offsetof(sls_context_config, cuda_device_id) + sizeof(int);
+  if (user->struct_size < kFirstVersionSize || user->struct_size > 65536) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "config.struct_size is {} (initialise the config with sls_context_config_init)",
+                     user->struct_size);
+  }
+  std::memcpy(&config, user, std::min(user->struct_size, sizeof(config)));
+  config.struct_size = sizeof(config);
+  return config;
+}
+
+sls::Device resolve_device(const sls_context_config& config) {
+  if (config.cuda_device_id < 0) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "cuda_device_id {} is negative", config.cuda_device_id);
+  }
+  switch (config.device) {
+    case SLS_DEVICE_CPU: return sls::Device::cpu();
+    case SLS_DEVICE_CUDA: {
+      const sls::Device device = sls::Device::cuda(config.cuda_device_id);
+      sls::require_device(device);
+      return device;
+    }
+    case SLS_DEVICE_AUTO:
+      return config.cuda_device_id < sls::cuda_device_count() ? sls::Device::cuda(config.cuda_device_id)
+                                                                : sls::Device::cpu();
+  }
+  sls::throw_error(sls::ErrorCode::kInvalidArgument, "device {} is not an sls_device_preference",
+                   static_cast<int>(config.device));
+}
+
+}  // namespace
+
+extern "C" {
+
+SLS_API int sls_get_api_version(void) { return SLS_API_VERSION; }
+
+SLS_API const char* sls_get_build_info(void) { return SLS_BUILD_INFO; }
+
+SLS_API void sls_context_config_init(sls_context_config* config) {
+  if (config == nullptr) return;
+  std::memset(config, 0, sizeof(*config));
+  config->struct_size = sizeof(*config);
+  config->log_level = SLS_LOG_WARNING;
+  config->device = SLS_DEVICE_AUTO;
+  config->cuda_device_id = 0;
+}
+
+SLS_API sls_status sls_context_create(int api_version, const sls_context_config* config, sls_context** context,
+                                      sls_error** error) {
+  SLS_CAPI_REQUIRE(context != nullptr, error, "context (the output pointer) is NULL");
+  *context = nullptr;
+  const int caller_major = api_version / 10000, caller_minor = (api_version / 100) % 100;
+  if (api_version < 0 || caller_major != SLS_API_VERSION_MAJOR || caller_minor > SLS_API_VERSION_MINOR) {
+    return sls::capi::report(
+        SLS_ERROR_VERSION_MISMATCH, __func__,
+        "compiled against slscan API " + std::to_string(caller_major) + "." + std::to_string(caller_minor) +
+            ", but the library provides " + std::to_string(SLS_API_VERSION_MAJOR) + "." +
+            std::to_string(SLS_API_VERSION_MINOR),
+        error);
+  }
+  return sls::capi::guarded(__func__, error, [&] {
+    const sls_context_config resolved = read_config(config);
+    spdlog::set_level(to_spdlog(resolved.log_level));
+    const sls::Device device = resolve_device(resolved);
+    *context = new sls_context{resolved, device};
+  });
+}
+
+SLS_API void sls_context_destroy(sls_context* context) { delete context; }
+
+SLS_API sls_status sls_context_uses_cuda(const sls_context* context, int* uses_cuda, sls_error** error) {
+  SLS_CAPI_REQUIRE(context != nullptr, error, "context is NULL");
+  SLS_CAPI_REQUIRE(uses_cuda != nullptr, error, "uses_cuda (the output pointer) is NULL");
+  *uses_cuda = context->device.is_cuda() ? 1 : 0;
+  return SLS_OK;
+}
+
+SLS_API sls_status sls_get_cuda_device_count(int* count, sls_error** error) {
+  SLS_CAPI_REQUIRE(count != nullptr, error, "count (the output pointer) is NULL");
+  return sls::capi::guarded(__func__, error, [&] { *count = sls::cuda_device_count(); });
+}
+
+}  // extern "C"

@@ -1,0 +1,81 @@
+// PNG image I/O on libpng (no OpenCV: the GPU machine has none, DESIGN.md section 9).
+//
+// Images are grayscale, 8 or 16 bits per pixel. Pixel values are stored and read back as
+// they are: a 12-bit camera image goes into a 16-bit PNG unscaled (0..4095), and no sBIT or
+// gamma transform is applied, so a round trip is exact. 16-bit samples are big-endian on
+// disk; the byte order is handled here, callers always see native uint16 values.
+//
+// Reading accepts any valid PNG: bit depths 1..16 are expanded to 8 or 16 bits, palette and
+// RGB(A) images are converted to luma (libpng's default sRGB/BT.709 weights), alpha is
+// dropped, interlaced images are de-interlaced.
+//
+// Every failure throws sls::Error naming the file: kNotFound (missing), kIo (unreadable or
+// unwritable), kFormat (not a PNG, truncated, CRC or zlib error, unsupported content).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sdk/core/image.h"
+
+namespace sls {
+
+struct PngWriteOptions {
+  // zlib level 0..9 (0 = stored, no compression). Recordings are written live at camera
+  // rate (24 MB per 4000x3000x16 image), so the default favours speed over size.
+  int compression_level = 1;
+  // true: the UP row filter and run-length-only deflate (Z_RLE). On 4000x3000 12-bit camera
+  // images this encoded about twice as fast as libpng's defaults at the same size (noisy
+  // images: ~14 MB, ~0.4 s), and noise-free rendered images shrink to almost nothing.
+  // false: libpng's adaptive filter choice and default deflate strategy (slower).
+  bool fast = true;
+};
+
+// What a PNG's header (IHDR) says, before any conversion.
+struct PngHeader {
+  int width = 0;
+  int height = 0;
+  int bit_depth = 0;   // bits per sample as stored: 1, 2, 4, 8 or 16
+  int channels = 0;    // 1 gray, 2 gray+alpha, 3 RGB or palette index (palette = true), 4 RGBA
+  bool palette = false;
+  bool interlaced = false;
+};
+
+// Reads only the signature and the IHDR chunk (33 bytes) to validate a file cheaply.
+PngHeader read_png_header(const std::string& path);
+
+// Decodes to Image8u (stored bit depth <= 8) or Image16u (16 bits).
+AnyImage read_png(const std::string& path);
+// As read_png, then: read_png_u8 rejects a 16-bit PNG (kFormat: it would lose bits);
+// read_png_u16 widens an 8-bit PNG by value (no scaling: 255 stays 255).
+Image8u read_png_u8(const std::string& path);
+Image16u read_png_u16(const std::string& path);
+
+// Decodes a PNG held in memory; `name` is used in error messages in place of a path.
+AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name);
+
+// Encodes to a PNG in memory (8-bit or 16-bit grayscale). Throws kInvalidArgument for an
+// empty image and kFormat/kOutOfMemory if libpng fails.
+std::vector<std::uint8_t> encode_png(ImageView<const std::uint8_t> image, const PngWriteOptions& options = {});
+std::vector<std::uint8_t> encode_png(ImageView<const std::uint16_t> image, const PngWriteOptions& options = {});
+
+// Encodes, then writes with sls::write_file_atomic (temporary file, fsync, rename), so a
+// crash never leaves half a PNG under `path`.
+void write_png(const std::string& path, ImageView<const std::uint8_t> image, const PngWriteOptions& options = {});
+void write_png(const std::string& path, ImageView<const std::uint16_t> image, const PngWriteOptions& options = {});
+inline void write_png(const std::string& path, const Image8u& image, const PngWriteOptions& options = {}) {
+  write_png(path, image.view(), options);
+}
+inline void write_png(const std::string& path, const Image16u& image, const PngWriteOptions& options = {}) {
+  write_png(path, image.view(), options);
+}
+inline std::vector<std::uint8_t> encode_png(const Image8u& image, const PngWriteOptions& options = {}) {
+  return encode_png(image.view(), options);
+}
+inline std::vector<std::uint8_t> encode_png(const Image16u& image, const PngWriteOptions& options = {}) {
+  return encode_png(image.view(), options);
+}
+
+}  // namespace sls

@@ -1,0 +1,204 @@
+// Recordings (DESIGN.md section 5): one scan session on disk, replayable with no hardware.
+//
+//   <folder>/manifest.json         what was recorded (below); rewritten atomically per frame
+//   <folder>/calibration.yml       sls::write_calibration format (absent when recorded
+//                                  uncalibrated, e.g. a calibration capture: manifest says null)
+//   <folder>/frames/NNNNNN/pattern_KKK.png   the camera images of frame N, pattern K
+//   <folder>/frames/NNNNNN/depth.png         optional depth map (16-bit PNG, see below)
+//   <folder>/groundtruth/          optional; content defined by the simulator
+//
+// manifest.json:
+//   {"format": "slscan-recording", "format_version": 1, "created_utc": "2024-01-31T12:00:00Z",
+//    "device": {"uri", "model", "serial"}, "camera": {"width", "height", "bit_depth"},
+//    "pattern_set": {...caller's JSON object...}, "images_per_frame": N,
+//    "calibration": "calibration.yml" | null, "groundtruth": "groundtruth" (optional),
+//    "depth_encoding": {"format": "png16", "unit_m": 1e-6, "offset_m": 0.0},
+//    "frames": [{"index", "timestamp_ns", "turntable_angle_deg": number|null,
+//                "images": ["frames/000000/pattern_000.png", ...],
+//                "depth": "frames/000000/depth.png" (optional),
+//                "status": "complete"|"incomplete", "note": "..." (optional)}]}
+//
+// Pixel values: stored as captured, unscaled. A camera of bit_depth <= 8 is stored as 8-bit
+// PNG, deeper ones (10/12/14/16) as 16-bit PNG holding values 0..2^bit_depth-1.
+//
+// Depth maps: metres (float) in memory, 0 = invalid. On disk a 16-bit PNG of integer steps:
+// depth = offset_m + value * unit_m, value 0 = invalid. With the defaults (1 µm, offset 0)
+// the storable range is 1 µm .. 65.535 mm, exact to 1 µm (rounded to nearest); set
+// RecordingInfo::depth_offset_m (and/or depth_unit_m) for a scanner whose stand-off is
+// longer. Depths outside the storable range are stored as invalid (0), not clamped: a
+// clamped depth would be a fabricated surface.
+//
+// Crash safety: each frame's PNGs are written and fsync'ed before manifest.json is replaced
+// (write to a temporary, fsync, rename), so an interrupted recording always reads back as
+// the frames completed before the interruption; stray files of an unfinished frame are
+// not listed and are ignored.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sdk/core/calibration.h"
+#include "sdk/core/image.h"
+
+namespace sls {
+
+struct RecordingDevice {
+  std::string uri;
+  std::string model;
+  std::string serial;
+};
+
+struct RecordingCamera {
+  int width = 0;
+  int height = 0;
+  int bit_depth = 8;  // as captured, 1..16 (8, 10, 12, 14, 16 in practice)
+};
+
+struct RecordingInfo {
+  static constexpr int kFormatVersion = 1;
+
+  RecordingDevice device;
+  RecordingCamera camera;
+  // The pattern set as a JSON object (name, image count, metadata). Opaque to the core; the
+  // writer checks that it parses as an object and stores it normalised (compact, key order kept).
+  std::string pattern_set_json = "{}";
+  int images_per_frame = 0;
+  bool has_groundtruth = false;
+  double depth_unit_m = 1e-6;   // size of one depth step on disk
+  double depth_offset_m = 0.0;  // depth of step 0 (step 0 itself means invalid)
+  std::string created_utc;      // ISO 8601, set by the writer; read back by the reader
+};
+
+struct FrameMetadata {
+  std::int64_t timestamp_ns = 0;
+  std::optional<double> turntable_angle_deg;
+  // false: the capture was cut short (e.g. a timeout); the frame may then hold fewer images
+  // than images_per_frame, always the first ones of the pattern sequence.
+  bool complete = true;
+  std::string note;
+};
+
+struct FrameInfo {
+  int index = 0;
+  std::int64_t timestamp_ns = 0;
+  std::optional<double> turntable_angle_deg;
+  bool complete = true;
+  std::string note;
+  std::vector<std::string> image_files;  // relative to the recording folder
+  std::string depth_file;                // relative; empty when the frame has no depth map
+  bool has_depth() const { return !depth_file.empty(); }
+};
+
+struct RecordingWriterOptions {
+  int png_compression_level = 1;  // zlib 0..9; live capture needs speed
+  bool sync = true;               // fsync every file (turn off only for tests and scratch data)
+  int encode_threads = 0;         // threads encoding one frame's PNGs; 0 = one per hardware thread
+};
+
+// Writes a recording frame by frame. Not thread-safe: one thread appends (each append
+// encodes its images on several threads itself). Move-only: one writer per folder.
+class RecordingWriter {
+ public:
+  RecordingWriter(RecordingWriter&&) noexcept = default;
+  RecordingWriter& operator=(RecordingWriter&&) noexcept = default;
+  RecordingWriter(const RecordingWriter&) = delete;
+  RecordingWriter& operator=(const RecordingWriter&) = delete;
+
+  // Creates `folder` (and its parents) and writes calibration.yml (when given) and an empty
+  // manifest. Throws kInvalidArgument for an existing non-empty folder or a bad `info`
+  // (sizes, bit depth, images_per_frame, pattern_set_json that is not a JSON object, a
+  // calibration whose camera size differs from the recording's), kIo when writing fails.
+  static RecordingWriter create(const std::string& folder, const RecordingInfo& info,
+                                const std::optional<ScannerCalibration>& calibration,
+                                const RecordingWriterOptions& options = {});
+
+  // Appends one frame: writes its images (and depth map), then the manifest listing it.
+  // Images must match the camera size; 16-bit images for bit_depth > 8, 8-bit images (or
+  // 16-bit ones holding values <= 255) for bit_depth <= 8; values must fit bit_depth.
+  // A complete frame has exactly images_per_frame images, an incomplete one at most that.
+  // `depth_m` (metres, 0 or non-finite = invalid) must match the camera size.
+  // Returns the frame's index. On failure (kInvalidArgument, kIo) nothing is listed and
+  // the recording stays valid; the next append reuses the index.
+  int append_frame(const std::vector<Image16u>& images, const FrameMetadata& metadata,
+                   const Image32f* depth_m = nullptr);
+  int append_frame(const std::vector<Image8u>& images, const FrameMetadata& metadata,
+                   const Image32f* depth_m = nullptr);
+
+  const std::string& folder() const { return folder_; }
+  const RecordingInfo& info() const { return info_; }
+  std::size_t frame_count() const { return frames_.size(); }
+  const FrameInfo& frame(std::size_t position) const;
+  // Absolute path of groundtruth/ (created by create()); empty when !info().has_groundtruth.
+  std::string groundtruth_folder() const;
+
+  // Ends the recording; appending afterwards is an error. The manifest is already complete
+  // after every append, so destroying a writer without close() loses nothing.
+  void close();
+  bool is_closed() const { return closed_; }
+
+ private:
+  RecordingWriter() = default;
+  template <typename T>
+  int append_any(const std::vector<Image<T>>& images, const FrameMetadata& metadata, const Image32f* depth_m);
+  void write_manifest() const;
+
+  std::string folder_;
+  RecordingInfo info_;
+  bool has_calibration_ = false;
+  RecordingWriterOptions options_;
+  std::vector<FrameInfo> frames_;
+  bool closed_ = false;
+};
+
+// Reads a recording. open() validates the manifest and reads the calibration; images are
+// loaded on demand and checked then. All methods are const and keep no state, so several
+// threads may load frames from one reader at once. Errors are sls::Error naming the file: kNotFound
+// (missing folder, manifest, calibration or image), kFormat (corrupt JSON with its byte
+// position, missing or mistyped keys, paths leaving the folder, undecodable or mis-sized
+// images), kVersionMismatch (format_version newer than this SDK writes).
+class RecordingReader {
+ public:
+  static RecordingReader open(const std::string& folder);
+
+  const std::string& folder() const { return folder_; }
+  const RecordingInfo& info() const { return info_; }
+  bool has_calibration() const { return calibration_.has_value(); }
+  // Throws kNotFound when the recording was made without calibration.
+  const ScannerCalibration& calibration() const;
+
+  std::size_t frame_count() const { return frames_.size(); }
+  // By position in the manifest (0 .. frame_count()-1); kInvalidArgument when out of range.
+  const FrameInfo& frame(std::size_t position) const;
+
+  // Absolute path of a file named relative to the folder in a FrameInfo.
+  std::string file_path(const std::string& relative) const;
+
+  // One image as captured, as 16-bit (8-bit PNGs widened by value, no scaling), checked to
+  // exist, decode and have the camera's size.
+  Image16u load_image(std::size_t position, std::size_t image) const;
+  // All images of a frame, in pattern order (decoded on several threads).
+  std::vector<Image16u> load_images(std::size_t position) const;
+  // The frame's depth map in metres (0 = invalid), or nullopt when it has none.
+  std::optional<Image32f> load_depth_m(std::size_t position) const;
+
+  // Checks that every listed file exists with a valid PNG header of the camera's size
+  // (decode_pixels: also decodes every image, slow). Throws on the first problem.
+  void verify(bool decode_pixels = false) const;
+
+  // Absolute path of groundtruth/, empty when the recording has none.
+  std::string groundtruth_folder() const;
+
+ private:
+  RecordingReader() = default;
+
+  std::string folder_;
+  RecordingInfo info_;
+  std::optional<ScannerCalibration> calibration_;
+  std::vector<FrameInfo> frames_;
+  std::string groundtruth_relative_;
+};
+
+}  // namespace sls

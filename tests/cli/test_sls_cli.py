@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""Drives the `sls` binary as a user would: help and version, JSON output, exit statuses,
+`inspect` on good and corrupt files, and `scan` saying what is missing without writing
+output. Usage: test_sls_cli.py PATH_TO_SLS (stdlib only)."""
+import json
+import os
+import pathlib
+import struct
+import subprocess
+import sys
+import tempfile
+import unittest
+
+SLS = None
+
+
+def run(*args):
+    return subprocess.run([SLS, *args], capture_output=True, text=True, timeout=120)
+
+
+def write_binary_ply(path, points):
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(points)}\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+    )
+    with open(path, "wb") as f:
+        f.write(header.encode())
+        for p in points:
+            f.write(struct.pack("<3f", *p))
+
+
+class SlsCli(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.dir = pathlib.Path(self.tmp.name)
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def test_help_lists_every_command_and_each_has_help(self):
+        result = run("--help")
+        self.assertEqual(result.returncode, 0)
+        for command in ("info", "inspect", "scan"):
+            self.assertIn(command, result.stdout)
+            sub = run(command, "--help")
+            self.assertEqual(sub.returncode, 0, sub.stderr)
+            self.assertIn("Usage", sub.stdout)
+
+    def test_version(self):
+        result = run("--version")
+        self.assertEqual(result.returncode, 0)
+        self.assertRegex(result.stdout, r"sls \d+\.\d+\.\d+")
+
+    def test_bad_command_line_is_exit_2(self):
+        self.assertEqual(run("scan", "--sim", "nonsense", "--out", str(self.dir)).returncode, 2)
+        self.assertEqual(run("no-such-command").returncode, 2)
+
+    def test_info_json(self):
+        result = run("--json", "info")
+        self.assertEqual(result.returncode, 0)
+        info = json.loads(result.stdout)
+        self.assertIn("cuda_compiled", info)
+        self.assertIsInstance(info["cuda_devices"], list)
+
+    def test_inspect_good_ply_and_trajectory(self):
+        ply = self.dir / "cloud.ply"
+        write_binary_ply(ply, [(0.0, 0.0, 0.0), (0.001, 0.002, 0.003)])
+        tum = self.dir / "trajectory.txt"
+        tum.write_text("# t tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n1 0.003 0.004 0 0 0 0 1\n")
+        result = run("--json", "inspect", str(ply), str(tum))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        out = json.loads(result.stdout)
+        self.assertTrue(out["ok"])
+        cloud, trajectory = out["results"]
+        self.assertEqual(cloud["points"], 2)
+        self.assertAlmostEqual(cloud["bounds_max_m"][2], 0.003, places=6)
+        self.assertEqual(trajectory["poses"], 2)
+        self.assertAlmostEqual(trajectory["path_length_m"], 0.005, places=9)
+
+    def test_inspect_corrupt_files_name_file_and_problem(self):
+        truncated = self.dir / "truncated.ply"
+        write_binary_ply(truncated, [(0.0, 0.0, 0.0)] * 10)
+        truncated.write_bytes(truncated.read_bytes()[:-7])
+        recording = self.dir / "rec"
+        recording.mkdir()
+        (recording / "manifest.json").write_text('{"format": "slscan-recording", "format_ver')
+        calibration = self.dir / "calibration.yml"
+        calibration.write_text("%YAML:1.0\n---\ncamera_width: 100\n")
+        for path in (truncated, recording, calibration):
+            result = run("--json", "inspect", str(path))
+            self.assertEqual(result.returncode, 1, path)
+            out = json.loads(result.stdout)
+            self.assertFalse(out["ok"])
+            message = out["results"][0]["message"]
+            self.assertIn(path.name, message)
+            self.assertIn(path.name, result.stderr)
+
+    def test_inspect_missing_path(self):
+        result = run("inspect", str(self.dir / "nope.ply"))
+        self.assertEqual(result.returncode, 1)
+        self.assertIn("nope.ply", result.stderr)
+
+    def test_scan_sim_says_what_is_missing_and_writes_nothing(self):
+        out = self.dir / "out"
+        result = run("scan", "--sim", "demo", "--device", "cpu", "--out", str(out))
+        self.assertEqual(result.returncode, 3, result.stderr)
+        self.assertIn("not in this build", result.stderr)
+        self.assertFalse(out.exists())
+
+    def test_scan_cuda_without_gpu_or_cuda_is_clear(self):
+        info = json.loads(run("--json", "info").stdout)
+        if info["cuda_devices"]:
+            self.skipTest("a GPU is present")
+        result = run("scan", "--sim", "demo", "--device", "cuda:0", "--out", str(self.dir / "o"))
+        self.assertIn(result.returncode, (1, 3))
+        self.assertIn("cuda:0", result.stderr)
+
+
+if __name__ == "__main__":
+    SLS = os.path.abspath(sys.argv.pop(1))
+    unittest.main(verbosity=2)
