@@ -3,6 +3,7 @@
 // it never writes made-up output.
 #include <iostream>
 
+#include "drivers/sim/sim_recording.h"
 #include "samples/sls/commands.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
@@ -24,22 +25,28 @@ struct ScanOptions {
 };
 
 int run_scan(const Context& context, const ScanOptions& options) {
-  // Default device: the GPU when there is one, else the CPU. An explicit --device cuda
-  // without a GPU is an error, not a silent fallback.
-  const Device device =
-      options.device_given ? parse_device(options.device) : (cuda_device_count() > 0 ? Device::cuda(0) : Device::cpu());
+  // An explicit --device cuda without a GPU is an error, not a silent fallback.
+  const Device device = options.device_given ? parse_device(options.device) : default_device();
   require_device(device);
 
+  std::string input = options.input;
   if (!options.sim_preset.empty()) {
-    throw_error(ErrorCode::kUnsupported,
-                "the simulated scanner (drivers/sim) is not in this build yet, so `--sim {}` has nothing to scan; "
-                "nothing was written to {}. Stages present: core types and file formats. Missing: simulator, "
-                "decode, fusion, tracking.",
-                options.sim_preset, options.out);
+    // Capture: scan the simulated scanner into OUT/recording, as a hardware scan would record.
+    sim::SimRecordingOptions sim_options;
+    sim_options.preset = options.sim_preset;
+    sim_options.object = options.object;
+    sim_options.frames = options.frames;
+    input = options.out + "/recording";
+    const sim::SimRecordingSummary summary =
+        sim::write_sim_recording(input, sim_options, device, context.progress_callback("capture"));
+    if (!context.options.json) {
+      std::cerr << "captured " << summary.frames << " frames x " << summary.images_per_frame << " images ("
+                << summary.width << "x" << summary.height << ") from " << summary.uri << " into " << input << "\n";
+    }
   }
 
-  // --input: the recording is read and checked (manifest, calibration, every image header).
-  const RecordingReader recording = RecordingReader::open(options.input);
+  // The recording is read and checked (manifest, calibration, every image).
+  const RecordingReader recording = RecordingReader::open(input);
   recording.verify(false);
   const ProgressCallback progress = context.progress_callback("read");
   for (std::size_t i = 0; i < recording.frame_count(); ++i) {
@@ -51,10 +58,10 @@ int run_scan(const Context& context, const ScanOptions& options) {
                 options.input);
   }
   throw_error(ErrorCode::kUnsupported,
-              "read {} frame(s) of {} x {} images from {}, all valid; the decode stage (sdk/decode) is not in this "
-              "build yet, so no depth maps or model can be made; nothing was written to {}",
-              recording.frame_count(), recording.info().images_per_frame, recording.info().camera.width,
-              options.input, options.out);
+              "read {} frame(s) of {} images from {}, all valid; the decode stage (pattern decoding and "
+              "triangulation, sdk/decode) is not in this build yet, so no depth maps, cloud, mesh or trajectory can "
+              "be made. Missing stages: decode, tracking, fusion.",
+              recording.frame_count(), recording.info().images_per_frame, input);
 }
 
 }  // namespace

@@ -11,5 +11,6 @@ namespace sls::cli {
 void add_info_command(CLI::App& app, Context& context, int* exit_code);
 void add_inspect_command(CLI::App& app, Context& context, int* exit_code);
 void add_scan_command(CLI::App& app, Context& context, int* exit_code);
+void add_sim_command(CLI::App& app, Context& context, int* exit_code);
 
 }  // namespace sls::cli

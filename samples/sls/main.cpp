@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   add_info_command(app, context, &exit_code);
   add_inspect_command(app, context, &exit_code);
   add_scan_command(app, context, &exit_code);
+  add_sim_command(app, context, &exit_code);
 
   app.parse_complete_callback([&context] {
     spdlog::set_level(context.options.verbosity >= 2   ? spdlog::level::debug

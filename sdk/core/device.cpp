@@ -14,6 +14,8 @@ std::string Device::to_string() const {
   return kind == Kind::kCpu ? std::string("cpu") : "cuda:" + std::to_string(id);
 }
 
+Device default_device() { return cuda_device_count() > 0 ? Device::cuda(0) : Device::cpu(); }
+
 Device parse_device(const std::string& text) {
   if (text == "cpu") return Device::cpu();
   if (text == "cuda") return Device::cuda(0);

@@ -19,6 +19,10 @@ struct Device {
   std::string to_string() const;  // "cpu", "cuda:0"
 };
 
+// The first CUDA GPU when one is usable, else the CPU: the default wherever the caller
+// does not choose.
+Device default_device();
+
 // Parses "cpu", "cuda" or "cuda:N"; throws sls::Error (invalid argument) otherwise.
 Device parse_device(const std::string& text);
 

@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
+#include <cmath>
 #include <csetjmp>
 #include <cstdio>
 #include <cstring>
@@ -452,6 +454,148 @@ void write_png(const std::string& path, ImageView<const std::uint8_t> image, con
 
 void write_png(const std::string& path, ImageView<const std::uint16_t> image, const PngWriteOptions& options) {
   write_any(path, image, options);
+}
+
+// ---------------------------------------------------------------------------------------
+// PFM
+
+namespace {
+
+bool is_pfm_space(std::uint8_t c) {
+  return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\v' || c == '\f';
+}
+
+struct PfmLayout {
+  std::size_t width = 0;
+  std::size_t height = 0;
+  bool little_endian = true;
+  std::size_t data_offset = 0;
+};
+
+PfmLayout parse_pfm_header(const std::uint8_t* data, std::size_t size, const std::string& name) {
+  if (data == nullptr || size < 2 || data[0] != 'P' || (data[1] != 'f' && data[1] != 'F')) {
+    throw_error(ErrorCode::kFormat, "{}: not a PFM file (it does not start with \"Pf\")", name);
+  }
+  if (data[1] == 'F') {
+    throw_error(ErrorCode::kFormat, "{}: colour PFM (\"PF\") is not supported, only grey (\"Pf\")", name);
+  }
+  std::size_t pos = 2;
+  // A header field: whitespace, then up to 64 non-space characters, then one whitespace.
+  auto field = [&](const char* what) -> std::string {
+    if (pos >= size || !is_pfm_space(data[pos])) {
+      throw_error(ErrorCode::kFormat, "{}: corrupt PFM header: {} expected", name,
+                  pos >= size ? std::string("more data") : fmt::format("whitespace before the {}", what));
+    }
+    while (pos < size && is_pfm_space(data[pos])) ++pos;
+    const std::size_t start = pos;
+    while (pos < size && !is_pfm_space(data[pos]) && pos - start <= 64) ++pos;
+    if (pos >= size) throw_error(ErrorCode::kFormat, "{}: corrupt PFM: the file ends inside the header", name);
+    if (pos == start || !is_pfm_space(data[pos])) {
+      throw_error(ErrorCode::kFormat, "{}: corrupt PFM header: bad {}", name, what);
+    }
+    return std::string(reinterpret_cast<const char*>(data + start), pos - start);
+  };
+  auto side = [&](const std::string& text, const char* what) -> std::size_t {
+    std::uint64_t value = 0;
+    const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+    if (error != std::errc() || end != text.data() + text.size() || value == 0 || value > kMaxSide) {
+      throw_error(ErrorCode::kFormat, "{}: corrupt or unsupported PFM header: {} \"{}\"", name, what, text);
+    }
+    return static_cast<std::size_t>(value);
+  };
+  PfmLayout layout;
+  layout.width = side(field("width"), "width");
+  layout.height = side(field("height"), "height");
+  const std::string scale_text = field("scale");
+  double scale = 0;
+  const auto [end, error] = std::from_chars(scale_text.data(), scale_text.data() + scale_text.size(), scale);
+  if (error != std::errc() || end != scale_text.data() + scale_text.size() || !std::isfinite(scale) || scale == 0.0) {
+    throw_error(ErrorCode::kFormat, "{}: corrupt PFM header: scale \"{}\" (must be a non-zero number)", name,
+                scale_text);
+  }
+  layout.little_endian = scale < 0.0;
+  layout.data_offset = pos + 1;  // exactly one whitespace character ends the header
+  return layout;
+}
+
+std::uint32_t byte_swap32(std::uint32_t v) {
+  return (v >> 24) | ((v >> 8) & 0x0000ff00u) | ((v << 8) & 0x00ff0000u) | (v << 24);
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encode_pfm(ImageView<const float> image) {
+  if (image.empty() || image.data == nullptr) {
+    throw_error(ErrorCode::kInvalidArgument, "encode_pfm: the image is empty ({}x{})", image.width, image.height);
+  }
+  if (static_cast<png_uint_32>(image.width) > kMaxSide || static_cast<png_uint_32>(image.height) > kMaxSide) {
+    throw_error(ErrorCode::kInvalidArgument, "encode_pfm: image size {}x{} is too large", image.width, image.height);
+  }
+  const std::string header = fmt::format("Pf\n{} {}\n-1.0\n", image.width, image.height);
+  const std::size_t row_bytes = static_cast<std::size_t>(image.width) * sizeof(float);
+  std::vector<std::uint8_t> bytes(header.size() + row_bytes * static_cast<std::size_t>(image.height));
+  std::memcpy(bytes.data(), header.data(), header.size());
+  const bool swap = !host_is_little_endian();
+  std::uint8_t* out = bytes.data() + header.size();
+  for (int y = image.height - 1; y >= 0; --y) {  // bottom row first
+    std::memcpy(out, image.row(y), row_bytes);
+    if (swap) {
+      for (std::size_t i = 0; i < row_bytes; i += 4) {
+        std::uint32_t v;
+        std::memcpy(&v, out + i, 4);
+        v = byte_swap32(v);
+        std::memcpy(out + i, &v, 4);
+      }
+    }
+    out += row_bytes;
+  }
+  return bytes;
+}
+
+Image32f decode_pfm(const std::uint8_t* data, std::size_t size, const std::string& name) {
+  const PfmLayout layout = parse_pfm_header(data, size, name);
+  const std::size_t row_bytes = layout.width * sizeof(float);
+  const std::size_t needed = row_bytes * layout.height;
+  if (needed > kMaxImageBytes) {
+    throw_error(ErrorCode::kFormat, "{}: unsupported PFM: {}x{} pixels is too large", name, layout.width,
+                layout.height);
+  }
+  const std::size_t available = size - std::min(size, layout.data_offset);
+  if (available < needed) {
+    throw_error(ErrorCode::kFormat, "{}: corrupt PFM: truncated data ({} of {} bytes for {}x{} pixels)", name,
+                available, needed, layout.width, layout.height);
+  }
+  Image32f image(static_cast<int>(layout.width), static_cast<int>(layout.height));
+  const bool swap = layout.little_endian != host_is_little_endian();
+  const std::uint8_t* in = data + layout.data_offset;
+  for (std::size_t r = 0; r < layout.height; ++r) {  // file row r is image row height-1-r
+    float* row = image.data() + (layout.height - 1 - r) * layout.width;
+    std::memcpy(row, in + r * row_bytes, row_bytes);
+    if (swap) {
+      for (std::size_t x = 0; x < layout.width; ++x) {
+        std::uint32_t v;
+        std::memcpy(&v, row + x, 4);
+        v = byte_swap32(v);
+        std::memcpy(row + x, &v, 4);
+      }
+    }
+  }
+  return image;
+}
+
+void write_pfm(const std::string& path, ImageView<const float> image) {
+  std::vector<std::uint8_t> bytes;
+  try {
+    bytes = encode_pfm(image);
+  } catch (const Error& error) {
+    throw Error(error.code(), path + ": " + error.what());
+  }
+  write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
+Image32f read_pfm(const std::string& path) {
+  const std::vector<std::uint8_t> bytes = read_whole_file(path);
+  return decode_pfm(bytes.data(), bytes.size(), path);
 }
 
 }  // namespace sls

@@ -1,4 +1,5 @@
-// PNG image I/O on libpng (no OpenCV: the GPU machine has none, DESIGN.md section 9).
+// PNG image I/O on libpng (no OpenCV: the GPU machine has none, DESIGN.md section 9), and
+// PFM for float images (at the end of this file).
 //
 // Images are grayscale, 8 or 16 bits per pixel. Pixel values are stored and read back as
 // they are: a 12-bit camera image goes into a 16-bit PNG unscaled (0..4095), and no sBIT or
@@ -77,5 +78,23 @@ inline std::vector<std::uint8_t> encode_png(const Image8u& image, const PngWrite
 inline std::vector<std::uint8_t> encode_png(const Image16u& image, const PngWriteOptions& options = {}) {
   return encode_png(image.view(), options);
 }
+
+// PFM (Portable Float Map) for float images: depth maps, phase maps, ground truth.
+//
+// Layout (the format as Debevec's PFM page and OpenCV define it): the ASCII header "Pf\n"
+// (grey; "PF" is colour), "<width> <height>\n", "<scale>\n", then width*height 32-bit floats,
+// rows stored bottom-to-top. A negative scale means little-endian samples, a positive one
+// big-endian; its magnitude is a scale factor that readers here ignore (samples come back
+// exactly as stored; OpenCV divides by it, so we always write -1.0, which both read alike).
+// We write "Pf\n<w> <h>\n-1.0\n" and little-endian samples. Reading accepts either byte
+// order and any whitespace between the header fields, rejects colour PFM, and ignores bytes
+// after the pixels. Errors throw sls::Error naming the file: kNotFound, kIo, kFormat (bad
+// header, zero or absurd size, zero/NaN scale, truncated data).
+std::vector<std::uint8_t> encode_pfm(ImageView<const float> image);
+Image32f decode_pfm(const std::uint8_t* data, std::size_t size, const std::string& name);
+// Writes with sls::write_file_atomic (temporary, fsync, rename).
+void write_pfm(const std::string& path, ImageView<const float> image);
+inline void write_pfm(const std::string& path, const Image32f& image) { write_pfm(path, image.view()); }
+Image32f read_pfm(const std::string& path);
 
 }  // namespace sls

@@ -128,8 +128,9 @@ void validate_info(const RecordingInfo& info, const std::string& folder) {
   if (camera.bit_depth < 1 || camera.bit_depth > 16) {
     throw_error(ErrorCode::kInvalidArgument, "recording {}: camera bit depth {} is outside 1..16", folder, camera.bit_depth);
   }
-  if (info.images_per_frame < 1) {
-    throw_error(ErrorCode::kInvalidArgument, "recording {}: images_per_frame {} must be at least 1", folder,
+  // 0 images per frame: a depth-only recording (every frame carries a depth map instead).
+  if (info.images_per_frame < 0) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: images_per_frame {} is negative", folder,
                 info.images_per_frame);
   }
   if (!(std::isfinite(info.depth_unit_m) && info.depth_unit_m > 0.0) ||
@@ -247,6 +248,9 @@ FrameInfo parse_frame(const ManifestParser& parser, const Json& json, std::size_
   }
   if (const Json* depth = parser.optional_member(json, "depth")) {
     frame.depth_file = parser.relative_path(*depth, where + ".depth");
+  }
+  if (images_per_frame == 0 && frame.depth_file.empty()) {
+    parser.fail(fmt::format("'{}' has no depth map, but the recording is depth-only (images_per_frame 0)", where));
   }
   return frame;
 }
@@ -376,6 +380,9 @@ int RecordingWriter::append_any(const std::vector<Image<T>>& images, const Frame
   }
   if (metadata.turntable_angle_deg && !std::isfinite(*metadata.turntable_angle_deg)) {
     throw_error(ErrorCode::kInvalidArgument, "recording {}: turntable angle is not finite", folder_);
+  }
+  if (expected == 0 && depth_m == nullptr) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: a depth-only recording's frames need a depth map", folder_);
   }
   if (sizeof(T) == 1 && camera.bit_depth > 8) {
     throw_error(ErrorCode::kInvalidArgument, "recording {}: 8-bit images for a {}-bit camera", folder_,
@@ -536,7 +543,7 @@ RecordingReader RecordingReader::open(const std::string& folder) {
   info.camera.bit_depth = static_cast<int>(parser.integer(camera, "bit_depth", "camera", 1, 16));
   info.pattern_set_json = parser.object(root, "pattern_set", "").dump();
   info.images_per_frame =
-      static_cast<int>(parser.integer(root, "images_per_frame", "", 1, std::numeric_limits<int>::max()));
+      static_cast<int>(parser.integer(root, "images_per_frame", "", 0, std::numeric_limits<int>::max()));
   if (const Json* encoding = parser.optional_member(root, "depth_encoding")) {
     if (!encoding->is_object()) parser.fail("'depth_encoding' must be an object");
     const std::string depth_format = parser.string(*encoding, "format", "depth_encoding");

@@ -11,6 +11,7 @@
 //   {"format": "slscan-recording", "format_version": 1, "created_utc": "2024-01-31T12:00:00Z",
 //    "device": {"uri", "model", "serial"}, "camera": {"width", "height", "bit_depth"},
 //    "pattern_set": {...caller's JSON object...}, "images_per_frame": N,
+//    (images_per_frame 0: a depth-only recording, every frame has a depth map),
 //    "calibration": "calibration.yml" | null, "groundtruth": "groundtruth" (optional),
 //    "depth_encoding": {"format": "png16", "unit_m": 1e-6, "offset_m": 0.0},
 //    "frames": [{"index", "timestamp_ns", "turntable_angle_deg": number|null,

@@ -40,7 +40,7 @@ class SlsCli(unittest.TestCase):
     def test_help_lists_every_command_and_each_has_help(self):
         result = run("--help")
         self.assertEqual(result.returncode, 0)
-        for command in ("info", "inspect", "scan"):
+        for command in ("info", "inspect", "scan", "sim"):
             self.assertIn(command, result.stdout)
             sub = run(command, "--help")
             self.assertEqual(sub.returncode, 0, sub.stderr)
@@ -100,12 +100,50 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(result.returncode, 1)
         self.assertIn("nope.ply", result.stderr)
 
-    def test_scan_sim_says_what_is_missing_and_writes_nothing(self):
+    def test_scan_sim_captures_then_says_what_is_missing(self):
         out = self.dir / "out"
-        result = run("scan", "--sim", "demo", "--device", "cpu", "--out", str(out))
+        result = run("scan", "--sim", "ci", "--frames", "2", "--device", "cpu", "--out", str(out))
         self.assertEqual(result.returncode, 3, result.stderr)
+        self.assertIn("decode stage", result.stderr)
         self.assertIn("not in this build", result.stderr)
-        self.assertFalse(out.exists())
+        # What exists ran: the capture is a valid recording; no model was made up.
+        inspect = json.loads(run("--json", "inspect", str(out / "recording")).stdout)
+        self.assertTrue(inspect["ok"])
+        self.assertEqual(inspect["results"][0]["frames"], 2)
+        self.assertFalse((out / "cloud.ply").exists())
+
+    def test_sim_writes_recording_with_ground_truth(self):
+        out = self.dir / "rec"
+        result = run("--json", "sim", "--preset", "ci", "--object", "knurled-knob", "--frames", "3",
+                     "--device", "cpu", "--out", str(out))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        summary = json.loads(result.stdout)
+        self.assertEqual(summary["frames"], 3)
+        self.assertEqual(summary["images_per_frame"], 22)
+        inspect = json.loads(run("--json", "inspect", "--deep", str(out), str(out / "groundtruth/reference.ply"),
+                                 str(out / "groundtruth/trajectory.txt"), str(out / "calibration.yml")).stdout)
+        self.assertTrue(inspect["ok"], inspect)
+        recording, reference, trajectory, calibration = inspect["results"]
+        self.assertTrue(recording["groundtruth"])
+        self.assertEqual(recording["frames_with_turntable_angle"], 3)
+        self.assertGreater(reference["points"], 10000)
+        self.assertEqual(trajectory["poses"], 3)
+        self.assertAlmostEqual(calibration["projector_angle_deg"], 25.0, places=6)
+        for name in ("depth.pfm", "projector_u.pfm", "projector_v.pfm", "valid.png", "depth_sigma.pfm"):
+            self.assertTrue((out / "groundtruth/frames/000002" / name).exists(), name)
+        # A second run into the same folder refuses instead of mixing two scans.
+        again = run("sim", "--preset", "ci", "--frames", "1", "--device", "cpu", "--out", str(out))
+        self.assertEqual(again.returncode, 1)
+        self.assertIn(str(out), again.stderr)
+
+    def test_sim_depth_mode(self):
+        out = self.dir / "depth"
+        result = run("sim", "--preset", "ci", "--mode", "depth", "--frames", "2", "--device", "cpu",
+                     "--out", str(out))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        recording = json.loads(run("--json", "inspect", "--deep", str(out)).stdout)["results"][0]
+        self.assertEqual(recording["images_per_frame"], 0)
+        self.assertEqual(recording["frames_with_depth"], 2)
 
     def test_scan_cuda_without_gpu_or_cuda_is_clear(self):
         info = json.loads(run("--json", "info").stdout)

@@ -338,6 +338,27 @@ TEST(Recording, DepthOffsetExtendsTheRange) {
   EXPECT_NEAR(read(2, 0), 0.2734567f, 0.5e-6 + 3e-8);
 }
 
+TEST(Recording, DepthOnlyRecordingRoundTripsAndNeedsDepthMaps) {
+  test::TemporaryDirectory dir;
+  RecordingInfo info = make_info(16);
+  info.images_per_frame = 0;
+  info.depth_offset_m = 0.07;
+  RecordingWriter writer = RecordingWriter::create(dir.file("rec"), info, make_calibration());
+  Image32f depth(kWidth, kHeight, 0.1001234f);
+  depth(3, 2) = 0.0f;  // invalid stays invalid
+  writer.append_frame(std::vector<Image16u>{}, metadata(0, 12.5), &depth);
+  expect_error([&] { writer.append_frame(std::vector<Image16u>{}, metadata(1, 13.0)); }, ErrorCode::kInvalidArgument,
+               "depth map");
+  writer.close();
+  const RecordingReader reader = RecordingReader::open(dir.file("rec"));
+  EXPECT_EQ(reader.info().images_per_frame, 0);
+  ASSERT_EQ(reader.frame_count(), 1u);
+  EXPECT_TRUE(reader.load_images(0).empty());
+  const Image32f read = *reader.load_depth_m(0);
+  EXPECT_NEAR(read(0, 0), 0.1001234f, 0.5e-6 + 3e-8);
+  EXPECT_EQ(read(3, 2), 0.0f);
+}
+
 TEST(Recording, WriterRejectsCallerMistakes) {
   test::TemporaryDirectory dir;
   // A non-empty folder.

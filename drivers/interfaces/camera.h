@@ -1,0 +1,56 @@
+// The camera driver interface: what the capture sequencer needs from any camera — the
+// simulated one (drivers/sim), GenICam cameras through Aravis (drivers/aravis, issue #7)
+// and recorded sessions (drivers/replay).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+
+#include "sdk/core/image.h"
+
+namespace sls::drivers {
+
+struct CameraInfo {
+  std::string uri;     // how it was opened, e.g. "sim://knurled-screw?preset=demo"
+  std::string model;
+  std::string serial;
+  int width = 0;
+  int height = 0;
+  int bit_depth = 0;   // significant bits per pixel (8, 10, 12, 16)
+};
+
+enum class TriggerSource {
+  kSoftware,      // software_trigger() starts an exposure
+  kHardwareLine,  // an electrical trigger input (the projector's or head controller's output)
+};
+
+struct CapturedImage {
+  Image16u image;             // values 0 .. 2^bit_depth − 1
+  std::int64_t timestamp_ns = 0;  // device clock when the exposure started
+  std::uint64_t frame_id = 0;     // the camera's own counter; gaps reveal dropped frames
+  // false when the transport lost part of the image (e.g. missing GigE Vision packets): the
+  // sequencer must re-capture or mark the stack incomplete, never use it as if whole.
+  bool complete = true;
+  std::string problem;            // why it is incomplete
+};
+
+class Camera {
+ public:
+  virtual ~Camera() = default;
+
+  virtual CameraInfo info() const = 0;
+  virtual void set_exposure_us(double exposure_us) = 0;
+  virtual double exposure_us() const = 0;
+  virtual void set_trigger_source(TriggerSource source) = 0;
+
+  // Acquisition: between start() and stop() each trigger yields one image.
+  virtual void start() = 0;
+  virtual void stop() = 0;
+  virtual void software_trigger() = 0;
+  // The next image; throws sls::Error(kTimeout) naming the camera when none arrives in time,
+  // kDevice when the camera is gone.
+  virtual CapturedImage wait_image(std::chrono::milliseconds timeout) = 0;
+};
+
+}  // namespace sls::drivers

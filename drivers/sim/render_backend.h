@@ -1,0 +1,47 @@
+// The two thin launchers behind sls::sim::Renderer (internal to drivers/sim).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "drivers/sim/render_shared.h"
+#include "sdk/core/ray_map.h"
+
+namespace sls::sim {
+
+struct PatternRenderParams {
+  PatternDesc pattern;
+  SensorModel sensor;
+  ProjectorModel projector;
+  NoiseKey key;  // pixel field is filled per pixel
+  bool noise = true;
+};
+
+class RenderBackend {
+ public:
+  virtual ~RenderBackend() = default;
+  virtual void trace(const FrameRenderParams& params) = 0;
+  // Renders into the backend's image; when `out` is not null, also copies it there.
+  virtual void render_pattern(const PatternRenderParams& params, std::uint16_t* out) = 0;
+  virtual void download_geometry(PixelGeometry* out) const = 0;
+  // Noisy depth (0 where not lit), keyed like the patterns with image = kDepthImage.
+  virtual void render_depth(const NoiseKey& key, float* out) = 0;
+  virtual void synchronize() = 0;
+};
+
+constexpr std::uint32_t kDepthImage = 0xFFFFu;
+
+std::unique_ptr<RenderBackend> make_cpu_render_backend(const RayMap& rays);
+#if defined(SLS_HAVE_CUDA)
+std::unique_ptr<RenderBackend> make_cuda_render_backend(const RayMap& rays, int device_id);
+#endif
+
+// The noisy depth of one pixel: one body for both backends.
+SLS_HOST_DEVICE inline float noisy_depth(const PixelGeometry& g, NoiseKey key) {
+  if (!(g.flags & kPixelLit)) return 0.0f;
+  NoiseStream stream = make_noise_stream(key, kUserStream + 1);
+  return static_cast<float>(static_cast<double>(g.depth_m) + static_cast<double>(g.depth_sigma_m) * stream.normal());
+}
+
+}  // namespace sls::sim

@@ -1,0 +1,77 @@
+// The simulated scanner rig: camera and projector (optics from drivers/sim/optics_shared.h,
+// documented in docs/simulator-optics.md), their placement, the turntable and the object's
+// mount on it, and the presets ci / demo / paper.
+//
+// Frames. World = the turntable frame: z up along the turntable axis, origin on the axis at
+// the table top. The object stands on the table (object z along its own axis, which the mount
+// tilts and offsets by a few micrometres: that is the wobble). The camera looks horizontally
+// at the object's side along −x world, image rows running down the object (y_camera = −z
+// world); the projector sits 25° around the vertical axis through the focus point, so its
+// column stripes run parallel to the axis (and to straight knurl ridges).
+//
+// Per frame k of a revolution of N: commanded angle θ_k = 360° k / N, true angle θ_k + jitter;
+//   T_world_object(k) = Rz(true θ_k) · T_table_object,
+//   T_object_camera(k) = T_world_object(k)⁻¹ · T_world_camera   (the ground-truth pose).
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "drivers/sim/optics_shared.h"
+#include "drivers/sim/scene.h"
+#include "sdk/core/calibration.h"
+#include "sdk/core/camera_model_shared.h"
+#include "sdk/core/pose.h"
+#include "sdk/decode/pattern_set.h"
+
+namespace sls::sim {
+
+struct TurntableModel {
+  int steps_per_revolution = 440;  // frames per revolution (the paper: 440 at 3 Hz)
+  double angle_jitter_deg = 0.002; // σ of the true angle about the commanded one (stepper + backlash)
+  double mount_tilt_deg = 0.02;    // the object's axis against the table's: wobble as it turns
+  double mount_offset_m = 30e-6;   // the object's axis off the table's axis (eccentricity)
+  std::uint64_t seed = 1;          // jitter draws
+};
+
+struct SimRig {
+  std::string preset;
+  RigOptics optics;            // sensor size per preset; physical parameters per the document
+  CameraIntrinsics camera;     // pinhole from the optics plus a small lens distortion
+  CameraIntrinsics projector;
+  Pose T_world_camera;
+  Pose T_camera_projector;     // projector frame -> camera frame (what a calibration stores)
+  TurntableModel turntable;
+  Pose T_table_object;         // the mount (tilt + offset), fixed during a scan
+  PatternSet patterns;
+  std::uint64_t noise_seed = 1;
+  bool noise = true;           // false: noise-free renders (tests, pictures)
+
+  // The calibration a perfect calibration of this rig would give (camera, projector, their
+  // pose, the turntable axis in the camera frame).
+  ScannerCalibration calibration() const;
+  // Commanded and true turntable angles of frame k, in degrees.
+  double commanded_angle_deg(int frame) const;
+  double true_angle_deg(int frame) const;
+  // Ground truth: the object's pose in the world and the camera's pose in the object frame.
+  Pose T_world_object(int frame) const;
+  Pose T_object_camera(int frame) const;
+};
+
+struct RigOptions {
+  std::string preset = "demo";  // ci | demo | paper
+  int frames = 0;               // frames per revolution; 0: the preset's
+  int camera_width = 0;         // 0: the preset's; the field of view stays 12 x 9 mm
+  std::uint64_t seed = 1;
+  bool noise = true;
+};
+
+// The rig for a preset looking at `scene` (the focus point is the object's surface nearest
+// the camera at mid-height). Throws sls::Error(kInvalidArgument) for an unknown preset or
+// bad sizes.
+SimRig make_rig(const RigOptions& options, const Scene& scene);
+
+// The presets' names and one-line descriptions, for --help.
+std::string preset_help();
+
+}  // namespace sls::sim

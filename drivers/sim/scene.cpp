@@ -1,0 +1,903 @@
+#include "drivers/sim/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "sdk/core/error.h"
+
+namespace sls::sim {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+using Vec3 = Eigen::Vector3d;
+using Json = nlohmann::ordered_json;
+
+Vec3 to_eigen(const Vec3d& v) { return {v.x, v.y, v.z}; }
+Vec3d to_vec(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+double point_segment_distance(const Vec3& p, const Vec3& a, const Vec3& b) {
+  const Vec3 e = b - a;
+  const double len2 = e.squaredNorm();
+  const double u = len2 > 0.0 ? std::clamp((p - a).dot(e) / len2, 0.0, 1.0) : 0.0;
+  return (p - (a + u * e)).norm();
+}
+
+// Angular distance (in [0, pi]) from angle theta to the arc [lo, hi] (hi - lo < 2 pi).
+double angular_distance_to_arc(double theta, double lo, double hi) {
+  double d = std::fmod(theta - lo, 2.0 * kPi);
+  if (d < 0.0) d += 2.0 * kPi;
+  const double width = hi - lo;
+  if (d <= width) return 0.0;
+  return std::min(d - width, 2.0 * kPi - d);
+}
+
+// ---------------------------------------------------------------------------------------
+// Crease index: segments of the crease polylines in an (angle x z) grid. A query visits the
+// angle bins outwards from the point's angle and stops once no unvisited bin can hold a
+// closer crease (detail::annulus_angle_bound with the creases' radial range).
+class CreaseIndex {
+ public:
+  void build(const std::vector<Polyline>& polylines, int angle_bins, int z_bins) {
+    segments_.clear();
+    for (const Polyline& line : polylines) {
+      for (std::size_t i = 0; i + 1 < line.size(); ++i) segments_.push_back({line[i], line[i + 1]});
+    }
+    if (segments_.empty()) return;
+    angle_bins_ = std::max(angle_bins, 1);
+    z_bins_ = std::max(z_bins, 1);
+    bin_width_ = 2.0 * kPi / angle_bins_;
+    rho_lo_ = kInf;
+    rho_hi_ = 0.0;
+    z_lo_ = kInf;
+    z_hi_ = -kInf;
+    for (const Segment& s : segments_) {
+      // The chord's closest approach to the axis bounds the creases' radii from below.
+      const Vec3 a2(s.a.x(), s.a.y(), 0.0), b2(s.b.x(), s.b.y(), 0.0);
+      rho_lo_ = std::min(rho_lo_, point_segment_distance(Vec3::Zero(), a2, b2));
+      rho_hi_ = std::max({rho_hi_, a2.norm(), b2.norm()});
+      z_lo_ = std::min({z_lo_, s.a.z(), s.b.z()});
+      z_hi_ = std::max({z_hi_, s.a.z(), s.b.z()});
+    }
+    z_step_ = std::max(z_hi_ - z_lo_, 1e-9) / z_bins_;
+    cells_.assign(static_cast<std::size_t>(angle_bins_ * z_bins_), {});
+    for (std::size_t i = 0; i < segments_.size(); ++i) {
+      const Segment& s = segments_[i];
+      const double ta = std::atan2(s.a.y(), s.a.x());
+      double dt = std::atan2(s.b.y(), s.b.x()) - ta;
+      if (dt > kPi) dt -= 2.0 * kPi;
+      if (dt < -kPi) dt += 2.0 * kPi;
+      const double lo = std::min(ta, ta + dt), hi = std::max(ta, ta + dt);
+      const int b_lo = static_cast<int>(std::floor((lo + kPi) / bin_width_));
+      const int b_hi = static_cast<int>(std::floor((hi + kPi) / bin_width_));
+      const int z_lo = z_bin(std::min(s.a.z(), s.b.z()));
+      const int z_hi = z_bin(std::max(s.a.z(), s.b.z()));
+      for (int b = b_lo; b <= b_hi; ++b) {
+        const int bw = detail::wrap_index<double>(b, angle_bins_);
+        for (int z = z_lo; z <= z_hi; ++z) cells_[cell(bw, z)].push_back(static_cast<int>(i));
+      }
+    }
+  }
+
+  double distance(const Vec3& p) const {
+    if (segments_.empty()) return kInf;
+    const double theta = std::atan2(p.y(), p.x());
+    const double rho = std::hypot(p.x(), p.y());
+    const int b0 = detail::wrap_index<double>(static_cast<int>(std::floor((theta + kPi) / bin_width_)), angle_bins_);
+    const double dz_out = std::max({0.0, z_lo_ - p.z(), p.z() - z_hi_});
+    double best = kInf;
+    const int max_m = angle_bins_ / 2 + 1;
+    for (int m = 0; m <= max_m; ++m) {
+      for (int side = 0; side < (m == 0 ? 1 : 2); ++side) {
+        const int b = detail::wrap_index<double>(side == 0 ? b0 + m : b0 - m, angle_bins_);
+        if (m > 0 && 2 * m == angle_bins_ && side == 1) continue;  // the same bin twice
+        const double bin_lo = -kPi + b * bin_width_;
+        const double delta = angular_distance_to_arc(theta, bin_lo, bin_lo + bin_width_);
+        const double bh = detail::annulus_angle_bound(rho, rho_lo_, rho_hi_, delta);
+        if (bh >= best) continue;
+        for (int z = 0; z < z_bins_; ++z) {
+          const double c_lo = z_lo_ + z * z_step_;
+          const double dz = std::max({0.0, c_lo - p.z(), p.z() - (c_lo + z_step_)});
+          if (bh * bh + dz * dz >= best * best) continue;
+          for (int i : cells_[cell(b, z)]) {
+            best = std::min(best, point_segment_distance(p, segments_[static_cast<std::size_t>(i)].a,
+                                                         segments_[static_cast<std::size_t>(i)].b));
+          }
+        }
+      }
+      // Unvisited bins are at least m bin widths away in angle.
+      const double bound = detail::annulus_angle_bound(rho, rho_lo_, rho_hi_, std::min(m * bin_width_, kPi));
+      if (bound * bound + dz_out * dz_out >= best * best) break;
+    }
+    return best;
+  }
+
+ private:
+  struct Segment {
+    Vec3 a, b;
+  };
+  int z_bin(double z) const {
+    return std::clamp(static_cast<int>(std::floor((z - z_lo_) / z_step_)), 0, z_bins_ - 1);
+  }
+  std::size_t cell(int b, int z) const { return static_cast<std::size_t>(b * z_bins_ + z); }
+
+  std::vector<Segment> segments_;
+  std::vector<std::vector<int>> cells_;
+  int angle_bins_ = 0, z_bins_ = 0;
+  double bin_width_ = 0.0, z_step_ = 0.0;
+  double rho_lo_ = 0.0, rho_hi_ = 0.0, z_lo_ = 0.0, z_hi_ = 0.0;
+};
+
+// ---------------------------------------------------------------------------------------
+// Knob geometry on half-tooth patch j (j/2 <= u <= (j+1)/2, 0 <= z <= height), where R is
+// linear in u: the side S(u, z) = (R cos theta, R sin theta, z) with
+//   R = Ro - depth * tri(u),  theta = (2 pi u - A sin(omega z)) / N,
+// and its first and second derivatives (for Newton on |p - S|^2).
+struct KnobPatchPoint {
+  Vec3 s, su, sz, suu, suz, szz;
+};
+
+double knob_patch_tri(int j, double u) {
+  return (j % 2 == 0) ? 2.0 * (u - 0.5 * j) : 2.0 * (0.5 * (j + 1) - u);
+}
+
+KnobPatchPoint knob_patch_eval(const KnurledKnobT<double>& k, int j, double u, double z) {
+  const double n = k.teeth;
+  const double ru = (j % 2 == 0) ? -2.0 * k.depth : 2.0 * k.depth;  // dR/du
+  const double R = k.outer_radius - k.depth * knob_patch_tri(j, u);
+  const double sw = std::sin(k.omega * z), cw = std::cos(k.omega * z);
+  const double theta = (2.0 * kPi * u - k.wave_phase * sw) / n;
+  const double tu = 2.0 * kPi / n;
+  const double tz = -k.wave_phase * k.omega * cw / n;
+  const double tzz = k.wave_phase * k.omega * k.omega * sw / n;
+  const Vec3 er(std::cos(theta), std::sin(theta), 0.0);
+  const Vec3 et(-er.y(), er.x(), 0.0);
+  const Vec3 ez(0.0, 0.0, 1.0);
+  KnobPatchPoint q;
+  q.s = R * er + z * ez;
+  q.su = ru * er + R * tu * et;
+  q.sz = R * tz * et + ez;
+  q.suu = -R * tu * tu * er + 2.0 * ru * tu * et;
+  q.suz = ru * tz * et - R * tu * tz * er;
+  q.szz = R * tzz * et - R * tz * tz * er;
+  return q;
+}
+
+// Minimises |p - S(u, z)|^2 over patch j from a seed: projected Newton with an active set
+// for the box (so minima on a crease or cap edge are found too), Gauss-Newton where the
+// Hessian is not positive definite, Armijo backtracking. Returns the squared distance.
+double knob_patch_distance2(const KnurledKnobT<double>& k, int j, const Vec3& p, double u_seed, double z_seed) {
+  const double lo[2] = {0.5 * j, 0.0};
+  const double hi[2] = {0.5 * (j + 1), k.height};
+  double x[2] = {std::clamp(u_seed, lo[0], hi[0]), std::clamp(z_seed, lo[1], hi[1])};
+  auto dist2 = [&](const double* y) {
+    const double R = k.outer_radius - k.depth * knob_patch_tri(j, y[0]);
+    const double theta = (2.0 * kPi * y[0] - k.wave_phase * std::sin(k.omega * y[1])) / k.teeth;
+    return (Vec3(R * std::cos(theta), R * std::sin(theta), y[1]) - p).squaredNorm();
+  };
+  double D = dist2(x);
+  for (int it = 0; it < 100; ++it) {
+    const KnobPatchPoint q = knob_patch_eval(k, j, x[0], x[1]);
+    const Vec3 r = q.s - p;
+    const double g[2] = {2.0 * r.dot(q.su), 2.0 * r.dot(q.sz)};
+    const double gn[3] = {2.0 * q.su.dot(q.su), 2.0 * q.su.dot(q.sz), 2.0 * q.sz.dot(q.sz)};
+    double h[3] = {gn[0] + 2.0 * r.dot(q.suu), gn[1] + 2.0 * r.dot(q.suz), gn[2] + 2.0 * r.dot(q.szz)};
+    bool free_var[2];
+    for (int i = 0; i < 2; ++i) free_var[i] = !((x[i] <= lo[i] && g[i] > 0.0) || (x[i] >= hi[i] && g[i] < 0.0));
+    double dx[2] = {0.0, 0.0};
+    if (free_var[0] && free_var[1]) {
+      double det = h[0] * h[2] - h[1] * h[1];
+      if (!(h[0] > 0.0 && det > 0.0)) {
+        std::copy(gn, gn + 3, h);
+        det = h[0] * h[2] - h[1] * h[1];
+      }
+      if (!(det > 0.0)) break;
+      dx[0] = -(h[2] * g[0] - h[1] * g[1]) / det;
+      dx[1] = -(-h[1] * g[0] + h[0] * g[1]) / det;
+    } else if (free_var[0] || free_var[1]) {
+      const int i = free_var[0] ? 0 : 1;
+      const double hii = h[i == 0 ? 0 : 2] > 0.0 ? h[i == 0 ? 0 : 2] : gn[i == 0 ? 0 : 2];
+      dx[i] = -g[i] / hii;
+    } else {
+      break;  // a corner satisfying the optimality conditions
+    }
+    double alpha = 1.0;
+    bool accepted = false;
+    double y[2];
+    double Dy = D;
+    for (int ls = 0; ls < 60; ++ls) {
+      for (int i = 0; i < 2; ++i) y[i] = std::clamp(x[i] + alpha * dx[i], lo[i], hi[i]);
+      Dy = dist2(y);
+      const double decrease = g[0] * (y[0] - x[0]) + g[1] * (y[1] - x[1]);
+      if (Dy <= D + 1e-4 * decrease) {
+        accepted = true;
+        break;
+      }
+      alpha *= 0.5;
+    }
+    if (!accepted) break;
+    const double moved = q.su.norm() * std::abs(y[0] - x[0]) + std::abs(y[1] - x[1]);
+    x[0] = y[0];
+    x[1] = y[1];
+    D = Dy;
+    if (moved < 1e-16) break;
+  }
+  return D;
+}
+
+double knob_signed_distance(const KnurledKnobT<double>& k, const Vec3& p) {
+  const double rho = std::hypot(p.x(), p.y());
+  const double theta = std::atan2(p.y(), p.x());
+  const double H = k.height;
+  const double zc = std::clamp(p.z(), 0.0, H);
+  const bool inside = p.z() >= 0.0 && p.z() <= H && rho <= knurled_knob_radius(k, theta, p.z());
+  double best2 = kInf;
+  // Cap interiors: the foot of the perpendicular lies on the cap.
+  if (rho <= knurled_knob_radius(k, theta, 0.0)) best2 = std::min(best2, p.z() * p.z());
+  if (rho <= knurled_knob_radius(k, theta, H)) best2 = std::min(best2, (p.z() - H) * (p.z() - H));
+  // Side patches, outwards from the point's own half tooth.
+  const double u_p = knurled_knob_phase(k, theta, zc);
+  const int j_p = static_cast<int>(std::floor(2.0 * u_p));
+  const double n = k.teeth;
+  const double dz_out = std::max({0.0, -p.z(), p.z() - H});
+  // Patch j spans theta in [(pi j - w(z)) / N, (pi (j+1) - w(z)) / N], w = A sin(omega z). A
+  // surface point closer than the best distance so far lies within |z' - z| < best, so only
+  // the range of w over that window widens the patch's arc (a tighter bound, fewer patches).
+  double w_lo = -std::abs(k.wave_phase), w_hi = std::abs(k.wave_phase);
+  auto update_wave_window = [&]() {
+    const double b = std::sqrt(best2);
+    const double z0 = std::max(0.0, p.z() - b), z1 = std::min(H, p.z() + b);
+    if (!(z0 <= z1) || !std::isfinite(b)) return;
+    if ((z1 - z0) * k.omega >= 2.0 * kPi) return;
+    // Range of sin over [omega z0, omega z1]: the ends plus any interior extremum.
+    const double x0 = k.omega * z0, x1 = k.omega * z1;
+    double lo = std::min(std::sin(x0), std::sin(x1)), hi = std::max(std::sin(x0), std::sin(x1));
+    for (double c = std::ceil((x0 - 0.5 * kPi) / kPi); 0.5 * kPi + c * kPi <= x1; c += 1.0) {
+      const double v = std::sin(0.5 * kPi + c * kPi);
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+    const double a0 = k.wave_phase * lo, a1 = k.wave_phase * hi;
+    w_lo = std::min(a0, a1);
+    w_hi = std::max(a0, a1);
+  };
+  auto arc_lo = [&](int j) { return (kPi * j - w_hi) / n; };
+  auto arc_hi = [&](int j) { return (kPi * (j + 1) - w_lo) / n; };
+  auto bound2 = [&](double delta) {
+    const double b = detail::annulus_angle_bound(rho, k.root_radius, k.outer_radius, std::min(delta, kPi));
+    return b * b + dz_out * dz_out;
+  };
+  // Pass 0 seeds each patch at the point's own (u, z): near the surface (where ground truth
+  // matters) the squared distance on a patch has one minimum there. Far from it (beyond
+  // kFar) a patch may hold several minima, so pass 1 repeats the search from a grid of seeds.
+  constexpr double kFar = 0.3e-3;
+  const int total = 2 * k.teeth;
+  for (int pass = 0; pass < 2; ++pass) {
+    if (pass == 1 && best2 <= kFar * kFar) break;
+    auto visit = [&](int j) {
+      if (bound2(angular_distance_to_arc(theta, arc_lo(j), arc_hi(j))) >= best2) return;
+      double d2 = knob_patch_distance2(k, j, p, u_p, zc);
+      if (pass == 1) {
+        for (int iz = 0; iz <= 4; ++iz) {
+          for (int iu = 0; iu <= 2; ++iu) {
+            d2 = std::min(d2, knob_patch_distance2(k, j, p, 0.5 * j + 0.25 * iu, 0.25 * iz * H));
+          }
+        }
+      }
+      if (d2 < best2) {
+        best2 = d2;
+        update_wave_window();
+      }
+    };
+    update_wave_window();
+    for (int m = 0; m <= total / 2 + 1; ++m) {
+      visit(j_p + m);
+      if (m > 0) visit(j_p - m);
+      // Every unvisited patch lies beyond the next patch on either side.
+      const double delta =
+          std::min(std::max(0.0, arc_lo(j_p + m + 1) - theta), std::max(0.0, theta - arc_hi(j_p - m - 1)));
+      if (bound2(delta) >= best2) break;
+    }
+  }
+  const double d = std::sqrt(best2);
+  return inside ? -d : d;
+}
+
+// ---------------------------------------------------------------------------------------
+double sheet_signed_distance(double half_x, double half_y, const Vec3& p) {
+  if (!(half_x > 0.0 && half_y > 0.0)) return p.z();
+  const double dx = std::max(std::abs(p.x()) - half_x, 0.0);
+  const double dy = std::max(std::abs(p.y()) - half_y, 0.0);
+  const double d = std::sqrt(dx * dx + dy * dy + p.z() * p.z());
+  return p.z() < 0.0 ? -d : d;
+}
+
+void check(bool ok, const char* what) {
+  if (!ok) throw_error(ErrorCode::kInvalidArgument, "invalid scene parameter: {}", what);
+}
+
+void check_albedo(const AlbedoT<double>& a) {
+  check(std::isfinite(a.base) && a.base >= 0.0 && a.base <= 1.0, "albedo base must lie in [0, 1]");
+  check(std::isfinite(a.amplitude) && a.amplitude >= 0.0 && a.amplitude <= 1.0, "albedo amplitude must lie in [0, 1]");
+  check(std::isfinite(a.period) && a.period > 0.0, "albedo period must be positive");
+}
+
+Json albedo_json(const AlbedoT<double>& a) {
+  return Json{{"base", a.base}, {"amplitude", a.amplitude}, {"period_m", a.period}};
+}
+
+// Scenes sample their sheets over this square when they are unbounded.
+constexpr double kUnboundedSampleHalfExtent = 0.01;
+
+void add_grid_samples(double x0, double x1, double y0, double y1, double z, double nz, double spacing, int part,
+                      const std::function<bool(double, double)>& keep, std::vector<SurfaceSample>* out) {
+  const auto nx = static_cast<long>(std::ceil((x1 - x0) / spacing));
+  const auto ny = static_cast<long>(std::ceil((y1 - y0) / spacing));
+  const double sx = (x1 - x0) / static_cast<double>(nx), sy = (y1 - y0) / static_cast<double>(ny);
+  for (long j = 0; j < ny; ++j) {
+    for (long i = 0; i < nx; ++i) {
+      const double x = x0 + (static_cast<double>(i) + 0.5) * sx;
+      const double y = y0 + (static_cast<double>(j) + 0.5) * sy;
+      if (!keep(x, y)) continue;
+      out->push_back({Vec3(x, y, z), Vec3(0.0, 0.0, nz), part});
+    }
+  }
+}
+
+void check_sample_count(double estimate) {
+  if (!(estimate < 5e8)) {
+    throw_error(ErrorCode::kOutOfMemory, "reference sampling would give {:.3g} points; use a larger spacing", estimate);
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+struct Scene::Impl {
+  std::string name;
+  SceneShapeT<double> shape;
+  Json parameters;
+  Json derived;
+  std::vector<Polyline> creases;
+  CreaseIndex crease_index;
+};
+
+const std::string& Scene::name() const { return impl_->name; }
+SceneKind Scene::kind() const { return impl_->shape.kind; }
+const SceneShapeT<double>& Scene::shape() const { return impl_->shape; }
+SceneShapeT<float> Scene::shape_float() const { return impl_->shape.cast<float>(); }
+
+bool Scene::intersect(const Ray& ray, double t_min, double t_max, Hit* hit) const {
+  return sls::sim::intersect(impl_->shape, ray, t_min, t_max, hit);
+}
+
+double Scene::signed_distance(const Eigen::Vector3d& p) const {
+  const SceneShapeT<double>& s = impl_->shape;
+  switch (s.kind) {
+    case SceneKind::kPlane: return sheet_signed_distance(s.plane.half_extent_x, s.plane.half_extent_y, p);
+    case SceneKind::kChessboard:
+      return sheet_signed_distance(s.chessboard.half_width(), s.chessboard.half_height(), p);
+    case SceneKind::kSphere: return (p - to_eigen(s.sphere.center)).norm() - s.sphere.radius;
+    case SceneKind::kKnurledScrew: return knurled_screw_sdf(s.screw, to_vec(p));
+    case SceneKind::kKnurledKnob: return knob_signed_distance(s.knob, p);
+  }
+  return kInf;
+}
+
+const std::vector<Polyline>& Scene::creases() const { return impl_->creases; }
+
+double Scene::distance_to_creases(const Eigen::Vector3d& p) const { return impl_->crease_index.distance(p); }
+
+std::vector<SurfaceSample> Scene::reference_samples(double spacing, const ZRange& z_range) const {
+  if (!(spacing > 0.0 && std::isfinite(spacing))) {
+    throw_error(ErrorCode::kInvalidArgument, "reference sampling spacing must be positive, got {}", spacing);
+  }
+  const SceneShapeT<double>& s = impl_->shape;
+  std::vector<SurfaceSample> out;
+  auto in_range = [&](double z) { return z >= z_range.min && z <= z_range.max; };
+  auto all = [](double, double) { return true; };
+  switch (s.kind) {
+    case SceneKind::kPlane:
+    case SceneKind::kChessboard: {
+      if (!in_range(0.0)) break;
+      double hx = s.kind == SceneKind::kPlane ? s.plane.half_extent_x : s.chessboard.half_width();
+      double hy = s.kind == SceneKind::kPlane ? s.plane.half_extent_y : s.chessboard.half_height();
+      if (!(hx > 0.0 && hy > 0.0)) hx = hy = kUnboundedSampleHalfExtent;
+      check_sample_count(4.0 * hx * hy / (spacing * spacing));
+      add_grid_samples(-hx, hx, -hy, hy, 0.0, 1.0, spacing, kPartSide, all, &out);
+      break;
+    }
+    case SceneKind::kSphere: {
+      // A Fibonacci lattice: near-uniform, every point exactly at the radius.
+      const double r = s.sphere.radius;
+      const double count = 4.0 * kPi * r * r / (spacing * spacing);
+      check_sample_count(count);
+      const auto n = static_cast<long>(std::max(1.0, std::ceil(count)));
+      const double golden = kPi * (3.0 - std::sqrt(5.0));
+      for (long i = 0; i < n; ++i) {
+        const double z = 1.0 - (2.0 * static_cast<double>(i) + 1.0) / static_cast<double>(n);
+        const double rr = std::sqrt(std::max(0.0, 1.0 - z * z));
+        const double phi = golden * static_cast<double>(i);
+        const Vec3 normal(rr * std::cos(phi), rr * std::sin(phi), z);
+        const Vec3 pos = to_eigen(s.sphere.center) + r * normal;
+        if (in_range(pos.z())) out.push_back({pos, normal, kPartSide});
+      }
+      break;
+    }
+    case SceneKind::kKnurledScrew: {
+      const KnurledScrewT<double>& k = s.screw;
+      const double R = k.ridge_radius, H = k.height;
+      const double flank = std::hypot(R - k.root_x, k.root_y);
+      check_sample_count(2.0 * k.teeth * flank * H / (spacing * spacing) + 2.0 * kPi * R * R / (spacing * spacing));
+      const auto nl = static_cast<long>(std::ceil(flank / spacing));
+      const auto nz = static_cast<long>(std::ceil(H / spacing));
+      for (int t = 0; t < k.teeth; ++t) {
+        const double phi = t * k.sector;
+        const double c = std::cos(phi), sn = std::sin(phi);
+        for (int side = 0; side < 2; ++side) {
+          const double qy = side == 0 ? k.root_y : -k.root_y;
+          const double ny = side == 0 ? k.flank_ny : -k.flank_ny;
+          const Vec3 normal(c * k.flank_nx - sn * ny, sn * k.flank_nx + c * ny, 0.0);
+          for (long i = 0; i < nl; ++i) {
+            const double f = (static_cast<double>(i) + 0.5) / static_cast<double>(nl);
+            const double lx = R + f * (k.root_x - R), ly = f * qy;
+            const double x = c * lx - sn * ly, y = sn * lx + c * ly;
+            for (long j = 0; j < nz; ++j) {
+              const double z = (static_cast<double>(j) + 0.5) * H / static_cast<double>(nz);
+              if (in_range(z)) out.push_back({Vec3(x, y, z), normal, kPartSide});
+            }
+          }
+        }
+      }
+      auto inside = [&](double x, double y) { return knurled_screw_contains_2d(k, x, y); };
+      if (in_range(0.0)) add_grid_samples(-R, R, -R, R, 0.0, -1.0, spacing, kPartBottomCap, inside, &out);
+      if (in_range(H)) add_grid_samples(-R, R, -R, R, H, 1.0, spacing, kPartTopCap, inside, &out);
+      break;
+    }
+    case SceneKind::kKnurledKnob: {
+      const KnurledKnobT<double>& k = s.knob;
+      const double R = k.outer_radius, H = k.height;
+      // Arc length per unit u on a flank, at most sqrt((2 depth)^2 + (R 2 pi / N)^2).
+      const double su = std::hypot(2.0 * k.depth, R * 2.0 * kPi / k.teeth);
+      check_sample_count(k.teeth * su * H / (spacing * spacing) + 2.0 * kPi * R * R / (spacing * spacing));
+      const auto nu = static_cast<long>(std::ceil(0.5 * su / spacing));
+      const auto nz = static_cast<long>(std::ceil(H / spacing));
+      for (long j = 0; j < nz; ++j) {
+        const double z = (static_cast<double>(j) + 0.5) * H / static_cast<double>(nz);
+        if (!in_range(z)) continue;
+        for (int patch = 0; patch < 2 * k.teeth; ++patch) {
+          const double sigma = patch % 2 == 0 ? 1.0 : -1.0;
+          for (long i = 0; i < nu; ++i) {
+            const double u = 0.5 * patch + 0.5 * (static_cast<double>(i) + 0.5) / static_cast<double>(nu);
+            const KnobPatchPoint q = knob_patch_eval(k, patch, u, z);
+            // Outward normal = grad(rho - R) on this patch.
+            const double rho = std::hypot(q.s.x(), q.s.y());
+            const Vec3 er(q.s.x() / rho, q.s.y() / rho, 0.0), et(-er.y(), er.x(), 0.0);
+            const Vec3 g = er + (sigma * k.depth * k.teeth / (kPi * rho)) * et +
+                           Vec3(0.0, 0.0, sigma * k.depth * k.wave_phase * k.omega * std::cos(k.omega * z) / kPi);
+            out.push_back({q.s, g.normalized(), kPartSide});
+          }
+        }
+      }
+      auto inside_at = [&](double zc) {
+        return [&k, zc](double x, double y) {
+          return std::hypot(x, y) < knurled_knob_radius(k, std::atan2(y, x), zc);
+        };
+      };
+      if (in_range(0.0)) add_grid_samples(-R, R, -R, R, 0.0, -1.0, spacing, kPartBottomCap, inside_at(0.0), &out);
+      if (in_range(H)) add_grid_samples(-R, R, -R, R, H, 1.0, spacing, kPartTopCap, inside_at(H), &out);
+      break;
+    }
+  }
+  return out;
+}
+
+PointCloud Scene::reference_cloud(double spacing, const ZRange& z_range) const {
+  const std::vector<SurfaceSample> samples = reference_samples(spacing, z_range);
+  PointCloud cloud;
+  cloud.positions.reserve(samples.size());
+  cloud.normals.reserve(samples.size());
+  for (const SurfaceSample& s : samples) {
+    cloud.positions.push_back(s.position.cast<float>());
+    cloud.normals.push_back(s.normal.cast<float>());
+  }
+  return cloud;
+}
+
+std::vector<Eigen::Vector3d> Scene::chessboard_corners() const {
+  if (kind() != SceneKind::kChessboard) {
+    throw_error(ErrorCode::kInvalidArgument, "scene '{}' is not a chessboard", name());
+  }
+  const ChessboardT<double>& c = impl_->shape.chessboard;
+  std::vector<Eigen::Vector3d> corners;
+  const double x0 = -0.5 * c.squares_x * c.square, y0 = -0.5 * c.squares_y * c.square;
+  for (int j = 1; j < c.squares_y; ++j) {
+    for (int i = 1; i < c.squares_x; ++i) corners.emplace_back(x0 + i * c.square, y0 + j * c.square, 0.0);
+  }
+  return corners;
+}
+
+std::string Scene::to_json() const {
+  Json j;
+  j["name"] = impl_->name;
+  j["units"] = "m";
+  const bool knurled = kind() == SceneKind::kKnurledScrew || kind() == SceneKind::kKnurledKnob;
+  j["frame"] = knurled ? "object frame: z = the object's axis (turntable axis), origin on the axis at the bottom "
+                         "cap, the solid spans 0 <= z <= height"
+                       : (kind() == SceneKind::kSphere ? "object frame: the sphere's centre is given in it"
+                                                      : "object frame: the sheet z = 0, normal +z, centred on "
+                                                        "the origin");
+  j["parameters"] = impl_->parameters;
+  j["derived"] = impl_->derived;
+  return j.dump(2);
+}
+
+// ---------------------------------------------------------------------------------------
+int knurl_teeth(double diameter, double nominal_pitch) {
+  check(diameter > 0.0 && std::isfinite(diameter), "diameter must be positive");
+  check(nominal_pitch > 0.0 && std::isfinite(nominal_pitch), "pitch must be positive");
+  const double n = std::round(kPi * diameter / nominal_pitch);
+  check(n >= 3.0 && n <= 100000.0, "diameter / pitch must give 3 to 100000 teeth");
+  return static_cast<int>(n);
+}
+
+double knurl_root_radius(double ridge_radius, int teeth, double groove_angle_rad) {
+  check(groove_angle_rad > 0.0 && groove_angle_rad < kPi, "groove angle must lie in (0, 180) degrees");
+  const double alpha = kPi / teeth;
+  const double r = ridge_radius * (std::cos(alpha) - std::sin(alpha) / std::tan(0.5 * groove_angle_rad));
+  check(r > 0.0, "groove angle too small for this tooth count: the roots would pass the axis");
+  return r;
+}
+
+namespace {
+
+constexpr int patches_per_bin = 1;  // crease grid: one angle bin per half tooth
+
+std::vector<Polyline> screw_creases(const KnurledScrewT<double>& k) {
+  std::vector<Polyline> lines;
+  for (int t = 0; t < k.teeth; ++t) {
+    const double a = t * k.sector, b = (t + 0.5) * k.sector;
+    const double R = k.ridge_radius, r = k.root_radius;
+    lines.push_back({Vec3(R * std::cos(a), R * std::sin(a), 0.0), Vec3(R * std::cos(a), R * std::sin(a), k.height)});
+    lines.push_back({Vec3(r * std::cos(b), r * std::sin(b), 0.0), Vec3(r * std::cos(b), r * std::sin(b), k.height)});
+  }
+  for (double z : {0.0, k.height}) {
+    Polyline outline;
+    for (int v = 0; v <= 2 * k.teeth; ++v) {
+      const double radius = v % 2 == 0 ? k.ridge_radius : k.root_radius;
+      const double a = 0.5 * v * k.sector;
+      outline.emplace_back(radius * std::cos(a), radius * std::sin(a), z);
+    }
+    lines.push_back(std::move(outline));
+  }
+  return lines;
+}
+
+// Sampling step so a polyline stays within `tolerance` of its curve: the linear interpolant of
+// a C2 curve deviates by at most h^2/8 max|C''|.
+int curve_segments(double length_in_parameter, double max_second_derivative, double tolerance) {
+  const double h = std::sqrt(8.0 * tolerance / std::max(max_second_derivative, 1e-300));
+  return std::max(1, static_cast<int>(std::ceil(length_in_parameter / h)));
+}
+
+constexpr double kCreaseTolerance = 0.5e-7;  // half the 0.1 um the brief allows
+
+std::vector<Polyline> knob_creases(const KnurledKnobT<double>& k) {
+  std::vector<Polyline> lines;
+  const double n = k.teeth, a = std::abs(k.wave_phase), w = k.omega, H = k.height;
+  // Ridge (u = t) and groove (u = t + 1/2) curves over z: |C''| <= rho (|theta''| + theta'^2).
+  for (int t = 0; t < k.teeth; ++t) {
+    for (int g = 0; g < 2; ++g) {
+      const double u = t + 0.5 * g;
+      const double rho = g == 0 ? k.outer_radius : k.root_radius;
+      const int m = curve_segments(H, rho * (a * w * w / n + (a * w / n) * (a * w / n)), kCreaseTolerance);
+      Polyline line;
+      for (int i = 0; i <= m; ++i) {
+        const double z = H * i / m;
+        const double theta = (2.0 * kPi * u - k.wave_phase * std::sin(w * z)) / n;
+        line.emplace_back(rho * std::cos(theta), rho * std::sin(theta), z);
+      }
+      lines.push_back(std::move(line));
+    }
+  }
+  // Cap outlines: per flank rho is linear in u: |C''| <= 2 |rho_u| theta_u + rho theta_u^2.
+  const double tu = 2.0 * kPi / n;
+  const int m = curve_segments(0.5, 2.0 * (2.0 * k.depth) * tu + k.outer_radius * tu * tu, kCreaseTolerance);
+  for (double z : {0.0, H}) {
+    Polyline outline;
+    const double shift = k.wave_phase * std::sin(w * z);
+    for (int j = 0; j < 2 * k.teeth; ++j) {
+      for (int i = (j == 0 ? 0 : 1); i <= m; ++i) {
+        const double u = 0.5 * j + 0.5 * i / m;
+        const double rho = k.outer_radius - k.depth * knob_patch_tri(j, u);
+        const double theta = (2.0 * kPi * u - shift) / n;
+        outline.emplace_back(rho * std::cos(theta), rho * std::sin(theta), z);
+      }
+    }
+    lines.push_back(std::move(outline));
+  }
+  return lines;
+}
+
+}  // namespace
+
+Scene make_knurled_screw_scene(const KnurledScrewParameters& p) {
+  check(p.height > 0.0 && std::isfinite(p.height), "height must be positive");
+  check_albedo(p.albedo);
+  const int n = knurl_teeth(p.diameter, p.nominal_pitch);
+  const double R = 0.5 * p.diameter;
+  const double r = knurl_root_radius(R, n, p.groove_angle_deg * kPi / 180.0);
+  auto impl = std::make_shared<Scene::Impl>();
+  impl->name = "knurled-screw";
+  impl->shape.kind = SceneKind::kKnurledScrew;
+  impl->shape.screw = make_knurled_screw(n, R, r, p.height, p.albedo);
+  const KnurledScrewT<double>& k = impl->shape.screw;
+  impl->parameters = Json{{"diameter_m", p.diameter},
+                          {"height_m", p.height},
+                          {"nominal_pitch_m", p.nominal_pitch},
+                          {"groove_angle_deg", p.groove_angle_deg},
+                          {"albedo", albedo_json(p.albedo)}};
+  const double ridge_angle = 2.0 * std::atan2(k.root_y, R - k.root_x) * 180.0 / kPi;
+  impl->derived = Json{{"teeth", n},
+                       {"pitch_m", kPi * p.diameter / n},
+                       {"ridge_radius_m", R},
+                       {"root_radius_m", r},
+                       {"depth_m", R - r},
+                       {"ridge_angle_deg", ridge_angle},
+                       {"flank_length_m", std::hypot(R - k.root_x, k.root_y)}};
+  impl->creases = screw_creases(k);
+  impl->crease_index.build(impl->creases, 2 * n * patches_per_bin, std::max(1, static_cast<int>(p.height / 0.5e-3)));
+  return Scene(impl);
+}
+
+Scene make_knurled_knob_scene(const KnurledKnobParameters& p) {
+  check(p.height > 0.0 && std::isfinite(p.height), "height must be positive");
+  check(p.wave_length > 0.0 && std::isfinite(p.wave_length), "wave length must be positive");
+  check(std::isfinite(p.wave_amplitude_pitches) && std::abs(p.wave_amplitude_pitches) <= 100.0,
+        "wave amplitude must be finite (at most 100 pitches)");
+  check_albedo(p.albedo);
+  const int n = knurl_teeth(p.diameter, p.nominal_pitch);
+  const double R = 0.5 * p.diameter;
+  const double depth = R - knurl_root_radius(R, n, p.groove_angle_deg * kPi / 180.0);
+  const double phase = 2.0 * kPi * p.wave_amplitude_pitches;
+  auto impl = std::make_shared<Scene::Impl>();
+  impl->name = "knurled-knob";
+  impl->shape.kind = SceneKind::kKnurledKnob;
+  impl->shape.knob = make_knurled_knob(n, R, depth, p.height, phase, p.wave_length, p.albedo);
+  const KnurledKnobT<double>& k = impl->shape.knob;
+  impl->parameters = Json{{"diameter_m", p.diameter},
+                          {"height_m", p.height},
+                          {"nominal_pitch_m", p.nominal_pitch},
+                          {"groove_angle_deg", p.groove_angle_deg},
+                          {"wave_amplitude_pitches", p.wave_amplitude_pitches},
+                          {"wave_length_m", p.wave_length},
+                          {"albedo", albedo_json(p.albedo)}};
+  impl->derived = Json{{"teeth", n},
+                       {"pitch_m", kPi * p.diameter / n},
+                       {"outer_radius_m", R},
+                       {"root_radius_m", k.root_radius},
+                       {"depth_m", depth},
+                       {"wave_phase_rad", phase},
+                       {"ridge_shift_m", p.wave_amplitude_pitches * kPi * p.diameter / n},
+                       {"lipschitz_horizontal", k.lipschitz_horizontal},
+                       {"lipschitz_vertical", k.lipschitz_vertical},
+                       {"lipschitz_bound",
+                        std::sqrt(k.lipschitz_horizontal * k.lipschitz_horizontal +
+                                  k.lipschitz_vertical * k.lipschitz_vertical)}};
+  impl->creases = knob_creases(k);
+  impl->crease_index.build(impl->creases, 2 * n * patches_per_bin, std::max(1, static_cast<int>(p.height / 0.25e-3)));
+  return Scene(impl);
+}
+
+Scene make_plane_scene(const PlaneParameters& p) {
+  check(std::isfinite(p.half_extent_x) && std::isfinite(p.half_extent_y), "plane extent must be finite");
+  check(std::isfinite(p.albedo) && p.albedo >= 0.0 && p.albedo <= 1.0, "albedo must lie in [0, 1]");
+  auto impl = std::make_shared<Scene::Impl>();
+  impl->name = "plane";
+  impl->shape.kind = SceneKind::kPlane;
+  impl->shape.plane = {p.half_extent_x, p.half_extent_y, p.albedo};
+  impl->parameters = Json{{"half_extent_x_m", p.half_extent_x}, {"half_extent_y_m", p.half_extent_y}, {"albedo", p.albedo}};
+  impl->derived = Json{{"bounded", p.half_extent_x > 0.0 && p.half_extent_y > 0.0}};
+  return Scene(impl);
+}
+
+Scene make_sphere_scene(const SphereParameters& p) {
+  check(p.radius > 0.0 && std::isfinite(p.radius), "radius must be positive");
+  check(p.center.allFinite(), "centre must be finite");
+  check(std::isfinite(p.albedo) && p.albedo >= 0.0 && p.albedo <= 1.0, "albedo must lie in [0, 1]");
+  auto impl = std::make_shared<Scene::Impl>();
+  impl->name = "sphere";
+  impl->shape.kind = SceneKind::kSphere;
+  impl->shape.sphere = {to_vec(p.center), p.radius, p.albedo};
+  impl->parameters = Json{{"center_m", {p.center.x(), p.center.y(), p.center.z()}},
+                          {"radius_m", p.radius},
+                          {"albedo", p.albedo}};
+  impl->derived = Json::object();
+  return Scene(impl);
+}
+
+Scene make_chessboard_scene(const ChessboardParameters& p) {
+  check(p.inner_corners_x >= 1 && p.inner_corners_y >= 1 && p.inner_corners_x < 1000 && p.inner_corners_y < 1000,
+        "inner corner counts must lie in [1, 999]");
+  check(p.square > 0.0 && std::isfinite(p.square), "square size must be positive");
+  check(p.margin >= 0.0 && std::isfinite(p.margin), "margin must be non-negative");
+  check(p.albedo_dark >= 0.0 && p.albedo_dark <= 1.0 && p.albedo_light >= 0.0 && p.albedo_light <= 1.0,
+        "albedos must lie in [0, 1]");
+  auto impl = std::make_shared<Scene::Impl>();
+  impl->name = "chessboard";
+  impl->shape.kind = SceneKind::kChessboard;
+  impl->shape.chessboard = {p.inner_corners_x + 1, p.inner_corners_y + 1, p.square, p.margin, p.albedo_dark,
+                            p.albedo_light};
+  const ChessboardT<double>& c = impl->shape.chessboard;
+  impl->parameters = Json{{"inner_corners_x", p.inner_corners_x},
+                          {"inner_corners_y", p.inner_corners_y},
+                          {"square_m", p.square},
+                          {"margin_m", p.margin},
+                          {"albedo_dark", p.albedo_dark},
+                          {"albedo_light", p.albedo_light}};
+  impl->derived = Json{{"squares_x", c.squares_x},
+                       {"squares_y", c.squares_y},
+                       {"board_width_m", 2.0 * c.half_width()},
+                       {"board_height_m", 2.0 * c.half_height()}};
+  return Scene(impl);
+}
+
+std::vector<std::string> scene_names() { return {"knurled-screw", "knurled-knob", "plane", "sphere", "chessboard"}; }
+
+Scene make_scene(const std::string& name) {
+  if (name == "knurled-screw") return make_knurled_screw_scene();
+  if (name == "knurled-knob") return make_knurled_knob_scene();
+  if (name == "plane") return make_plane_scene();
+  if (name == "sphere") return make_sphere_scene();
+  if (name == "chessboard") return make_chessboard_scene();
+  std::string known;
+  for (const std::string& n : scene_names()) known += (known.empty() ? "" : ", ") + n;
+  throw_error(ErrorCode::kInvalidArgument, "unknown scene '{}' (known: {})", name, known);
+}
+
+namespace {
+
+// Reads the "parameters" object key by key; unknown keys are errors (typos would otherwise
+// silently fall back to defaults).
+class ParameterReader {
+ public:
+  ParameterReader(const std::string& scene, const Json& parameters) : scene_(scene), parameters_(parameters) {}
+
+  template <typename F>
+  void each(F&& handle) {
+    for (auto it = parameters_.begin(); it != parameters_.end(); ++it) {
+      if (!handle(it.key(), it.value())) {
+        throw_error(ErrorCode::kInvalidArgument, "scene '{}' has no parameter '{}'", scene_, it.key());
+      }
+    }
+  }
+  double number(const std::string& key, const Json& v) const {
+    if (!v.is_number()) throw_error(ErrorCode::kFormat, "scene parameter '{}' must be a number", key);
+    return v.get<double>();
+  }
+  int integer(const std::string& key, const Json& v) const {
+    if (!v.is_number_integer()) throw_error(ErrorCode::kFormat, "scene parameter '{}' must be an integer", key);
+    return v.get<int>();
+  }
+  AlbedoT<double> albedo(const std::string& key, const Json& v, AlbedoT<double> a) const {
+    if (v.is_number()) {
+      a.base = v.get<double>();
+      return a;
+    }
+    if (!v.is_object()) throw_error(ErrorCode::kFormat, "scene parameter '{}' must be a number or an object", key);
+    for (auto it = v.begin(); it != v.end(); ++it) {
+      if (it.key() == "base") {
+        a.base = number("albedo.base", it.value());
+      } else if (it.key() == "amplitude") {
+        a.amplitude = number("albedo.amplitude", it.value());
+      } else if (it.key() == "period_m") {
+        a.period = number("albedo.period_m", it.value());
+      } else {
+        throw_error(ErrorCode::kInvalidArgument, "scene '{}' albedo has no parameter '{}'", scene_, it.key());
+      }
+    }
+    return a;
+  }
+
+ private:
+  std::string scene_;
+  const Json& parameters_;
+};
+
+}  // namespace
+
+Scene scene_from_json(const std::string& text) {
+  Json j;
+  try {
+    j = Json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    throw_error(ErrorCode::kFormat, "scene description is not valid JSON: {}", e.what());
+  }
+  if (!j.is_object() || !j.contains("name") || !j["name"].is_string()) {
+    throw_error(ErrorCode::kFormat, "scene description needs a string \"name\"");
+  }
+  const std::string name = j["name"].get<std::string>();
+  const Json parameters = j.contains("parameters") ? j["parameters"] : Json::object();
+  if (!parameters.is_object()) throw_error(ErrorCode::kFormat, "scene \"parameters\" must be an object");
+  ParameterReader r(name, parameters);
+  if (name == "knurled-screw") {
+    KnurledScrewParameters p;
+    r.each([&](const std::string& key, const Json& v) {
+      if (key == "diameter_m") p.diameter = r.number(key, v);
+      else if (key == "height_m") p.height = r.number(key, v);
+      else if (key == "nominal_pitch_m") p.nominal_pitch = r.number(key, v);
+      else if (key == "groove_angle_deg") p.groove_angle_deg = r.number(key, v);
+      else if (key == "albedo") p.albedo = r.albedo(key, v, p.albedo);
+      else return false;
+      return true;
+    });
+    return make_knurled_screw_scene(p);
+  }
+  if (name == "knurled-knob") {
+    KnurledKnobParameters p;
+    r.each([&](const std::string& key, const Json& v) {
+      if (key == "diameter_m") p.diameter = r.number(key, v);
+      else if (key == "height_m") p.height = r.number(key, v);
+      else if (key == "nominal_pitch_m") p.nominal_pitch = r.number(key, v);
+      else if (key == "groove_angle_deg") p.groove_angle_deg = r.number(key, v);
+      else if (key == "wave_amplitude_pitches") p.wave_amplitude_pitches = r.number(key, v);
+      else if (key == "wave_length_m") p.wave_length = r.number(key, v);
+      else if (key == "albedo") p.albedo = r.albedo(key, v, p.albedo);
+      else return false;
+      return true;
+    });
+    return make_knurled_knob_scene(p);
+  }
+  if (name == "plane") {
+    PlaneParameters p;
+    r.each([&](const std::string& key, const Json& v) {
+      if (key == "half_extent_x_m") p.half_extent_x = r.number(key, v);
+      else if (key == "half_extent_y_m") p.half_extent_y = r.number(key, v);
+      else if (key == "albedo") p.albedo = r.number(key, v);
+      else return false;
+      return true;
+    });
+    return make_plane_scene(p);
+  }
+  if (name == "sphere") {
+    SphereParameters p;
+    r.each([&](const std::string& key, const Json& v) {
+      if (key == "center_m") {
+        if (!v.is_array() || v.size() != 3) throw_error(ErrorCode::kFormat, "scene parameter 'center_m' must be [x, y, z]");
+        for (int i = 0; i < 3; ++i) p.center[i] = r.number(key, v[static_cast<std::size_t>(i)]);
+      } else if (key == "radius_m") {
+        p.radius = r.number(key, v);
+      } else if (key == "albedo") {
+        p.albedo = r.number(key, v);
+      } else {
+        return false;
+      }
+      return true;
+    });
+    return make_sphere_scene(p);
+  }
+  if (name == "chessboard") {
+    ChessboardParameters p;
+    r.each([&](const std::string& key, const Json& v) {
+      if (key == "inner_corners_x") p.inner_corners_x = r.integer(key, v);
+      else if (key == "inner_corners_y") p.inner_corners_y = r.integer(key, v);
+      else if (key == "square_m") p.square = r.number(key, v);
+      else if (key == "margin_m") p.margin = r.number(key, v);
+      else if (key == "albedo_dark") p.albedo_dark = r.number(key, v);
+      else if (key == "albedo_light") p.albedo_light = r.number(key, v);
+      else return false;
+      return true;
+    });
+    return make_chessboard_scene(p);
+  }
+  return make_scene(name);  // throws, naming the known scenes
+}
+
+}  // namespace sls::sim

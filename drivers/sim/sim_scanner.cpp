@@ -1,0 +1,204 @@
+#include "drivers/sim/sim_scanner.h"
+
+#include <cmath>
+#include <set>
+
+#include "sdk/core/error.h"
+
+namespace sls::sim {
+
+// Simulated time: the paper's scanner runs at about 3 frames (pattern stacks) per second.
+constexpr std::int64_t kStackPeriodNs = 333'333'333;
+
+class SimCamera final : public drivers::Camera {
+ public:
+  explicit SimCamera(std::shared_ptr<SimScanner> scanner) : scanner_(std::move(scanner)) {}
+
+  drivers::CameraInfo info() const override {
+    const SimRig& rig = scanner_->rig();
+    return {scanner_->uri(), "slscan simulated camera", "SIM-CAM-0", rig.camera.width, rig.camera.height,
+            rig.optics.camera_sensor.bit_depth};
+  }
+  void set_exposure_us(double exposure_us) override {
+    if (!(exposure_us > 0.0)) throw_error(ErrorCode::kInvalidArgument, "exposure {} us must be positive", exposure_us);
+    exposure_us_ = exposure_us;  // the simulated exposure is set by the rig's optics; recorded only
+  }
+  double exposure_us() const override { return exposure_us_; }
+  void set_trigger_source(drivers::TriggerSource source) override { source_ = source; }
+  void start() override { started_ = true; }
+  void stop() override {
+    started_ = false;
+    pending_ = 0;
+  }
+  void software_trigger() override {
+    if (!started_) throw_error(ErrorCode::kInvalidArgument, "{}: software trigger before start()", scanner_->uri());
+    ++pending_;
+  }
+  drivers::CapturedImage wait_image(std::chrono::milliseconds timeout) override {
+    if (!started_ || pending_ == 0) {
+      throw_error(ErrorCode::kTimeout, "{}: no image within {} ms (camera not started or not triggered)",
+                  scanner_->uri(), timeout.count());
+    }
+    --pending_;
+    return scanner_->capture();
+  }
+
+ private:
+  std::shared_ptr<SimScanner> scanner_;
+  double exposure_us_ = 10000.0;
+  drivers::TriggerSource source_ = drivers::TriggerSource::kSoftware;
+  bool started_ = false;
+  int pending_ = 0;
+};
+
+class SimProjector final : public drivers::Projector {
+ public:
+  explicit SimProjector(std::shared_ptr<SimScanner> scanner)
+      : scanner_(std::move(scanner)), patterns_(scanner_->rig().patterns) {}
+
+  drivers::ProjectorInfo info() const override {
+    const SimRig& rig = scanner_->rig();
+    return {scanner_->uri(), "slscan simulated DLPC350", "sim", rig.projector.width, rig.projector.height};
+  }
+  void load_patterns(const PatternSet& patterns) override {
+    validate_pattern_set(patterns);
+    // The rig renders its own set: the simulated DMD holds exactly that LUT.
+    if (patterns != scanner_->rig().patterns) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "{}: the simulated projector shows the rig's pattern set '{}', not '{}'", scanner_->uri(),
+                  scanner_->rig().patterns.name, patterns.name);
+    }
+    patterns_ = patterns;
+  }
+  const PatternSet& patterns() const override { return patterns_; }
+  void show_pattern(int index) override {
+    if (index < 0 || static_cast<std::size_t>(index) >= patterns_.size()) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: pattern {} of a set of {}", scanner_->uri(), index,
+                  patterns_.size());
+    }
+    std::lock_guard<std::mutex> lock(scanner_->mutex_);
+    scanner_->pattern_ = index;
+  }
+  int current_pattern() const override {
+    std::lock_guard<std::mutex> lock(scanner_->mutex_);
+    return scanner_->pattern_;
+  }
+  void go_dark() override {
+    std::lock_guard<std::mutex> lock(scanner_->mutex_);
+    scanner_->pattern_ = -1;
+  }
+
+ private:
+  std::shared_ptr<SimScanner> scanner_;
+  PatternSet patterns_;
+};
+
+class SimTurntable final : public drivers::Turntable {
+ public:
+  explicit SimTurntable(std::shared_ptr<SimScanner> scanner) : scanner_(std::move(scanner)) {}
+
+  void home(std::chrono::milliseconds) override {
+    std::lock_guard<std::mutex> lock(scanner_->mutex_);
+    scanner_->homed_ = true;
+    move_locked(0);
+  }
+  // The simulated stepper moves in whole steps of 360° / steps_per_revolution; angles beyond
+  // 360° continue into the next revolution (frames k ≥ N), as a table turning on does.
+  void move_to_deg(double angle_deg, std::chrono::milliseconds) override {
+    if (!std::isfinite(angle_deg) || angle_deg < 0.0) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: turntable angle {} must be finite and >= 0", scanner_->uri(),
+                  angle_deg);
+    }
+    std::lock_guard<std::mutex> lock(scanner_->mutex_);
+    if (!scanner_->homed_) throw_error(ErrorCode::kInvalidArgument, "{}: turntable not homed", scanner_->uri());
+    const double steps = angle_deg / 360.0 * steps_per_revolution();
+    move_locked(static_cast<int>(std::lround(steps)));
+  }
+  double position_deg() const override {
+    std::lock_guard<std::mutex> lock(scanner_->mutex_);
+    return scanner_->rig().commanded_angle_deg(scanner_->step_);
+  }
+  int steps_per_revolution() const override { return scanner_->rig().turntable.steps_per_revolution; }
+
+ private:
+  void move_locked(int step) {
+    if (step != scanner_->step_) {
+      scanner_->step_ = step;
+      scanner_->captures_in_frame_ = 0;
+    }
+  }
+  std::shared_ptr<SimScanner> scanner_;
+};
+
+std::shared_ptr<SimScanner> SimScanner::create(const std::string& object, const RigOptions& rig_options,
+                                               const Device& device) {
+  Scene scene = make_scene(object);
+  SimRig rig = make_rig(rig_options, scene);
+  std::string uri = "sim://" + object + "?preset=" + rig_options.preset +
+                    "&frames=" + std::to_string(rig.turntable.steps_per_revolution) +
+                    "&seed=" + std::to_string(rig_options.seed) + "&noise=" + (rig_options.noise ? "1" : "0");
+  Renderer renderer(std::move(rig), std::move(scene), device);
+  return std::shared_ptr<SimScanner>(new SimScanner(std::move(uri), std::move(renderer)));
+}
+
+std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
+  const drivers::DeviceUri uri = drivers::parse_device_uri(text);
+  if (uri.scheme != "sim") throw_error(ErrorCode::kInvalidArgument, "'{}' is not a sim:// URI", text);
+  static const std::set<std::string> kKeys = {"preset", "frames", "seed", "noise", "device", "width"};
+  for (const auto& [key, value] : uri.query) {
+    if (kKeys.count(key) == 0) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width)",
+                  text, key);
+    }
+  }
+  RigOptions options;
+  options.preset = uri.get("preset", "demo");
+  options.frames = uri.get_int("frames", 0);
+  options.camera_width = uri.get_int("width", 0);
+  options.seed = static_cast<std::uint64_t>(uri.get_int("seed", 1));
+  options.noise = uri.get_int("noise", 1) != 0;
+  const std::string device_text = uri.get("device", default_device().to_string());
+  return create(uri.target, options, parse_device(device_text));
+}
+
+std::unique_ptr<drivers::Camera> SimScanner::camera() { return std::make_unique<SimCamera>(shared_from_this()); }
+std::unique_ptr<drivers::Projector> SimScanner::projector() {
+  return std::make_unique<SimProjector>(shared_from_this());
+}
+std::unique_ptr<drivers::Turntable> SimScanner::turntable() {
+  return std::make_unique<SimTurntable>(shared_from_this());
+}
+
+void SimScanner::ensure_frame_traced() {
+  if (renderer_.frame() != step_) renderer_.set_frame(step_);
+}
+
+drivers::CapturedImage SimScanner::capture() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ensure_frame_traced();
+  drivers::CapturedImage captured;
+  PatternDesc dark;
+  dark.kind = PatternKind::kBlack;
+  const PatternDesc& shown = pattern_ >= 0 ? rig().patterns.patterns[static_cast<std::size_t>(pattern_)] : dark;
+  captured.image = renderer_.render(shown, captures_in_frame_);
+  const std::uint32_t images = static_cast<std::uint32_t>(rig().patterns.size());
+  captured.timestamp_ns = step_ * kStackPeriodNs +
+                          static_cast<std::int64_t>(captures_in_frame_) * (kStackPeriodNs / (images > 0 ? images : 1));
+  captured.frame_id = frame_id_++;
+  ++captures_in_frame_;
+  return captured;
+}
+
+GroundTruthFrame SimScanner::ground_truth() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ensure_frame_traced();
+  return renderer_.ground_truth();
+}
+
+Image32f SimScanner::depth_map() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ensure_frame_traced();
+  return renderer_.render_depth();
+}
+
+}  // namespace sls::sim

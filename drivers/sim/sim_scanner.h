@@ -1,0 +1,61 @@
+// The simulated scanner as devices: a camera, a projector and a turntable behind the driver
+// interfaces of drivers/interfaces/, sharing one state, so the camera captures what the
+// projector shows on the object at the turntable's angle. Opened by URI:
+//   sim://knurled-screw?preset=demo&frames=120&seed=1&noise=1&device=cuda
+// (object: knurled-screw, knurled-knob, chessboard, plane, sphere; preset: ci, demo, paper).
+#pragma once
+
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "drivers/interfaces/camera.h"
+#include "drivers/interfaces/device_uri.h"
+#include "drivers/interfaces/projector.h"
+#include "drivers/interfaces/turntable.h"
+#include "drivers/sim/renderer.h"
+
+namespace sls::sim {
+
+class SimScanner : public std::enable_shared_from_this<SimScanner> {
+ public:
+  // Throws sls::Error(kInvalidArgument) naming the URI's bad part (scheme, object, preset,
+  // a query key it does not know).
+  static std::shared_ptr<SimScanner> open(const std::string& uri);
+  static std::shared_ptr<SimScanner> create(const std::string& object, const RigOptions& rig_options,
+                                            const Device& device);
+
+  const std::string& uri() const { return uri_; }
+  const SimRig& rig() const { return renderer_.rig(); }
+  const Scene& scene() const { return renderer_.scene(); }
+
+  std::unique_ptr<drivers::Camera> camera();
+  std::unique_ptr<drivers::Projector> projector();
+  std::unique_ptr<drivers::Turntable> turntable();
+
+  // The ground truth of the frame the turntable is at now.
+  GroundTruthFrame ground_truth();
+  // Depth-only mode: the noisy depth map of the current frame.
+  Image32f depth_map();
+
+ private:
+  friend class SimCamera;
+  friend class SimProjector;
+  friend class SimTurntable;
+  SimScanner(std::string uri, Renderer renderer) : uri_(std::move(uri)), renderer_(std::move(renderer)) {}
+
+  // Renders the image a trigger produces now (under the lock).
+  drivers::CapturedImage capture();
+  void ensure_frame_traced();
+
+  std::string uri_;
+  std::mutex mutex_;
+  Renderer renderer_;
+  int pattern_ = -1;          // on the DMD; −1 = dark
+  int step_ = 0;              // turntable position in steps
+  bool homed_ = false;
+  std::uint32_t captures_in_frame_ = 0;
+  std::uint64_t frame_id_ = 0;
+};
+
+}  // namespace sls::sim

@@ -1,0 +1,89 @@
+// sls sim: scans the simulated scanner into a recording with ground truth
+// (drivers/sim/sim_recording.h describes what is written).
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "drivers/sim/rig.h"
+#include "drivers/sim/sim_recording.h"
+#include "samples/sls/commands.h"
+#include "sdk/core/device.h"
+
+namespace sls::cli {
+namespace {
+
+struct SimOptions {
+  std::string preset = "demo";
+  std::string object = "knurled-screw";
+  int frames = 0;
+  std::string mode = "patterns";
+  std::string out;
+  std::string device;
+  std::uint64_t seed = 1;
+  bool no_noise = false;
+  double reference_spacing_um = 0.0;
+};
+
+int run_sim(const Context& context, const SimOptions& options) {
+  const Device device = options.device.empty() ? default_device() : parse_device(options.device);
+  sim::SimRecordingOptions sim_options;
+  sim_options.preset = options.preset;
+  sim_options.object = options.object;
+  sim_options.frames = options.frames;
+  sim_options.depth_mode = options.mode == "depth";
+  sim_options.seed = options.seed;
+  sim_options.noise = !options.no_noise;
+  sim_options.reference_spacing_m = options.reference_spacing_um * 1e-6;
+  const sim::SimRecordingSummary summary =
+      sim::write_sim_recording(options.out, sim_options, device, context.progress_callback("sim"));
+  const nlohmann::json result = {{"ok", true},
+                                 {"recording", options.out},
+                                 {"object", options.object},
+                                 {"preset", options.preset},
+                                 {"mode", options.mode},
+                                 {"uri", summary.uri},
+                                 {"frames", summary.frames},
+                                 {"images_per_frame", summary.images_per_frame},
+                                 {"camera", {summary.width, summary.height}},
+                                 {"device", device.to_string()}};
+  context.emit(result, [&] {
+    std::cout << "wrote " << summary.frames << " frames (" << summary.images_per_frame << " images each, "
+              << summary.width << "x" << summary.height << ") of the simulated " << options.object << " to "
+              << options.out << " (ground truth in " << summary.groundtruth_folder << ")\n";
+  });
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
+  CLI::App* command = app.add_subcommand(
+      "sim", "Scan the built-in simulated scanner into a recording with ground truth (depth, projector "
+             "coordinates, poses, exact surface)");
+  auto options = std::make_shared<SimOptions>();
+  command->add_option("--preset", options->preset, "ci, demo or paper:\n" + sim::preset_help())
+      ->check(CLI::IsMember({"ci", "demo", "paper"}))
+      ->capture_default_str();
+  command->add_option("--object", options->object, "The object on the turntable")
+      ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
+      ->capture_default_str();
+  command->add_option("--frames", options->frames, "Frames per revolution (0: the preset's)")
+      ->check(CLI::Range(0, 100000));
+  command->add_option("--mode", options->mode,
+                      "patterns: the camera images of every pattern; depth: noisy depth maps straight from the "
+                      "geometry (for fusion tests that skip decode)")
+      ->check(CLI::IsMember({"patterns", "depth"}))
+      ->capture_default_str();
+  command->add_option("--out", options->out, "Recording folder to create (must not exist or be empty)")->required();
+  command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present)");
+  command->add_option("--seed", options->seed, "Noise and turntable-jitter seed")->capture_default_str();
+  command->add_flag("--no-noise", options->no_noise, "Noise-free images and depth (tests, pictures)");
+  command->add_option("--reference-spacing-um", options->reference_spacing_um,
+                      "Spacing of groundtruth/reference.ply samples (0: ci 100, demo 30, paper 10)")
+      ->check(CLI::NonNegativeNumber);
+  command->callback([&context, exit_code, options] {
+    run_command(context, "sim", [&context, options] { return run_sim(context, *options); }, exit_code);
+  });
+}
+
+}  // namespace sls::cli

@@ -1,0 +1,257 @@
+// The simulator's renderer against closed form: projector coordinates of a plane are its
+// homography, shadow masks lie where the geometry puts them, pixel noise follows the photon
+// transfer model, depth-only noise has the predicted σ, the device path renders what the
+// renderer renders, and the CUDA backend equals the CPU one.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "drivers/sim/renderer.h"
+#include "drivers/sim/sim_scanner.h"
+#include "tests/support/test_support.h"
+#include "tests/unit/sim/sim_test_rig.h"
+
+namespace sls::sim {
+namespace {
+
+void remove_distortion(SimRig* rig) {
+  rig->camera.k1 = rig->camera.k2 = rig->camera.k3 = rig->camera.p1 = rig->camera.p2 = 0.0;
+  rig->projector.k1 = rig->projector.k2 = rig->projector.k3 = rig->projector.p1 = rig->projector.p2 = 0.0;
+}
+
+Eigen::Matrix3d intrinsic_matrix(const CameraIntrinsics& k) {
+  Eigen::Matrix3d m;
+  m << k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0;
+  return m;
+}
+
+TEST(Renderer, PlaneProjectorCoordinatesAreItsHomography) {
+  const Scene scene = make_plane_scene();
+  SimRig rig = small_rig(scene, 320);
+  remove_distortion(&rig);
+  Renderer renderer(rig, scene, Device::cpu());
+  for (const int frame : {0, 1}) {  // 0° and 45°: the plane turns on the table
+    renderer.set_frame(frame);
+    const GroundTruthFrame truth = renderer.ground_truth();
+    const Pose T_camera_object = truth.T_object_camera.inverse();
+    const Eigen::Vector3d normal_camera = T_camera_object.rotation() * Eigen::Vector3d::UnitZ();
+    const double distance = normal_camera.dot(T_camera_object.translation());
+    const Pose T_projector_camera = rig.T_camera_projector.inverse();
+    const Eigen::Matrix3d homography =
+        intrinsic_matrix(rig.projector) *
+        (T_projector_camera.rotation() + T_projector_camera.translation() * normal_camera.transpose() / distance) *
+        intrinsic_matrix(rig.camera).inverse();
+    int checked = 0;
+    double worst = 0.0;
+    for (int y = 0; y < rig.camera.height; ++y) {
+      for (int x = 0; x < rig.camera.width; ++x) {
+        if (!truth.valid(x, y)) continue;
+        const Eigen::Vector3d mapped = homography * Eigen::Vector3d(x, y, 1.0);
+        worst = std::max(worst, std::abs(mapped.x() / mapped.z() - static_cast<double>(truth.projector_u(x, y))));
+        worst = std::max(worst, std::abs(mapped.y() / mapped.z() - static_cast<double>(truth.projector_v(x, y))));
+        ++checked;
+      }
+    }
+    EXPECT_GT(checked, rig.camera.width * rig.camera.height / 2) << "frame " << frame;
+    EXPECT_LT(worst, 2e-3) << "frame " << frame;  // float storage of ~900 px coordinates: 6e-5
+  }
+}
+
+TEST(Renderer, SphereTerminatorOverTheWholeImage) {
+  const Scene scene = make_sphere_scene();
+  SimRig rig = small_rig(scene, 240);
+  Renderer renderer(rig, scene, Device::cpu());
+  renderer.set_frame(0);
+  const GroundTruthFrame truth = renderer.ground_truth();
+  const RayMap rays = compute_ray_map(rig.camera);
+  const Pose T_object_projector = truth.T_object_camera * rig.T_camera_projector;
+  const Eigen::Vector3d projector_centre = T_object_projector.translation();
+  const SceneShapeT<double>& shape = scene.shape();
+  const Eigen::Vector3d centre(shape.sphere.center.x, shape.sphere.center.y, shape.sphere.center.z);
+  int lit = 0, unlit = 0, wrong = 0;
+  for (int y = 0; y < rig.camera.height; ++y) {
+    for (int x = 0; x < rig.camera.width; ++x) {
+      const float depth = truth.depth_m(x, y);
+      if (depth <= 0.0f) continue;
+      const Vec3f ray = rays.ray(x, y);
+      const Eigen::Vector3d point =
+          truth.T_object_camera * (static_cast<double>(depth) * Eigen::Vector3d(ray.x, ray.y, ray.z));
+      EXPECT_NEAR((point - centre).norm(), shape.sphere.radius, 1e-8);
+      const Eigen::Vector3d normal = (point - centre).normalized();
+      const double facing = normal.dot((projector_centre - point).normalized());
+      if (std::abs(facing) < 1e-3) continue;
+      (facing > 0.0 ? lit : unlit) += 1;
+      if ((facing > 0.0) != (truth.valid(x, y) != 0)) ++wrong;
+    }
+  }
+  EXPECT_GT(lit, 1000);
+  EXPECT_EQ(wrong, 0) << lit << " lit, " << unlit << " unlit";
+}
+
+// Independent of the renderer's shadow ray: march the exact signed distance from the point
+// towards the projector; the point is shadowed iff the march meets the solid.
+bool blocked_by_march(const Scene& scene, const Eigen::Vector3d& point, const Eigen::Vector3d& normal,
+                      const Eigen::Vector3d& target) {
+  const Eigen::Vector3d direction = (target - point).normalized();
+  const double length = (target - point).norm();
+  double t = 2e-6;
+  while (t < length) {
+    const double distance = scene.signed_distance(point + 1e-7 * normal + t * direction);
+    if (distance < 1e-9) return true;
+    t += std::max(distance, 1e-7);
+  }
+  return false;
+}
+
+TEST(Renderer, KnurlShadowsAreWhereTheGeometryCastsThem) {
+  const Scene scene = make_knurled_screw_scene();
+  SimRig rig = small_rig(scene, 200);
+  Renderer renderer(rig, scene, Device::cpu());
+  renderer.set_frame(0);
+  const GroundTruthFrame truth = renderer.ground_truth();
+  const RayMap rays = compute_ray_map(rig.camera);
+  const Pose T_object_projector = truth.T_object_camera * rig.T_camera_projector;
+  const Eigen::Vector3d projector_centre = T_object_projector.translation();
+  int shadowed = 0, lit = 0, wrong = 0;
+  for (int y = 0; y < rig.camera.height; y += 3) {
+    for (int x = 0; x < rig.camera.width; ++x) {
+      const float depth = truth.depth_m(x, y);
+      if (depth <= 0.0f) continue;
+      const Vec3f ray = rays.ray(x, y);
+      const Eigen::Vector3d point =
+          truth.T_object_camera * (static_cast<double>(depth) * Eigen::Vector3d(ray.x, ray.y, ray.z));
+      // The normal from the exact distance's gradient.
+      Eigen::Vector3d normal;
+      const double h = 1e-7;
+      for (int axis = 0; axis < 3; ++axis) {
+        Eigen::Vector3d step = Eigen::Vector3d::Zero();
+        step[axis] = h;
+        normal[axis] = scene.signed_distance(point + step) - scene.signed_distance(point - step);
+      }
+      normal.normalize();
+      const bool facing = normal.dot(projector_centre - point) > 0.0;
+      const bool expected_lit = facing && !blocked_by_march(scene, point, normal, projector_centre);
+      (expected_lit ? lit : shadowed) += 1;
+      if (expected_lit != (truth.valid(x, y) != 0)) ++wrong;
+    }
+  }
+  EXPECT_GT(shadowed, 50) << "the knurl should cast shadows at 25 degrees";
+  EXPECT_GT(lit, 1000);
+  // Pixels whose point lies within float rounding of a shadow edge may disagree.
+  EXPECT_LE(wrong, (lit + shadowed) / 1000 + 2) << lit << " lit, " << shadowed << " shadowed";
+}
+
+TEST(Renderer, FlatWhitePatchFollowsThePhotonTransferCurve) {
+  const Scene scene = make_plane_scene();
+  SimRig rig = small_rig(scene, 320);
+  Renderer renderer(rig, scene, Device::cpu());
+  renderer.set_frame(0);
+  const GroundTruthFrame truth = renderer.ground_truth();
+  // Pattern 0 is the white reference.
+  ASSERT_EQ(rig.patterns.patterns[0].kind, PatternKind::kWhite);
+  const Image16u image = renderer.render_pattern(0);
+  // The expected mean per pixel, noise-free, from a second renderer with noise off.
+  SimRig quiet_rig = rig;
+  quiet_rig.noise = false;
+  Renderer quiet(quiet_rig, scene, Device::cpu());
+  quiet.set_frame(0);
+  const Image16u mean_image = quiet.render_pattern(0);
+  const SensorModel& sensor = rig.optics.camera_sensor;
+  double sum = 0.0, sum_squares = 0.0, predicted_variance = 0.0;
+  int count = 0;
+  for (int y = rig.camera.height / 4; y < 3 * rig.camera.height / 4; ++y) {
+    for (int x = rig.camera.width / 4; x < 3 * rig.camera.width / 4; ++x) {
+      if (!truth.valid(x, y)) continue;
+      const double expected = mean_image(x, y);
+      const double residual = static_cast<double>(image(x, y)) - expected;
+      sum += residual;
+      sum_squares += residual * residual;
+      const double electrons = (expected - sensor.black_level_dn) * sensor.gain_e_per_dn;
+      predicted_variance += (electrons + sensor.read_noise_e * sensor.read_noise_e) /
+                                (sensor.gain_e_per_dn * sensor.gain_e_per_dn) + 1.0 / 6.0;
+      ++count;
+    }
+  }
+  ASSERT_GT(count, 10000);
+  const double mean_residual = sum / count;
+  const double variance = sum_squares / count - mean_residual * mean_residual;
+  predicted_variance /= count;
+  // Signal well above the read noise and below saturation: a realistic exposure.
+  EXPECT_GT(mean_image(rig.camera.width / 2, rig.camera.height / 2), 1000);
+  EXPECT_LT(mean_image(rig.camera.width / 2, rig.camera.height / 2), 4000);
+  EXPECT_NEAR(mean_residual, 0.0, 5.0 * std::sqrt(predicted_variance / count) + 0.02);
+  // Sample variance of n Gaussian draws: relative standard error sqrt(2/n).
+  EXPECT_NEAR(variance / predicted_variance, 1.0, 5.0 * std::sqrt(2.0 / count) + 0.02);
+}
+
+TEST(Renderer, DepthModeNoiseHasThePredictedSigma) {
+  const Scene scene = make_knurled_screw_scene();
+  SimRig rig = small_rig(scene, 320);
+  Renderer renderer(rig, scene, Device::cpu());
+  renderer.set_frame(2);
+  const GroundTruthFrame truth = renderer.ground_truth();
+  const Image32f depth = renderer.render_depth();
+  double sum_z2 = 0.0;
+  int count = 0;
+  for (int y = 0; y < depth.height(); ++y) {
+    for (int x = 0; x < depth.width(); ++x) {
+      if (!truth.valid(x, y)) {
+        EXPECT_EQ(depth(x, y), 0.0f);
+        continue;
+      }
+      const double sigma = truth.depth_sigma_m(x, y);
+      ASSERT_GT(sigma, 0.0);
+      ASSERT_LT(sigma, 1e-3);
+      const double z = (static_cast<double>(depth(x, y)) - static_cast<double>(truth.depth_m(x, y))) / sigma;
+      sum_z2 += z * z;
+      ++count;
+    }
+  }
+  ASSERT_GT(count, 5000);
+  EXPECT_NEAR(sum_z2 / count, 1.0, 5.0 * std::sqrt(2.0 / count) + 0.05);
+}
+
+TEST(SimScanner, DevicePathCapturesWhatTheRendererRenders) {
+  RigOptions options;
+  options.preset = "ci";
+  options.camera_width = 120;
+  options.frames = 4;
+  const std::shared_ptr<SimScanner> scanner = SimScanner::create("knurled-knob", options, Device::cpu());
+  auto camera = scanner->camera();
+  auto projector = scanner->projector();
+  auto turntable = scanner->turntable();
+  const std::chrono::milliseconds timeout(1000);
+  EXPECT_THROW(turntable->move_to_deg(90.0, timeout), Error);  // not homed
+  turntable->home(timeout);
+  turntable->move_to_deg(180.0, timeout);
+  EXPECT_DOUBLE_EQ(turntable->position_deg(), 180.0);
+  projector->load_patterns(scanner->rig().patterns);
+  camera->start();
+  EXPECT_THROW(camera->wait_image(timeout), Error);  // nothing triggered: a timeout, not a hang
+  Renderer direct(scanner->rig(), scanner->scene(), Device::cpu());
+  direct.set_frame(2);
+  std::uint32_t capture = 0;  // the k-th capture of a frame draws noise key k
+  for (const int pattern : {0, 5, static_cast<int>(scanner->rig().patterns.size()) - 1}) {
+    projector->show_pattern(pattern);
+    camera->software_trigger();
+    const drivers::CapturedImage captured = camera->wait_image(timeout);
+    const Image16u expected =
+        direct.render(scanner->rig().patterns.patterns[static_cast<std::size_t>(pattern)], capture++);
+    EXPECT_TRUE(captured.image == expected) << "pattern " << pattern;
+    EXPECT_TRUE(captured.complete);
+  }
+  EXPECT_THROW(projector->show_pattern(10000), Error);
+}
+
+TEST(SimScanner, OpensByUriAndRejectsUnknownOptions) {
+  const auto scanner = SimScanner::open("sim://sphere?preset=ci&frames=3&width=64&device=cpu");
+  EXPECT_EQ(scanner->rig().turntable.steps_per_revolution, 3);
+  EXPECT_EQ(scanner->rig().camera.width, 64);
+  EXPECT_THROW(SimScanner::open("sim://sphere?colour=red"), Error);
+  EXPECT_THROW(SimScanner::open("sim://teapot"), Error);
+  EXPECT_THROW(SimScanner::open("sim://sphere?preset=huge"), Error);
+  EXPECT_THROW(SimScanner::open("gige://10.0.0.1"), Error);
+}
+
+}  // namespace
+}  // namespace sls::sim

@@ -1,0 +1,67 @@
+// The CUDA renderer equals the CPU renderer: geometry, pattern images (same noise draws) and
+// depth-only maps. Skipped without a GPU.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "drivers/sim/renderer.h"
+#include "tests/support/test_support.h"
+#include "tests/unit/sim/sim_test_rig.h"
+
+namespace sls::sim {
+namespace {
+
+TEST(RendererCuda, EqualsCpu) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  for (const char* object : {"knurled-screw", "knurled-knob", "chessboard"}) {
+    const Scene scene = make_scene(object);
+    const SimRig rig = small_rig(scene, 400);
+    Renderer cpu(rig, scene, Device::cpu());
+    Renderer gpu(rig, scene, Device::cuda());
+    cpu.set_frame(3);
+    gpu.set_frame(3);
+    const GroundTruthFrame cpu_truth = cpu.ground_truth();
+    const GroundTruthFrame gpu_truth = gpu.ground_truth();
+    std::size_t mask_differences = 0;
+    double worst_depth = 0.0, worst_projector = 0.0;
+    for (std::size_t i = 0; i < cpu_truth.valid.pixel_count(); ++i) {
+      if (cpu_truth.valid.data()[i] != gpu_truth.valid.data()[i]) {
+        ++mask_differences;
+        continue;
+      }
+      worst_depth = std::max(worst_depth, static_cast<double>(std::abs(cpu_truth.depth_m.data()[i] - gpu_truth.depth_m.data()[i])));
+      if (cpu_truth.valid.data()[i]) {
+        worst_projector = std::max(worst_projector, static_cast<double>(std::abs(cpu_truth.projector_u.data()[i] -
+                                                                                 gpu_truth.projector_u.data()[i])));
+      }
+    }
+    EXPECT_LE(mask_differences, cpu_truth.valid.pixel_count() / 10000) << object;
+    EXPECT_LT(worst_depth, 1e-9) << object;
+    EXPECT_LT(worst_projector, 1e-3) << object;
+    for (int pattern = 0; pattern < static_cast<int>(rig.patterns.size()); pattern += 3) {
+      const Image16u a = cpu.render_pattern(pattern);
+      const Image16u b = gpu.render_pattern(pattern);
+      int worst = 0;
+      std::size_t differing = 0;
+      for (std::size_t i = 0; i < a.pixel_count(); ++i) {
+        const int difference = std::abs(static_cast<int>(a.data()[i]) - static_cast<int>(b.data()[i]));
+        worst = std::max(worst, difference);
+        differing += difference != 0 ? 1u : 0u;
+      }
+      EXPECT_LE(worst, 1) << object << " pattern " << pattern;
+      EXPECT_LE(differing, a.pixel_count() / 1000) << object << " pattern " << pattern;
+    }
+    const Image32f cpu_depth = cpu.render_depth();
+    const Image32f gpu_depth = gpu.render_depth();
+    double worst_noisy = 0.0;
+    for (std::size_t i = 0; i < cpu_depth.pixel_count(); ++i) {
+      if (cpu_truth.valid.data()[i] && gpu_truth.valid.data()[i]) {
+        worst_noisy = std::max(worst_noisy, static_cast<double>(std::abs(cpu_depth.data()[i] - gpu_depth.data()[i])));
+      }
+    }
+    EXPECT_LT(worst_noisy, 1e-7) << object;
+  }
+}
+
+}  // namespace
+}  // namespace sls::sim
