@@ -177,16 +177,20 @@ SLS_HOST_DEVICE inline float blur_gather_1d(const float* line, int n, int stride
   if (!(sigma > 0.05f)) return line[i * stride];
   int radius = static_cast<int>(std::ceil(3.0f * sigma));
   if (radius > kMaxBlurRadius) radius = kMaxBlurRadius;
-  const float inverse_two_variance = 0.5f / (sigma * sigma);
-  float sum = 0.0f, weights = 0.0f;
+  // Double arithmetic, rounded once to float: glibc's and CUDA's float exp differ in the last
+  // bit, and the shot-noise sampler (rejection sampling between 10 and 1000 e-) turns a
+  // last-bit difference of the mean into a different draw. Rounded from double, the CPU and
+  // GPU means agree except when they straddle a float rounding boundary (odds ~1e-8).
+  const double inverse_two_variance = 0.5 / (static_cast<double>(sigma) * static_cast<double>(sigma));
+  double sum = 0.0, weights = 0.0;
   for (int k = -radius; k <= radius; ++k) {
     const int j = i + k;
     if (j < 0 || j >= n) continue;  // the image edge: renormalise over what exists
-    const float w = std::exp(-static_cast<float>(k * k) * inverse_two_variance);
-    sum += w * line[j * stride];
+    const double w = std::exp(-static_cast<double>(k * k) * inverse_two_variance);
+    sum += w * static_cast<double>(line[j * stride]);
     weights += w;
   }
-  return sum / weights;
+  return static_cast<float>(sum / weights);
 }
 
 // Step 3b: the digital number.

@@ -1,6 +1,7 @@
 // The CUDA renderer equals the CPU renderer: geometry, pattern images (same noise draws) and
 // depth-only maps. Skipped without a GPU.
 #include <cmath>
+#include <cstdio>
 
 #include <gtest/gtest.h>
 
@@ -38,18 +39,25 @@ TEST(RendererCuda, EqualsCpu) {
     EXPECT_LE(mask_differences, cpu_truth.valid.pixel_count() / 10000) << object;
     EXPECT_LT(worst_depth, 1e-9) << object;
     EXPECT_LT(worst_projector, 1e-3) << object;
-    for (int pattern = 0; pattern < static_cast<int>(rig.patterns.size()); pattern += 3) {
+    std::printf("%s: %zu mask differences, worst depth %.3g m, worst projector u %.3g px\n", object,
+                mask_differences, worst_depth, worst_projector);
+    for (int pattern = 0; pattern < static_cast<int>(rig.patterns.size()); ++pattern) {
       const Image16u a = cpu.render_pattern(pattern);
       const Image16u b = gpu.render_pattern(pattern);
-      int worst = 0;
-      std::size_t differing = 0;
+      // The same noise draws: equal digital numbers, except where a float-rounded mean
+      // straddles a rounding boundary between the backends (odds ~1e-8 per pixel) and the
+      // shot-noise sampler then draws afresh; and ±1 DN where the analog value straddles a
+      // quantisation step.
+      std::size_t differing = 0, beyond_one = 0;
       for (std::size_t i = 0; i < a.pixel_count(); ++i) {
         const int difference = std::abs(static_cast<int>(a.data()[i]) - static_cast<int>(b.data()[i]));
-        worst = std::max(worst, difference);
         differing += difference != 0 ? 1u : 0u;
+        beyond_one += difference > 1 ? 1u : 0u;
       }
-      EXPECT_LE(worst, 1) << object << " pattern " << pattern;
+      EXPECT_LE(beyond_one, 2u) << object << " pattern " << pattern << ": " << differing << " differing";
       EXPECT_LE(differing, a.pixel_count() / 1000) << object << " pattern " << pattern;
+      std::printf("%s pattern %d: %zu of %zu pixels differ, %zu by more than 1 DN\n", object, pattern, differing,
+                  a.pixel_count(), beyond_one);
     }
     const Image32f cpu_depth = cpu.render_depth();
     const Image32f gpu_depth = gpu.render_depth();
