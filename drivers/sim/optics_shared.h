@@ -254,6 +254,22 @@ SLS_HOST_DEVICE inline ProjectorModel default_projector_optics() {
   return p;
 }
 
+// The 1920 x 1080 alternative: a DLP6500-class DMD (7.56 um square pixels, 14.5 x 8.2 mm),
+// its lens throwing the same 16 mm wide field at 100 mm (9 mm tall: the camera's 9 mm with
+// no vertical margin), f/8, the same contrast and exposure.
+SLS_HOST_DEVICE inline ProjectorModel projector_optics_1080p() {
+  ProjectorModel p = default_projector_optics();
+  const double throw_distance = 0.100;
+  const double field_width = 0.016;
+  p.width = 1920;
+  p.height = 1080;
+  p.pixel_pitch_x_m = 7.56e-6;
+  p.pixel_pitch_y_m = 7.56e-6;
+  const double dmd_distance = throw_distance * (p.width * p.pixel_pitch_x_m) / field_width;
+  p.lens.focal_length_m = throw_distance * dmd_distance / (throw_distance + dmd_distance);
+  return p;
+}
+
 SLS_HOST_DEVICE inline RigOptics default_rig_optics() {
   RigOptics rig;
   rig.camera_sensor = default_camera_sensor();

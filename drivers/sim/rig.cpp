@@ -113,6 +113,12 @@ SimRig make_rig(const RigOptions& options, const Scene& scene) {
   sensor.width = width;
   sensor.height = width * 3 / 4;
 
+  if (options.projector == "1080p") {
+    rig.optics.projector = projector_optics_1080p();
+  } else if (options.projector != "dlpc350") {
+    throw_error(ErrorCode::kInvalidArgument, "unknown simulated projector '{}' (expected dlpc350 or 1080p)",
+                options.projector);
+  }
   rig.camera = camera_intrinsics(rig.optics.camera_lens, sensor);
   // A well-corrected macro lens: 0.2 % barrel distortion in the corners, slight decentring.
   rig.camera.k1 = -0.3;

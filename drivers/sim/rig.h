@@ -62,6 +62,7 @@ struct RigOptions {
   std::string preset = "demo";  // ci | demo | paper
   int frames = 0;               // frames per revolution; 0: the preset's
   int camera_width = 0;         // 0: the preset's; the field of view stays 12 x 9 mm
+  std::string projector = "dlpc350";  // dlpc350 (DLP4500, 912x1140) or 1080p (1920x1080)
   std::uint64_t seed = 1;
   bool noise = true;
 };

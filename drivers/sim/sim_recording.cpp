@@ -103,6 +103,7 @@ SimRecordingSummary write_sim_recording(const std::string& folder, const SimReco
   rig_options.frames = options.frames;
   rig_options.seed = options.seed;
   rig_options.noise = options.noise;
+  rig_options.projector = options.projector;
   const std::shared_ptr<SimScanner> scanner = SimScanner::create(options.object, rig_options, device);
   const SimRig& rig = scanner->rig();
   const bool depth_mode = options.depth_mode;

@@ -22,6 +22,7 @@ struct SimRecordingOptions {
   std::string preset = "demo";
   std::string object = "knurled-screw";
   int frames = 0;                     // per revolution; 0: the preset's
+  std::string projector = "dlpc350";  // or 1080p
   bool depth_mode = false;            // depth maps instead of pattern images
   std::uint64_t seed = 1;
   bool noise = true;

@@ -136,7 +136,8 @@ std::shared_ptr<SimScanner> SimScanner::create(const std::string& object, const 
   SimRig rig = make_rig(rig_options, scene);
   std::string uri = "sim://" + object + "?preset=" + rig_options.preset +
                     "&frames=" + std::to_string(rig.turntable.steps_per_revolution) +
-                    "&seed=" + std::to_string(rig_options.seed) + "&noise=" + (rig_options.noise ? "1" : "0");
+                    "&seed=" + std::to_string(rig_options.seed) + "&noise=" + (rig_options.noise ? "1" : "0") +
+                    "&projector=" + rig_options.projector;
   Renderer renderer(std::move(rig), std::move(scene), device);
   return std::shared_ptr<SimScanner>(new SimScanner(std::move(uri), std::move(renderer)));
 }
@@ -144,10 +145,10 @@ std::shared_ptr<SimScanner> SimScanner::create(const std::string& object, const 
 std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
   const drivers::DeviceUri uri = drivers::parse_device_uri(text);
   if (uri.scheme != "sim") throw_error(ErrorCode::kInvalidArgument, "'{}' is not a sim:// URI", text);
-  static const std::set<std::string> kKeys = {"preset", "frames", "seed", "noise", "device", "width"};
+  static const std::set<std::string> kKeys = {"preset", "frames", "seed", "noise", "device", "width", "projector"};
   for (const auto& [key, value] : uri.query) {
     if (kKeys.count(key) == 0) {
-      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width)",
+      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector)",
                   text, key);
     }
   }
@@ -157,6 +158,7 @@ std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
   options.camera_width = uri.get_int("width", 0);
   options.seed = static_cast<std::uint64_t>(uri.get_int("seed", 1));
   options.noise = uri.get_int("noise", 1) != 0;
+  options.projector = uri.get("projector", "dlpc350");
   const std::string device_text = uri.get("device", default_device().to_string());
   return create(uri.target, options, parse_device(device_text));
 }

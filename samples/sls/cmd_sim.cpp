@@ -17,6 +17,7 @@ struct SimOptions {
   std::string object = "knurled-screw";
   int frames = 0;
   std::string mode = "patterns";
+  std::string projector = "dlpc350";
   std::string out;
   std::string device;
   std::uint64_t seed = 1;
@@ -33,6 +34,7 @@ int run_sim(const Context& context, const SimOptions& options) {
   sim_options.depth_mode = options.mode == "depth";
   sim_options.seed = options.seed;
   sim_options.noise = !options.no_noise;
+  sim_options.projector = options.projector;
   sim_options.reference_spacing_m = options.reference_spacing_um * 1e-6;
   const sim::SimRecordingSummary summary =
       sim::write_sim_recording(options.out, sim_options, device, context.progress_callback("sim"));
@@ -73,6 +75,10 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
                       "patterns: the camera images of every pattern; depth: noisy depth maps straight from the "
                       "geometry (for fusion tests that skip decode)")
       ->check(CLI::IsMember({"patterns", "depth"}))
+      ->capture_default_str();
+  command->add_option("--projector", options->projector,
+                      "dlpc350: DLP4500 912x1140 (as the DLPC350 drives it); 1080p: a 1920x1080 DMD")
+      ->check(CLI::IsMember({"dlpc350", "1080p"}))
       ->capture_default_str();
   command->add_option("--out", options->out, "Recording folder to create (must not exist or be empty)")->required();
   command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present)");

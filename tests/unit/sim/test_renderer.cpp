@@ -243,6 +243,31 @@ TEST(SimScanner, DevicePathCapturesWhatTheRendererRenders) {
   EXPECT_THROW(projector->show_pattern(10000), Error);
 }
 
+TEST(Renderer, Projector1080pCoversTheCameraField) {
+  const Scene scene = make_plane_scene();
+  RigOptions options;
+  options.preset = "ci";
+  options.camera_width = 160;
+  options.projector = "1080p";
+  const SimRig rig = make_rig(options, scene);
+  EXPECT_EQ(rig.projector.width, 1920);
+  EXPECT_EQ(rig.projector.height, 1080);
+  EXPECT_DOUBLE_EQ(rig.projector.fx, rig.projector.fy);  // square DMD pixels
+  Renderer renderer(rig, scene, Device::cpu());
+  renderer.set_frame(0);
+  const GroundTruthFrame truth = renderer.ground_truth();
+  std::size_t lit = 0;
+  float max_u = 0.0f;
+  for (std::size_t i = 0; i < truth.valid.pixel_count(); ++i) {
+    lit += truth.valid.data()[i];
+    if (truth.valid.data()[i]) max_u = std::max(max_u, truth.projector_u.data()[i]);
+  }
+  EXPECT_GT(lit, truth.valid.pixel_count() * 9 / 10);
+  EXPECT_GT(max_u, 1000.0f);  // the columns span the 1920-wide DMD, not the 912-wide one
+  options.projector = "lcd";
+  EXPECT_THROW(make_rig(options, scene), Error);
+}
+
 TEST(SimScanner, OpensByUriAndRejectsUnknownOptions) {
   const auto scanner = SimScanner::open("sim://sphere?preset=ci&frames=3&width=64&device=cpu");
   EXPECT_EQ(scanner->rig().turntable.steps_per_revolution, 3);
