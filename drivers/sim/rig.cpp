@@ -113,6 +113,18 @@ SimRig make_rig(const RigOptions& options, const Scene& scene) {
   sensor.width = width;
   sensor.height = width * 3 / 4;
 
+  if (options.bit_depth != 8 && options.bit_depth != 10 && options.bit_depth != 12 && options.bit_depth != 16) {
+    throw_error(ErrorCode::kInvalidArgument, "camera bit depth {} (expected 8, 10, 12 or 16)", options.bit_depth);
+  }
+  if (!(options.gamma > 0.1 && options.gamma < 10.0)) {
+    throw_error(ErrorCode::kInvalidArgument, "sensor gamma {} outside 0.1 .. 10", options.gamma);
+  }
+  // The same full well over the ADC's range: gain and black level scale by 2^(bits - 12).
+  const double scale = std::ldexp(1.0, options.bit_depth - sensor.bit_depth);
+  sensor.gain_e_per_dn /= scale;
+  sensor.black_level_dn *= scale;
+  sensor.bit_depth = options.bit_depth;
+  sensor.gamma = options.gamma;
   if (options.projector == "1080p") {
     rig.optics.projector = projector_optics_1080p();
   } else if (options.projector != "dlpc350") {
@@ -140,6 +152,15 @@ SimRig make_rig(const RigOptions& options, const Scene& scene) {
 
   rig.turntable.steps_per_revolution = options.frames > 0 ? options.frames : preset.frames;
   rig.turntable.seed = options.seed;
+  rig.turntable.angle_jitter_deg = options.angle_jitter_deg;
+  rig.turntable.mount_tilt_deg = options.mount_tilt_deg;
+  rig.turntable.mount_offset_m = options.mount_offset_m;
+  if (!(options.angle_jitter_deg >= 0.0 && options.angle_jitter_deg < 1.0) ||
+      !(std::fabs(options.mount_tilt_deg) < 5.0) || !(std::fabs(options.mount_offset_m) < 0.005)) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "turntable jitter {}° (0..1), mount tilt {}° (|.| < 5) or offset {} m (|.| < 5 mm) out of range",
+                options.angle_jitter_deg, options.mount_tilt_deg, options.mount_offset_m);
+  }
   if (rig.turntable.steps_per_revolution > 100000) {
     throw_error(ErrorCode::kInvalidArgument, "{} frames per revolution is too many", rig.turntable.steps_per_revolution);
   }

@@ -63,6 +63,12 @@ struct RigOptions {
   int frames = 0;               // frames per revolution; 0: the preset's
   int camera_width = 0;         // 0: the preset's; the field of view stays 12 x 9 mm
   std::string projector = "dlpc350";  // dlpc350 (DLP4500, 912x1140) or 1080p (1920x1080)
+  int bit_depth = 12;           // ADC: 8, 10, 12 or 16 bits; gain and black level scale with it
+  double gamma = 1.0;           // sensor response exponent (1: linear, as machine vision)
+  // Turntable imperfections (TurntableModel); 0 turns each off.
+  double angle_jitter_deg = TurntableModel{}.angle_jitter_deg;
+  double mount_tilt_deg = TurntableModel{}.mount_tilt_deg;
+  double mount_offset_m = TurntableModel{}.mount_offset_m;
   std::uint64_t seed = 1;
   bool noise = true;
 };

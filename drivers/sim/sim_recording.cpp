@@ -98,13 +98,7 @@ void write_frame_ground_truth(const GroundTruthFrame& truth, const std::string& 
 
 SimRecordingSummary write_sim_recording(const std::string& folder, const SimRecordingOptions& options,
                                         const Device& device, const ProgressCallback& progress) {
-  RigOptions rig_options;
-  rig_options.preset = options.preset;
-  rig_options.frames = options.frames;
-  rig_options.seed = options.seed;
-  rig_options.noise = options.noise;
-  rig_options.projector = options.projector;
-  const std::shared_ptr<SimScanner> scanner = SimScanner::create(options.object, rig_options, device);
+  const std::shared_ptr<SimScanner> scanner = SimScanner::create(options.object, options.rig, device);
   const SimRig& rig = scanner->rig();
   const bool depth_mode = options.depth_mode;
 
@@ -119,7 +113,7 @@ SimRecordingSummary write_sim_recording(const std::string& folder, const SimReco
   RecordingWriter writer = RecordingWriter::create(folder, info, rig.calibration());
   const std::string truth_folder = writer.groundtruth_folder();
   const double spacing =
-      options.reference_spacing_m > 0.0 ? options.reference_spacing_m : default_reference_spacing_m(options.preset);
+      options.reference_spacing_m > 0.0 ? options.reference_spacing_m : default_reference_spacing_m(options.rig.preset);
   write_scene_ground_truth(*scanner, truth_folder, spacing);
 
   std::unique_ptr<drivers::Camera> camera = scanner->camera();

@@ -13,19 +13,16 @@
 #include <cstdint>
 #include <string>
 
+#include "drivers/sim/rig.h"
 #include "sdk/core/device.h"
 #include "sdk/core/progress.h"
 
 namespace sls::sim {
 
 struct SimRecordingOptions {
-  std::string preset = "demo";
   std::string object = "knurled-screw";
-  int frames = 0;                     // per revolution; 0: the preset's
-  std::string projector = "dlpc350";  // or 1080p
+  RigOptions rig;                     // preset, frames, projector, sensor, turntable, seed, noise
   bool depth_mode = false;            // depth maps instead of pattern images
-  std::uint64_t seed = 1;
-  bool noise = true;
   double reference_spacing_m = 0.0;   // 0: per preset (ci 100 µm, demo 30 µm, paper 10 µm)
 };
 

@@ -145,10 +145,11 @@ std::shared_ptr<SimScanner> SimScanner::create(const std::string& object, const 
 std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
   const drivers::DeviceUri uri = drivers::parse_device_uri(text);
   if (uri.scheme != "sim") throw_error(ErrorCode::kInvalidArgument, "'{}' is not a sim:// URI", text);
-  static const std::set<std::string> kKeys = {"preset", "frames", "seed", "noise", "device", "width", "projector"};
+  static const std::set<std::string> kKeys = {"preset", "frames",  "seed",   "noise", "device", "width",
+                                              "projector", "bits", "gamma", "jitter", "tilt",  "offset_um"};
   for (const auto& [key, value] : uri.query) {
     if (kKeys.count(key) == 0) {
-      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector)",
+      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector, bits, gamma, jitter, tilt, offset_um)",
                   text, key);
     }
   }
@@ -159,6 +160,11 @@ std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
   options.seed = static_cast<std::uint64_t>(uri.get_int("seed", 1));
   options.noise = uri.get_int("noise", 1) != 0;
   options.projector = uri.get("projector", "dlpc350");
+  options.bit_depth = uri.get_int("bits", options.bit_depth);
+  options.gamma = uri.get_double("gamma", options.gamma);
+  options.angle_jitter_deg = uri.get_double("jitter", options.angle_jitter_deg);
+  options.mount_tilt_deg = uri.get_double("tilt", options.mount_tilt_deg);
+  options.mount_offset_m = uri.get_double("offset_um", options.mount_offset_m * 1e6) * 1e-6;
   const std::string device_text = uri.get("device", default_device().to_string());
   return create(uri.target, options, parse_device(device_text));
 }

@@ -33,9 +33,9 @@ int run_scan(const Context& context, const ScanOptions& options) {
   if (!options.sim_preset.empty()) {
     // Capture: scan the simulated scanner into OUT/recording, as a hardware scan would record.
     sim::SimRecordingOptions sim_options;
-    sim_options.preset = options.sim_preset;
+    sim_options.rig.preset = options.sim_preset;
     sim_options.object = options.object;
-    sim_options.frames = options.frames;
+    sim_options.rig.frames = options.frames;
     input = options.out + "/recording";
     const sim::SimRecordingSummary summary =
         sim::write_sim_recording(input, sim_options, device, context.progress_callback("capture"));

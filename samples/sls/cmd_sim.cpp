@@ -13,35 +13,31 @@ namespace sls::cli {
 namespace {
 
 struct SimOptions {
-  std::string preset = "demo";
+  sim::RigOptions rig;
   std::string object = "knurled-screw";
-  int frames = 0;
   std::string mode = "patterns";
-  std::string projector = "dlpc350";
   std::string out;
   std::string device;
-  std::uint64_t seed = 1;
   bool no_noise = false;
+  double mount_offset_um = sim::RigOptions{}.mount_offset_m * 1e6;
   double reference_spacing_um = 0.0;
 };
 
 int run_sim(const Context& context, const SimOptions& options) {
   const Device device = options.device.empty() ? default_device() : parse_device(options.device);
   sim::SimRecordingOptions sim_options;
-  sim_options.preset = options.preset;
   sim_options.object = options.object;
-  sim_options.frames = options.frames;
+  sim_options.rig = options.rig;
+  sim_options.rig.noise = !options.no_noise;
+  sim_options.rig.mount_offset_m = options.mount_offset_um * 1e-6;
   sim_options.depth_mode = options.mode == "depth";
-  sim_options.seed = options.seed;
-  sim_options.noise = !options.no_noise;
-  sim_options.projector = options.projector;
   sim_options.reference_spacing_m = options.reference_spacing_um * 1e-6;
   const sim::SimRecordingSummary summary =
       sim::write_sim_recording(options.out, sim_options, device, context.progress_callback("sim"));
   const nlohmann::json result = {{"ok", true},
                                  {"recording", options.out},
                                  {"object", options.object},
-                                 {"preset", options.preset},
+                                 {"preset", options.rig.preset},
                                  {"mode", options.mode},
                                  {"uri", summary.uri},
                                  {"frames", summary.frames},
@@ -63,26 +59,38 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       "sim", "Scan the built-in simulated scanner into a recording with ground truth (depth, projector "
              "coordinates, poses, exact surface)");
   auto options = std::make_shared<SimOptions>();
-  command->add_option("--preset", options->preset, "ci, demo or paper:\n" + sim::preset_help())
+  command->add_option("--preset", options->rig.preset, "ci, demo or paper:\n" + sim::preset_help())
       ->check(CLI::IsMember({"ci", "demo", "paper"}))
       ->capture_default_str();
   command->add_option("--object", options->object, "The object on the turntable")
       ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
       ->capture_default_str();
-  command->add_option("--frames", options->frames, "Frames per revolution (0: the preset's)")
+  command->add_option("--frames", options->rig.frames, "Frames per revolution (0: the preset's)")
       ->check(CLI::Range(0, 100000));
   command->add_option("--mode", options->mode,
                       "patterns: the camera images of every pattern; depth: noisy depth maps straight from the "
                       "geometry (for fusion tests that skip decode)")
       ->check(CLI::IsMember({"patterns", "depth"}))
       ->capture_default_str();
-  command->add_option("--projector", options->projector,
+  command->add_option("--projector", options->rig.projector,
                       "dlpc350: DLP4500 912x1140 (as the DLPC350 drives it); 1080p: a 1920x1080 DMD")
       ->check(CLI::IsMember({"dlpc350", "1080p"}))
       ->capture_default_str();
+  command->add_option("--bit-depth", options->rig.bit_depth, "Camera ADC bits")
+      ->check(CLI::IsMember({8, 10, 12, 16}))
+      ->capture_default_str();
+  command->add_option("--gamma", options->rig.gamma, "Camera response exponent (1: linear)")->capture_default_str();
+  command->add_option("--turntable-jitter-deg", options->rig.angle_jitter_deg,
+                      "Std. dev. of the true turntable angle about the commanded one (0: exact)")
+      ->capture_default_str();
+  command->add_option("--mount-tilt-deg", options->rig.mount_tilt_deg,
+                      "Tilt of the object's axis on the table: the wobble (0: none)")
+      ->capture_default_str();
+  command->add_option("--mount-offset-um", options->mount_offset_um, "Object axis off the table axis (0: none)")
+      ->capture_default_str();
   command->add_option("--out", options->out, "Recording folder to create (must not exist or be empty)")->required();
   command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present)");
-  command->add_option("--seed", options->seed, "Noise and turntable-jitter seed")->capture_default_str();
+  command->add_option("--seed", options->rig.seed, "Noise and turntable-jitter seed")->capture_default_str();
   command->add_flag("--no-noise", options->no_noise, "Noise-free images and depth (tests, pictures)");
   command->add_option("--reference-spacing-um", options->reference_spacing_um,
                       "Spacing of groundtruth/reference.ply samples (0: ci 100, demo 30, paper 10)")

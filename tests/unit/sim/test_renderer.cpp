@@ -7,7 +7,12 @@
 #include <gtest/gtest.h>
 
 #include "drivers/sim/renderer.h"
+#include "drivers/sim/sim_recording.h"
 #include "drivers/sim/sim_scanner.h"
+#include "sdk/core/image_io.h"
+#include "sdk/core/ply.h"
+#include "sdk/core/recording.h"
+#include "sdk/core/trajectory.h"
 #include "tests/support/test_support.h"
 #include "tests/unit/sim/sim_test_rig.h"
 
@@ -268,8 +273,96 @@ TEST(Renderer, Projector1080pCoversTheCameraField) {
   EXPECT_THROW(make_rig(options, scene), Error);
 }
 
+TEST(SimRecording, RoundTripsImagesGroundTruthPosesAndCalibration) {
+  test::TemporaryDirectory dir;
+  SimRecordingOptions options;
+  options.rig.preset = "ci";
+  options.object = "knurled-screw";
+  options.rig.frames = 3;
+  options.reference_spacing_m = 400e-6;
+  const SimRecordingSummary summary = write_sim_recording(dir.file("rec"), options, Device::cpu(), {});
+  const RecordingReader reader = RecordingReader::open(dir.file("rec"));
+  ASSERT_EQ(reader.frame_count(), 3u);
+
+  RigOptions rig_options;
+  rig_options.preset = "ci";
+  rig_options.frames = 3;
+  const Scene scene = make_scene("knurled-screw");
+  const SimRig rig = make_rig(rig_options, scene);
+  Renderer renderer(rig, scene, Device::cpu());
+  renderer.set_frame(2);
+  EXPECT_TRUE(reader.load_image(2, 7) == renderer.render_pattern(7));
+  EXPECT_DOUBLE_EQ(*reader.frame(2).turntable_angle_deg, 240.0);
+
+  const GroundTruthFrame truth = renderer.ground_truth();
+  const std::string frame_folder = summary.groundtruth_folder + "/frames/000002";
+  EXPECT_TRUE(read_pfm(frame_folder + "/depth.pfm") == truth.depth_m);
+  const Image32f projector_u = read_pfm(frame_folder + "/projector_u.pfm");
+  for (std::size_t i = 0; i < projector_u.pixel_count(); ++i) {
+    const float a = projector_u.data()[i], b = truth.projector_u.data()[i];
+    ASSERT_TRUE(a == b || (std::isnan(a) && std::isnan(b))) << i;
+  }
+  const std::vector<StampedPose> trajectory = read_tum_trajectory(summary.groundtruth_folder + "/trajectory.txt");
+  ASSERT_EQ(trajectory.size(), 3u);
+  EXPECT_TRUE(trajectory[2].T_world_camera.is_approx(rig.T_object_camera(2), 1e-9));
+  const ScannerCalibration calibration = reader.calibration();
+  EXPECT_DOUBLE_EQ(calibration.camera.fx, rig.camera.fx);
+  EXPECT_DOUBLE_EQ(calibration.camera.k1, rig.camera.k1);
+  EXPECT_TRUE(calibration.T_camera_projector.is_approx(rig.T_camera_projector, 1e-12));
+  EXPECT_GT(read_ply_cloud(summary.groundtruth_folder + "/reference.ply").size(), 1000u);
+  EXPECT_GT(read_ply_cloud(summary.groundtruth_folder + "/creases.ply").size(), 400u);
+}
+
+TEST(SimRecording, AnInterruptedScanKeepsItsFrames) {
+  test::TemporaryDirectory dir;
+  SimRecordingOptions options;
+  options.rig.preset = "ci";
+  options.rig.frames = 6;
+  options.reference_spacing_m = 400e-6;
+  const ProgressCallback stop_after_two = [](const ProgressUpdate& update) { return update.done < 2; };
+  try {
+    write_sim_recording(dir.file("rec"), options, Device::cpu(), stop_after_two);
+    FAIL() << "expected a cancellation";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kCancelled);
+  }
+  const RecordingReader reader = RecordingReader::open(dir.file("rec"));
+  EXPECT_EQ(reader.frame_count(), 2u);
+  EXPECT_EQ(read_tum_trajectory(reader.groundtruth_folder() + "/trajectory.txt").size(), 2u);
+}
+
+TEST(Renderer, BitDepthsKeepTheFullWellInRange) {
+  const Scene scene = make_plane_scene();
+  for (const int bits : {8, 12, 16}) {
+    RigOptions options;
+    options.preset = "ci";
+    options.camera_width = 120;
+    options.bit_depth = bits;
+    options.angle_jitter_deg = 0.0;
+    const SimRig rig = make_rig(options, scene);
+    EXPECT_EQ(rig.turntable.angle_jitter_deg, 0.0);
+    EXPECT_DOUBLE_EQ(rig.true_angle_deg(5), rig.commanded_angle_deg(5));
+    const SensorModel& sensor = rig.optics.camera_sensor;
+    const double full_well_dn = sensor.black_level_dn + sensor.full_well_e / sensor.gain_e_per_dn;
+    EXPECT_LT(full_well_dn, std::ldexp(1.0, bits) - 1.0) << bits;
+    EXPECT_GT(full_well_dn, 0.95 * (std::ldexp(1.0, bits) - 1.0)) << bits;
+    Renderer renderer(rig, scene, Device::cpu());
+    renderer.set_frame(0);
+    const Image16u white = renderer.render_pattern(0);
+    int max_value = 0;
+    for (std::size_t i = 0; i < white.pixel_count(); ++i) max_value = std::max<int>(max_value, white.data()[i]);
+    EXPECT_LE(max_value, (1 << bits) - 1);
+    EXPECT_GT(max_value, (1 << bits) / 4) << bits;
+  }
+  RigOptions bad;
+  bad.bit_depth = 9;
+  EXPECT_THROW(make_rig(bad, scene), Error);
+}
+
 TEST(SimScanner, OpensByUriAndRejectsUnknownOptions) {
-  const auto scanner = SimScanner::open("sim://sphere?preset=ci&frames=3&width=64&device=cpu");
+  const auto scanner = SimScanner::open("sim://sphere?preset=ci&frames=3&width=64&device=cpu&bits=8&jitter=0&tilt=0");
+  EXPECT_EQ(scanner->rig().optics.camera_sensor.bit_depth, 8);
+  EXPECT_EQ(scanner->rig().turntable.mount_tilt_deg, 0.0);
   EXPECT_EQ(scanner->rig().turntable.steps_per_revolution, 3);
   EXPECT_EQ(scanner->rig().camera.width, 64);
   EXPECT_THROW(SimScanner::open("sim://sphere?colour=red"), Error);
