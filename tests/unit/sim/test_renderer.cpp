@@ -62,25 +62,41 @@ TEST(Renderer, PlaneProjectorCoordinatesAreItsHomography) {
   }
 }
 
+// The frame's ground truth with what the shadow tests need: the rays, the projector's centre.
+struct TruthView {
+  GroundTruthFrame truth;
+  RayMap rays;
+  Eigen::Vector3d projector_centre_object;
+
+  // The visible surface point at pixel (x, y) in the object frame, from the true depth.
+  Eigen::Vector3d point(int x, int y) const {
+    const Vec3f ray = rays.ray(x, y);
+    return truth.T_object_camera *
+           (static_cast<double>(truth.depth_m(x, y)) * Eigen::Vector3d(ray.x, ray.y, ray.z));
+  }
+};
+
+TruthView frame_truth(Renderer& renderer, int frame) {
+  renderer.set_frame(frame);
+  TruthView view{renderer.ground_truth(), compute_ray_map(renderer.rig().camera), {}};
+  view.projector_centre_object = (view.truth.T_object_camera * renderer.rig().T_camera_projector).translation();
+  return view;
+}
+
 TEST(Renderer, SphereTerminatorOverTheWholeImage) {
   const Scene scene = make_sphere_scene();
   SimRig rig = small_rig(scene, 240);
   Renderer renderer(rig, scene, Device::cpu());
-  renderer.set_frame(0);
-  const GroundTruthFrame truth = renderer.ground_truth();
-  const RayMap rays = compute_ray_map(rig.camera);
-  const Pose T_object_projector = truth.T_object_camera * rig.T_camera_projector;
-  const Eigen::Vector3d projector_centre = T_object_projector.translation();
+  const TruthView view = frame_truth(renderer, 0);
+  const GroundTruthFrame& truth = view.truth;
+  const Eigen::Vector3d& projector_centre = view.projector_centre_object;
   const SceneShapeT<double>& shape = scene.shape();
   const Eigen::Vector3d centre(shape.sphere.center.x, shape.sphere.center.y, shape.sphere.center.z);
   int lit = 0, unlit = 0, wrong = 0;
   for (int y = 0; y < rig.camera.height; ++y) {
     for (int x = 0; x < rig.camera.width; ++x) {
-      const float depth = truth.depth_m(x, y);
-      if (depth <= 0.0f) continue;
-      const Vec3f ray = rays.ray(x, y);
-      const Eigen::Vector3d point =
-          truth.T_object_camera * (static_cast<double>(depth) * Eigen::Vector3d(ray.x, ray.y, ray.z));
+      if (truth.depth_m(x, y) <= 0.0f) continue;
+      const Eigen::Vector3d point = view.point(x, y);
       EXPECT_NEAR((point - centre).norm(), shape.sphere.radius, 1e-8);
       const Eigen::Vector3d normal = (point - centre).normalized();
       const double facing = normal.dot((projector_centre - point).normalized());
@@ -112,19 +128,14 @@ TEST(Renderer, KnurlShadowsAreWhereTheGeometryCastsThem) {
   const Scene scene = make_knurled_screw_scene();
   SimRig rig = small_rig(scene, 200);
   Renderer renderer(rig, scene, Device::cpu());
-  renderer.set_frame(0);
-  const GroundTruthFrame truth = renderer.ground_truth();
-  const RayMap rays = compute_ray_map(rig.camera);
-  const Pose T_object_projector = truth.T_object_camera * rig.T_camera_projector;
-  const Eigen::Vector3d projector_centre = T_object_projector.translation();
+  const TruthView view = frame_truth(renderer, 0);
+  const GroundTruthFrame& truth = view.truth;
+  const Eigen::Vector3d& projector_centre = view.projector_centre_object;
   int shadowed = 0, lit = 0, wrong = 0;
   for (int y = 0; y < rig.camera.height; y += 3) {
     for (int x = 0; x < rig.camera.width; ++x) {
-      const float depth = truth.depth_m(x, y);
-      if (depth <= 0.0f) continue;
-      const Vec3f ray = rays.ray(x, y);
-      const Eigen::Vector3d point =
-          truth.T_object_camera * (static_cast<double>(depth) * Eigen::Vector3d(ray.x, ray.y, ray.z));
+      if (truth.depth_m(x, y) <= 0.0f) continue;
+      const Eigen::Vector3d point = view.point(x, y);
       // The normal from the exact distance's gradient.
       Eigen::Vector3d normal;
       const double h = 1e-7;
