@@ -151,7 +151,7 @@ SimRecordingSummary write_sim_recording(const std::string& folder, const SimReco
     trajectory.push_back({static_cast<double>(metadata.timestamp_ns) * 1e-9, truth.T_object_camera});
     // Rewritten every frame so an interrupted run keeps a trajectory for the frames it has.
     write_tum_trajectory(truth_folder + "/trajectory.txt", trajectory);
-    report_progress(progress, {"sim", static_cast<std::size_t>(frame + 1), static_cast<std::size_t>(frames), ""});
+    report_progress(progress, {"capture", static_cast<std::size_t>(frame + 1), static_cast<std::size_t>(frames), ""});
   }
   camera->stop();
   projector->go_dark();
