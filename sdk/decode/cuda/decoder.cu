@@ -1,0 +1,134 @@
+// CUDA backend of the decoder: a thin launcher, one thread per pixel, around decode_pixel
+// and triangulate_decoded_pixel, the same per-pixel code the CPU loop runs.
+#include "sdk/decode/cuda/decoder_cuda.h"
+
+#include "sdk/core/cuda/cuda_check.h"
+#include "sdk/core/cuda/device_buffer.h"
+
+namespace sls::detail {
+namespace {
+
+// Parameters by value: ~1.3 KB, within the kernel parameter space, and read from the
+// constant bank by every thread.
+__global__ void decode_kernel(DecodeParams decode, TriangulationParams triangulation, int width, int height,
+                              const std::uint16_t* __restrict__ stack, std::size_t plane_stride,
+                              const Vec3f* __restrict__ rays, const std::uint8_t* __restrict__ ray_valid,
+                              DecodeOutputsDevice out) {
+  const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  if (x >= width || y >= height) return;
+  const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
+  // Plane-major stack: neighbouring threads read neighbouring pixels of each image (coalesced).
+  const StridedStackSamples samples{stack, plane_stride, i};
+  PixelDecode pixel = decode_pixel(decode, samples);
+  out.depth[i] = triangulate_decoded_pixel(decode.layout, triangulation, &pixel, rays[i], ray_valid[i] != 0);
+  out.u[i] = pixel.u;
+  out.v[i] = pixel.v;
+  out.confidence[i] = pixel.confidence;
+  out.mask[i] = pixel.mask;
+}
+
+}  // namespace
+
+void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& triangulation, int width, int height,
+                        const std::uint16_t* stack, std::size_t plane_stride, const Vec3f* rays,
+                        const std::uint8_t* ray_valid, const DecodeOutputsDevice& outputs, cudaStream_t stream) {
+  if (width <= 0 || height <= 0) return;
+  const dim3 block(32, 8);
+  const dim3 grid((static_cast<unsigned>(width) + block.x - 1) / block.x,
+                  (static_cast<unsigned>(height) + block.y - 1) / block.y);
+  decode_kernel<<<grid, block, 0, stream>>>(decode, triangulation, width, height, stack, plane_stride, rays,
+                                            ray_valid, outputs);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+struct CudaDecodeContext::State {
+  DecodeParams decode;
+  TriangulationParams triangulation;
+  int width = 0;
+  int height = 0;
+  std::size_t pixels = 0;
+  cudaStream_t stream = nullptr;
+  DeviceBuffer<Vec3f> rays;
+  DeviceBuffer<std::uint8_t> ray_valid;
+  DeviceBuffer<std::uint16_t> stack;  // upload buffer for host stacks, allocated on first use
+  DeviceBuffer<float> u, v, confidence, depth;
+  DeviceBuffer<std::uint8_t> mask;
+
+  ~State() {
+    if (stream != nullptr) (void)cudaStreamDestroy(stream);
+  }
+};
+
+CudaDecodeContext::CudaDecodeContext(const DecodeParams& decode, const TriangulationParams& triangulation,
+                                     int width, int height, const Vec3f* rays, const std::uint8_t* ray_valid)
+    : state_(new State) {
+  try {
+    State& s = *state_;
+    s.decode = decode;
+    s.triangulation = triangulation;
+    s.width = width;
+    s.height = height;
+    s.pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&s.stream, cudaStreamNonBlocking));
+    s.rays.allocate(s.pixels);
+    s.ray_valid.allocate(s.pixels);
+    s.u.allocate(s.pixels);
+    s.v.allocate(s.pixels);
+    s.confidence.allocate(s.pixels);
+    s.depth.allocate(s.pixels);
+    s.mask.allocate(s.pixels);
+    s.rays.upload(rays, s.pixels, s.stream);
+    s.ray_valid.upload(ray_valid, s.pixels, s.stream);
+    SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
+  } catch (...) {
+    delete state_;
+    throw;
+  }
+}
+
+CudaDecodeContext::~CudaDecodeContext() {
+  if (state_ != nullptr && state_->stream != nullptr) (void)cudaStreamSynchronize(state_->stream);
+  delete state_;
+}
+
+void CudaDecodeContext::decode_resident(const std::uint16_t* stack_device, std::size_t plane_stride,
+                                        cudaStream_t stream) {
+  State& s = *state_;
+  launch_decode_cuda(s.decode, s.triangulation, s.width, s.height, stack_device, plane_stride, s.rays.data(),
+                     s.ray_valid.data(), outputs(), stream != nullptr ? stream : s.stream);
+}
+
+void CudaDecodeContext::decode_host(const std::uint16_t* const* planes, const DecodeOutputsHost& host) {
+  State& s = *state_;
+  const std::size_t count = static_cast<std::size_t>(s.decode.layout.pattern_count);
+  if (s.stack.size() < count * s.pixels) s.stack.allocate(count * s.pixels);
+  for (std::size_t k = 0; k < count; ++k) {
+    SLS_CUDA_CHECK(cudaMemcpyAsync(s.stack.data() + k * s.pixels, planes[k], s.pixels * sizeof(std::uint16_t),
+                                   cudaMemcpyHostToDevice, s.stream));
+  }
+  decode_resident(s.stack.data(), s.pixels, s.stream);
+  s.u.download(host.u, s.pixels, s.stream);
+  s.v.download(host.v, s.pixels, s.stream);
+  s.confidence.download(host.confidence, s.pixels, s.stream);
+  s.mask.download(host.mask, s.pixels, s.stream);
+  s.depth.download(host.depth, s.pixels, s.stream);
+  SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
+}
+
+DecodeOutputsDevice CudaDecodeContext::outputs() const {
+  State& s = *state_;
+  DecodeOutputsDevice out;
+  out.u = s.u.data();
+  out.v = s.v.data();
+  out.confidence = s.confidence.data();
+  out.mask = s.mask.data();
+  out.depth = s.depth.data();
+  return out;
+}
+
+cudaStream_t CudaDecodeContext::stream() const { return state_->stream; }
+int CudaDecodeContext::width() const { return state_->width; }
+int CudaDecodeContext::height() const { return state_->height; }
+
+}  // namespace sls::detail

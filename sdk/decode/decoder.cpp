@@ -1,0 +1,505 @@
+#include "sdk/decode/decoder.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "sdk/core/error.h"
+
+#if defined(SLS_HAVE_CUDA)
+#include "sdk/decode/cuda/decoder_cuda.h"
+#endif
+
+namespace sls {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+void require_finite_positive(double value, const char* name) {
+  if (!(value > 0.0) || !std::isfinite(value)) {
+    throw_error(ErrorCode::kInvalidArgument, "decode options: {} = {} must be positive and finite", name, value);
+  }
+}
+
+void require_finite_non_negative(double value, const char* name) {
+  if (!(value >= 0.0) || !std::isfinite(value)) {
+    throw_error(ErrorCode::kInvalidArgument, "decode options: {} = {} must be >= 0 and finite", name, value);
+  }
+}
+
+// Fills one axis of the layout from the set's patterns along it.
+void fill_axis(const PatternSet& set, PatternAxis axis, AxisCode* code) {
+  const char* axis_name = axis == PatternAxis::kColumns ? "columns" : "rows";
+  int normal_index[32];
+  int inverse_index[32];
+  std::fill(normal_index, normal_index + 32, -1);
+  std::fill(inverse_index, inverse_index + 32, -1);
+  int extent = 0;
+  int phase_steps = 0;
+  int phase_period = 0;
+  int phase_count = 0;
+  bool any = false;
+  for (std::size_t k = 0; k < set.patterns.size(); ++k) {
+    const PatternDesc& d = set.patterns[k];
+    if (d.axis != axis || (d.kind != PatternKind::kGrayCode && d.kind != PatternKind::kPhaseShift)) continue;
+    any = true;
+    extent = d.extent;
+    const int index = static_cast<int>(k);
+    if (d.kind == PatternKind::kGrayCode) {
+      if (d.bit < 0 || d.bit >= 32) {
+        throw_error(ErrorCode::kInvalidArgument, "pattern {} ({}): Gray bit {} out of range", k, pattern_label(d),
+                    d.bit);
+      }
+      int* slot = d.inverted ? &inverse_index[d.bit] : &normal_index[d.bit];
+      if (*slot >= 0) {
+        throw_error(ErrorCode::kInvalidArgument, "pattern {} ({}) repeats pattern {}", k, pattern_label(d), *slot);
+      }
+      *slot = index;
+    } else {
+      if (phase_count == 0) {
+        phase_steps = d.steps;
+        phase_period = d.period_px;
+      } else if (d.steps != phase_steps || d.period_px != phase_period) {
+        throw_error(ErrorCode::kInvalidArgument,
+                    "pattern {} ({}): phase steps of mixed N or period on the {} (a heterodyne set is not "
+                    "decoded yet)",
+                    k, pattern_label(d), axis_name);
+      }
+      if (phase_count >= kDecodeMaxPhaseSteps) {
+        throw_error(ErrorCode::kInvalidArgument, "more than {} phase images on the {}", kDecodeMaxPhaseSteps,
+                    axis_name);
+      }
+      const double angle = 2.0 * kPi * static_cast<double>(d.step) / static_cast<double>(d.steps);
+      code->phase_index[phase_count] = index;
+      code->phase_cos[phase_count] = static_cast<float>(std::cos(angle));
+      code->phase_sin[phase_count] = static_cast<float>(std::sin(angle));
+      ++phase_count;
+    }
+  }
+  if (!any) return;
+  // Gray bits: a contiguous run lowest..highest whose highest bit numbers the whole axis.
+  int lowest = -1, highest = -1;
+  for (int bit = 0; bit < 32; ++bit) {
+    if (normal_index[bit] < 0) {
+      if (inverse_index[bit] >= 0) {
+        throw_error(ErrorCode::kInvalidArgument, "inverse Gray bit {} on the {} without its pattern", bit,
+                    axis_name);
+      }
+      continue;
+    }
+    if (lowest < 0) lowest = bit;
+    if (highest >= 0 && highest != bit - 1) {
+      throw_error(ErrorCode::kInvalidArgument, "Gray bits on the {} skip bit {}: bits must be contiguous",
+                  axis_name, highest + 1);
+    }
+    highest = bit;
+  }
+  const int gray_count = lowest < 0 ? 0 : highest - lowest + 1;
+  if (gray_count > kDecodeMaxGrayBits) {
+    throw_error(ErrorCode::kInvalidArgument, "{} Gray bits on the {}: at most {}", gray_count, axis_name,
+                kDecodeMaxGrayBits);
+  }
+  if (gray_count > 0 && (std::int64_t{1} << (highest + 1)) < extent) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "Gray bits {}..{} on the {} number only {} of {} pixels: the coarsest bit is missing", highest,
+                lowest, axis_name, std::int64_t{1} << (highest + 1), extent);
+  }
+  if (phase_count > 0) {
+    if (phase_count != phase_steps || phase_steps < 3) {
+      throw_error(ErrorCode::kInvalidArgument, "{} of {} phase steps on the {} (need all N >= 3)", phase_count,
+                  phase_steps, axis_name);
+    }
+    if (gray_count == 0) {
+      if (extent > phase_period) {
+        throw_error(ErrorCode::kInvalidArgument,
+                    "phase on the {} has {} periods and no Gray code to number them", axis_name,
+                    (extent + phase_period - 1) / phase_period);
+      }
+    } else if ((1 << lowest) * 2 > phase_period) {
+      // The rounding in unwrap_coordinate needs |stripe centre - u| < P/2 even when an edge
+      // bit is decided the wrong way: W/2 + W/2 <= P/2 ... W <= P/2.
+      throw_error(ErrorCode::kInvalidArgument,
+                  "finest Gray bit {} on the {} gives stripes of {} px, wider than half the phase period {}: "
+                  "add the complementary bit {}",
+                  lowest, axis_name, 1 << lowest, phase_period, lowest - 1);
+    }
+  } else if (gray_count == 0) {
+    throw_error(ErrorCode::kInvalidArgument, "the {} have neither Gray code nor phase", axis_name);
+  }
+  code->extent = extent;
+  code->gray_count = gray_count;
+  code->gray_lowest_bit = lowest < 0 ? 0 : lowest;
+  for (int i = 0; i < gray_count; ++i) {
+    code->gray_index[i] = normal_index[lowest + i];
+    code->gray_inverse_index[i] = inverse_index[lowest + i];
+  }
+  code->phase_count = phase_count;
+  code->phase_period_px = phase_period;
+}
+
+Rigid3f to_rigid3f(const Rigid3d& r) {
+  Rigid3f out;
+  for (int i = 0; i < 9; ++i) out.rotation.m[i] = static_cast<float>(r.rotation.m[i]);
+  out.translation = {static_cast<float>(r.translation.x), static_cast<float>(r.translation.y),
+                     static_cast<float>(r.translation.z)};
+  return out;
+}
+
+void decode_cpu(const DecodeParams& params, const TriangulationParams& triangulation, const RayMap& rays,
+                const std::vector<const std::uint16_t*>& planes, DecodedFrame* frame) {
+  const int width = rays.width;
+  const int height = rays.height;
+  float* u = frame->projector_u.data();
+  float* v = frame->projector_v.data();
+  float* confidence = frame->confidence.data();
+  std::uint8_t* mask = frame->mask.data();
+  float* depth = frame->depth_m.data();
+  const std::uint16_t* const* plane_pointers = planes.data();
+  // Rows are independent; the per-pixel cost varies little (shadowed pixels stop early).
+#if defined(_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const std::size_t i = rays.index(x, y);
+      const PlanePointerSamples samples{plane_pointers, i};
+      PixelDecode pixel = decode_pixel(params, samples);
+      depth[i] = triangulate_decoded_pixel(params.layout, triangulation, &pixel, rays.rays[i], rays.valid[i] != 0);
+      u[i] = pixel.u;
+      v[i] = pixel.v;
+      confidence[i] = pixel.confidence;
+      mask[i] = pixel.mask;
+    }
+  }
+}
+
+}  // namespace
+
+void DecodeOptions::validate() const {
+  if (bit_depth < 1 || bit_depth > 16) {
+    throw_error(ErrorCode::kInvalidArgument, "decode options: bit_depth {} outside 1..16", bit_depth);
+  }
+  require_finite_non_negative(saturation_dn, "saturation_dn");
+  require_finite_non_negative(black_level_dn, "black_level_dn");
+  require_finite_positive(gain_e_per_dn, "gain_e_per_dn");
+  require_finite_non_negative(read_noise_dn, "read_noise_dn");
+  require_finite_non_negative(shadow_min_contrast_dn, "shadow_min_contrast_dn");
+  require_finite_non_negative(shadow_contrast_sigma, "shadow_contrast_sigma");
+  require_finite_non_negative(gray_margin_sigma, "gray_margin_sigma");
+  require_finite_non_negative(min_modulation_ratio, "min_modulation_ratio");
+  require_finite_positive(max_phase_sigma_px, "max_phase_sigma_px");
+  require_finite_non_negative(consistency_tolerance_px, "consistency_tolerance_px");
+  require_finite_positive(confidence_sigma_px, "confidence_sigma_px");
+  if (!(min_triangulation_angle_deg >= 0.0 && min_triangulation_angle_deg < 90.0)) {
+    throw_error(ErrorCode::kInvalidArgument, "decode options: min_triangulation_angle_deg {} outside [0, 90)",
+                min_triangulation_angle_deg);
+  }
+  if (!(min_depth_m >= 0.0 && max_depth_m > min_depth_m) || !std::isfinite(max_depth_m)) {
+    throw_error(ErrorCode::kInvalidArgument, "decode options: depth range [{}, {}] m is empty or not finite",
+                min_depth_m, max_depth_m);
+  }
+  if (newton_iterations < 1 || newton_iterations > 20) {
+    throw_error(ErrorCode::kInvalidArgument, "decode options: newton_iterations {} outside 1..20",
+                newton_iterations);
+  }
+}
+
+std::size_t DecodedFrame::ok_count() const {
+  return static_cast<std::size_t>(
+      std::count(mask.data(), mask.data() + mask.pixel_count(), static_cast<std::uint8_t>(kDecodeOk)));
+}
+
+DecodeLayout make_decode_layout(const PatternSet& set) {
+  validate_pattern_set(set);
+  if (set.kind != PatternSetKind::kGrayPhase) {
+    throw_error(ErrorCode::kUnsupported, "pattern set '{}': only Gray code + phase sets are decoded", set.name);
+  }
+  DecodeLayout layout;
+  layout.pattern_count = static_cast<int>(set.size());
+  for (std::size_t k = 0; k < set.patterns.size(); ++k) {
+    const PatternDesc& d = set.patterns[k];
+    int* slot = d.kind == PatternKind::kWhite ? &layout.white_index
+                : d.kind == PatternKind::kBlack ? &layout.black_index
+                                                : nullptr;
+    if (slot == nullptr) continue;
+    if (*slot >= 0) {
+      throw_error(ErrorCode::kInvalidArgument, "pattern {} ({}) repeats pattern {}", k, pattern_label(d), *slot);
+    }
+    *slot = static_cast<int>(k);
+  }
+  fill_axis(set, PatternAxis::kColumns, &layout.axes[0]);
+  fill_axis(set, PatternAxis::kRows, &layout.axes[1]);
+  if (layout.axes[0].extent <= 0 && layout.axes[1].extent <= 0) {
+    throw_error(ErrorCode::kInvalidArgument, "pattern set '{}' codes neither columns nor rows", set.name);
+  }
+  const bool references = layout.white_index >= 0 && layout.black_index >= 0;
+  for (const AxisCode& axis : layout.axes) {
+    if (axis.extent <= 0 || references) continue;
+    const bool complements = axis.gray_count > 0 && axis.gray_inverse_index[axis.gray_count - 1] >= 0;
+    bool all_complements = true;
+    for (int i = 0; i < axis.gray_count; ++i) all_complements = all_complements && axis.gray_inverse_index[i] >= 0;
+    if (!complements || !all_complements) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "pattern set '{}' has neither white and black references nor inverse Gray patterns: no "
+                  "threshold to decode against",
+                  set.name);
+    }
+  }
+  return layout;
+}
+
+DecodeThresholds make_decode_thresholds(const DecodeOptions& o) {
+  o.validate();
+  DecodeThresholds t;
+  const double top = std::ldexp(1.0, o.bit_depth) - 1.0;
+  t.saturation_dn = static_cast<float>(o.saturation_dn > 0.0 ? o.saturation_dn : 0.98 * top);
+  t.black_level_dn = static_cast<float>(o.black_level_dn);
+  t.inverse_gain = static_cast<float>(1.0 / o.gain_e_per_dn);
+  t.read_noise_variance = static_cast<float>(o.read_noise_dn * o.read_noise_dn + 1.0 / 12.0);
+  t.shadow_min_contrast_dn = static_cast<float>(o.shadow_min_contrast_dn);
+  t.shadow_contrast_sigma = static_cast<float>(o.shadow_contrast_sigma);
+  t.gray_margin_sigma = static_cast<float>(o.gray_margin_sigma);
+  t.min_modulation_ratio = static_cast<float>(o.min_modulation_ratio);
+  t.max_phase_sigma_px = static_cast<float>(o.max_phase_sigma_px);
+  t.consistency_tolerance_px = static_cast<float>(o.consistency_tolerance_px);
+  t.confidence_sigma_px = static_cast<float>(o.confidence_sigma_px);
+  return t;
+}
+
+TriangulationParams make_triangulation_params(const ScannerCalibration& calibration, const DecodeOptions& options) {
+  options.validate();
+  TriangulationParams p;
+  p.projector = calibration.projector.cast<float>();
+  const Pose T_projector_camera = calibration.T_camera_projector.inverse();
+  p.T_projector_camera = to_rigid3f(T_projector_camera.to_rigid3d());
+  const Eigen::Vector3d centre = calibration.T_camera_projector.translation();
+  p.projector_centre_camera = {static_cast<float>(centre.x()), static_cast<float>(centre.y()),
+                               static_cast<float>(centre.z())};
+  p.min_sin_angle = static_cast<float>(std::sin(options.min_triangulation_angle_deg * kPi / 180.0));
+  p.min_depth_m = static_cast<float>(options.min_depth_m);
+  p.max_depth_m = static_cast<float>(options.max_depth_m);
+  p.iterations = options.newton_iterations;
+  return p;
+}
+
+struct Decoder::Impl {
+  PatternSet set;
+  ScannerCalibration calibration;
+  Device device;
+  DecodeOptions options;
+  DecodeParams params;
+  TriangulationParams triangulation;
+  RayMap rays;
+#if defined(SLS_HAVE_CUDA)
+  std::unique_ptr<detail::CudaDecodeContext> cuda;
+#endif
+};
+
+Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, const Device& device,
+                 const DecodeOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  require_device(device);
+  calibration.validate();
+  impl_->set = set;
+  impl_->calibration = calibration;
+  impl_->device = device;
+  impl_->options = options;
+  impl_->params.layout = make_decode_layout(set);
+  impl_->params.thresholds = make_decode_thresholds(options);
+  impl_->triangulation = make_triangulation_params(calibration, options);
+  const bool columns = impl_->params.layout.axes[0].extent > 0;
+  const int coded_extent = impl_->params.layout.axes[columns ? 0 : 1].extent;
+  const int calibrated_extent = columns ? calibration.projector.width : calibration.projector.height;
+  if (coded_extent != calibrated_extent) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "pattern set '{}' codes {} projector {}, the calibration's projector has {}", set.name,
+                coded_extent, columns ? "columns" : "rows", calibrated_extent);
+  }
+  impl_->rays = compute_ray_map(calibration.camera, device);
+  if (device.is_cuda()) {
+#if defined(SLS_HAVE_CUDA)
+    impl_->cuda = std::make_unique<detail::CudaDecodeContext>(impl_->params, impl_->triangulation,
+                                                              impl_->rays.width, impl_->rays.height,
+                                                              impl_->rays.rays.data(), impl_->rays.valid.data());
+#endif
+  }
+}
+
+Decoder::~Decoder() = default;
+Decoder::Decoder(Decoder&&) noexcept = default;
+Decoder& Decoder::operator=(Decoder&&) noexcept = default;
+
+const PatternSet& Decoder::pattern_set() const { return impl_->set; }
+const DecodeOptions& Decoder::options() const { return impl_->options; }
+const Device& Decoder::device() const { return impl_->device; }
+const RayMap& Decoder::rays() const { return impl_->rays; }
+const DecodeParams& Decoder::decode_params() const { return impl_->params; }
+const TriangulationParams& Decoder::triangulation_params() const { return impl_->triangulation; }
+
+DecodedFrame Decoder::decode(const std::vector<Image16u>& stack) {
+  const PatternSet& set = impl_->set;
+  const int width = impl_->rays.width;
+  const int height = impl_->rays.height;
+  if (stack.size() != set.size()) {
+    throw_error(ErrorCode::kInvalidArgument, "decode: {} images given, pattern set '{}' has {} patterns",
+                stack.size(), set.name, set.size());
+  }
+  for (std::size_t k = 0; k < stack.size(); ++k) {
+    const Image16u& image = stack[k];
+    if (image.empty()) {
+      throw_error(ErrorCode::kInvalidArgument, "decode: image {} ({}) is empty", k, pattern_label(set.patterns[k]));
+    }
+    if (image.width() != stack[0].width() || image.height() != stack[0].height()) {
+      throw_error(ErrorCode::kInvalidArgument, "decode: image {} ({}) is {}x{}, image 0 is {}x{}", k,
+                  pattern_label(set.patterns[k]), image.width(), image.height(), stack[0].width(),
+                  stack[0].height());
+    }
+  }
+  if (stack[0].width() != width || stack[0].height() != height) {
+    throw_error(ErrorCode::kInvalidArgument, "decode: images are {}x{}, the calibrated camera is {}x{}",
+                stack[0].width(), stack[0].height(), width, height);
+  }
+  // An all-dark stack (projector off, lens cap, wrong exposure) would decode to an empty
+  // frame that looks like "nothing in view": say what is wrong instead.
+  const DecodeLayout& layout = impl_->params.layout;
+  if (layout.white_index >= 0 && layout.black_index >= 0) {
+    const std::uint16_t* white = stack[static_cast<std::size_t>(layout.white_index)].data();
+    const std::uint16_t* black = stack[static_cast<std::size_t>(layout.black_index)].data();
+    const std::size_t count = stack[0].pixel_count();
+    int best = std::numeric_limits<int>::min();
+    for (std::size_t i = 0; i < count; ++i) best = std::max(best, int{white[i]} - int{black[i]});
+    if (static_cast<double>(best) < impl_->options.shadow_min_contrast_dn) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "decode: all-dark stack: white - black is at most {} DN anywhere (shadow threshold {} DN); "
+                  "is the projector on and the exposure right?",
+                  best, impl_->options.shadow_min_contrast_dn);
+    }
+  } else {
+    std::uint16_t brightest = 0;
+    for (const Image16u& image : stack) {
+      brightest = std::max(brightest, *std::max_element(image.data(), image.data() + image.pixel_count()));
+    }
+    if (static_cast<double>(brightest) < impl_->options.black_level_dn + impl_->options.shadow_min_contrast_dn) {
+      throw_error(ErrorCode::kInvalidArgument, "decode: all-dark stack: no pixel above {} DN", brightest);
+    }
+  }
+
+  DecodedFrame frame;
+  frame.projector_u.resize(width, height);
+  frame.projector_v.resize(width, height);
+  frame.confidence.resize(width, height);
+  frame.mask.resize(width, height);
+  frame.depth_m.resize(width, height);
+  std::vector<const std::uint16_t*> planes(stack.size());
+  for (std::size_t k = 0; k < stack.size(); ++k) planes[k] = stack[k].data();
+  if (impl_->device.is_cuda()) {
+#if defined(SLS_HAVE_CUDA)
+    require_device(impl_->device);
+    detail::DecodeOutputsHost host;
+    host.u = frame.projector_u.data();
+    host.v = frame.projector_v.data();
+    host.confidence = frame.confidence.data();
+    host.mask = frame.mask.data();
+    host.depth = frame.depth_m.data();
+    impl_->cuda->decode_host(planes.data(), host);
+#endif
+  } else {
+    decode_cpu(impl_->params, impl_->triangulation, impl_->rays, planes, &frame);
+  }
+  return frame;
+}
+
+// --- Point clouds ----------------------------------------------------------------------
+
+namespace {
+
+Eigen::Vector3f point_at(const Image32f& depth, const RayMap& rays, int x, int y) {
+  const Vec3f& r = rays.ray(x, y);
+  const float z = depth(x, y);
+  return {z * r.x, z * r.y, z * r.z};
+}
+
+// The difference along one image axis at (x, y): central when both neighbours are usable,
+// one-sided when only one is; false when neither.
+bool axis_difference(const Image32f& depth, const RayMap& rays, int x, int y, int dx, int dy, double max_jump_pixels,
+                     Eigen::Vector3f* difference) {
+  const float z = depth(x, y);
+  const Vec3f& r = rays.ray(x, y);
+  auto usable = [&](int nx, int ny) {
+    if (nx < 0 || ny < 0 || nx >= depth.width() || ny >= depth.height()) return false;
+    const float zn = depth(nx, ny);
+    if (!(zn > 0.0f) || !rays.is_valid(nx, ny)) return false;
+    // Pixel footprint: z times the angle between neighbouring rays (their z = 1).
+    const Vec3f& rn = rays.ray(nx, ny);
+    const double footprint =
+        static_cast<double>(z) * std::hypot(static_cast<double>(rn.x - r.x), static_cast<double>(rn.y - r.y));
+    return std::fabs(static_cast<double>(zn - z)) <= max_jump_pixels * footprint;
+  };
+  const bool forward = usable(x + dx, y + dy);
+  const bool backward = usable(x - dx, y - dy);
+  if (forward && backward) {
+    *difference = point_at(depth, rays, x + dx, y + dy) - point_at(depth, rays, x - dx, y - dy);
+  } else if (forward) {
+    *difference = point_at(depth, rays, x + dx, y + dy) - point_at(depth, rays, x, y);
+  } else if (backward) {
+    *difference = point_at(depth, rays, x, y) - point_at(depth, rays, x - dx, y - dy);
+  } else {
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+PointCloud depth_to_cloud(const Image32f& depth_m, const RayMap& rays, const Image32f* confidence,
+                          const CloudOptions& options) {
+  if (depth_m.width() != rays.width || depth_m.height() != rays.height) {
+    throw_error(ErrorCode::kInvalidArgument, "depth_to_cloud: depth map {}x{}, ray map {}x{}", depth_m.width(),
+                depth_m.height(), rays.width, rays.height);
+  }
+  if (confidence != nullptr &&
+      (confidence->width() != depth_m.width() || confidence->height() != depth_m.height())) {
+    throw_error(ErrorCode::kInvalidArgument, "depth_to_cloud: confidence {}x{}, depth map {}x{}",
+                confidence->width(), confidence->height(), depth_m.width(), depth_m.height());
+  }
+  if (!(options.max_jump_pixels > 0.0)) {
+    throw_error(ErrorCode::kInvalidArgument, "depth_to_cloud: max_jump_pixels {} must be positive",
+                options.max_jump_pixels);
+  }
+  PointCloud cloud;
+  for (int y = 0; y < depth_m.height(); ++y) {
+    for (int x = 0; x < depth_m.width(); ++x) {
+      if (!(depth_m(x, y) > 0.0f) || !rays.is_valid(x, y)) continue;
+      const float c = confidence != nullptr ? (*confidence)(x, y) : 1.0f;
+      if (static_cast<double>(c) < options.min_confidence) continue;
+      const Eigen::Vector3f point = point_at(depth_m, rays, x, y);
+      Eigen::Vector3f horizontal, vertical;
+      Eigen::Vector3f normal;
+      bool has_normal = axis_difference(depth_m, rays, x, y, 1, 0, options.max_jump_pixels, &horizontal) &&
+                        axis_difference(depth_m, rays, x, y, 0, 1, options.max_jump_pixels, &vertical);
+      if (has_normal) {
+        normal = horizontal.cross(vertical);
+        const float length = normal.norm();
+        has_normal = length > 0.0f && std::isfinite(length);
+        if (has_normal) normal /= length;
+      }
+      if (!has_normal) {
+        if (!options.keep_points_without_normal) continue;
+        normal = -point.normalized();
+      }
+      if (normal.dot(point) > 0.0f) normal = -normal;  // face the camera
+      cloud.positions.push_back(point);
+      cloud.normals.push_back(normal);
+      if (confidence != nullptr) cloud.confidence.push_back(c);
+    }
+  }
+  return cloud;
+}
+
+PointCloud depth_to_cloud(const DecodedFrame& frame, const RayMap& rays, const CloudOptions& options) {
+  return depth_to_cloud(frame.depth_m, rays, &frame.confidence, options);
+}
+
+}  // namespace sls

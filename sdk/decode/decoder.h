@@ -1,0 +1,126 @@
+// The decode stage (DESIGN.md section 1): a captured pattern stack -> projector coordinates
+// -> depth map, on the CPU or a CUDA GPU over one body of per-pixel code
+// (decode_shared.h, triangulate_shared.h).
+//
+//   Decoder decoder(set, calibration, Device::cuda());
+//   DecodedFrame frame = decoder.decode(images);           // images in pattern-set order
+//   PointCloud cloud = depth_to_cloud(frame, decoder.rays());
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "sdk/core/calibration.h"
+#include "sdk/core/device.h"
+#include "sdk/core/image.h"
+#include "sdk/core/point_cloud.h"
+#include "sdk/core/ray_map.h"
+#include "sdk/decode/decode_shared.h"
+#include "sdk/decode/pattern_set.h"
+#include "sdk/decode/triangulate_shared.h"
+
+namespace sls {
+
+// Thresholds and the camera's noise model. Defaults: the 12-bit IMX304-class camera of the
+// default rig (docs/simulator-optics.md); set the noise model from the camera's EMVA 1288
+// figures (or a photon transfer measurement) for another camera.
+struct DecodeOptions {
+  // Camera levels and temporal noise: variance(I) = (I - black)/gain + read^2 + 1/12 (DN^2).
+  int bit_depth = 12;
+  double saturation_dn = 0.0;      // samples >= this are saturated; 0: 98 % of 2^bit_depth - 1
+                                   // (a pixel clips at its full well a little below the ADC's top)
+  double black_level_dn = 32.0;
+  double gain_e_per_dn = 2.6;
+  double read_noise_dn = 0.92;
+  // Shadow: white - black below max(shadow_min_contrast_dn, shadow_contrast_sigma * its noise).
+  double shadow_min_contrast_dn = 16.0;
+  double shadow_contrast_sigma = 6.0;
+  // A Gray bit is ambiguous when |pattern - inverse| <= gray_margin_sigma * its noise (only
+  // acceptable for one bit: the one whose stripe edge the pixel sits on).
+  double gray_margin_sigma = 3.0;
+  // Low modulation: fringe amplitude below min_modulation_ratio * (white - black) / 2, or a
+  // predicted coordinate noise above max_phase_sigma_px (projector pixels).
+  double min_modulation_ratio = 0.25;
+  double max_phase_sigma_px = 0.2;  // 5 sigma = 1 px: keeps noise outliers under a pixel
+  // Gray/phase consistency: the unwrapped coordinate may lie this far outside its stripe.
+  double consistency_tolerance_px = 2.0;
+  // Confidence = 1 / (1 + (sigma / confidence_sigma_px)^2), sigma the predicted noise.
+  double confidence_sigma_px = 0.05;
+  // Triangulation.
+  double min_triangulation_angle_deg = 5.0;
+  double min_depth_m = 1e-3;       // camera-frame z range kept (set the scanner's working volume)
+  double max_depth_m = 10.0;
+  int newton_iterations = 3;
+
+  // Throws sls::Error(kInvalidArgument) naming the first bad value.
+  void validate() const;
+};
+
+struct DecodedFrame {
+  Image32f projector_u;  // projector column coordinate (pixel centres at integers); NaN where not decoded
+  Image32f projector_v;  // projector row coordinate; NaN where not decoded or rows not coded
+  Image32f confidence;   // [0, 1]; 0 where not decoded
+  Image8u mask;          // DecodeMaskBits (decode_shared.h): kDecodeOk where u (and v) and depth are valid
+  Image32f depth_m;      // camera-frame z; 0 = invalid
+
+  std::size_t ok_count() const;  // pixels with mask == kDecodeOk
+};
+
+// Where each pattern of `set` is used. Throws sls::Error(kInvalidArgument) for a set the
+// decoder cannot use: a Gray bit without the coarser ones above it, bits that do not number
+// the whole axis, stripes too wide to unwrap the phase (W >= P), phase steps of mixed N or
+// P, more than kDecodeMaxGrayBits / kDecodeMaxPhaseSteps, no columns and no rows, a
+// heterodyne set.
+DecodeLayout make_decode_layout(const PatternSet& set);
+DecodeThresholds make_decode_thresholds(const DecodeOptions& options);
+TriangulationParams make_triangulation_params(const ScannerCalibration& calibration, const DecodeOptions& options);
+
+class Decoder {
+ public:
+  // Validates the set, the calibration and the options (sls::Error(kInvalidArgument)),
+  // computes the camera's ray map on `device`, and on a CUDA device allocates its buffers.
+  // Asking for CUDA in a build without it: sls::Error(kUnsupported).
+  Decoder(const PatternSet& set, const ScannerCalibration& calibration, const Device& device = Device::cpu(),
+          const DecodeOptions& options = {});
+  ~Decoder();
+  Decoder(Decoder&&) noexcept;
+  Decoder& operator=(Decoder&&) noexcept;
+
+  // Decodes one frame: `stack` holds one image per pattern, in the set's order, each of the
+  // calibrated camera's size. Throws sls::Error(kInvalidArgument) naming the problem: wrong
+  // image count, an empty or mis-sized image, a size that differs from the calibration's
+  // camera, an all-dark stack (no pixel with white - black contrast: projector off?).
+  DecodedFrame decode(const std::vector<Image16u>& stack);
+
+  const PatternSet& pattern_set() const;
+  const DecodeOptions& options() const;
+  const Device& device() const;
+  const RayMap& rays() const;
+  const DecodeParams& decode_params() const;
+  const TriangulationParams& triangulation_params() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct CloudOptions {
+  // A neighbour is not used for the normal when its depth differs by more than
+  // max_jump_pixels pixel footprints (z times the angle between neighbouring rays): a
+  // surface steeper than atan(8) = 83 degrees to the view is treated as a discontinuity.
+  double max_jump_pixels = 8.0;
+  double min_confidence = 0.0;           // points below it are dropped
+  bool keep_points_without_normal = false;  // isolated points: normal facing the camera
+};
+
+// Camera-frame points (depth * ray) of every valid pixel, with normals from the 4-neighbour
+// differences (cross product of the horizontal and vertical central differences, one-sided
+// where a neighbour is missing or across a depth discontinuity, oriented towards the
+// camera) and, when given, the confidence. Throws sls::Error(kInvalidArgument) when sizes
+// differ.
+PointCloud depth_to_cloud(const Image32f& depth_m, const RayMap& rays, const Image32f* confidence = nullptr,
+                          const CloudOptions& options = {});
+PointCloud depth_to_cloud(const DecodedFrame& frame, const RayMap& rays, const CloudOptions& options = {});
+
+}  // namespace sls

@@ -1,0 +1,147 @@
+// The decode stage at the paper's size: one 22-image stack of 4000x3000 12-bit images
+// (the simulated knurled screw, rendered once) decoded and triangulated. CUDA with the stack
+// resident on the device (the <= 2 ms target of issue #4), the upload of the stack from
+// pinned host memory beside it, and the CPU. Timed with CUDA events on the decoder's stream.
+#include <benchmark/benchmark.h>
+
+#include <memory>
+
+#include "drivers/sim/renderer.h"
+#include "sdk/core/device.h"
+#include "sdk/decode/decoder.h"
+
+#if defined(SLS_HAVE_CUDA)
+#include <cuda_runtime_api.h>
+
+#include "sdk/core/cuda/device_buffer.h"
+#include "sdk/decode/cuda/decoder_cuda.h"
+#endif
+
+namespace sls {
+namespace {
+
+struct Stack {
+  sim::SimRig rig;
+  std::vector<Image16u> images;
+};
+
+// Rendered once per process (on the GPU when there is one: 22 images in well under a second).
+const Stack& paper_stack() {
+  static const std::unique_ptr<Stack> stack = [] {
+    auto s = std::make_unique<Stack>();
+    sim::RigOptions options;
+    options.preset = "paper";
+    const sim::Scene scene = sim::make_scene("knurled-screw");
+    s->rig = sim::make_rig(options, scene);
+    sim::Renderer renderer(s->rig, scene, default_device());
+    renderer.set_frame(0);
+    for (int k = 0; k < static_cast<int>(s->rig.patterns.size()); ++k) s->images.push_back(renderer.render_pattern(k));
+    return s;
+  }();
+  return *stack;
+}
+
+void BM_DecodeCpu(benchmark::State& state) {
+  const Stack& stack = paper_stack();
+  Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu());
+  std::size_t ok = 0;
+  for (auto _ : state) ok = decoder.decode(stack.images).ok_count();
+  state.counters["Mpixel"] = static_cast<double>(stack.images[0].pixel_count()) / 1e6;
+  state.counters["valid_fraction"] = static_cast<double>(ok) / static_cast<double>(stack.images[0].pixel_count());
+}
+BENCHMARK(BM_DecodeCpu)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+
+#if defined(SLS_HAVE_CUDA)
+class CudaEvents {
+ public:
+  CudaEvents() {
+    SLS_CUDA_CHECK(cudaEventCreate(&start_));
+    SLS_CUDA_CHECK(cudaEventCreate(&stop_));
+  }
+  ~CudaEvents() {
+    (void)cudaEventDestroy(start_);
+    (void)cudaEventDestroy(stop_);
+  }
+  void start(cudaStream_t stream) { SLS_CUDA_CHECK(cudaEventRecord(start_, stream)); }
+  double stop_ms(cudaStream_t stream) {
+    SLS_CUDA_CHECK(cudaEventRecord(stop_, stream));
+    SLS_CUDA_CHECK(cudaEventSynchronize(stop_));
+    float ms = 0.0f;
+    SLS_CUDA_CHECK(cudaEventElapsedTime(&ms, start_, stop_));
+    return static_cast<double>(ms);
+  }
+
+ private:
+  cudaEvent_t start_ = nullptr, stop_ = nullptr;
+};
+
+// Pinned host copy of a stack, plane after plane.
+struct PinnedStack {
+  std::uint16_t* data = nullptr;
+  std::size_t pixels = 0;
+  explicit PinnedStack(const std::vector<Image16u>& images) : pixels(images[0].pixel_count()) {
+    SLS_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&data), images.size() * pixels * sizeof(std::uint16_t)));
+    for (std::size_t k = 0; k < images.size(); ++k) std::copy(images[k].data(), images[k].data() + pixels, data + k * pixels);
+  }
+  ~PinnedStack() { (void)cudaFreeHost(data); }
+  PinnedStack(const PinnedStack&) = delete;
+  PinnedStack& operator=(const PinnedStack&) = delete;
+};
+
+void BM_DecodeCudaResident(benchmark::State& state) {
+  if (cuda_device_count() == 0) {
+    state.SkipWithError("no CUDA device");
+    return;
+  }
+  const Stack& stack = paper_stack();
+  const Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu());  // for its parameters
+  const RayMap& rays = decoder.rays();
+  detail::CudaDecodeContext context(decoder.decode_params(), decoder.triangulation_params(), rays.width, rays.height,
+                                    rays.rays.data(), rays.valid.data());
+  const std::size_t pixels = stack.images[0].pixel_count();
+  const PinnedStack pinned(stack.images);
+  DeviceBuffer<std::uint16_t> device_stack(stack.images.size() * pixels);
+  device_stack.upload(pinned.data, stack.images.size() * pixels, context.stream());
+  context.decode_resident(device_stack.data(), pixels);  // warm-up
+  SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+  CudaEvents events;
+  for (auto _ : state) {
+    events.start(context.stream());
+    context.decode_resident(device_stack.data(), pixels);
+    state.SetIterationTime(events.stop_ms(context.stream()) * 1e-3);
+  }
+  const std::size_t stack_bytes = stack.images.size() * pixels * sizeof(std::uint16_t);
+  // The fewest bytes: the stack read once, the ray map (16 B/px) read, the outputs (17 B/px) written.
+  state.counters["floor_MB"] = static_cast<double>(stack_bytes + pixels * (16 + 17)) / 1e6;
+  state.counters["Mpixel"] = static_cast<double>(pixels) / 1e6;
+}
+BENCHMARK(BM_DecodeCudaResident)->Unit(benchmark::kMillisecond)->UseManualTime();
+
+void BM_UploadStackPinned(benchmark::State& state) {
+  if (cuda_device_count() == 0) {
+    state.SkipWithError("no CUDA device");
+    return;
+  }
+  const Stack& stack = paper_stack();
+  const std::size_t pixels = stack.images[0].pixel_count();
+  const PinnedStack pinned(stack.images);
+  DeviceBuffer<std::uint16_t> device_stack(stack.images.size() * pixels);
+  cudaStream_t stream = nullptr;
+  SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking));
+  CudaEvents events;
+  for (auto _ : state) {
+    events.start(stream);
+    device_stack.upload(pinned.data, stack.images.size() * pixels, stream);
+    state.SetIterationTime(events.stop_ms(stream) * 1e-3);
+  }
+  (void)cudaStreamDestroy(stream);
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations()) *
+                          static_cast<std::int64_t>(stack.images.size() * pixels * sizeof(std::uint16_t)));
+}
+BENCHMARK(BM_UploadStackPinned)->Unit(benchmark::kMillisecond)->UseManualTime();
+#endif
+
+}  // namespace
+}  // namespace sls
+
+BENCHMARK_MAIN();
