@@ -3,11 +3,14 @@
 // it never writes made-up output.
 #include <iostream>
 
+#include <fmt/format.h>
+
 #include "drivers/sim/sim_recording.h"
 #include "samples/sls/commands.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/core/recording.h"
+#include "sdk/decode/decoder.h"
 
 namespace sls::cli {
 namespace {
@@ -45,23 +48,41 @@ int run_scan(const Context& context, const ScanOptions& options) {
     }
   }
 
-  // The recording is read and checked (manifest, calibration, every image).
+  // The recording is read and checked (manifest, calibration), then every frame decoded.
   const RecordingReader recording = RecordingReader::open(input);
   recording.verify(false);
-  const ProgressCallback progress = context.progress_callback("read");
-  for (std::size_t i = 0; i < recording.frame_count(); ++i) {
-    (void)recording.load_images(i);
-    report_progress(progress, {"read", i + 1, recording.frame_count(), ""});
-  }
   if (!recording.has_calibration()) {
-    throw_error(ErrorCode::kInvalidArgument, "{} has no calibration.yml: a scan needs a calibrated recording",
-                options.input);
+    throw_error(ErrorCode::kInvalidArgument, "{} has no calibration.yml: a scan needs a calibrated recording", input);
   }
+  const RecordingInfo& info = recording.info();
+  std::size_t decoded_pixels = 0, frames_decoded = 0, frames_with_depth = 0;
+  if (info.images_per_frame > 0) {
+    DecodeOptions decode_options;
+    decode_options.bit_depth = info.camera.bit_depth;
+    Decoder decoder(pattern_set_from_json(info.pattern_set_json), recording.calibration(), device, decode_options);
+    const ProgressCallback progress = context.progress_callback("decode");
+    for (std::size_t i = 0; i < recording.frame_count(); ++i) {
+      if (!recording.frame(i).complete) continue;  // an incomplete stack cannot be decoded
+      decoded_pixels += decoder.decode(recording.load_images(i)).ok_count();
+      ++frames_decoded;
+      report_progress(progress, {"decode", i + 1, recording.frame_count(), ""});
+    }
+  } else {
+    for (std::size_t i = 0; i < recording.frame_count(); ++i) frames_with_depth += recording.frame(i).has_depth();
+  }
+  const double pixels = static_cast<double>(info.camera.width) * static_cast<double>(info.camera.height);
+  const std::string done =
+      info.images_per_frame > 0
+          ? fmt::format("decoded {} of {} frame(s) of {} ({:.1f} % of pixels valid on average)", frames_decoded,
+                        recording.frame_count(), input,
+                        frames_decoded > 0 ? 100.0 * static_cast<double>(decoded_pixels) /
+                                                 (pixels * static_cast<double>(frames_decoded))
+                                           : 0.0)
+          : fmt::format("read {} depth map(s) from {}", frames_with_depth, input);
   throw_error(ErrorCode::kUnsupported,
-              "read {} frame(s) of {} images from {}, all valid; the decode stage (pattern decoding and "
-              "triangulation, sdk/decode) is not in this build yet, so no depth maps, cloud, mesh or trajectory can "
-              "be made. Missing stages: decode, tracking, fusion.",
-              recording.frame_count(), recording.info().images_per_frame, input);
+              "{}; tracking and fusion (fusion/) are not in this build yet, so no cloud, mesh or trajectory can be "
+              "made. Missing stages: tracking, fusion.",
+              done);
 }
 
 }  // namespace

@@ -104,7 +104,8 @@ class SlsCli(unittest.TestCase):
         out = self.dir / "out"
         result = run("scan", "--sim", "ci", "--frames", "2", "--device", "cpu", "--out", str(out))
         self.assertEqual(result.returncode, 3, result.stderr)
-        self.assertIn("decode stage", result.stderr)
+        self.assertIn("decoded 2 of 2 frame(s)", result.stderr)
+        self.assertIn("tracking and fusion", result.stderr)
         self.assertIn("not in this build", result.stderr)
         # What exists ran: the capture is a valid recording; no model was made up.
         inspect = json.loads(run("--json", "inspect", str(out / "recording")).stdout)
