@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   app.add_flag("-v,--verbose", context.options.verbosity, "More log output (-vv for debug)");
 
   int exit_code = kExitOk;
+  add_decode_command(app, context, &exit_code);
   add_info_command(app, context, &exit_code);
   add_inspect_command(app, context, &exit_code);
   add_scan_command(app, context, &exit_code);

@@ -40,7 +40,7 @@ class SlsCli(unittest.TestCase):
     def test_help_lists_every_command_and_each_has_help(self):
         result = run("--help")
         self.assertEqual(result.returncode, 0)
-        for command in ("info", "inspect", "scan", "sim"):
+        for command in ("info", "inspect", "scan", "sim", "decode"):
             self.assertIn(command, result.stdout)
             sub = run(command, "--help")
             self.assertEqual(sub.returncode, 0, sub.stderr)
@@ -136,6 +136,36 @@ class SlsCli(unittest.TestCase):
         again = run("sim", "--preset", "ci", "--frames", "1", "--device", "cpu", "--out", str(out))
         self.assertEqual(again.returncode, 1)
         self.assertIn(str(out), again.stderr)
+
+    def test_decode_reports_accuracy_against_ground_truth(self):
+        rec, out = self.dir / "rec", self.dir / "decoded"
+        self.assertEqual(run("sim", "--preset", "ci", "--frames", "2", "--device", "cpu", "--out", str(rec)).returncode, 0)
+        result = run("--json", "decode", "--input", str(rec), "--out", str(out), "--device", "cpu")
+        self.assertEqual(result.returncode, 0, result.stderr)
+        summary = json.loads(result.stdout)
+        self.assertEqual(summary["frames_decoded"], 2)
+        report = json.load(open(out / "decode.json"))
+        for key in ("projector_rms_px", "projector_max_px", "depth_rms_um", "valid_fraction"):
+            self.assertIn(key, report)
+        # Sanity bounds (the accuracy itself is tested in tests/unit/decode): no period jumps.
+        self.assertLess(report["projector_max_px"], 8.0)
+        self.assertGreater(report["valid_fraction"], 0.9)
+        self.assertEqual(len(report["frames"]), 2)
+        self.assertTrue((out / "frames/000001/depth.pfm").exists())
+        cloud = json.loads(run("--json", "inspect", str(out / "frames/000001/cloud.ply")).stdout)["results"][0]
+        self.assertTrue(cloud["normals"])
+        self.assertGreater(cloud["points"], 50000)
+
+    def test_decode_bad_input(self):
+        depth = self.dir / "depth"
+        self.assertEqual(run("sim", "--preset", "ci", "--mode", "depth", "--frames", "1", "--device", "cpu",
+                             "--out", str(depth)).returncode, 0)
+        result = run("decode", "--input", str(depth), "--out", str(self.dir / "o"))
+        self.assertEqual(result.returncode, 1)
+        self.assertIn("depth-only", result.stderr)
+        missing = run("decode", "--input", str(self.dir / "nothing"), "--out", str(self.dir / "o2"))
+        self.assertEqual(missing.returncode, 1)
+        self.assertIn("nothing", missing.stderr)
 
     def test_sim_depth_mode(self):
         out = self.dir / "depth"
