@@ -235,6 +235,14 @@ SLS_HOST_DEVICE inline LensModel default_camera_lens() {
 // 10.8 um columns and 5.4 um rows. Its lens throws a 16 x 10 mm field at 100 mm (covering
 // the camera's 12 x 9 mm field with margin for the 25 degree convergence and +-5 mm depth):
 // projection magnification 16 mm / 9.85 mm = 1.624, DMD at v = 61.6 mm, f = 38.1 mm, f/8.
+// The thin-lens focal length that images a DMD `dmd_width_m` wide onto `field_width_m` at
+// `throw_distance_m`: the DMD sits at v = s · dmd / field, and 1/f = 1/s + 1/v.
+SLS_HOST_DEVICE inline double projection_focal_length_m(double throw_distance_m, double dmd_width_m,
+                                                        double field_width_m) {
+  const double dmd_distance = throw_distance_m * dmd_width_m / field_width_m;
+  return throw_distance_m * dmd_distance / (throw_distance_m + dmd_distance);
+}
+
 SLS_HOST_DEVICE inline ProjectorModel default_projector_optics() {
   const double throw_distance = 0.100;
   const double field_width = 0.016;
@@ -243,8 +251,7 @@ SLS_HOST_DEVICE inline ProjectorModel default_projector_optics() {
   p.height = 1140;
   p.pixel_pitch_x_m = 10.8e-6;
   p.pixel_pitch_y_m = 5.4e-6;
-  const double dmd_distance = throw_distance * (p.width * p.pixel_pitch_x_m) / field_width;
-  p.lens.focal_length_m = throw_distance * dmd_distance / (throw_distance + dmd_distance);
+  p.lens.focal_length_m = projection_focal_length_m(throw_distance, p.width * p.pixel_pitch_x_m, field_width);
   p.lens.f_number = 8.0;
   p.lens.focus_distance_m = throw_distance;
   p.lens.wavelength_m = 550e-9;
@@ -259,14 +266,11 @@ SLS_HOST_DEVICE inline ProjectorModel default_projector_optics() {
 // no vertical margin), f/8, the same contrast and exposure.
 SLS_HOST_DEVICE inline ProjectorModel projector_optics_1080p() {
   ProjectorModel p = default_projector_optics();
-  const double throw_distance = 0.100;
-  const double field_width = 0.016;
   p.width = 1920;
   p.height = 1080;
   p.pixel_pitch_x_m = 7.56e-6;
   p.pixel_pitch_y_m = 7.56e-6;
-  const double dmd_distance = throw_distance * (p.width * p.pixel_pitch_x_m) / field_width;
-  p.lens.focal_length_m = throw_distance * dmd_distance / (throw_distance + dmd_distance);
+  p.lens.focal_length_m = projection_focal_length_m(p.lens.focus_distance_m, p.width * p.pixel_pitch_x_m, 0.016);
   return p;
 }
 

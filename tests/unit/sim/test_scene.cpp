@@ -260,6 +260,12 @@ class KnurledScrew : public ::testing::Test {
   }
 };
 
+// A double ray rounded to float, for the float-vs-double comparisons.
+RayT<float> to_float(const Ray& ray) {
+  return {{static_cast<float>(ray.origin.x), static_cast<float>(ray.origin.y), static_cast<float>(ray.origin.z)},
+          {static_cast<float>(ray.direction.x), static_cast<float>(ray.direction.y), static_cast<float>(ray.direction.z)}};
+}
+
 TEST_F(KnurledScrew, GeometryFollowsThePaperAndA90DegreeV) {
   EXPECT_EQ(k.teeth, 101);  // round(pi * 32.2)
   EXPECT_DOUBLE_EQ(k.ridge_radius, 0.0161);
@@ -457,9 +463,7 @@ TEST_F(KnurledScrew, FloatAgreesWithDoubleAtTenCentimetres) {
     if (!scene.intersect(ray, 0.0, 1.0, &hd)) continue;
     // Away from grazing incidence, where float's t is ill-conditioned.
     if (std::abs(e(hd.normal).dot(e(ray.direction))) < 0.2) continue;
-    const RayT<float> rf{{static_cast<float>(ray.origin.x), static_cast<float>(ray.origin.y), static_cast<float>(ray.origin.z)},
-                         {static_cast<float>(ray.direction.x), static_cast<float>(ray.direction.y),
-                          static_cast<float>(ray.direction.z)}};
+    const RayT<float> rf = to_float(ray);
     HitT<float> hf;
     ASSERT_TRUE(intersect(sf, rf, 0.0f, 1.0f, &hf)) << i;
     const Vec3 pf(hf.point.x, hf.point.y, hf.point.z);
@@ -809,9 +813,7 @@ TEST_F(KnurledKnob, FloatAgreesWithDoubleAtTenCentimetres) {
     Hit hd;
     if (!scene.intersect(ray, 0.0, 1.0, &hd)) continue;
     if (std::abs(e(hd.normal).dot(e(ray.direction))) < 0.2) continue;
-    const RayT<float> rf{{static_cast<float>(ray.origin.x), static_cast<float>(ray.origin.y), static_cast<float>(ray.origin.z)},
-                         {static_cast<float>(ray.direction.x), static_cast<float>(ray.direction.y),
-                          static_cast<float>(ray.direction.z)}};
+    const RayT<float> rf = to_float(ray);
     HitT<float> hf;
     ASSERT_TRUE(intersect(sf, rf, 0.0f, 1.0f, &hf)) << i;
     worst = std::max(worst, (Vec3(hf.point.x, hf.point.y, hf.point.z) - e(hd.point)).norm());
