@@ -13,6 +13,7 @@
 #include "sdk/core/calibration.h"
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
+#include "tests/interop/opencv_intrinsics.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -34,19 +35,7 @@ ScannerCalibration real_procam_calibration() {
     cv::Mat k, d;
     storage[matrix_key] >> k;
     storage[distortion_key] >> d;
-    CameraIntrinsics c;
-    c.width = width;
-    c.height = height;
-    c.fx = k.at<double>(0, 0);
-    c.fy = k.at<double>(1, 1);
-    c.cx = k.at<double>(0, 2);
-    c.cy = k.at<double>(1, 2);
-    c.k1 = d.at<double>(0);
-    c.k2 = d.at<double>(1);
-    c.p1 = d.at<double>(2);
-    c.p2 = d.at<double>(3);
-    c.k3 = d.at<double>(4);
-    return c;
+    return test::intrinsics_from_opencv(k, d, width, height);
   };
   ScannerCalibration c;
   c.camera = intrinsics("cam_int", "cam_dist", 1280, 1024);

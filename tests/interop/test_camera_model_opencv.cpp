@@ -14,6 +14,7 @@
 #include <opencv2/core.hpp>
 
 #include "sdk/core/camera_model_shared.h"
+#include "tests/interop/opencv_intrinsics.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -40,19 +41,7 @@ CameraIntrinsics real_procam_camera() {
   storage["cam_int"] >> k;
   storage["cam_dist"] >> d;
   if (k.rows != 3 || k.cols != 3 || d.total() != 5) throw std::runtime_error("unexpected matrices in " + path);
-  CameraIntrinsics c;
-  c.width = 1280;
-  c.height = 1024;
-  c.fx = k.at<double>(0, 0);
-  c.fy = k.at<double>(1, 1);
-  c.cx = k.at<double>(0, 2);
-  c.cy = k.at<double>(1, 2);
-  c.k1 = d.at<double>(0);
-  c.k2 = d.at<double>(1);
-  c.p1 = d.at<double>(2);
-  c.p2 = d.at<double>(3);
-  c.k3 = d.at<double>(4);
-  return c;
+  return test::intrinsics_from_opencv(k, d, 1280, 1024);
 }
 
 // A 4000x3000 camera behind a long lens, as in the paper's scanner.

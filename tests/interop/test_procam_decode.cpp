@@ -13,6 +13,7 @@
 
 #include "sdk/core/image_io.h"
 #include "sdk/decode/decoder.h"
+#include "tests/interop/opencv_intrinsics.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -50,22 +51,6 @@ PatternSet opencv_graycode_set() {
   return set;
 }
 
-CameraIntrinsics intrinsics(const cv::Mat& k, const cv::Mat& d, int width, int height) {
-  CameraIntrinsics c;
-  c.width = width;
-  c.height = height;
-  c.fx = k.at<double>(0, 0);
-  c.fy = k.at<double>(1, 1);
-  c.cx = k.at<double>(0, 2);
-  c.cy = k.at<double>(1, 2);
-  c.k1 = d.at<double>(0);
-  c.k2 = d.at<double>(1);
-  c.p1 = d.at<double>(2);
-  c.p2 = d.at<double>(3);
-  c.k3 = d.at<double>(4);
-  return c;
-}
-
 struct ProcamData {
   ScannerCalibration calibration;
   cv::Mat camera_matrix, camera_distortion, projector_matrix, projector_distortion;
@@ -82,8 +67,8 @@ ProcamData load_calibration() {
   cv::Mat rotation, translation;
   file["roration"] >> rotation;  // sic: the key's spelling in that file
   file["translation"] >> translation;
-  data.calibration.camera = intrinsics(data.camera_matrix, data.camera_distortion, 1280, 1024);
-  data.calibration.projector = intrinsics(data.projector_matrix, data.projector_distortion, kProjectorWidth,
+  data.calibration.camera = test::intrinsics_from_opencv(data.camera_matrix, data.camera_distortion, 1280, 1024);
+  data.calibration.projector = test::intrinsics_from_opencv(data.projector_matrix, data.projector_distortion, kProjectorWidth,
                                           kProjectorHeight);
   // OpenCV's stereo convention: X_projector = R X_camera + T, in chessboard units (75 per
   // square, size unknown): taken as millimetres. Only the projector coordinates matter here.
