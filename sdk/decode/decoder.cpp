@@ -258,7 +258,8 @@ DecodeThresholds make_decode_thresholds(const DecodeOptions& o) {
   t.black_level_dn = static_cast<float>(o.black_level_dn);
   t.inverse_gain = static_cast<float>(1.0 / o.gain_e_per_dn);
   t.read_noise_variance = static_cast<float>(o.read_noise_dn * o.read_noise_dn + 1.0 / 12.0);
-  t.shadow_min_contrast_dn = static_cast<float>(o.shadow_min_contrast_dn);
+  t.shadow_min_contrast_dn =
+      static_cast<float>(o.shadow_min_contrast_dn > 0.0 ? o.shadow_min_contrast_dn : std::ldexp(16.0, o.bit_depth - 12));
   t.shadow_contrast_sigma = static_cast<float>(o.shadow_contrast_sigma);
   t.gray_margin_sigma = static_cast<float>(o.gray_margin_sigma);
   t.min_modulation_ratio = static_cast<float>(o.min_modulation_ratio);
@@ -370,18 +371,20 @@ DecodedFrame Decoder::decode(const std::vector<Image16u>& stack) {
     const std::size_t count = stack[0].pixel_count();
     int best = std::numeric_limits<int>::min();
     for (std::size_t i = 0; i < count; ++i) best = std::max(best, int{white[i]} - int{black[i]});
-    if (static_cast<double>(best) < impl_->options.shadow_min_contrast_dn) {
+    const float shadow_floor_dn = impl_->params.thresholds.shadow_min_contrast_dn;
+    if (static_cast<float>(best) < shadow_floor_dn) {
       throw_error(ErrorCode::kInvalidArgument,
                   "decode: all-dark stack: white - black is at most {} DN anywhere (shadow threshold {} DN); "
                   "is the projector on and the exposure right?",
-                  best, impl_->options.shadow_min_contrast_dn);
+                  best, shadow_floor_dn);
     }
   } else {
     std::uint16_t brightest = 0;
     for (const Image16u& image : stack) {
       brightest = std::max(brightest, *std::max_element(image.data(), image.data() + image.pixel_count()));
     }
-    if (static_cast<double>(brightest) < impl_->options.black_level_dn + impl_->options.shadow_min_contrast_dn) {
+    if (static_cast<double>(brightest) <
+        impl_->options.black_level_dn + static_cast<double>(impl_->params.thresholds.shadow_min_contrast_dn)) {
       throw_error(ErrorCode::kInvalidArgument, "decode: all-dark stack: no pixel above {} DN", brightest);
     }
   }

@@ -34,7 +34,9 @@ struct DecodeOptions {
   double gain_e_per_dn = 2.6;
   double read_noise_dn = 0.92;
   // Shadow: white - black below max(shadow_min_contrast_dn, shadow_contrast_sigma * its noise).
-  double shadow_min_contrast_dn = 16.0;
+  // 0: 0.4 % of full scale (16 DN at 12 bits, 1 DN at 8 bits), a floor under the noise test
+  // for cameras whose noise model is unknown.
+  double shadow_min_contrast_dn = 0.0;
   double shadow_contrast_sigma = 6.0;
   // A Gray bit is ambiguous when |pattern - inverse| <= gray_margin_sigma * its noise (only
   // acceptable for one bit: the one whose stripe edge the pixel sits on).
