@@ -192,6 +192,7 @@ void DecodeOptions::validate() const {
   require_finite_positive(max_phase_sigma_px, "max_phase_sigma_px");
   require_finite_non_negative(consistency_tolerance_px, "consistency_tolerance_px");
   require_finite_positive(confidence_sigma_px, "confidence_sigma_px");
+  require_finite_positive(max_epipolar_error_px, "max_epipolar_error_px");
   if (!(min_triangulation_angle_deg >= 0.0 && min_triangulation_angle_deg < 90.0)) {
     throw_error(ErrorCode::kInvalidArgument, "decode options: min_triangulation_angle_deg {} outside [0, 90)",
                 min_triangulation_angle_deg);
@@ -282,6 +283,7 @@ TriangulationParams make_triangulation_params(const ScannerCalibration& calibrat
   p.min_depth_m = static_cast<float>(options.min_depth_m);
   p.max_depth_m = static_cast<float>(options.max_depth_m);
   p.iterations = options.newton_iterations;
+  p.max_epipolar_px = static_cast<float>(options.max_epipolar_error_px);
   return p;
 }
 

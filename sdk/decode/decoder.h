@@ -54,6 +54,9 @@ struct DecodeOptions {
   double min_depth_m = 1e-3;       // camera-frame z range kept (set the scanner's working volume)
   double max_depth_m = 10.0;
   int newton_iterations = 3;
+  // Columns and rows coded: largest distance (projector px) of the decoded (u, v) from the
+  // pixel's epipolar curve; farther is inconsistent (a misdecode, or a miscalibration).
+  double max_epipolar_error_px = 1.5;
 
   // Throws sls::Error(kInvalidArgument) naming the first bad value.
   void validate() const;

@@ -114,6 +114,11 @@ TEST(ProcamDecode, BoardProjectorCoordinatesAreAHomographyOfCameraPixels) {
   options.read_noise_dn = 0.5;
   options.min_depth_m = 1e-4;  // depth is in unknown units here: keep every coordinate
   options.max_depth_m = 1e6;
+  // That file's projector model does not describe these captures' geometry: at the depth the
+  // rows give, it predicts columns about twice the decoded ones (hundreds of pixels off the
+  // epipolar curves). Only the projector coordinates are judged here, so the ray-ray
+  // epipolar test (exercised on the simulator, test_decoder) is switched off.
+  options.max_epipolar_error_px = 1e9;
   Decoder decoder(test::opencv_graycode_pattern_set(1024, 768), data.calibration, Device::cpu(), options);
   cv::structured_light::GrayCodePattern::Params params;
   params.width = kProjectorWidth;

@@ -48,14 +48,25 @@ struct CudaDecodeContext::State {
   int width = 0;
   int height = 0;
   std::size_t pixels = 0;
-  cudaStream_t stream = nullptr;
+  cudaStream_t stream = nullptr;       // decode
+  cudaStream_t copy_stream = nullptr;  // uploads, so they overlap the decode of the previous stack
   DeviceBuffer<Vec3f> rays;
   DeviceBuffer<std::uint8_t> ray_valid;
-  DeviceBuffer<std::uint16_t> stack;  // upload buffer for host stacks, allocated on first use
+  // Upload slots for host stacks (allocated on first use), each with "upload landed" and
+  // "decode done reading" events.
+  DeviceBuffer<std::uint16_t> slots[2];
+  cudaEvent_t uploaded[2] = {nullptr, nullptr};
+  cudaEvent_t consumed[2] = {nullptr, nullptr};
+  int next_slot = 0;
   DeviceBuffer<float> u, v, confidence, depth;
   DeviceBuffer<std::uint8_t> mask;
 
   ~State() {
+    for (int i = 0; i < 2; ++i) {
+      if (uploaded[i] != nullptr) (void)cudaEventDestroy(uploaded[i]);
+      if (consumed[i] != nullptr) (void)cudaEventDestroy(consumed[i]);
+    }
+    if (copy_stream != nullptr) (void)cudaStreamDestroy(copy_stream);
     if (stream != nullptr) (void)cudaStreamDestroy(stream);
   }
 };
@@ -71,6 +82,11 @@ CudaDecodeContext::CudaDecodeContext(const DecodeParams& decode, const Triangula
     s.height = height;
     s.pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
     SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&s.stream, cudaStreamNonBlocking));
+    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&s.copy_stream, cudaStreamNonBlocking));
+    for (int i = 0; i < 2; ++i) {
+      SLS_CUDA_CHECK(cudaEventCreateWithFlags(&s.uploaded[i], cudaEventDisableTiming));
+      SLS_CUDA_CHECK(cudaEventCreateWithFlags(&s.consumed[i], cudaEventDisableTiming));
+    }
     s.rays.allocate(s.pixels);
     s.ray_valid.allocate(s.pixels);
     s.u.allocate(s.pixels);
@@ -88,7 +104,10 @@ CudaDecodeContext::CudaDecodeContext(const DecodeParams& decode, const Triangula
 }
 
 CudaDecodeContext::~CudaDecodeContext() {
-  if (state_ != nullptr && state_->stream != nullptr) (void)cudaStreamSynchronize(state_->stream);
+  if (state_ != nullptr) {
+    if (state_->copy_stream != nullptr) (void)cudaStreamSynchronize(state_->copy_stream);
+    if (state_->stream != nullptr) (void)cudaStreamSynchronize(state_->stream);
+  }
   delete state_;
 }
 
@@ -99,15 +118,40 @@ void CudaDecodeContext::decode_resident(const std::uint16_t* stack_device, std::
                      s.ray_valid.data(), outputs(), stream != nullptr ? stream : s.stream);
 }
 
+int CudaDecodeContext::upload_async(const std::uint16_t* const* planes) {
+  State& s = *state_;
+  const int slot = s.next_slot;
+  s.next_slot ^= 1;
+  const std::size_t count = static_cast<std::size_t>(s.decode.layout.pattern_count);
+  DeviceBuffer<std::uint16_t>& buffer = s.slots[slot];
+  if (buffer.size() < count * s.pixels) {
+    // A first use: nothing can be reading the slot yet.
+    buffer.allocate(count * s.pixels);
+  }
+  // Do not overwrite the slot while the decode of the stack before last still reads it (an
+  // event never recorded lets the wait through).
+  SLS_CUDA_CHECK(cudaStreamWaitEvent(s.copy_stream, s.consumed[slot], 0));
+  for (std::size_t k = 0; k < count; ++k) {
+    SLS_CUDA_CHECK(cudaMemcpyAsync(buffer.data() + k * s.pixels, planes[k], s.pixels * sizeof(std::uint16_t),
+                                   cudaMemcpyHostToDevice, s.copy_stream));
+  }
+  SLS_CUDA_CHECK(cudaEventRecord(s.uploaded[slot], s.copy_stream));
+  return slot;
+}
+
+void CudaDecodeContext::decode_slot(int slot) {
+  State& s = *state_;
+  if (slot < 0 || slot > 1 || s.slots[slot].size() == 0) {
+    throw_error(ErrorCode::kInvalidArgument, "decode_slot({}): no stack was uploaded to that slot", slot);
+  }
+  SLS_CUDA_CHECK(cudaStreamWaitEvent(s.stream, s.uploaded[slot], 0));
+  decode_resident(s.slots[slot].data(), s.pixels, s.stream);
+  SLS_CUDA_CHECK(cudaEventRecord(s.consumed[slot], s.stream));
+}
+
 void CudaDecodeContext::decode_host(const std::uint16_t* const* planes, const DecodeOutputsHost& host) {
   State& s = *state_;
-  const std::size_t count = static_cast<std::size_t>(s.decode.layout.pattern_count);
-  if (s.stack.size() < count * s.pixels) s.stack.allocate(count * s.pixels);
-  for (std::size_t k = 0; k < count; ++k) {
-    SLS_CUDA_CHECK(cudaMemcpyAsync(s.stack.data() + k * s.pixels, planes[k], s.pixels * sizeof(std::uint16_t),
-                                   cudaMemcpyHostToDevice, s.stream));
-  }
-  decode_resident(s.stack.data(), s.pixels, s.stream);
+  decode_slot(upload_async(planes));
   s.u.download(host.u, s.pixels, s.stream);
   s.v.download(host.v, s.pixels, s.stream);
   s.confidence.download(host.confidence, s.pixels, s.stream);

@@ -58,6 +58,17 @@ class CudaDecodeContext {
   // `host` and waits.
   void decode_host(const std::uint16_t* const* planes, const DecodeOutputsHost& host);
 
+  // The live pipeline: two upload slots, so the upload of stack n + 1 (on the context's copy
+  // stream) overlaps the decode of stack n (on the compute stream), as a 12-megapixel scanner
+  // needs: a 22-image stack takes ~10 ms to upload and < 1 ms to decode.
+  //   int slot = context.upload_async(planes);   // returns at once; planes must stay valid
+  //   context.decode_slot(slot);                 // waits for that upload on the GPU, not here
+  // upload_async first waits (on the GPU) until the decode that last read the slot it reuses
+  // has finished. Planes in pinned host memory (cudaMallocHost) overlap; pageable memory
+  // makes the copy synchronous. Outputs are those of the last decode_slot, on stream().
+  int upload_async(const std::uint16_t* const* planes);
+  void decode_slot(int slot);
+
   DecodeOutputsDevice outputs() const;
   cudaStream_t stream() const;
   int width() const;

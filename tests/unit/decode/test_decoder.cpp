@@ -47,13 +47,16 @@ struct Rendered {
   sim::GroundTruthFrame truth;
 };
 
-Rendered render(const sim::Scene& scene, const std::string& preset, int width, bool noise, int frame = 0) {
+// `patterns`: a set other than the rig's default.
+Rendered render(const sim::Scene& scene, const std::string& preset, int width, bool noise, int frame = 0,
+                const PatternSet* patterns = nullptr) {
   sim::RigOptions options;
   options.preset = preset;
   options.camera_width = width;
   options.frames = 8;
   options.noise = noise;
   Rendered r{sim::make_rig(options, scene), {}, {}};
+  if (patterns != nullptr) r.rig.patterns = *patterns;
   sim::Renderer renderer(r.rig, scene, Device::cpu());
   renderer.set_frame(frame);
   for (std::size_t k = 0; k < r.rig.patterns.size(); ++k) r.stack.push_back(renderer.render_pattern(static_cast<int>(k)));
@@ -312,6 +315,55 @@ TEST(TriangulateShared, ExactThroughADistortedProjector) {
   EXPECT_GT(worst_plane, 20e-6);   // the plane start alone would be wrong: Newton matters
 }
 
+// Columns and rows: ray against ray through the same strongly distorted projector, exact; a
+// decode moved off its epipolar curve is inconsistent, one moved along it is a new depth.
+TEST(TriangulateShared, RayAgainstRayExactAndRejectsOffEpipolarDecodes) {
+  const sim::Scene scene = sim::make_plane_scene();
+  sim::RigOptions rig_options;
+  rig_options.preset = "ci";
+  const sim::SimRig rig = sim::make_rig(rig_options, scene);
+  ScannerCalibration calibration = rig.calibration();
+  calibration.projector.k1 = -0.3;
+  calibration.projector.p1 = 1e-3;
+  const TriangulationParams params = make_triangulation_params(calibration, working_volume_options());
+  const RayMap rays = compute_ray_map(calibration.camera);
+  double worst = 0.0, worst_epipolar = 0.0;
+  std::size_t checked = 0;
+  for (const double z : {0.095, 0.1, 0.105}) {
+    for (int y = 0; y < rays.height; y += 37) {
+      for (int x = 0; x < rays.width; x += 41) {
+        const Vec3f r = rays.ray(x, y);
+        const Eigen::Vector3d point_camera(z * static_cast<double>(r.x), z * static_cast<double>(r.y), z);
+        const Eigen::Vector3d point_projector = calibration.T_camera_projector.inverse() * point_camera;
+        Vec2d pixel;
+        ASSERT_TRUE(project(calibration.projector, Vec3d{point_projector.x(), point_projector.y(), point_projector.z()},
+                            &pixel));
+        if (pixel.x < 0.0 || pixel.x > 911.0) continue;
+        const float u = static_cast<float>(pixel.x), v = static_cast<float>(pixel.y);
+        float depth = 0.0f, epipolar = 0.0f;
+        ASSERT_EQ(triangulate_ray_ray(params, r, u, v, &depth, &epipolar), 0u) << x << "," << y;
+        worst = std::max(worst, std::fabs(static_cast<double>(depth) - z));
+        worst_epipolar = std::max(worst_epipolar, static_cast<double>(epipolar));
+        ++checked;
+        // Epipolar curves run along the rig's horizontal baseline: 3 rows off is off the curve.
+        EXPECT_EQ(triangulate_ray_ray(params, r, u, v + 3.0f, &depth, &epipolar), kDecodeInconsistent);
+        EXPECT_NEAR(static_cast<double>(epipolar), 3.0, 0.3);
+        EXPECT_EQ(depth, 0.0f);
+        // 3 columns along it: accepted, at the depth the column code alone gives.
+        float column_depth = 0.0f;
+        ASSERT_EQ(triangulate_ray_ray(params, r, u + 3.0f, v, &depth, &epipolar), 0u);
+        ASSERT_TRUE(triangulate_coordinate(params, r, u + 3.0f, 0, &column_depth));
+        EXPECT_NEAR(static_cast<double>(depth), static_cast<double>(column_depth), 0.5e-6);
+      }
+    }
+  }
+  std::printf("[decode] ray-ray through k1 = -0.3: %zu points, max depth error %.3f um, max epipolar %.2e px\n",
+              checked, worst * 1e6, worst_epipolar);
+  EXPECT_GT(checked, 50u);
+  EXPECT_LT(worst, 0.2e-6);
+  EXPECT_LT(worst_epipolar, 1e-2);
+}
+
 TEST(TriangulateShared, RejectsOutsideTheDepthRangeAndSmallAngles) {
   const sim::Scene scene = sim::make_plane_scene();
   sim::RigOptions rig_options;
@@ -385,6 +437,51 @@ TEST(Decoder, KnurledScrewDemoAcceptance) {
     EXPECT_LE(f.smooth_max_px, 1.0);
     EXPECT_LT(f.smooth_rms_px, noise ? 0.12 : 0.03);
   }
+}
+
+// Columns and rows coded: every pixel triangulated ray against ray, as accurate as the column
+// code alone on a plane; a calibration whose projector is 4 rows off (a bad calibration
+// file) puts the decodes off their epipolar curves, and the decoder says so instead of
+// returning depth.
+TEST(Decoder, ColumnsAndRowsTriangulateRayAgainstRay) {
+  const sim::Scene scene = sim::make_plane_scene();
+  GrayPhaseOptions both;
+  both.rows = true;
+  both.row_phase_period_px = 64;  // diamond DMD: rows are half the column pitch (pattern_set.h)
+  const PatternSet set = make_gray_phase_pattern_set(both);
+  const Rendered r = render(scene, "ci", 400, true, 0, &set);
+  Decoder decoder(set, r.rig.calibration(), Device::cpu(), working_volume_options());
+  const DecodedFrame decoded = decoder.decode(r.stack);
+  const Figures f = compare(decoded, r.truth, 32.0);
+  report("plane ci 400x300 columns + rows", f, decoded);
+  EXPECT_GE(f.valid_fraction, 0.99);
+  EXPECT_LT(f.depth_rms_um, 3.0);
+  EXPECT_EQ(f.period_jumps, 0u);
+  double v_sum_squares = 0.0;
+  std::size_t v_compared = 0;
+  for (int y = 0; y < decoded.mask.height(); ++y) {
+    for (int x = 0; x < decoded.mask.width(); ++x) {
+      if (decoded.mask(x, y) != kDecodeOk || r.truth.valid(x, y) == 0) continue;
+      const double error = static_cast<double>(decoded.projector_v(x, y) - r.truth.projector_v(x, y));
+      v_sum_squares += error * error;
+      ++v_compared;
+    }
+  }
+  const double v_rms = std::sqrt(v_sum_squares / static_cast<double>(v_compared));
+  std::printf("[decode] plane ci columns + rows: row coordinate RMS %.4f px over %zu px\n", v_rms, v_compared);
+  EXPECT_LT(v_rms, 0.15);
+
+  ScannerCalibration wrong = r.rig.calibration();
+  wrong.projector.cy += 4.0;
+  Decoder miscalibrated(set, wrong, Device::cpu(), working_volume_options());
+  const DecodedFrame rejected = miscalibrated.decode(r.stack);
+  std::size_t inconsistent = 0;
+  for (std::size_t i = 0; i < rejected.mask.pixel_count(); ++i) {
+    inconsistent += rejected.mask.data()[i] == kDecodeInconsistent ? 1u : 0u;
+  }
+  std::printf("[decode] projector cy 4 px off: %zu of %zu decoded pixels off their epipolar curve\n", inconsistent,
+              decoded.ok_count());
+  EXPECT_GT(inconsistent, decoded.ok_count() * 9 / 10);
 }
 
 // --- Point clouds ----------------------------------------------------------------------

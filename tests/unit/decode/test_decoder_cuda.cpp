@@ -3,6 +3,7 @@
 // what the host one gives. Skipped without a GPU.
 #include <cmath>
 #include <cstdio>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -68,6 +69,30 @@ void expect_equal(const DecodedFrame& cpu, const DecodedFrame& gpu, const char* 
   EXPECT_LT(worst_confidence, 1e-4) << what;
 }
 
+// The context's outputs, copied to the host on its stream (waits).
+DecodedFrame download_outputs(const detail::CudaDecodeContext& context) {
+  const int width = context.width(), height = context.height();
+  const std::size_t pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  DecodedFrame frame;
+  frame.projector_u.resize(width, height);
+  frame.projector_v.resize(width, height);
+  frame.confidence.resize(width, height);
+  frame.mask.resize(width, height);
+  frame.depth_m.resize(width, height);
+  const detail::DecodeOutputsDevice out = context.outputs();
+  SLS_CUDA_CHECK(cudaMemcpyAsync(frame.projector_u.data(), out.u, pixels * sizeof(float), cudaMemcpyDeviceToHost,
+                                 context.stream()));
+  SLS_CUDA_CHECK(cudaMemcpyAsync(frame.projector_v.data(), out.v, pixels * sizeof(float), cudaMemcpyDeviceToHost,
+                                 context.stream()));
+  SLS_CUDA_CHECK(cudaMemcpyAsync(frame.confidence.data(), out.confidence, pixels * sizeof(float),
+                                 cudaMemcpyDeviceToHost, context.stream()));
+  SLS_CUDA_CHECK(cudaMemcpyAsync(frame.mask.data(), out.mask, pixels, cudaMemcpyDeviceToHost, context.stream()));
+  SLS_CUDA_CHECK(cudaMemcpyAsync(frame.depth_m.data(), out.depth, pixels * sizeof(float), cudaMemcpyDeviceToHost,
+                                 context.stream()));
+  SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+  return frame;
+}
+
 TEST(DecoderCuda, EqualsCpu) {
   SLS_REQUIRE_CUDA_DEVICE();
   for (const char* object : {"knurled-screw", "plane", "knurled-knob"}) {
@@ -99,23 +124,56 @@ TEST(DecoderCuda, DeviceResidentStackEqualsHostPath) {
   DeviceBuffer<std::uint16_t> stack(packed.size());
   stack.upload(packed.data(), packed.size(), context.stream());
   context.decode_resident(stack.data(), stride);
-  DecodedFrame resident;
-  resident.projector_u.resize(width, height);
-  resident.projector_v.resize(width, height);
-  resident.confidence.resize(width, height);
-  resident.mask.resize(width, height);
-  resident.depth_m.resize(width, height);
-  const detail::DecodeOutputsDevice out = context.outputs();
-  SLS_CUDA_CHECK(cudaMemcpyAsync(resident.projector_u.data(), out.u, pixels * sizeof(float), cudaMemcpyDeviceToHost,
-                                 context.stream()));
-  SLS_CUDA_CHECK(cudaMemcpyAsync(resident.confidence.data(), out.confidence, pixels * sizeof(float),
-                                 cudaMemcpyDeviceToHost, context.stream()));
-  SLS_CUDA_CHECK(cudaMemcpyAsync(resident.mask.data(), out.mask, pixels, cudaMemcpyDeviceToHost, context.stream()));
-  SLS_CUDA_CHECK(cudaMemcpyAsync(resident.depth_m.data(), out.depth, pixels * sizeof(float), cudaMemcpyDeviceToHost,
-                                 context.stream()));
-  SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+  const DecodedFrame resident = download_outputs(context);
   EXPECT_EQ(resident.mask, host_path.mask);
   EXPECT_EQ(resident.depth_m, host_path.depth_m);
+}
+
+// The two-slot pipeline: three different stacks (frames 1..3 of a turntable scan) uploaded
+// from pinned memory ahead of their decodes, so uploads overlap decodes and slot 0 is reused
+// while slot 1's stack is decoded; each result equals the CPU decoder's on that stack.
+TEST(DecoderCuda, PipelinedUploadsGiveEachStacksOwnResult) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const sim::Scene scene = sim::make_scene("knurled-screw");
+  sim::RigOptions rig_options;
+  rig_options.preset = "ci";
+  rig_options.camera_width = 400;
+  rig_options.frames = 8;
+  const sim::SimRig rig = sim::make_rig(rig_options, scene);
+  sim::Renderer renderer(rig, scene, Device::cpu());
+  const std::size_t count = rig.patterns.size();
+  const std::size_t pixels = static_cast<std::size_t>(rig.camera.width) * static_cast<std::size_t>(rig.camera.height);
+  std::uint16_t* pinned = nullptr;
+  SLS_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&pinned), 3 * count * pixels * sizeof(std::uint16_t)));
+  std::vector<std::vector<Image16u>> stacks(3);
+  std::vector<std::vector<const std::uint16_t*>> planes(3);
+  for (int f = 0; f < 3; ++f) {
+    renderer.set_frame(f + 1);
+    for (std::size_t k = 0; k < count; ++k) {
+      stacks[static_cast<std::size_t>(f)].push_back(renderer.render_pattern(static_cast<int>(k)));
+      std::uint16_t* plane = pinned + (static_cast<std::size_t>(f) * count + k) * pixels;
+      std::copy(stacks[static_cast<std::size_t>(f)].back().data(), stacks[static_cast<std::size_t>(f)].back().data() + pixels, plane);
+      planes[static_cast<std::size_t>(f)].push_back(plane);
+    }
+  }
+  Decoder cpu(rig.patterns, rig.calibration(), Device::cpu(), options());
+  const RayMap& rays = cpu.rays();
+  detail::CudaDecodeContext context(cpu.decode_params(), cpu.triangulation_params(), rays.width, rays.height,
+                                    rays.rays.data(), rays.valid.data());
+  std::vector<DecodedFrame> gpu;
+  int slot = context.upload_async(planes[0].data());
+  for (std::size_t f = 0; f < 3; ++f) {
+    const int next = f + 1 < 3 ? context.upload_async(planes[f + 1].data()) : -1;  // overlaps the decode below
+    context.decode_slot(slot);
+    gpu.push_back(download_outputs(context));
+    slot = next;
+  }
+  SLS_CUDA_CHECK(cudaFreeHost(pinned));
+  for (std::size_t f = 0; f < 3; ++f) {
+    const std::string what = "pipelined frame " + std::to_string(f + 1);
+    expect_equal(cpu.decode(stacks[f]), gpu[f], what.c_str());
+  }
+  EXPECT_NE(gpu[0].depth_m, gpu[1].depth_m);  // the frames differ, so a stale slot would show
 }
 
 }  // namespace
