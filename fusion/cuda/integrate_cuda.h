@@ -1,0 +1,23 @@
+// Internal: the CUDA launchers of the integrator (fusion/integrator.h). Only built and
+// included when SLS_HAVE_CUDA is defined; free of Eigen so nvcc sees plain structs.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include <cuda_runtime_api.h>
+
+#include "fusion/integrate_shared.h"
+
+namespace sls::fusion::detail {
+
+// The running-average update of every voxel; active voxels of parity p are appended to
+// active[p] (capacity each) through counters[p] (which may exceed capacity: the overflow).
+void launch_integrate_cuda(const VolumeView& volume, const IntegrationParams& params, const DepthFrameView& frame,
+                           ActiveVoxel* const active[2], std::uint32_t* counters, std::uint32_t capacity,
+                           cudaStream_t stream);
+// One half-sweep over `count` active voxels of one parity.
+void launch_relax_cuda(const VolumeView& volume, const IntegrationParams& params, const ActiveVoxel* active,
+                       std::uint32_t count, cudaStream_t stream);
+
+}  // namespace sls::fusion::detail

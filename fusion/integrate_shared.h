@@ -1,0 +1,122 @@
+// Per-voxel TSDF / GTSDF integration, shared by the CPU and CUDA integrators (DESIGN.md
+// sections 3 and 6). For frame n, a voxel at camera-frame depth z that projects (with the
+// SLS camera model, distortion included) to pixel p:
+//   d = D_n(p) - z,  f = clamp(d / δ, -1, 1),  ω = [D_n(p) valid and d >= -η]
+//   A = (W·U + ω f) / (W + ω),  W <- min(W + ω, W_max)          (the running average: TSDF)
+// and, for GTSDF, T red-black Gauss-Seidel sweeps over the voxels observed this frame near
+// the surface (ω = 1, |A| < 1), starting from U = A:
+//   U <- (A + α Σ_ξ b_ξ U_ξ) / (1 + α Σ_ξ b_ξ),  b_ξ = φ'(s) / 2s,  s = |U_ξ - U|
+// over the 6 axis neighbours ξ that have been observed (W > 0). Neighbours of a voxel have
+// the other parity of i + j + k, so each half-sweep is race-free. α = 0 is exactly TSDF.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "fusion/volume_shared.h"
+#include "sdk/core/camera_model_shared.h"
+
+namespace sls::fusion {
+
+// φ of the anisotropic term (the paper does not name one): b(s) = φ'(s) / 2s.
+enum class Penalty : std::int32_t {
+  kPeronaMalik = 0,   // Lorentzian: b = 1 / (1 + s²/κ²)
+  kCharbonnier = 1,   // b = 1 / sqrt(1 + s²/κ²)
+  kGemanMcClure = 2,  // b = 1 / (1 + s²/κ²)²
+};
+
+struct IntegrationParams {
+  float truncation_m = 0.0f;  // δ
+  float eta_m = 0.0f;         // η > δ: voxels farther than η behind the surface are not updated
+  float weight_max = 255.0f;  // W cap (255 for the compact format's uint8 weights)
+  float alpha = 0.0f;         // λβ; 0 = standard TSDF
+  float kappa = 0.1f;         // κ, in units of U
+  Penalty penalty = Penalty::kPeronaMalik;
+};
+
+// The depth frame as kernels see it: camera-frame z per pixel (metres, 0 = no measurement),
+// row-major width x height, and where the camera is.
+struct DepthFrameView {
+  const float* depth_m = nullptr;
+  int width = 0;
+  int height = 0;
+  CameraIntrinsicsF intrinsics{};
+  Rigid3f T_camera_volume{};
+};
+
+// One voxel observed this frame near the surface: its index and running average A.
+struct ActiveVoxel {
+  std::uint32_t index;
+  float average;
+};
+
+// The running-average update of voxel (i, j, k). Returns true when the voxel is active for
+// the anisotropic sweeps (observed this frame and |A| < 1), with A in *average.
+SLS_HOST_DEVICE inline bool integrate_voxel(const VolumeView& v, const IntegrationParams& p,
+                                            const DepthFrameView& frame, int i, int j, int k, float* average) {
+  const Vec3f point_camera = transform_point(frame.T_camera_volume, v.voxel_centre(i, j, k));
+  Vec2f pixel;
+  if (!project(frame.intrinsics, point_camera, &pixel)) return false;
+  // Nearest pixel (pixel centres at integers).
+  const float px = std::floor(pixel.x + 0.5f), py = std::floor(pixel.y + 0.5f);
+  if (!(px >= 0.0f && py >= 0.0f && px < static_cast<float>(frame.width) && py < static_cast<float>(frame.height))) {
+    return false;
+  }
+  const float measured =
+      frame.depth_m[static_cast<std::size_t>(py) * static_cast<std::size_t>(frame.width) + static_cast<std::size_t>(px)];
+  if (!(measured > 0.0f)) return false;
+  const float d = measured - point_camera.z;
+  if (d < -p.eta_m) return false;  // hidden behind the surface: no information
+  const float f = std::fmax(-1.0f, std::fmin(1.0f, d / p.truncation_m));
+  const std::size_t index = v.index(i, j, k);
+  const float weight = v.w(index);
+  const float value = weight > 0.0f ? v.u(index) : 0.0f;
+  const float a = (weight * value + f) / (weight + 1.0f);
+  v.set_u(index, a);
+  v.set_w(index, std::fmin(weight + 1.0f, p.weight_max));
+  *average = a;
+  return std::fabs(a) < 1.0f;
+}
+
+SLS_HOST_DEVICE inline float penalty_weight(Penalty penalty, float s, float kappa) {
+  const float r = (s * s) / (kappa * kappa);
+  switch (penalty) {
+    case Penalty::kCharbonnier:
+      return 1.0f / std::sqrt(1.0f + r);
+    case Penalty::kGemanMcClure:
+      return 1.0f / ((1.0f + r) * (1.0f + r));
+    case Penalty::kPeronaMalik:
+    default:
+      return 1.0f / (1.0f + r);
+  }
+}
+
+// One Gauss-Seidel step of an active voxel: its new U from A and its observed neighbours.
+SLS_HOST_DEVICE inline float relax_voxel(const VolumeView& v, const IntegrationParams& p, ActiveVoxel voxel) {
+  const std::size_t index = voxel.index;
+  const std::size_t plane = static_cast<std::size_t>(v.nx) * static_cast<std::size_t>(v.ny);
+  const int k = static_cast<int>(index / plane);
+  const std::size_t rest = index - static_cast<std::size_t>(k) * plane;
+  const int j = static_cast<int>(rest / static_cast<std::size_t>(v.nx));
+  const int i = static_cast<int>(rest - static_cast<std::size_t>(j) * static_cast<std::size_t>(v.nx));
+  const float u = v.u(index);
+  float numerator = voxel.average;
+  float denominator = 1.0f;
+  const int offsets[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+  for (int n = 0; n < 6; ++n) {
+    const int ni = i + offsets[n][0], nj = j + offsets[n][1], nk = k + offsets[n][2];
+    if (!v.contains(ni, nj, nk)) continue;
+    const std::size_t neighbour = v.index(ni, nj, nk);
+    if (!(v.w(neighbour) > 0.0f)) continue;
+    const float un = v.u(neighbour);
+    const float b = p.alpha * penalty_weight(p.penalty, std::fabs(un - u), p.kappa);
+    numerator += b * un;
+    denominator += b;
+  }
+  return numerator / denominator;
+}
+
+// Red (0) or black (1): the parity of i + j + k.
+SLS_HOST_DEVICE inline int voxel_parity(int i, int j, int k) { return (i + j + k) & 1; }
+
+}  // namespace sls::fusion

@@ -1,0 +1,85 @@
+// Depth frames into the volume: TSDF (α = 0) or the paper's GTSDF (DESIGN.md section 3), on
+// the CPU or a CUDA GPU over the per-voxel code of integrate_shared.h.
+//
+//   Integrator integrator(Device::cuda(), IntegrationOptions::gtsdf());
+//   IntegrationStats stats = integrator.integrate(volume, depth_m, camera, T_world_camera);
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+
+#include "fusion/integrate_shared.h"
+#include "fusion/volume.h"
+#include "sdk/core/camera_model_shared.h"
+#include "sdk/core/device.h"
+#include "sdk/core/image.h"
+#include "sdk/core/pose.h"
+
+namespace sls::fusion {
+
+struct IntegrationOptions {
+  // δ and η in voxels of the volume (so one setting fits any voxel size).
+  double truncation_voxels = 4.0;   // δ: f = clamp(d / δ, -1, 1)
+  double eta_voxels = 6.0;          // η > δ: hidden voxels beyond η behind the surface untouched
+  int weight_max = 255;             // W cap: a moving volume keeps adapting (<= 255 for compact voxels)
+  // The anisotropic term: α = λβ (0 < β <= 1/6; λ = 0 is standard TSDF).
+  double lambda = 0.0;
+  double beta = 1.0 / 6.0;
+  double kappa = 0.2;               // κ of φ, in units of U (δ)
+  Penalty penalty = Penalty::kPeronaMalik;
+  int iterations = 3;               // T Gauss-Seidel sweeps (each a red and a black half-sweep)
+  // Most active voxels (per parity) kept for the sweeps; beyond it, voxels keep their running
+  // average (counted in IntegrationStats::overflow). 0: the smaller of the volume's voxels and 2^25.
+  std::size_t active_capacity = 0;
+
+  static IntegrationOptions tsdf();   // λ = 0
+  static IntegrationOptions gtsdf();  // λ = 4, β = 1/6 (α = 2/3), κ = 0.1, Geman-McClure, T = 3
+  bool is_gtsdf() const { return lambda > 0.0 && iterations > 0; }
+  // Throws sls::Error(kInvalidArgument) naming the bad value.
+  void validate(VoxelFormat format) const;
+  IntegrationParams params(double voxel_size_m) const;
+};
+
+// "tsdf" or "gtsdf" -> options; sls::Error(kInvalidArgument) otherwise.
+IntegrationOptions parse_fusion_method(const std::string& name);
+// "perona-malik", "charbonnier", "geman-mcclure".
+Penalty parse_penalty(const std::string& name);
+const char* penalty_name(Penalty penalty);
+
+struct IntegrationStats {
+  std::size_t active_voxels = 0;  // observed this frame with |A| < 1 (the sweeps' voxels)
+  std::size_t overflow = 0;       // active voxels beyond the capacity (kept their average)
+};
+
+class Integrator {
+ public:
+  Integrator(const Device& device, const IntegrationOptions& options);
+  ~Integrator();
+  Integrator(Integrator&&) noexcept;
+  Integrator& operator=(Integrator&&) noexcept;
+
+  const IntegrationOptions& options() const;
+  const Device& device() const;
+
+  // Integrates one depth map (camera-frame z in metres, 0 = none; the camera's size) taken
+  // from T_world_camera. The volume must live on the integrator's device. Throws
+  // sls::Error(kInvalidArgument) for a depth map of another size than the camera.
+  IntegrationStats integrate(Volume& volume, const Image32f& depth_m, const CameraIntrinsics& camera,
+                             const Pose& T_world_camera);
+#if defined(SLS_HAVE_CUDA)
+  // A depth map already on the GPU (e.g. the decoder's output), width x height floats.
+  IntegrationStats integrate_device(Volume& volume, const float* depth_device, const CameraIntrinsics& camera,
+                                    const Pose& T_world_camera);
+#endif
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The frame's view for the kernels: intrinsics in float and T_camera_volume.
+DepthFrameView make_depth_frame_view(const float* depth_m, const CameraIntrinsics& camera, const Pose& T_world_camera,
+                                     const VolumeGeometry& geometry);
+
+}  // namespace sls::fusion

@@ -1,0 +1,115 @@
+// Per-pixel raycasting of the volume's zero level set, shared by the CPU and CUDA raycasters
+// (DESIGN.md section 6): march the pixel's ray (from the camera's ray map, so the lens
+// distortion is the SLS camera model's) through the volume in steps that shrink with |U|,
+// stop at the first + to - crossing of the trilinear U, place the point by linear
+// interpolation of the crossing and take the normal from the gradient of U.
+#pragma once
+
+#include <cmath>
+
+#include "fusion/volume_shared.h"
+
+namespace sls::fusion {
+
+struct RaycastParams {
+  float truncation_m = 0.0f;  // δ of the integration: far from the surface U = 1 means ">= δ away"
+  float min_depth_m = 0.0f;   // camera-frame z range searched
+  float max_depth_m = 1e30f;
+};
+
+struct RaycastHit {
+  float depth_m;        // camera-frame z; 0 = no surface
+  Vec3f point_camera;
+  Vec3f normal_camera;  // unit, facing the camera
+};
+
+// The parameter interval [t0, t1] of origin + t * direction inside the box where trilinear
+// samples exist (voxel centres 0.5 .. n - 0.5); false when the ray misses it.
+SLS_HOST_DEVICE inline bool clip_to_volume(const VolumeView& v, Vec3f origin, Vec3f direction, float* t0,
+                                           float* t1) {
+  const float lo = 0.5f * v.voxel_size_m;
+  const float hi[3] = {(static_cast<float>(v.nx) - 0.5f) * v.voxel_size_m,
+                       (static_cast<float>(v.ny) - 0.5f) * v.voxel_size_m,
+                       (static_cast<float>(v.nz) - 0.5f) * v.voxel_size_m};
+  const float o[3] = {origin.x, origin.y, origin.z};
+  const float d[3] = {direction.x, direction.y, direction.z};
+  float enter = *t0, leave = *t1;
+  for (int axis = 0; axis < 3; ++axis) {
+    if (std::fabs(d[axis]) < 1e-12f) {
+      if (o[axis] < lo || o[axis] > hi[axis]) return false;
+      continue;
+    }
+    float a = (lo - o[axis]) / d[axis];
+    float b = (hi[axis] - o[axis]) / d[axis];
+    if (a > b) {
+      const float swap = a;
+      a = b;
+      b = swap;
+    }
+    enter = std::fmax(enter, a);
+    leave = std::fmin(leave, b);
+  }
+  *t0 = enter;
+  *t1 = leave;
+  return enter < leave;
+}
+
+// One pixel: `ray_camera` is the ray map's direction (z = 1), T_volume_camera the camera in
+// the volume. Returns the hit (depth 0 when none).
+SLS_HOST_DEVICE inline RaycastHit raycast_pixel(const VolumeView& v, const RaycastParams& p,
+                                                const Rigid3f& T_volume_camera, Vec3f ray_camera) {
+  RaycastHit hit{0.0f, Vec3f{0.0f, 0.0f, 0.0f}, Vec3f{0.0f, 0.0f, 0.0f}};
+  if (!(ray_camera.z > 0.0f)) return hit;
+  // March in camera z (t multiplies the z = 1 ray), so t is the depth.
+  const Vec3f origin = T_volume_camera.translation;
+  const Vec3f direction = rotate_vector(T_volume_camera, ray_camera);
+  const float ray_length = norm(ray_camera);  // metres of path per unit of z
+  float t0 = p.min_depth_m, t1 = p.max_depth_m;
+  if (!clip_to_volume(v, origin, direction, &t0, &t1)) return hit;
+  const float min_step = v.voxel_size_m / ray_length;  // one voxel of path
+  float t = t0;
+  float previous = 0.0f, previous_t = 0.0f;
+  bool have_previous = false;
+  while (t <= t1) {
+    const Vec3f point = origin + t * direction;
+    float value = 0.0f;
+    if (!sample_u(v, point, &value)) {
+      have_previous = false;
+      t += min_step;
+      continue;
+    }
+    if (have_previous && previous > 0.0f && value <= 0.0f) {
+      // Zero crossing between the two samples: linear interpolation of U along the ray.
+      const float denominator = previous - value;
+      const float z = denominator > 0.0f ? previous_t + (t - previous_t) * previous / denominator : t;
+      const Vec3f surface_volume = origin + z * direction;
+      Vec3f normal_volume;
+      if (!surface_normal(v, surface_volume, &normal_volume)) return hit;
+      Vec3f normal = rotate_vector(inverse(T_volume_camera), normal_volume);
+      // The gradient of U points out of the surface, towards the camera for a front face.
+      if (dot(normal, ray_camera) > 0.0f) normal = -normal;
+      hit.depth_m = z;
+      hit.point_camera = Vec3f{z * ray_camera.x, z * ray_camera.y, z};
+      hit.normal_camera = normal;
+      return hit;
+    }
+    if (have_previous && previous < 0.0f && value > 0.0f) return hit;  // left an object from behind: no front face
+    previous = value;
+    previous_t = t;
+    have_previous = true;
+    // Far from the surface U says how far it is at least (in δ): skip most of it.
+    const float skip = value > 0.0f ? 0.8f * value * p.truncation_m / ray_length : 0.0f;
+    t += std::fmax(min_step, skip);
+  }
+  return hit;
+}
+
+// A grey level for pictures: Lambertian shading with the light at the camera.
+SLS_HOST_DEVICE inline unsigned char shade(const RaycastHit& hit, Vec3f ray_camera) {
+  if (!(hit.depth_m > 0.0f)) return 0;
+  const float cosine = -dot(hit.normal_camera, ray_camera) / norm(ray_camera);
+  const float level = 20.0f + 235.0f * std::fmax(0.0f, cosine);
+  return static_cast<unsigned char>(level);
+}
+
+}  // namespace sls::fusion

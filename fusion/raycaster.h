@@ -1,0 +1,52 @@
+// Raycasting the volume from any pose (DESIGN.md section 3): the vertex, normal and depth maps
+// the tracker compares frames with (issue #6), and shaded pictures, with the SLS camera model
+// (the camera's ray map). CPU or CUDA over raycast_shared.h.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "fusion/raycast_shared.h"
+#include "fusion/volume.h"
+#include "sdk/core/camera_model_shared.h"
+#include "sdk/core/device.h"
+#include "sdk/core/image.h"
+#include "sdk/core/pose.h"
+
+namespace sls::fusion {
+
+struct RaycastResult {
+  Image32f depth_m;                 // camera-frame z; 0 = no surface
+  std::vector<Vec3f> points_camera;  // row-major, {0,0,0} where depth is 0
+  std::vector<Vec3f> normals_camera;
+  Image8u shaded;                   // Lambertian, light at the camera
+};
+
+struct RaycastOptions {
+  double min_depth_m = 0.0;
+  double max_depth_m = 10.0;
+  double truncation_voxels = 4.0;   // the integration's δ (IntegrationOptions::truncation_voxels)
+};
+
+class Raycaster {
+ public:
+  Raycaster(const Device& device, const CameraIntrinsics& camera, const RaycastOptions& options = {});
+  ~Raycaster();
+  Raycaster(Raycaster&&) noexcept;
+  Raycaster& operator=(Raycaster&&) noexcept;
+
+  // The volume from T_world_camera. The volume must live on the raycaster's device.
+  RaycastResult raycast(const Volume& volume, const Pose& T_world_camera);
+#if defined(SLS_HAVE_CUDA)
+  // Leaves the result on the GPU (depth, points, normals: width x height each), for the
+  // tracker and for timing; asynchronous on the raycaster's stream until synchronize().
+  void raycast_device(const Volume& volume, const Pose& T_world_camera);
+  void synchronize();
+#endif
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sls::fusion

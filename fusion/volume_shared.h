@@ -1,0 +1,179 @@
+// The Rectangular Parallelepiped Volume's voxels as the per-voxel code of both backends sees
+// them (DESIGN.md sections 3 and 6): a plain view over the U (truncated signed distance in
+// units of the truncation δ, in [-1, 1]) and W (weight) arrays, in one of two formats:
+//   kFloat32  U float, W float            8 B/voxel  (reference, tests)
+//   kCompact  U IEEE binary16, W uint8    3 B/voxel  (960³ = 2.6 GB: the production format)
+// Arrays are structure-of-arrays, x fastest, so neighbouring threads touch neighbouring bytes.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+
+#include "sdk/core/host_device.h"
+#include "sdk/core/math_shared.h"
+
+namespace sls::fusion {
+
+enum class VoxelFormat : std::int32_t {
+  kFloat32 = 0,
+  kCompact = 1,
+};
+
+// Bit-exact float <-> binary16 (round to nearest even) written once for both backends, so
+// the CPU and CUDA volumes hold the same bits (no dependence on cuda_fp16.h on the host).
+SLS_HOST_DEVICE inline std::uint32_t float_bits(float value) {
+#if defined(__CUDA_ARCH__)
+  return __float_as_uint(value);
+#else
+  std::uint32_t bits;
+  std::memcpy(&bits, &value, sizeof bits);
+  return bits;
+#endif
+}
+
+SLS_HOST_DEVICE inline float bits_float(std::uint32_t bits) {
+#if defined(__CUDA_ARCH__)
+  return __uint_as_float(bits);
+#else
+  float value;
+  std::memcpy(&value, &bits, sizeof value);
+  return value;
+#endif
+}
+
+SLS_HOST_DEVICE inline std::uint16_t float_to_half(float value) {
+  const std::uint32_t x = float_bits(value);
+  const std::uint32_t sign = (x >> 16) & 0x8000u;
+  std::uint32_t mantissa = x & 0x7fffffu;
+  const int exponent = static_cast<int>((x >> 23) & 0xffu);
+  if (exponent == 255) return static_cast<std::uint16_t>(sign | 0x7c00u | (mantissa != 0u ? 0x200u : 0u));
+  const int e = exponent - 127 + 15;
+  if (e >= 31) return static_cast<std::uint16_t>(sign | 0x7c00u);  // overflow: infinity
+  if (e <= 0) {                                                    // subnormal or zero
+    if (e < -10) return static_cast<std::uint16_t>(sign);
+    mantissa |= 0x800000u;
+    const int shift = 14 - e;
+    std::uint32_t half_mantissa = mantissa >> shift;
+    const std::uint32_t remainder = mantissa & ((1u << shift) - 1u);
+    const std::uint32_t halfway = 1u << (shift - 1);
+    if (remainder > halfway || (remainder == halfway && (half_mantissa & 1u) != 0u)) ++half_mantissa;
+    return static_cast<std::uint16_t>(sign | half_mantissa);
+  }
+  std::uint32_t half = sign | (static_cast<std::uint32_t>(e) << 10) | (mantissa >> 13);
+  const std::uint32_t remainder = mantissa & 0x1fffu;
+  if (remainder > 0x1000u || (remainder == 0x1000u && (half & 1u) != 0u)) ++half;  // a carry rounds up the exponent
+  return static_cast<std::uint16_t>(half);
+}
+
+SLS_HOST_DEVICE inline float half_to_float(std::uint16_t half) {
+  const std::uint32_t sign = static_cast<std::uint32_t>(half & 0x8000u) << 16;
+  const std::uint32_t exponent = (half >> 10) & 0x1fu;
+  const std::uint32_t mantissa = half & 0x3ffu;
+  if (exponent == 0u) {
+    const float magnitude = static_cast<float>(mantissa) * 5.9604644775390625e-8f;  // 2^-24, exact
+    return sign != 0u ? -magnitude : magnitude;
+  }
+  if (exponent == 31u) return bits_float(sign | 0x7f800000u | (mantissa << 13));
+  return bits_float(sign | ((exponent - 15u + 127u) << 23) | (mantissa << 13));
+}
+
+// The volume as kernels see it. Voxel (i, j, k) has its centre at ((i, j, k) + 0.5) *
+// voxel_size_m in the volume frame; T_world_volume places the volume (rotation included).
+struct VolumeView {
+  int nx = 0, ny = 0, nz = 0;
+  float voxel_size_m = 0.0f;
+  Rigid3f T_world_volume{};
+  Rigid3f T_volume_world{};
+  VoxelFormat format = VoxelFormat::kFloat32;
+  float* u32 = nullptr;            // kFloat32
+  float* w32 = nullptr;
+  std::uint16_t* u16 = nullptr;    // kCompact
+  std::uint8_t* w8 = nullptr;
+
+  SLS_HOST_DEVICE std::size_t voxel_count() const {
+    return static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny) * static_cast<std::size_t>(nz);
+  }
+  SLS_HOST_DEVICE std::size_t index(int i, int j, int k) const {
+    return (static_cast<std::size_t>(k) * static_cast<std::size_t>(ny) + static_cast<std::size_t>(j)) *
+               static_cast<std::size_t>(nx) +
+           static_cast<std::size_t>(i);
+  }
+  SLS_HOST_DEVICE bool contains(int i, int j, int k) const {
+    return i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz;
+  }
+  SLS_HOST_DEVICE float u(std::size_t index) const {
+    return format == VoxelFormat::kFloat32 ? u32[index] : half_to_float(u16[index]);
+  }
+  SLS_HOST_DEVICE float w(std::size_t index) const {
+    return format == VoxelFormat::kFloat32 ? w32[index] : static_cast<float>(w8[index]);
+  }
+  SLS_HOST_DEVICE void set_u(std::size_t index, float value) const {
+    if (format == VoxelFormat::kFloat32) {
+      u32[index] = value;
+    } else {
+      u16[index] = float_to_half(value);
+    }
+  }
+  // Weights are whole numbers in both formats (counts of observations, capped).
+  SLS_HOST_DEVICE void set_w(std::size_t index, float weight) const {
+    if (format == VoxelFormat::kFloat32) {
+      w32[index] = weight;
+    } else {
+      w8[index] = static_cast<std::uint8_t>(weight);
+    }
+  }
+  SLS_HOST_DEVICE Vec3f voxel_centre(int i, int j, int k) const {
+    return Vec3f{(static_cast<float>(i) + 0.5f) * voxel_size_m, (static_cast<float>(j) + 0.5f) * voxel_size_m,
+                 (static_cast<float>(k) + 0.5f) * voxel_size_m};
+  }
+};
+
+// Trilinear U at a volume-frame point; false when a corner lies outside the volume or has
+// never been observed (W = 0). The surface is where it crosses 0.
+SLS_HOST_DEVICE inline bool sample_u(const VolumeView& v, Vec3f point_volume, float* value) {
+  const float gx = point_volume.x / v.voxel_size_m - 0.5f;
+  const float gy = point_volume.y / v.voxel_size_m - 0.5f;
+  const float gz = point_volume.z / v.voxel_size_m - 0.5f;
+  const float fx = std::floor(gx), fy = std::floor(gy), fz = std::floor(gz);
+  const int i = static_cast<int>(fx), j = static_cast<int>(fy), k = static_cast<int>(fz);
+  if (i < 0 || j < 0 || k < 0 || i + 1 >= v.nx || j + 1 >= v.ny || k + 1 >= v.nz) return false;
+  const float tx = gx - fx, ty = gy - fy, tz = gz - fz;
+  float corner[8];
+  for (int c = 0; c < 8; ++c) {
+    const std::size_t index = v.index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+    if (!(v.w(index) > 0.0f)) return false;
+    corner[c] = v.u(index);
+  }
+  const float x00 = corner[0] + tx * (corner[1] - corner[0]);
+  const float x10 = corner[2] + tx * (corner[3] - corner[2]);
+  const float x01 = corner[4] + tx * (corner[5] - corner[4]);
+  const float x11 = corner[6] + tx * (corner[7] - corner[6]);
+  const float y0 = x00 + ty * (x10 - x00);
+  const float y1 = x01 + ty * (x11 - x01);
+  *value = y0 + tz * (y1 - y0);
+  return true;
+}
+
+// Unit gradient of U (the outward surface normal) by central differences of the trilinear
+// field, half a voxel either side; false where a sample is missing or the gradient vanishes.
+SLS_HOST_DEVICE inline bool surface_normal(const VolumeView& v, Vec3f point_volume, Vec3f* normal_volume) {
+  const float h = 0.5f * v.voxel_size_m;
+  float g[3];
+  for (int axis = 0; axis < 3; ++axis) {
+    Vec3f plus = point_volume, minus = point_volume;
+    if (axis == 0) { plus.x += h; minus.x -= h; }
+    if (axis == 1) { plus.y += h; minus.y -= h; }
+    if (axis == 2) { plus.z += h; minus.z -= h; }
+    float up = 0.0f, down = 0.0f;
+    if (!sample_u(v, plus, &up) || !sample_u(v, minus, &down)) return false;
+    g[axis] = up - down;
+  }
+  const float length = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+  if (!(length > 0.0f)) return false;
+  *normal_volume = Vec3f{g[0] / length, g[1] / length, g[2] / length};
+  return true;
+}
+
+}  // namespace sls::fusion
