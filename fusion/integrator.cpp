@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <utility>
 #include <vector>
 
 #include "sdk/core/error.h"
@@ -108,6 +110,72 @@ DepthFrameView make_depth_frame_view(const float* depth_m, const CameraIntrinsic
   return frame;
 }
 
+VoxelBox frustum_voxel_box(const VolumeGeometry& geometry, const CameraIntrinsics& camera, const Pose& T_world_camera,
+                           double near_m, double far_m) {
+  VoxelBox box;
+  box.i1 = geometry.nx;
+  box.j1 = geometry.ny;
+  box.k1 = geometry.nz;
+  if (!std::isfinite(far_m) || !(near_m > 0.0) || !(far_m >= near_m)) return box;  // unknown range: all
+  // The image border, densely (distortion bends its edges), at the near and far depths.
+  const Pose T_volume_camera = geometry.T_world_volume.inverse() * T_world_camera;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  constexpr int kSteps = 16;
+  for (int n = 0; n <= 4 * kSteps; ++n) {
+    const int side = n / (kSteps + 1), step = n % (kSteps + 1);
+    const double t = static_cast<double>(step) / kSteps;
+    const double w = camera.width - 0.5, h = camera.height - 0.5;
+    const Vec2d pixel = side == 0   ? Vec2d{-0.5 + t * w, -0.5}
+                        : side == 1 ? Vec2d{w, -0.5 + t * h}
+                        : side == 2 ? Vec2d{w - t * w, h}
+                                    : Vec2d{-0.5, h - t * h};
+    Vec3d ray;
+    if (!unproject(camera, pixel, &ray)) return box;  // outside the calibrated field: no culling
+    for (const double z : {near_m, far_m}) {
+      const Eigen::Vector3d p = T_volume_camera * Eigen::Vector3d(ray.x * z, ray.y * z, z);
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+  }
+  // The camera centre too when the near depth is small; then voxel indices with a voxel of margin.
+  const double s = geometry.voxel_size_m;
+  auto first = [&](double coordinate, int n) { return std::clamp(static_cast<int>(std::floor(coordinate / s - 0.5)) - 1, 0, n); };
+  auto last = [&](double coordinate, int n) { return std::clamp(static_cast<int>(std::ceil(coordinate / s - 0.5)) + 2, 0, n); };
+  box.i0 = first(lo.x(), geometry.nx);
+  box.j0 = first(lo.y(), geometry.ny);
+  box.k0 = first(lo.z(), geometry.nz);
+  box.i1 = last(hi.x(), geometry.nx);
+  box.j1 = last(hi.y(), geometry.ny);
+  box.k1 = last(hi.z(), geometry.nz);
+  return box;
+}
+
+namespace {
+
+// The measured depth range of a depth map (0 = none): [min, max], or {0, inf} when empty.
+std::pair<double, double> depth_range(const Image32f& depth_m) {
+  float lo = std::numeric_limits<float>::infinity(), hi = 0.0f;
+  for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) {
+    const float z = depth_m.data()[i];
+    if (!(z > 0.0f) || !std::isfinite(z)) continue;
+    lo = std::min(lo, z);
+    hi = std::max(hi, z);
+  }
+  if (!(hi > 0.0f)) return {0.0, 0.0};  // nothing measured: nothing to integrate
+  return {static_cast<double>(lo), static_cast<double>(hi)};
+}
+
+// The box of voxels within η of the measured range.
+VoxelBox band_box(const VolumeGeometry& geometry, const CameraIntrinsics& camera, const Pose& T_world_camera,
+                  double min_depth_m, double max_depth_m, const IntegrationOptions& options) {
+  if (max_depth_m <= 0.0) return VoxelBox{};  // an empty depth map
+  const double eta = options.eta_voxels * geometry.voxel_size_m;
+  return frustum_voxel_box(geometry, camera, T_world_camera, std::max(1e-6, min_depth_m - eta), max_depth_m + eta);
+}
+
+}  // namespace
+
 struct Integrator::Impl {
   Device device;
   IntegrationOptions options;
@@ -168,7 +236,8 @@ void check_inputs(const Volume& volume, const Device& device, int width, int hei
 // The CPU integrator: the running average over every voxel (rows of the volume in
 // parallel), then the red-black sweeps over the active voxels.
 IntegrationStats integrate_cpu(const VolumeView& view, const IntegrationParams& params, const DepthFrameView& frame,
-                               int iterations, std::size_t capacity, std::vector<ActiveVoxel> (&active)[2]) {
+                               const VoxelBox& box, int iterations, std::size_t capacity,
+                               std::vector<ActiveVoxel> (&active)[2]) {
   active[0].clear();
   active[1].clear();
   const bool collect = params.alpha > 0.0f && iterations > 0;
@@ -182,9 +251,9 @@ IntegrationStats integrate_cpu(const VolumeView& view, const IntegrationParams& 
 #if defined(_OPENMP)
 #pragma omp for schedule(dynamic, 1)
 #endif
-    for (int k = 0; k < view.nz; ++k) {
-      for (int j = 0; j < view.ny; ++j) {
-        for (int i = 0; i < view.nx; ++i) {
+    for (int k = box.k0; k < box.k1; ++k) {
+      for (int j = box.j0; j < box.j1; ++j) {
+        for (int i = box.i0; i < box.i1; ++i) {
           float average = 0.0f;
           if (!integrate_voxel(view, params, frame, i, j, k, &average) || !collect) continue;
           ++local_count;
@@ -204,6 +273,7 @@ IntegrationStats integrate_cpu(const VolumeView& view, const IntegrationParams& 
   }
   IntegrationStats stats;
   stats.active_voxels = total_active;
+  stats.voxels_visited = box.count();
   for (int parity = 0; parity < 2; ++parity) {
     if (active[parity].size() > capacity) {
       stats.overflow += active[parity].size() - capacity;
@@ -236,7 +306,9 @@ IntegrationStats Integrator::integrate(Volume& volume, const Image32f& depth_m, 
   if (!s.device.is_cuda()) {
     const VolumeView view = volume.view();
     const DepthFrameView frame = make_depth_frame_view(depth_m.data(), camera, T_world_camera, volume.geometry());
-    return integrate_cpu(view, s.options.params(volume.geometry().voxel_size_m), frame, s.options.iterations,
+    const auto [near_m, far_m] = depth_range(depth_m);
+    const VoxelBox box = band_box(volume.geometry(), camera, T_world_camera, near_m, far_m, s.options);
+    return integrate_cpu(view, s.options.params(volume.geometry().voxel_size_m), frame, box, s.options.iterations,
                          active_capacity(s.options, volume.geometry()), s.active);
   }
 #if defined(SLS_HAVE_CUDA)
@@ -244,7 +316,9 @@ IntegrationStats Integrator::integrate(Volume& volume, const Image32f& depth_m, 
   const std::size_t pixels = depth_m.pixel_count();
   if (s.depth.size() < pixels) s.depth.allocate(pixels);
   s.depth.upload(depth_m.data(), pixels, s.stream);
-  return integrate_device(volume, s.depth.data(), camera, T_world_camera);
+  const auto [near_m, far_m] = depth_range(depth_m);
+  if (!(far_m > 0.0)) return IntegrationStats{};  // nothing measured
+  return integrate_device(volume, s.depth.data(), camera, T_world_camera, near_m, far_m);
 #else
   throw_error(ErrorCode::kUnsupported, "fusion: CUDA integration asked of a build without CUDA");
 #endif
@@ -252,7 +326,7 @@ IntegrationStats Integrator::integrate(Volume& volume, const Image32f& depth_m, 
 
 #if defined(SLS_HAVE_CUDA)
 IntegrationStats Integrator::integrate_device(Volume& volume, const float* depth_device, const CameraIntrinsics& camera,
-                                              const Pose& T_world_camera) {
+                                              const Pose& T_world_camera, double min_depth_m, double max_depth_m) {
   Impl& s = *impl_;
   check_inputs(volume, s.device, camera.width, camera.height, camera, s.options);
   require_device(s.device);
@@ -268,8 +342,15 @@ IntegrationStats Integrator::integrate_device(Volume& volume, const float* depth
   }
   SLS_CUDA_CHECK(cudaMemsetAsync(s.counters.data(), 0, 2 * sizeof(std::uint32_t), s.stream));
   ActiveVoxel* const active[2] = {s.device_active[0].data(), s.device_active[1].data()};
-  detail::launch_integrate_cuda(view, params, frame, active, s.counters.data(), sweeps ? capacity : 0u, s.stream);
+  const VoxelBox box = std::isfinite(max_depth_m)
+                            ? band_box(volume.geometry(), camera, T_world_camera, min_depth_m, max_depth_m, s.options)
+                            : frustum_voxel_box(volume.geometry(), camera, T_world_camera, 0.0, max_depth_m);
+  const int first[3] = {box.i0, box.j0, box.k0};
+  const int extent[3] = {box.i1 - box.i0, box.j1 - box.j0, box.k1 - box.k0};
+  detail::launch_integrate_cuda(view, params, frame, first, extent, active, s.counters.data(), sweeps ? capacity : 0u,
+                                s.stream);
   IntegrationStats stats;
+  stats.voxels_visited = box.count();
   if (!sweeps) {
     SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
     return stats;

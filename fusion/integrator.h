@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -47,9 +48,26 @@ IntegrationOptions parse_fusion_method(const std::string& name);
 Penalty parse_penalty(const std::string& name);
 const char* penalty_name(Penalty penalty);
 
+// The voxels a frame can change: the camera frustum between the nearest measured depth minus
+// η and the farthest plus η, as an index box of the volume (empty when it misses). Voxels in
+// front of that band are free space a standard TSDF would carve to +1; skipping them leaves
+// their earlier value, which is what a band-limited integrator keeps (voxblox-style).
+struct VoxelBox {
+  int i0 = 0, j0 = 0, k0 = 0;  // first voxel
+  int i1 = 0, j1 = 0, k1 = 0;  // one past the last
+  bool empty() const { return i1 <= i0 || j1 <= j0 || k1 <= k0; }
+  std::size_t count() const {
+    return empty() ? 0 : static_cast<std::size_t>(i1 - i0) * static_cast<std::size_t>(j1 - j0) *
+                             static_cast<std::size_t>(k1 - k0);
+  }
+};
+VoxelBox frustum_voxel_box(const VolumeGeometry& geometry, const CameraIntrinsics& camera, const Pose& T_world_camera,
+                           double near_m, double far_m);
+
 struct IntegrationStats {
   std::size_t active_voxels = 0;  // observed this frame with |A| < 1 (the sweeps' voxels)
   std::size_t overflow = 0;       // active voxels beyond the capacity (kept their average)
+  std::size_t voxels_visited = 0; // the frustum box's voxels
 };
 
 class Integrator {
@@ -68,9 +86,12 @@ class Integrator {
   IntegrationStats integrate(Volume& volume, const Image32f& depth_m, const CameraIntrinsics& camera,
                              const Pose& T_world_camera);
 #if defined(SLS_HAVE_CUDA)
-  // A depth map already on the GPU (e.g. the decoder's output), width x height floats.
+  // A depth map already on the GPU (e.g. the decoder's output), width x height floats, whose
+  // values lie in [min_depth_m, max_depth_m] (the decoder's working range; 0 and infinity:
+  // the whole volume is visited).
   IntegrationStats integrate_device(Volume& volume, const float* depth_device, const CameraIntrinsics& camera,
-                                    const Pose& T_world_camera);
+                                    const Pose& T_world_camera, double min_depth_m = 0.0,
+                                    double max_depth_m = std::numeric_limits<double>::infinity());
 #endif
 
  private:

@@ -7,13 +7,13 @@
 namespace sls::fusion::detail {
 namespace {
 
-__global__ void integrate_kernel(VolumeView volume, IntegrationParams params, DepthFrameView frame,
-                                 ActiveVoxel* active_red, ActiveVoxel* active_black, std::uint32_t* counters,
-                                 std::uint32_t capacity) {
-  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
-  const int j = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
-  const int k = static_cast<int>(blockIdx.z);
-  if (i >= volume.nx || j >= volume.ny) return;
+__global__ void integrate_kernel(VolumeView volume, IntegrationParams params, DepthFrameView frame, int i0, int j0,
+                                 int k0, int i1, int j1, ActiveVoxel* active_red, ActiveVoxel* active_black,
+                                 std::uint32_t* counters, std::uint32_t capacity) {
+  const int i = i0 + static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int j = j0 + static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  const int k = k0 + static_cast<int>(blockIdx.z);
+  if (i >= i1 || j >= j1) return;
   float average = 0.0f;
   if (!integrate_voxel(volume, params, frame, i, j, k, &average) || !(params.alpha > 0.0f)) return;
   const int parity = voxel_parity(i, j, k);
@@ -35,12 +35,15 @@ __global__ void relax_kernel(VolumeView volume, IntegrationParams params, const 
 }  // namespace
 
 void launch_integrate_cuda(const VolumeView& volume, const IntegrationParams& params, const DepthFrameView& frame,
-                           ActiveVoxel* const active[2], std::uint32_t* counters, std::uint32_t capacity,
-                           cudaStream_t stream) {
+                           const int first[3], const int extent[3], ActiveVoxel* const active[2],
+                           std::uint32_t* counters, std::uint32_t capacity, cudaStream_t stream) {
+  if (extent[0] <= 0 || extent[1] <= 0 || extent[2] <= 0) return;
   const dim3 block(64, 4, 1);
-  const dim3 grid((static_cast<unsigned>(volume.nx) + block.x - 1) / block.x,
-                  (static_cast<unsigned>(volume.ny) + block.y - 1) / block.y, static_cast<unsigned>(volume.nz));
-  integrate_kernel<<<grid, block, 0, stream>>>(volume, params, frame, active[0], active[1], counters, capacity);
+  const dim3 grid((static_cast<unsigned>(extent[0]) + block.x - 1) / block.x,
+                  (static_cast<unsigned>(extent[1]) + block.y - 1) / block.y, static_cast<unsigned>(extent[2]));
+  integrate_kernel<<<grid, block, 0, stream>>>(volume, params, frame, first[0], first[1], first[2],
+                                               first[0] + extent[0], first[1] + extent[1], active[0], active[1],
+                                               counters, capacity);
   SLS_CUDA_CHECK_LAUNCH();
 }
 

@@ -13,9 +13,10 @@ namespace sls::fusion::detail {
 
 // The running-average update of every voxel; active voxels of parity p are appended to
 // active[p] (capacity each) through counters[p] (which may exceed capacity: the overflow).
+// Over the voxel box [first, first + extent).
 void launch_integrate_cuda(const VolumeView& volume, const IntegrationParams& params, const DepthFrameView& frame,
-                           ActiveVoxel* const active[2], std::uint32_t* counters, std::uint32_t capacity,
-                           cudaStream_t stream);
+                           const int first[3], const int extent[3], ActiveVoxel* const active[2],
+                           std::uint32_t* counters, std::uint32_t capacity, cudaStream_t stream);
 // One half-sweep over `count` active voxels of one parity.
 void launch_relax_cuda(const VolumeView& volume, const IntegrationParams& params, const ActiveVoxel* active,
                        std::uint32_t count, cudaStream_t stream);
