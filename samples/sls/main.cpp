@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
 
   int exit_code = kExitOk;
   add_decode_command(app, context, &exit_code);
+  add_eval_command(app, context, &exit_code);
   add_info_command(app, context, &exit_code);
   add_inspect_command(app, context, &exit_code);
   add_scan_command(app, context, &exit_code);

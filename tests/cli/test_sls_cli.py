@@ -40,7 +40,7 @@ class SlsCli(unittest.TestCase):
     def test_help_lists_every_command_and_each_has_help(self):
         result = run("--help")
         self.assertEqual(result.returncode, 0)
-        for command in ("info", "inspect", "scan", "sim", "decode"):
+        for command in ("info", "inspect", "scan", "sim", "decode", "eval"):
             self.assertIn(command, result.stdout)
             sub = run(command, "--help")
             self.assertEqual(sub.returncode, 0, sub.stderr)
@@ -175,6 +175,49 @@ class SlsCli(unittest.TestCase):
         recording = json.loads(run("--json", "inspect", "--deep", str(out)).stdout)["results"][0]
         self.assertEqual(recording["images_per_frame"], 0)
         self.assertEqual(recording["frames_with_depth"], 2)
+
+    def test_eval_measures_a_result_against_the_ground_truth(self):
+        rec = self.dir / "rec"
+        self.assertEqual(run("sim", "--preset", "ci", "--mode", "depth", "--object", "sphere", "--frames", "4",
+                             "--device", "cpu", "--out", str(rec)).returncode, 0)
+        # The exact reference as the result: no error, and it covers everything the views saw.
+        result = self.dir / "result"
+        result.mkdir()
+        (result / "cloud.ply").write_bytes((rec / "groundtruth/reference.ply").read_bytes())
+        (result / "report.json").write_text(json.dumps({"voxel_size_m": 50e-6}))
+        out = run("--json", "eval", "--result", str(result), "--truth", str(rec))
+        self.assertEqual(out.returncode, 0, out.stderr)
+        metrics = json.loads(out.stdout)
+        self.assertTrue(metrics["ok"])
+        for key in ("c2c_mean_um", "c2c_rms_um", "c2c_p95_um"):
+            self.assertLess(metrics[key], 0.01, key)
+        self.assertIsNone(metrics["c2c_edge_mean_um"])  # a sphere has no creases
+        self.assertEqual(metrics["coverage"], 1.0)
+        self.assertEqual(metrics["coverage_basis"], "visible")
+        self.assertEqual(metrics["scene"], "sphere")
+        human = run("eval", "--result", str(result), "--truth", str(rec))
+        self.assertEqual(human.returncode, 0, human.stderr)
+        self.assertIn("c2c: mean", human.stdout)
+        self.assertIn("coverage: 1.0000", human.stdout)
+        # Without report.json the voxel size must be given.
+        (result / "report.json").unlink()
+        missing_voxel = run("eval", "--result", str(result), "--truth", str(rec))
+        self.assertEqual(missing_voxel.returncode, 1)
+        self.assertIn("--voxel-um", missing_voxel.stderr)
+        self.assertEqual(run("eval", "--result", str(result), "--truth", str(rec), "--voxel-um", "50").returncode, 0)
+        # A result without a cloud, a recording without ground truth: exit 1, naming the problem.
+        empty = self.dir / "empty"
+        empty.mkdir()
+        no_cloud = run("--json", "eval", "--result", str(empty), "--truth", str(rec))
+        self.assertEqual(no_cloud.returncode, 1)
+        self.assertIn("cloud.ply", no_cloud.stderr)
+        self.assertFalse(json.loads(no_cloud.stdout)["ok"])
+        for path in sorted((rec / "groundtruth").rglob("*"), reverse=True):
+            path.rmdir() if path.is_dir() else path.unlink()
+        (rec / "groundtruth").rmdir()
+        no_truth = run("eval", "--result", str(result), "--truth", str(rec), "--voxel-um", "50")
+        self.assertEqual(no_truth.returncode, 1)
+        self.assertIn("groundtruth", no_truth.stderr)
 
     def test_scan_cuda_without_gpu_or_cuda_is_clear(self):
         info = json.loads(run("--json", "info").stdout)

@@ -1,0 +1,339 @@
+#include "fusion/extract.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <vector>
+
+#include "fusion/extract_shared.h"
+#include "sdk/core/error.h"
+
+namespace sls::fusion {
+namespace {
+
+// Voxel index ranges [begin, end) per axis.
+struct GridRange {
+  int begin[3] = {0, 0, 0};
+  int end[3] = {0, 0, 0};
+  bool empty() const { return end[0] <= begin[0] || end[1] <= begin[1] || end[2] <= begin[2]; }
+};
+
+struct EdgeCrossing {
+  std::uint64_t edge_id = 0;
+  SurfaceCrossing crossing;
+};
+
+void check_options(const ExtractOptions& options) {
+  if (!std::isfinite(options.min_weight) || options.min_weight < 0.0f) {
+    throw_error(ErrorCode::kInvalidArgument, "extract: min_weight {} is not a finite weight >= 0",
+                static_cast<double>(options.min_weight));
+  }
+  if (!(options.full_confidence_weight > 0.0f) || !std::isfinite(options.full_confidence_weight)) {
+    throw_error(ErrorCode::kInvalidArgument, "extract: full_confidence_weight {} is not positive and finite",
+                static_cast<double>(options.full_confidence_weight));
+  }
+}
+
+void check_view(const VolumeView& view) {
+  const bool has_arrays = view.format == VoxelFormat::kFloat32 ? (view.u32 != nullptr && view.w32 != nullptr)
+                                                               : (view.u16 != nullptr && view.w8 != nullptr);
+  if (view.nx < 1 || view.ny < 1 || view.nz < 1 || !has_arrays || !(view.voxel_size_m > 0.0f)) {
+    throw_error(ErrorCode::kInvalidArgument, "extract: the volume view ({} x {} x {} voxels) has no voxels", view.nx,
+                view.ny, view.nz);
+  }
+}
+
+VolumeView host_view(const Volume& volume) {
+  if (volume.device().is_cuda()) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "extract: the volume lives on {}; extraction reads host memory, call volume.to_host() first",
+                volume.device().to_string());
+  }
+  return volume.view();
+}
+
+GridRange whole_grid(const VolumeView& view) {
+  GridRange range;
+  range.end[0] = view.nx;
+  range.end[1] = view.ny;
+  range.end[2] = view.nz;
+  return range;
+}
+
+// The voxels whose +axis edges can hold a crossing inside the world box: the box's corners
+// in grid coordinates (voxel centres at integers), widened by one edge and clipped.
+GridRange grid_range_of(const VolumeView& view, const Pose& T_world_volume, const Box& box) {
+  const Pose T_volume_world = T_world_volume.inverse();
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(HUGE_VAL), hi = Eigen::Vector3d::Constant(-HUGE_VAL);
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d corner((c & 1) != 0 ? box.max.x() : box.min.x(), (c & 2) != 0 ? box.max.y() : box.min.y(),
+                                 (c & 4) != 0 ? box.max.z() : box.min.z());
+    const Eigen::Vector3d grid = (T_volume_world * corner) / static_cast<double>(view.voxel_size_m) -
+                                 Eigen::Vector3d::Constant(0.5);
+    if (!grid.allFinite()) return whole_grid(view);  // an unbounded box: filter every point
+    lo = lo.cwiseMin(grid);
+    hi = hi.cwiseMax(grid);
+  }
+  const int counts[3] = {view.nx, view.ny, view.nz};
+  GridRange range;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double begin = std::clamp(std::floor(lo[axis]) - 1.0, 0.0, static_cast<double>(counts[axis]));
+    const double end = std::clamp(std::ceil(hi[axis]) + 1.0, 0.0, static_cast<double>(counts[axis]));
+    range.begin[axis] = static_cast<int>(begin);
+    range.end[axis] = static_cast<int>(end);
+  }
+  return range;
+}
+
+// The first voxel at or after i (before end) in the x row starting at `row` with W > 0.
+// Most of a scan's volume was never observed; compact weights are skipped eight at a time.
+int next_observed(const VolumeView& view, std::size_t row, int i, int end) {
+  if (view.format == VoxelFormat::kCompact) {
+    const std::uint8_t* w = view.w8 + row;
+    for (; i + 8 <= end; i += 8) {
+      std::uint64_t word = 0;
+      std::memcpy(&word, w + i, sizeof word);
+      if (word != 0) break;
+    }
+    while (i < end && w[i] == 0) ++i;
+  } else {
+    const float* w = view.w32 + row;
+    while (i < end && !(w[i] > 0.0f)) ++i;
+  }
+  return i;
+}
+
+// Every crossing on the +x, +y, +z edges of the voxels in `range`, in edge-id order
+// (each z slice on its own thread, then concatenated).
+std::vector<EdgeCrossing> find_crossings(const VolumeView& view, const GridRange& range, float min_weight) {
+  if (range.empty()) return {};
+  const int slices = range.end[2] - range.begin[2];
+  std::vector<std::vector<EdgeCrossing>> per_slice(static_cast<std::size_t>(slices));
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int s = 0; s < slices; ++s) {
+    const int k = range.begin[2] + s;
+    std::vector<EdgeCrossing>& out = per_slice[static_cast<std::size_t>(s)];
+    for (int j = range.begin[1]; j < range.end[1]; ++j) {
+      const std::size_t row = view.index(0, j, k);
+      for (int i = next_observed(view, row, range.begin[0], range.end[0]); i < range.end[0];
+           i = next_observed(view, row, i + 1, range.end[0])) {
+        if (!voxel_usable(view, row + static_cast<std::size_t>(i), min_weight)) continue;
+        for (int axis = 0; axis < 3; ++axis) {
+          EdgeCrossing found;
+          if (edge_crossing(view, i, j, k, axis, min_weight, &found.crossing)) {
+            found.edge_id = grid_edge_id(view, i, j, k, axis);
+            out.push_back(found);
+          }
+        }
+      }
+    }
+  }
+  std::size_t total = 0;
+  for (const std::vector<EdgeCrossing>& slice : per_slice) total += slice.size();
+  std::vector<EdgeCrossing> all;
+  all.reserve(total);
+  for (const std::vector<EdgeCrossing>& slice : per_slice) all.insert(all.end(), slice.begin(), slice.end());
+  return all;
+}
+
+// Volume frame -> world frame in double, so a far-away volume loses no precision to float.
+struct ToWorld {
+  Eigen::Matrix3d rotation;
+  Eigen::Vector3d translation;
+  explicit ToWorld(const Pose& T_world_volume)
+      : rotation(T_world_volume.rotation()), translation(T_world_volume.translation()) {}
+  Eigen::Vector3d point(const Vec3f& p) const {
+    return rotation * Eigen::Vector3d(static_cast<double>(p.x), static_cast<double>(p.y), static_cast<double>(p.z)) +
+           translation;
+  }
+  Eigen::Vector3f normal(const Vec3f& n) const {
+    return (rotation * Eigen::Vector3d(static_cast<double>(n.x), static_cast<double>(n.y), static_cast<double>(n.z)))
+        .normalized()
+        .cast<float>();
+  }
+};
+
+// A cloud with normals, confidence and the "weight" property, sized for `count` points.
+PointCloud reserve_cloud(std::size_t count) {
+  PointCloud cloud;
+  cloud.positions.reserve(count);
+  cloud.normals.reserve(count);
+  cloud.confidence.reserve(count);
+  cloud.properties.push_back({"weight", {}});
+  cloud.properties.back().values.reserve(count);
+  return cloud;
+}
+
+void append_point(PointCloud* cloud, const Eigen::Vector3d& world, const ToWorld& to_world,
+                  const SurfaceCrossing& crossing, const ExtractOptions& options) {
+  cloud->positions.push_back(world.cast<float>());
+  cloud->normals.push_back(to_world.normal(crossing.normal_volume));
+  cloud->confidence.push_back(std::min(1.0f, crossing.weight / options.full_confidence_weight));
+  cloud->properties.front().values.push_back(crossing.weight);
+}
+
+// The cloud of the crossings inside `region` (all without one).
+PointCloud make_cloud(const std::vector<EdgeCrossing>& crossings, const Pose& T_world_volume, const Box* region,
+                      const ExtractOptions& options) {
+  const ToWorld to_world(T_world_volume);
+  PointCloud cloud = reserve_cloud(crossings.size());
+  for (const EdgeCrossing& found : crossings) {
+    const Eigen::Vector3d world = to_world.point(found.crossing.point_volume);
+    if (region != nullptr && !region->contains(world)) continue;
+    append_point(&cloud, world, to_world, found.crossing, options);
+  }
+  return cloud;
+}
+
+// The cells that can hold surface: the (up to) four around each crossing edge, as the voxel
+// index of their first corner, ascending and unique. Cells with no crossing edge are empty
+// or fully inside / outside, so the mesh never visits the unobserved bulk of the volume.
+std::vector<std::uint64_t> candidate_cells(const VolumeView& view, const std::vector<EdgeCrossing>& crossings) {
+  std::vector<std::uint64_t> cells;
+  cells.reserve(crossings.size() * 4);
+  const auto nx = static_cast<std::uint64_t>(view.nx), ny = static_cast<std::uint64_t>(view.ny);
+  for (const EdgeCrossing& found : crossings) {
+    const std::uint64_t voxel = found.edge_id / 3u;
+    const auto axis = static_cast<int>(found.edge_id % 3u);
+    const int base[3] = {static_cast<int>(voxel % nx), static_cast<int>((voxel / nx) % ny),
+                         static_cast<int>(voxel / (nx * ny))};
+    const int u = (axis + 1) % 3, w = (axis + 2) % 3;  // the two axes across the edge
+    for (int du = 0; du < 2; ++du) {
+      for (int dw = 0; dw < 2; ++dw) {
+        int cell[3] = {base[0], base[1], base[2]};
+        cell[u] -= du;
+        cell[w] -= dw;
+        if (cell[0] < 0 || cell[1] < 0 || cell[2] < 0 || cell[0] + 1 >= view.nx || cell[1] + 1 >= view.ny ||
+            cell[2] + 1 >= view.nz) {
+          continue;
+        }
+        cells.push_back(static_cast<std::uint64_t>(view.index(cell[0], cell[1], cell[2])));
+      }
+    }
+  }
+  std::sort(cells.begin(), cells.end());
+  cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+  return cells;
+}
+
+// The marching-cubes mesh over the crossings (all of the volume's, in edge-id order, so a
+// cell finds its edge's vertex by binary search and all cells around an edge agree on it).
+TriangleMesh make_mesh(const VolumeView& view, const std::vector<EdgeCrossing>& crossings, const Pose& T_world_volume,
+                       const ExtractOptions& options) {
+  if (crossings.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+    throw_error(ErrorCode::kUnsupported, "extract_mesh: {} vertices, more than a PLY int index holds",
+                crossings.size());
+  }
+  std::vector<std::uint64_t> edge_ids(crossings.size());
+  for (std::size_t n = 0; n < crossings.size(); ++n) edge_ids[n] = crossings[n].edge_id;
+  const std::vector<std::uint64_t> cells = candidate_cells(view, crossings);
+
+  // Cells in chunks on threads; faces keep the cells' order.
+  constexpr std::size_t kChunk = 4096;
+  const std::size_t chunks = (cells.size() + kChunk - 1) / kChunk;
+  std::vector<std::vector<std::array<std::int32_t, 3>>> per_chunk(chunks);
+  const auto nx = static_cast<std::uint64_t>(view.nx), ny = static_cast<std::uint64_t>(view.ny);
+  bool missing_vertex = false;
+#pragma omp parallel for schedule(dynamic, 1) reduction(|| : missing_vertex)
+  for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {
+    std::vector<std::array<std::int32_t, 3>>& faces = per_chunk[static_cast<std::size_t>(c)];
+    const std::size_t end = std::min(cells.size(), (static_cast<std::size_t>(c) + 1) * kChunk);
+    for (std::size_t n = static_cast<std::size_t>(c) * kChunk; n < end; ++n) {
+      const int i = static_cast<int>(cells[n] % nx), j = static_cast<int>((cells[n] / nx) % ny),
+                k = static_cast<int>(cells[n] / (nx * ny));
+      const int cube_case = cell_case(view, i, j, k, options.min_weight);
+      if (cube_case <= 0 || cube_case == 255) continue;
+      for (int t = 0; t < 15 && mc::triangle_edge(cube_case, t) >= 0; t += 3) {
+        std::array<std::int32_t, 3> face{};
+        for (int corner = 0; corner < 3; ++corner) {
+          int gi = 0, gj = 0, gk = 0, axis = 0;
+          cell_grid_edge(i, j, k, mc::triangle_edge(cube_case, t + corner), &gi, &gj, &gk, &axis);
+          const std::uint64_t id = grid_edge_id(view, gi, gj, gk, axis);
+          const auto found = std::lower_bound(edge_ids.begin(), edge_ids.end(), id);
+          if (found == edge_ids.end() || *found != id) {
+            missing_vertex = true;
+            continue;
+          }
+          face[static_cast<std::size_t>(corner)] = static_cast<std::int32_t>(found - edge_ids.begin());
+        }
+        faces.push_back(face);
+      }
+    }
+  }
+  if (missing_vertex) {
+    // A sign change between usable corners is always a crossing; this would be a table bug.
+    throw_error(ErrorCode::kInternal, "extract_mesh: a marching-cubes edge has no zero crossing");
+  }
+
+  // Keep the crossings some face uses (a crossing at the rim of the observed region has no
+  // complete cell around it), renumbered in order.
+  std::vector<std::int32_t> remap(crossings.size(), -1);
+  std::size_t face_count = 0;
+  for (const auto& faces : per_chunk) {
+    face_count += faces.size();
+    for (const auto& face : faces) {
+      for (const std::int32_t v : face) remap[static_cast<std::size_t>(v)] = 0;
+    }
+  }
+  TriangleMesh mesh;
+  const ToWorld to_world(T_world_volume);
+  mesh.vertices = reserve_cloud(static_cast<std::size_t>(std::count(remap.begin(), remap.end(), 0)));
+  std::int32_t next = 0;
+  for (std::size_t n = 0; n < crossings.size(); ++n) {
+    if (remap[n] < 0) continue;
+    remap[n] = next++;
+    append_point(&mesh.vertices, to_world.point(crossings[n].crossing.point_volume), to_world,
+                 crossings[n].crossing, options);
+  }
+  mesh.faces.reserve(face_count);
+  for (const auto& faces : per_chunk) {
+    for (const auto& face : faces) {
+      mesh.faces.push_back({remap[static_cast<std::size_t>(face[0])], remap[static_cast<std::size_t>(face[1])],
+                            remap[static_cast<std::size_t>(face[2])]});
+    }
+  }
+  return mesh;
+}
+
+}  // namespace
+
+PointCloud extract_points(const VolumeView& view, const Pose& T_world_volume, const Box* region,
+                          const ExtractOptions& options) {
+  check_options(options);
+  check_view(view);
+  const GridRange range = region != nullptr ? grid_range_of(view, T_world_volume, *region) : whole_grid(view);
+  return make_cloud(find_crossings(view, range, options.min_weight), T_world_volume, region, options);
+}
+
+PointCloud extract_points(const Volume& volume, const Box* region, const ExtractOptions& options) {
+  return extract_points(host_view(volume), volume.geometry().T_world_volume, region, options);
+}
+
+TriangleMesh extract_mesh(const VolumeView& view, const Pose& T_world_volume, const ExtractOptions& options) {
+  check_options(options);
+  check_view(view);
+  return make_mesh(view, find_crossings(view, whole_grid(view), options.min_weight), T_world_volume, options);
+}
+
+TriangleMesh extract_mesh(const Volume& volume, const ExtractOptions& options) {
+  return extract_mesh(host_view(volume), volume.geometry().T_world_volume, options);
+}
+
+ExtractedSurface extract_surface(const VolumeView& view, const Pose& T_world_volume, const ExtractOptions& options) {
+  check_options(options);
+  check_view(view);
+  const std::vector<EdgeCrossing> crossings = find_crossings(view, whole_grid(view), options.min_weight);
+  ExtractedSurface surface;
+  surface.cloud = make_cloud(crossings, T_world_volume, nullptr, options);
+  surface.mesh = make_mesh(view, crossings, T_world_volume, options);
+  return surface;
+}
+
+ExtractedSurface extract_surface(const Volume& volume, const ExtractOptions& options) {
+  return extract_surface(host_view(volume), volume.geometry().T_world_volume, options);
+}
+
+}  // namespace sls::fusion

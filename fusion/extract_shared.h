@@ -1,0 +1,138 @@
+// Surface extraction's per-voxel and per-cell math, shared by the CPU loop (fusion/extract.cpp)
+// and any CUDA kernel (DESIGN.md section 6): zero crossings of U along the voxel grid's
+// edges (the paper's cloud, and the vertices of the marching-cubes mesh) and each cell's
+// marching-cubes case.
+//
+// Grid edge (i, j, k, axis) joins voxel (i, j, k) with its +x, +y or +z neighbour (axis 0,
+// 1, 2). Its id, index(i, j, k) * 3 + axis, names the vertex every cell around the edge
+// shares, and ids grow in the order of a k-major, then j, then i, then axis loop.
+// A voxel takes part only when it has been observed at least `min_weight` times (and at
+// least once: W = 0 is never a surface).
+#pragma once
+
+#include <cstdint>
+
+#include "fusion/marching_cubes_tables.h"
+#include "fusion/volume_shared.h"
+#include "sdk/core/host_device.h"
+#include "sdk/core/math_shared.h"
+
+namespace sls::fusion {
+
+// A zero crossing: where U changes sign along a grid edge, in the volume frame.
+struct SurfaceCrossing {
+  Vec3f point_volume{0.0f, 0.0f, 0.0f};
+  Vec3f normal_volume{0.0f, 0.0f, 0.0f};  // unit, towards growing U (out of the solid)
+  float weight = 0.0f;                    // the smaller of the two voxels' weights
+};
+
+SLS_HOST_DEVICE inline bool voxel_usable(const VolumeView& v, std::size_t index, float min_weight) {
+  const float w = v.w(index);
+  return w > 0.0f && w >= min_weight;
+}
+
+SLS_HOST_DEVICE inline std::uint64_t grid_edge_id(const VolumeView& v, int i, int j, int k, int axis) {
+  return static_cast<std::uint64_t>(v.index(i, j, k)) * 3u + static_cast<std::uint64_t>(axis);
+}
+
+// Gradient of U at a voxel (per voxel, not per metre) from its observed axis neighbours:
+// central differences where both are observed, one-sided where one is, 0 along an axis with
+// neither. The fallback normal where the trilinear surface_normal() lacks samples (the
+// volume's border, the rim of the observed band).
+SLS_HOST_DEVICE inline Vec3f voxel_gradient(const VolumeView& v, int i, int j, int k) {
+  const float centre = v.u(v.index(i, j, k));
+  float g[3] = {0.0f, 0.0f, 0.0f};
+  for (int axis = 0; axis < 3; ++axis) {
+    const int dx = axis == 0 ? 1 : 0, dy = axis == 1 ? 1 : 0, dz = axis == 2 ? 1 : 0;
+    float plus = 0.0f, minus = 0.0f;
+    bool has_plus = false, has_minus = false;
+    if (v.contains(i + dx, j + dy, k + dz)) {
+      const std::size_t index = v.index(i + dx, j + dy, k + dz);
+      has_plus = v.w(index) > 0.0f;
+      if (has_plus) plus = v.u(index);
+    }
+    if (v.contains(i - dx, j - dy, k - dz)) {
+      const std::size_t index = v.index(i - dx, j - dy, k - dz);
+      has_minus = v.w(index) > 0.0f;
+      if (has_minus) minus = v.u(index);
+    }
+    if (has_plus && has_minus) {
+      g[axis] = 0.5f * (plus - minus);
+    } else if (has_plus) {
+      g[axis] = plus - centre;
+    } else if (has_minus) {
+      g[axis] = centre - minus;
+    }
+  }
+  return Vec3f{g[0], g[1], g[2]};
+}
+
+// The normal at a crossing on edge (i, j, k, axis) at fraction t from voxel (i, j, k):
+// surface_normal() of the trilinear field where its samples exist, else the voxel gradients
+// of the edge's ends blended at t, else the edge's own direction (U grows along it as
+// `u_rise` says). Always unit length.
+SLS_HOST_DEVICE inline Vec3f crossing_normal(const VolumeView& v, Vec3f point_volume, int i, int j, int k, int axis,
+                                             float t, float u_rise) {
+  Vec3f normal{0.0f, 0.0f, 0.0f};
+  if (surface_normal(v, point_volume, &normal)) return normal;
+  const int dx = axis == 0 ? 1 : 0, dy = axis == 1 ? 1 : 0, dz = axis == 2 ? 1 : 0;
+  const Vec3f g0 = voxel_gradient(v, i, j, k);
+  const Vec3f g1 = voxel_gradient(v, i + dx, j + dy, k + dz);
+  const Vec3f g = (1.0f - t) * g0 + t * g1;
+  const float length = norm(g);
+  if (length > 0.0f) return (1.0f / length) * g;
+  const float sign = u_rise >= 0.0f ? 1.0f : -1.0f;
+  return Vec3f{sign * static_cast<float>(dx), sign * static_cast<float>(dy), sign * static_cast<float>(dz)};
+}
+
+// The zero crossing on grid edge (i, j, k, axis), if any: both voxels inside the volume and
+// usable, and U changes sign (U < 0 against U >= 0, as the marching-cubes case bits). The
+// point is linearly interpolated between the voxel centres.
+SLS_HOST_DEVICE inline bool edge_crossing(const VolumeView& v, int i, int j, int k, int axis, float min_weight,
+                                          SurfaceCrossing* out) {
+  const int dx = axis == 0 ? 1 : 0, dy = axis == 1 ? 1 : 0, dz = axis == 2 ? 1 : 0;
+  if (!v.contains(i + dx, j + dy, k + dz)) return false;
+  const std::size_t a = v.index(i, j, k);
+  const std::size_t b = v.index(i + dx, j + dy, k + dz);
+  if (!voxel_usable(v, a, min_weight) || !voxel_usable(v, b, min_weight)) return false;
+  const float ua = v.u(a), ub = v.u(b);
+  if ((ua < 0.0f) == (ub < 0.0f)) return false;
+  const float t = ua / (ua - ub);  // signs differ, so ua - ub != 0 and t is in [0, 1]
+  Vec3f point = v.voxel_centre(i, j, k);
+  const float step = t * v.voxel_size_m;
+  if (axis == 0) point.x += step;
+  if (axis == 1) point.y += step;
+  if (axis == 2) point.z += step;
+  out->point_volume = point;
+  out->normal_volume = crossing_normal(v, point, i, j, k, axis, t, ub - ua);
+  const float wa = v.w(a), wb = v.w(b);
+  out->weight = wa < wb ? wa : wb;
+  return true;
+}
+
+// The marching-cubes case of cell (i, j, k), whose corners are voxels (i..i+1, j..j+1,
+// k..k+1): bit c set when corner c is inside (U < 0). -1 when the cell leaves the volume or
+// a corner is not usable (no surface is guessed across unobserved voxels).
+SLS_HOST_DEVICE inline int cell_case(const VolumeView& v, int i, int j, int k, float min_weight) {
+  if (i < 0 || j < 0 || k < 0 || i + 1 >= v.nx || j + 1 >= v.ny || k + 1 >= v.nz) return -1;
+  int cube_case = 0;
+  for (int c = 0; c < 8; ++c) {
+    const std::size_t index = v.index(i + mc::corner_dx(c), j + mc::corner_dy(c), k + mc::corner_dz(c));
+    if (!voxel_usable(v, index, min_weight)) return -1;
+    if (v.u(index) < 0.0f) cube_case |= 1 << c;
+  }
+  return cube_case;
+}
+
+// The grid edge under edge e (0..11) of cell (i, j, k): its first voxel and axis.
+SLS_HOST_DEVICE inline void cell_grid_edge(int i, int j, int k, int e, int* gi, int* gj, int* gk, int* axis) {
+  const int a = mc::edge_corner_a(e), b = mc::edge_corner_b(e);
+  const int ax = mc::corner_dx(a), ay = mc::corner_dy(a), az = mc::corner_dz(a);
+  const int bx = mc::corner_dx(b), by = mc::corner_dy(b), bz = mc::corner_dz(b);
+  *gi = i + (ax < bx ? ax : bx);
+  *gj = j + (ay < by ? ay : by);
+  *gk = k + (az < bz ? az : bz);
+  *axis = ax != bx ? 0 : (ay != by ? 1 : 2);
+}
+
+}  // namespace sls::fusion

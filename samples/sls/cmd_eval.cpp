@@ -1,0 +1,140 @@
+// sls eval: the quality of a fused result against a simulated recording's ground truth
+// (DESIGN.md section 4; definitions in samples/sls/evaluate.h): C2C mean / RMS / 95th
+// percentile, edge-region C2C, and coverage of the surface the recording saw.
+//
+//   sls eval --result OUT --truth OUT/recording [--json]
+#include <cmath>
+#include <iostream>
+#include <memory>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "samples/sls/commands.h"
+#include "samples/sls/evaluate.h"
+#include "sdk/core/error.h"
+
+namespace sls::cli {
+namespace {
+
+struct EvalCommandOptions {
+  std::string result;
+  std::string truth;
+  double voxel_um = 0.0;
+  eval::EvalOptions eval;
+  bool no_align = false;
+};
+
+constexpr double kUm = 1e6;
+
+// null where there is nothing to average (JSON has no NaN).
+nlohmann::json um_or_null(const eval::DistanceStats& stats, double eval::DistanceStats::*field) {
+  return stats.count > 0 ? nlohmann::json(stats.*field * kUm) : nlohmann::json(nullptr);
+}
+
+nlohmann::json errors_json(const eval::SurfaceErrors& errors) {
+  return {{"c2c_mean_um", um_or_null(errors.all, &eval::DistanceStats::mean_m)},
+          {"c2c_rms_um", um_or_null(errors.all, &eval::DistanceStats::rms_m)},
+          {"c2c_p95_um", um_or_null(errors.all, &eval::DistanceStats::p95_m)},
+          {"c2c_max_um", um_or_null(errors.all, &eval::DistanceStats::max_m)},
+          {"c2c_edge_mean_um", um_or_null(errors.edge, &eval::DistanceStats::mean_m)},
+          {"c2c_edge_rms_um", um_or_null(errors.edge, &eval::DistanceStats::rms_m)},
+          {"edge_points", errors.edge.count}};
+}
+
+int run_eval(const Context& context, const EvalCommandOptions& options) {
+  eval::EvalOptions eval_options = options.eval;
+  eval_options.voxel_size_m = options.voxel_um * 1e-6;
+  eval_options.align_first_pose = !options.no_align;
+  const eval::EvalReport report =
+      eval::evaluate_result(options.result, options.truth, eval_options, context.progress_callback("eval"));
+
+  nlohmann::json out = {{"ok", true},
+                        {"result", report.result_folder},
+                        {"truth", report.recording_folder},
+                        {"scene", report.scene_name},
+                        {"voxel_size_m", report.voxel_size_m},
+                        {"voxel_size_source", report.voxel_size_source},
+                        {"points", report.cloud_points},
+                        {"edge_band_um", report.edge_band_m * kUm},
+                        {"coverage", report.coverage.considered > 0 ? nlohmann::json(report.coverage.fraction())
+                                                                    : nlohmann::json(nullptr)},
+                        {"coverage_radius_um", report.coverage_radius_m * kUm},
+                        {"coverage_basis", report.coverage_basis},
+                        {"reference_points", report.reference_points},
+                        {"reference_points_counted", report.coverage.considered},
+                        {"reference_points_covered", report.coverage.covered},
+                        {"frames_checked", report.frames_checked},
+                        {"alignment", report.alignment},
+                        {"alignment_translation_um", report.T_object_world.translation().norm() * kUm},
+                        {"alignment_angle_deg", report.T_object_world.angle_rad() * 180.0 / M_PI}};
+  out.update(errors_json(report.cloud));
+  if (report.mesh) out["mesh"] = errors_json(*report.mesh);
+
+  context.emit(out, [&] {
+    auto um = [](const eval::DistanceStats& stats, double eval::DistanceStats::*field) {
+      return stats.count > 0 ? fmt::format("{:.2f} um", stats.*field * kUm) : std::string("n/a");
+    };
+    const eval::SurfaceErrors& e = report.cloud;
+    std::cout << fmt::format("{} ({} points) against {} ({}), voxel {:.2f} um ({})\n", report.result_folder,
+                             report.cloud_points, report.recording_folder, report.scene_name,
+                             report.voxel_size_m * kUm, report.voxel_size_source);
+    std::cout << fmt::format("c2c: mean {}, rms {}, p95 {}, max {}\n", um(e.all, &eval::DistanceStats::mean_m),
+                             um(e.all, &eval::DistanceStats::rms_m), um(e.all, &eval::DistanceStats::p95_m),
+                             um(e.all, &eval::DistanceStats::max_m));
+    std::cout << fmt::format("edge c2c (within {:.1f} um of a crease): {}\n", report.edge_band_m * kUm,
+                             e.has_creases ? fmt::format("mean {}, rms {} over {} points",
+                                                         um(e.edge, &eval::DistanceStats::mean_m),
+                                                         um(e.edge, &eval::DistanceStats::rms_m), e.edge.count)
+                                           : std::string("n/a (the scene has no creases)"));
+    if (report.mesh) {
+      std::cout << fmt::format("mesh.ply vertices: c2c mean {}, edge mean {}\n",
+                               um(report.mesh->all, &eval::DistanceStats::mean_m),
+                               um(report.mesh->edge, &eval::DistanceStats::mean_m));
+    }
+    std::cout << fmt::format("coverage: {:.4f} ({} of {} {} reference points within {:.1f} um)\n",
+                             report.coverage.fraction(), report.coverage.covered, report.coverage.considered,
+                             report.coverage_basis == "visible" ? "visible" : "in-region",
+                             report.coverage_radius_m * kUm);
+    if (report.alignment != "none") {
+      std::cout << fmt::format("aligned by the first pose: {:.2f} um, {:.4f} deg\n",
+                               report.T_object_world.translation().norm() * kUm,
+                               report.T_object_world.angle_rad() * 180.0 / M_PI);
+    }
+  });
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_eval_command(CLI::App& app, Context& context, int* exit_code) {
+  CLI::App* command = app.add_subcommand(
+      "eval", "Measure a fused result against a simulated recording: C2C, edge-region C2C, coverage (in um)");
+  auto options = std::make_shared<EvalCommandOptions>();
+  command->add_option("--result", options->result, "Result folder (cloud.ply; mesh.ply, report.json optional)")
+      ->required();
+  command->add_option("--truth", options->truth, "The simulated recording it was made from (with groundtruth/)")
+      ->required();
+  command->add_option("--voxel-um", options->voxel_um,
+                      "Voxel size in um (default: voxel_size_m of RESULT/report.json)")
+      ->check(CLI::PositiveNumber);
+  command->add_option("--edge-band-voxels", options->eval.edge_band_voxels,
+                      "Edge region: points this many voxels from a crease")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  command->add_option("--coverage-radius-voxels", options->eval.coverage_radius_voxels,
+                      "A reference point is covered by an output point this close")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  command->add_option("--visibility-stride", options->eval.visibility_stride,
+                      "Test every n-th frame for which reference points the recording saw")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  command->add_flag("--no-align", options->no_align,
+                    "Do not align RESULT/trajectory.txt's first pose to the true one (compare as written)");
+  command->callback([&context, exit_code, options] {
+    run_command(context, "eval", [&context, options] { return run_eval(context, *options); }, exit_code);
+  });
+}
+
+}  // namespace sls::cli

@@ -1,0 +1,151 @@
+// Quality of a fused model against a simulated recording's ground truth (DESIGN.md section
+// 4), for `sls eval`, tests and benchmarks. Library sls_eval (samples/sls/CMakeLists.txt):
+// it needs the simulator's exact scene (drivers/sim), which the fusion library must not see.
+//
+// Definitions (all distances in metres here; `sls eval` prints µm):
+//   c2c          for each output point p (cloud.ply, object frame): |sdf(p)|, the scene's
+//                exact signed distance; mean, RMS, 95th percentile (nearest rank), max.
+//   edge c2c     the same over the points within edge_band_voxels (3) voxels of a ground-truth
+//                crease (knurl ridge and groove lines, cap outlines); absent for scenes
+//                without creases (plane, sphere).
+//   coverage     the fraction of the reference points (groundtruth/reference.ply: dense exact
+//                samples) that have an output point within coverage_radius_voxels (2) voxels,
+//                counting only reference points the recording saw: in some frame the point
+//                faces the camera, projects onto a pixel whose ground truth is valid (visible
+//                and lit), and that pixel's true depth is within max(coverage radius, 4
+//                pixel footprints) of the point's depth (nothing in front of it). Without per-frame
+//                ground truth, over the reference points inside the output's bounding box
+//                grown by the radius (coverage_basis "bounding-box").
+// The output is taken to be in the recording's object frame (the frame of T_object_camera in
+// groundtruth/trajectory.txt; `sls scan --poses groundtruth` fuses there). When the result
+// holds trajectory.txt, its first pose is aligned to the true pose of the frame with the same
+// timestamp, so a tracked scan that started from another frame is compared fairly.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "drivers/sim/scene.h"
+#include "sdk/core/camera_model_shared.h"
+#include "sdk/core/image.h"
+#include "sdk/core/point_cloud.h"
+#include "sdk/core/pose.h"
+#include "sdk/core/progress.h"
+
+namespace sls::eval {
+
+// Radius-limited nearest-neighbour queries over a fixed point set: a uniform grid of
+// `cell_size_m` cells (sorted cell keys), so a query within one cell size reads 27 cells.
+class PointGrid {
+ public:
+  // sls::Error(kInvalidArgument) for a cell size that is not positive, or points so far from
+  // the origin that cell indices overflow (more than 2^20 cells out).
+  PointGrid(std::vector<Eigen::Vector3d> points, double cell_size_m);
+
+  std::size_t size() const { return points_.size(); }
+  // The nearest point within max_distance_m of p: its index (and distance), or -1.
+  std::ptrdiff_t nearest(const Eigen::Vector3d& p, double max_distance_m, double* distance_m = nullptr) const;
+  bool any_within(const Eigen::Vector3d& p, double radius_m) const;
+
+ private:
+  std::uint64_t key_of(const Eigen::Vector3d& p, std::int64_t offset[3]) const;
+  template <typename Visit>
+  void visit_near(const Eigen::Vector3d& p, double radius_m, const Visit& visit) const;
+
+  std::vector<Eigen::Vector3d> points_;  // sorted by cell
+  std::vector<std::uint64_t> cell_keys_; // one per non-empty cell, ascending
+  std::vector<std::uint32_t> cell_begin_;  // first point of each cell; one extra at the end
+  double cell_size_m_ = 0.0;
+};
+
+struct DistanceStats {
+  std::size_t count = 0;
+  double mean_m = 0.0;
+  double rms_m = 0.0;
+  double p95_m = 0.0;  // nearest-rank 95th percentile
+  double max_m = 0.0;
+};
+
+DistanceStats distance_stats(std::vector<double> distances_m);
+
+struct SurfaceErrors {
+  DistanceStats all;
+  bool has_creases = false;
+  DistanceStats edge;  // points within the edge band of a crease (count 0 without creases)
+};
+
+// c2c and edge c2c of object-frame points against the scene (OpenMP over points).
+SurfaceErrors surface_errors(const std::vector<Eigen::Vector3d>& points_object, const sim::Scene& scene,
+                             double edge_band_m);
+
+// Which reference points a recording's frames saw (see coverage above).
+class VisibilityMask {
+ public:
+  // Reference points and their outward normals, object frame (normals may be empty: then no
+  // facing test).
+  VisibilityMask(std::vector<Eigen::Vector3d> points, std::vector<Eigen::Vector3d> normals);
+  // Marks the points this frame sees. depth_m: the true camera-frame z per pixel (0: no
+  // surface); valid: nonzero where the surface is visible and lit. Both camera-sized.
+  void add_frame(const CameraIntrinsics& camera, const Pose& T_object_camera, const Image32f& depth_m,
+                 const Image8u& valid, double min_depth_tolerance_m);
+  const std::vector<std::uint8_t>& visible() const { return visible_; }
+  std::size_t visible_count() const;
+
+ private:
+  std::vector<Eigen::Vector3d> points_;
+  std::vector<Eigen::Vector3d> normals_;
+  std::vector<std::uint8_t> visible_;
+};
+
+struct Coverage {
+  std::size_t considered = 0;  // reference points counted (visible ones)
+  std::size_t covered = 0;     // of those, with an output point within the radius
+  double fraction() const { return considered > 0 ? static_cast<double>(covered) / static_cast<double>(considered) : 0.0; }
+};
+
+// Coverage of `reference` by the output points in `output` (a grid of them); `mask` (same
+// length as reference, or null for all) selects the points that count.
+Coverage coverage(const std::vector<Eigen::Vector3d>& reference, const std::vector<std::uint8_t>* mask,
+                  const PointGrid& output, double radius_m);
+
+struct EvalOptions {
+  double voxel_size_m = 0.0;  // 0: from the result's report.json ("voxel_size_m")
+  double edge_band_voxels = 3.0;
+  double coverage_radius_voxels = 2.0;
+  int visibility_stride = 1;  // test every n-th frame's visibility (paper-size recordings)
+  bool align_first_pose = true;
+};
+
+struct EvalReport {
+  std::string result_folder;
+  std::string recording_folder;
+  std::string scene_name;
+  double voxel_size_m = 0.0;
+  std::string voxel_size_source;  // "option" or "report.json"
+  std::size_t cloud_points = 0;
+  SurfaceErrors cloud;
+  std::optional<SurfaceErrors> mesh;  // mesh.ply's vertices, when present
+  std::size_t mesh_vertices = 0;
+  double edge_band_m = 0.0;
+  std::size_t reference_points = 0;
+  Coverage coverage;
+  std::string coverage_basis;  // "visible" or "bounding-box"
+  double coverage_radius_m = 0.0;
+  std::size_t frames_checked = 0;  // frames whose visibility was tested
+  std::string alignment;           // "none" or "first-pose"
+  Pose T_object_world;             // applied to the output before comparing
+};
+
+// Evaluates RESULT (cloud.ply, optional mesh.ply, report.json, trajectory.txt) against the
+// simulated recording REC. sls::Error naming the file and what to do: kNotFound (no cloud.ply,
+// no recording, missing ground-truth files), kInvalidArgument (a recording without ground
+// truth, an empty cloud, no voxel size anywhere, bad options), kFormat (corrupt files).
+EvalReport evaluate_result(const std::string& result_folder, const std::string& recording_folder,
+                           const EvalOptions& options, const ProgressCallback& progress = {});
+
+}  // namespace sls::eval

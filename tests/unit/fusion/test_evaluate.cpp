@@ -1,0 +1,308 @@
+// The quality metrics of `sls eval` (samples/sls/evaluate.h): nearest neighbours, statistics,
+// C2C and edge C2C against the simulator's exact scenes, visibility, coverage, and the whole
+// evaluation of a result folder against a small simulated recording.
+#include "samples/sls/evaluate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "drivers/sim/sim_recording.h"
+#include "sdk/core/error.h"
+#include "sdk/core/file_util.h"
+#include "sdk/core/ply.h"
+#include "sdk/core/recording.h"
+#include "sdk/core/trajectory.h"
+#include "tests/support/test_support.h"
+
+namespace sls::eval {
+namespace {
+
+constexpr double kUm = 1e-6;
+
+// Runs `body`, which must throw sls::Error with `code` and a message containing `needle`.
+template <typename Body>
+void expect_error(const Body& body, ErrorCode code, const std::string& needle) {
+  try {
+    body();
+    ADD_FAILURE() << "no error (expected one mentioning '" << needle << "')";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), code) << error.what();
+    EXPECT_NE(std::string(error.what()).find(needle), std::string::npos) << error.what();
+  }
+}
+
+std::vector<Eigen::Vector3d> positions(const std::vector<sim::SurfaceSample>& samples, double shift_m = 0.0) {
+  std::vector<Eigen::Vector3d> out;
+  for (const sim::SurfaceSample& s : samples) {
+    // Through float, as a cloud read from PLY would be.
+    out.push_back((s.position + shift_m * s.normal).cast<float>().cast<double>());
+  }
+  return out;
+}
+
+TEST(PointGrid, NearestAndWithinMatchBruteForce) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> coordinate(-0.005, 0.005);
+  std::vector<Eigen::Vector3d> points(4000);
+  for (Eigen::Vector3d& p : points) p = Eigen::Vector3d(coordinate(rng), coordinate(rng), coordinate(rng));
+  const PointGrid grid(points, 4e-4);
+  for (const double radius : {2e-4, 4e-4, 1.1e-3}) {
+    for (int q = 0; q < 300; ++q) {
+      const Eigen::Vector3d p(coordinate(rng), coordinate(rng), coordinate(rng));
+      double best = HUGE_VAL;
+      for (const Eigen::Vector3d& candidate : points) best = std::min(best, (candidate - p).norm());
+      double distance = -1.0;
+      const std::ptrdiff_t found = grid.nearest(p, radius, &distance);
+      if (best <= radius) {
+        ASSERT_GE(found, 0);
+        EXPECT_DOUBLE_EQ(distance, best);
+        EXPECT_TRUE(grid.any_within(p, radius));
+      } else {
+        EXPECT_EQ(found, -1);
+        EXPECT_FALSE(grid.any_within(p, radius));
+      }
+    }
+  }
+  EXPECT_EQ(PointGrid({}, 1e-3).nearest(Eigen::Vector3d::Zero(), 1.0), -1);
+  EXPECT_THROW(PointGrid(points, 0.0), Error);
+  EXPECT_THROW(PointGrid({Eigen::Vector3d(1e4, 0.0, 0.0)}, 1e-3), Error);
+}
+
+TEST(DistanceStats, MeanRmsNearestRankPercentileAndMax) {
+  std::vector<double> values;
+  for (int n = 100; n >= 1; --n) values.push_back(n);
+  const DistanceStats stats = distance_stats(values);
+  EXPECT_EQ(stats.count, 100u);
+  EXPECT_DOUBLE_EQ(stats.mean_m, 50.5);
+  EXPECT_DOUBLE_EQ(stats.rms_m, std::sqrt(338350.0 / 100.0));  // sum of squares 1..100
+  EXPECT_DOUBLE_EQ(stats.p95_m, 95.0);
+  EXPECT_DOUBLE_EQ(stats.max_m, 100.0);
+  EXPECT_EQ(distance_stats({}).count, 0u);
+  EXPECT_DOUBLE_EQ(distance_stats({3.0}).p95_m, 3.0);
+}
+
+TEST(SurfaceErrors, ExactSamplesOfThePlaneAndSphereAreOnTheSurface) {
+  for (const sim::Scene& scene : {sim::make_plane_scene(), sim::make_sphere_scene()}) {
+    SCOPED_TRACE(scene.name());
+    const std::vector<Eigen::Vector3d> exact = positions(scene.reference_samples(2e-4));
+    ASSERT_GT(exact.size(), 1000u);
+    const SurfaceErrors errors = surface_errors(exact, scene, 75e-6);
+    EXPECT_EQ(errors.all.count, exact.size());
+    EXPECT_LT(errors.all.mean_m, 0.01 * kUm);
+    EXPECT_LT(errors.all.max_m, 0.01 * kUm);
+    EXPECT_FALSE(errors.has_creases);
+    EXPECT_EQ(errors.edge.count, 0u);
+  }
+}
+
+TEST(SurfaceErrors, SamplesShiftedFiveMicronsAreFiveMicronsOff) {
+  for (const sim::Scene& scene : {sim::make_plane_scene(), sim::make_sphere_scene()}) {
+    SCOPED_TRACE(scene.name());
+    for (const double sign : {1.0, -1.0}) {
+      const SurfaceErrors errors = surface_errors(positions(scene.reference_samples(2e-4), sign * 5e-6), scene, 75e-6);
+      EXPECT_NEAR(errors.all.mean_m, 5e-6, 0.01 * kUm);
+      EXPECT_NEAR(errors.all.rms_m, 5e-6, 0.01 * kUm);
+      EXPECT_NEAR(errors.all.p95_m, 5e-6, 0.01 * kUm);
+    }
+  }
+}
+
+TEST(SurfaceErrors, EdgeRegionIsThePointsNearTheKnurlsCreases) {
+  const sim::Scene screw = sim::make_knurled_screw_scene();
+  const std::vector<sim::SurfaceSample> samples = screw.reference_samples(1e-4, sim::ZRange{0.006, 0.008});
+  const double band = 3.0 * 25e-6;
+  const SurfaceErrors exact = surface_errors(positions(samples), screw, band);
+  ASSERT_TRUE(exact.has_creases);
+  std::size_t near = 0;
+  for (const sim::SurfaceSample& s : samples) near += screw.distance_to_creases(s.position) <= band ? 1u : 0u;
+  EXPECT_EQ(exact.edge.count, near);
+  EXPECT_GT(exact.edge.count, samples.size() / 20);
+  EXPECT_LT(exact.edge.count, samples.size() / 2);
+  EXPECT_LT(exact.all.max_m, 0.01 * kUm);
+  EXPECT_LT(exact.edge.max_m, 0.01 * kUm);
+  // Pushed out 5 µm along the normals: 5 µm on the flanks; at a ridge (convex) still 5 µm,
+  // in a groove (concave) the other flank can be nearer, so the edge mean is at most 5 µm.
+  const SurfaceErrors shifted = surface_errors(positions(samples, 5e-6), screw, band);
+  EXPECT_NEAR(shifted.all.p95_m, 5e-6, 0.01 * kUm);
+  EXPECT_LE(shifted.edge.mean_m, 5e-6 + 0.01 * kUm);
+  EXPECT_GT(shifted.edge.mean_m, 3.5e-6);
+  std::printf("knurled screw band z 6..8 mm: %zu samples, %zu in the edge band; +5 um: mean %.4f um, edge mean %.4f um\n",
+              samples.size(), exact.edge.count, shifted.all.mean_m / kUm, shifted.edge.mean_m / kUm);
+}
+
+TEST(Coverage, DenseSamplingCoversAllAndHalfOfItHalf) {
+  const sim::Scene sphere = sim::make_sphere_scene();
+  const std::vector<Eigen::Vector3d> reference = positions(sphere.reference_samples(5e-5));
+  const double radius = 2.0 * 25e-6;
+  const Coverage all = coverage(reference, nullptr, PointGrid(reference, radius), radius);
+  EXPECT_EQ(all.considered, reference.size());
+  EXPECT_EQ(all.covered, reference.size());
+  EXPECT_DOUBLE_EQ(all.fraction(), 1.0);
+  std::vector<Eigen::Vector3d> half;
+  for (const Eigen::Vector3d& p : reference) {
+    if (p.x() >= 0.0) half.push_back(p);
+  }
+  const Coverage partial = coverage(reference, nullptr, PointGrid(half, radius), radius);
+  EXPECT_NEAR(partial.fraction(), 0.5, 0.01);
+  std::printf("sphere, %zu reference points: coverage %.4f by all, %.4f by the x >= 0 half\n", reference.size(),
+              all.fraction(), partial.fraction());
+  // A mask counts only the points it selects.
+  std::vector<std::uint8_t> mask(reference.size(), 0);
+  for (std::size_t n = 0; n < reference.size(); ++n) mask[n] = reference[n].x() >= 0.001 ? 1 : 0;
+  EXPECT_DOUBLE_EQ(coverage(reference, &mask, PointGrid(half, radius), radius).fraction(), 1.0);
+}
+
+// A camera 10 cm above the sheet z = 0, looking straight down at it.
+TEST(VisibilityMask, PointsOnValidUnoccludedPixelsFacingTheCamera) {
+  CameraIntrinsics camera;
+  camera.width = 200;
+  camera.height = 200;
+  camera.fx = camera.fy = 2000.0;  // 50 µm per pixel at 10 cm
+  camera.cx = camera.cy = 99.5;
+  const Pose T_object_camera(Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal().toDenseMatrix(), Eigen::Vector3d(0.0, 0.0, 0.1));
+  // pixel u = 99.5 + 20000 x, v = 99.5 - 20000 y.
+  Image32f depth(200, 200, 0.1f);
+  Image8u valid(200, 200, 0);
+  for (int y = 0; y < 200; ++y) {
+    for (int x = 0; x < 100; ++x) valid(x, y) = 255;  // lit only on the left (x < 0)
+  }
+  for (int y = 0; y < 50; ++y) {
+    for (int x = 0; x < 50; ++x) depth(x, y) = 0.05f;  // something in front, top left (x, y < -2.5 mm)
+  }
+  const std::vector<Eigen::Vector3d> points = {
+      {-0.002, -0.001, 0.0},   // lit, seen
+      {0.002, -0.001, 0.0},    // unlit half
+      {-0.003, 0.003, 0.0},    // behind the occluder
+      {-0.002, -0.001, 0.0},   // as the first, but facing away
+      {-0.020, 0.0, 0.0},      // outside the image
+  };
+  const std::vector<Eigen::Vector3d> normals = {
+      Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitZ(), -Eigen::Vector3d::UnitZ(),
+      Eigen::Vector3d::UnitZ()};
+  VisibilityMask mask(points, normals);
+  mask.add_frame(camera, T_object_camera, depth, valid, 50e-6);
+  EXPECT_EQ(mask.visible(), (std::vector<std::uint8_t>{1, 0, 0, 0, 0}));
+  EXPECT_EQ(mask.visible_count(), 1u);
+  EXPECT_THROW(mask.add_frame(camera, T_object_camera, Image32f(10, 10), valid, 50e-6), Error);
+}
+
+// ---------------------------------------------------------------------------------------
+// A result folder against a small simulated recording (depth mode, four views of the sphere).
+
+class EvaluateResult : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    directory_ = new test::TemporaryDirectory();
+    sim::SimRecordingOptions options;
+    options.object = "sphere";
+    options.depth_mode = true;
+    options.rig.preset = "ci";
+    options.rig.frames = 4;
+    options.reference_spacing_m = 100e-6;
+    sim::write_sim_recording(recording(), options, Device::cpu(), {});
+  }
+  static void TearDownTestSuite() {
+    delete directory_;
+    directory_ = nullptr;
+  }
+  static std::string recording() { return directory_->file("recording"); }
+  static std::string truth(const std::string& name) { return recording() + "/groundtruth/" + name; }
+
+  // A result folder holding `cloud` and a report.json with the voxel size.
+  std::string result(const std::string& name, const PointCloud& cloud, bool with_report = true) {
+    const std::string folder = directory_->file(name);
+    create_directories(folder);
+    write_ply(folder + "/cloud.ply", cloud);
+    if (with_report) write_file_atomic(folder + "/report.json", R"({"voxel_size_m": 5e-05})");
+    return folder;
+  }
+
+  static test::TemporaryDirectory* directory_;
+};
+
+test::TemporaryDirectory* EvaluateResult::directory_ = nullptr;
+
+TEST_F(EvaluateResult, TheReferenceItselfIsExactAndCoversWhatWasSeen) {
+  const PointCloud reference = read_ply_cloud(truth("reference.ply"));
+  const EvalReport report = evaluate_result(result("exact", reference), recording(), {});
+  EXPECT_EQ(report.scene_name, "sphere");
+  EXPECT_DOUBLE_EQ(report.voxel_size_m, 5e-5);
+  EXPECT_EQ(report.voxel_size_source, "report.json");
+  EXPECT_EQ(report.cloud_points, reference.size());
+  EXPECT_LT(report.cloud.all.mean_m, 0.01 * kUm);
+  EXPECT_LT(report.cloud.all.p95_m, 0.01 * kUm);
+  EXPECT_EQ(report.coverage_basis, "visible");
+  EXPECT_EQ(report.frames_checked, 4u);
+  EXPECT_EQ(report.alignment, "none");
+  // Four views around the axis see the sphere's side, not its poles.
+  EXPECT_GT(report.coverage.considered, reference.size() / 4);
+  EXPECT_LT(report.coverage.considered, reference.size());
+  EXPECT_DOUBLE_EQ(report.coverage.fraction(), 1.0);
+  std::printf("sphere recording: %zu reference points, %zu seen by 4 frames\n", reference.size(),
+              report.coverage.considered);
+}
+
+TEST_F(EvaluateResult, HalfTheSurfaceCoversAboutHalf) {
+  PointCloud half;
+  for (const Eigen::Vector3f& p : read_ply_cloud(truth("reference.ply")).positions) {
+    if (p.x() >= 0.0f) half.positions.push_back(p);
+  }
+  const EvalReport report = evaluate_result(result("half", half), recording(), {});
+  EXPECT_GT(report.coverage.fraction(), 0.3);
+  EXPECT_LT(report.coverage.fraction(), 0.7);
+  EXPECT_LT(report.cloud.all.max_m, 0.01 * kUm);
+}
+
+TEST_F(EvaluateResult, ATrackedResultIsAlignedByItsFirstPose) {
+  // As a tracker that starts at the identity would write it: world = the first camera's frame.
+  const std::vector<StampedPose> truth_poses = read_tum_trajectory(truth("trajectory.txt"));
+  const Pose T_world_object = truth_poses.front().T_world_camera.inverse();
+  PointCloud cloud = read_ply_cloud(truth("reference.ply"));
+  for (Eigen::Vector3f& p : cloud.positions) p = (T_world_object * p.cast<double>()).cast<float>();
+  std::vector<StampedPose> estimated = truth_poses;
+  for (StampedPose& pose : estimated) pose.T_world_camera = T_world_object * pose.T_world_camera;
+  const std::string folder = result("tracked", cloud);
+  write_tum_trajectory(folder + "/trajectory.txt", estimated);
+  const EvalReport aligned = evaluate_result(folder, recording(), {});
+  EXPECT_EQ(aligned.alignment, "first-pose");
+  EXPECT_LT(aligned.cloud.all.mean_m, 0.01 * kUm);
+  EvalOptions no_align;
+  no_align.align_first_pose = false;
+  EXPECT_GT(evaluate_result(folder, recording(), no_align).cloud.all.mean_m, 1e-3);
+}
+
+TEST_F(EvaluateResult, VoxelSizeFromTheOptionWhenTheReportHasNone) {
+  PointCloud cloud = read_ply_cloud(truth("reference.ply"));
+  const std::string folder = result("no-report", cloud, false);
+  expect_error([&] { evaluate_result(folder, recording(), {}); }, ErrorCode::kInvalidArgument, "--voxel-um");
+  EvalOptions options;
+  options.voxel_size_m = 20e-6;
+  const EvalReport report = evaluate_result(folder, recording(), options);
+  EXPECT_EQ(report.voxel_size_source, "option");
+  EXPECT_DOUBLE_EQ(report.coverage_radius_m, 40e-6);
+}
+
+TEST_F(EvaluateResult, MissingFilesAndRecordingsWithoutTruthAreClearErrors) {
+  const std::string empty = directory_->file("empty");
+  create_directories(empty);
+  expect_error([&] { evaluate_result(empty, recording(), {}); }, ErrorCode::kNotFound, "cloud.ply");
+  const std::string exact = result("exact2", read_ply_cloud(truth("reference.ply")));
+  expect_error([&] { evaluate_result(exact, directory_->file("no-such-recording"), {}); }, ErrorCode::kNotFound,
+               "no-such-recording");
+
+  // A recording without ground truth (a real scan).
+  RecordingInfo info;
+  info.camera = {64, 48, 8};
+  const std::string plain = directory_->file("plain");
+  RecordingWriter::create(plain, info, std::nullopt).close();
+  expect_error([&] { evaluate_result(exact, plain, {}); }, ErrorCode::kInvalidArgument, "no ground truth");
+}
+
+}  // namespace
+}  // namespace sls::eval
