@@ -1,15 +1,28 @@
 // sls scan: the scan pipeline, from a recording or the built-in simulator, to a model.
 // It runs the stages that exist in this build and names the first one that does not;
-// it never writes made-up output.
+// it never writes made-up output. With --poses groundtruth (simulated recordings) every
+// frame is decoded (or its depth map read) and fused with its true pose into one volume
+// around the object; --poses track needs the tracker of issue #6.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "drivers/sim/sim_recording.h"
+#include "fusion/extract.h"
+#include "fusion/integrator.h"
 #include "samples/sls/commands.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
+#include "sdk/core/file_util.h"
+#include "sdk/core/ply.h"
 #include "sdk/core/recording.h"
+#include "sdk/core/trajectory.h"
 #include "sdk/decode/decoder.h"
 
 namespace sls::cli {
@@ -24,8 +37,165 @@ struct ScanOptions {
   std::string device = "cuda";
   std::string fusion = "gtsdf";
   std::string poses = "track";
+  double voxel_um = 0.0;          // 0: twice the camera's pixel footprint, grown to fit max_voxels
+  double max_voxels_million = 0;  // 0: 256 on a GPU, 48 on the CPU
   bool device_given = false;
 };
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// The volume around the object: the bounding box of the ground truth's reference surface
+// plus a margin of the integration band, at the requested (or automatic) voxel size.
+fusion::VolumeGeometry object_volume(const RecordingReader& recording, const ScanOptions& options,
+                                     const Device& device, const fusion::IntegrationOptions& fusion_options) {
+  const std::string reference_path = recording.groundtruth_folder() + "/reference.ply";
+  if (!std::filesystem::exists(reference_path)) {
+    throw_error(ErrorCode::kInvalidArgument, "{} has no ground-truth reference.ply to place the volume around",
+                recording.folder());
+  }
+  const PointCloud reference = read_ply_cloud(reference_path);
+  if (reference.empty()) throw_error(ErrorCode::kFormat, "{} holds no points", reference_path);
+  Eigen::Vector3d lo = reference.positions[0].cast<double>(), hi = lo;
+  for (const Eigen::Vector3f& p : reference.positions) {
+    lo = lo.cwiseMin(p.cast<double>());
+    hi = hi.cwiseMax(p.cast<double>());
+  }
+  const CameraIntrinsics& camera = recording.calibration().camera;
+  double voxel = options.voxel_um * 1e-6;
+  if (voxel <= 0.0) {
+    // Twice the pixel footprint at the working distance (the median depth is ~ the focus).
+    const double working_distance = 0.1;
+    voxel = 2.0 * working_distance / camera.fx;
+  }
+  const double budget = (options.max_voxels_million > 0.0 ? options.max_voxels_million
+                                                          : (device.is_cuda() ? 256.0 : 48.0)) * 1e6;
+  for (;;) {
+    const double margin = (fusion_options.eta_voxels + 2.0) * voxel;
+    const Eigen::Vector3d size = (hi - lo).array() + 2.0 * margin;
+    const Eigen::Vector3i counts = (size / voxel).array().ceil().cast<int>();
+    const double total = static_cast<double>(counts.x()) * counts.y() * counts.z();
+    if (total <= budget || options.voxel_um > 0.0) {
+      return fusion::VolumeGeometry::centred(0.5 * (lo + hi), counts.x(), counts.y(), counts.z(), voxel);
+    }
+    voxel *= std::cbrt(total / budget) * 1.001;
+  }
+}
+
+// Fuses every frame with its ground-truth pose and writes the model; returns the report.
+nlohmann::json fuse_with_groundtruth(const Context& context, const RecordingReader& recording,
+                                     const ScanOptions& options, const Device& device) {
+  const std::string trajectory_path = recording.groundtruth_folder() + "/trajectory.txt";
+  if (!std::filesystem::exists(trajectory_path)) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "--poses groundtruth: {} has no ground-truth trajectory (only simulated recordings do)",
+                recording.folder());
+  }
+  const std::vector<StampedPose> truth = read_tum_trajectory(trajectory_path);
+  if (truth.size() != recording.frame_count()) {
+    throw_error(ErrorCode::kFormat, "{}: {} poses for {} frames", trajectory_path, truth.size(),
+                recording.frame_count());
+  }
+  const RecordingInfo& info = recording.info();
+  const CameraIntrinsics& camera = recording.calibration().camera;
+  const fusion::IntegrationOptions fusion_options = fusion::parse_fusion_method(options.fusion);
+  const fusion::VolumeGeometry geometry = object_volume(recording, options, device, fusion_options);
+  fusion::Volume volume(geometry, fusion::VoxelFormat::kCompact, device);
+  fusion::Integrator integrator(device, fusion_options);
+  if (!context.options.json) {
+    std::cerr << fmt::format("volume {} x {} x {} voxels of {:.1f} um ({:.0f} MiB, {}), {} fusion on {}\n",
+                             geometry.nx, geometry.ny, geometry.nz, geometry.voxel_size_m * 1e6,
+                             static_cast<double>(volume.bytes()) / 1048576.0,
+                             fusion::voxel_format_name(volume.format()), options.fusion, device.to_string());
+  }
+
+  std::optional<Decoder> decoder;
+  if (info.images_per_frame > 0) {
+    DecodeOptions decode_options;
+    decode_options.bit_depth = info.camera.bit_depth;
+    decoder.emplace(pattern_set_from_json(info.pattern_set_json), recording.calibration(), device, decode_options);
+  }
+  double decode_ms = 0.0, integrate_ms = 0.0, read_ms = 0.0;
+  nlohmann::json skipped = nlohmann::json::array();
+  std::vector<StampedPose> used;
+  std::size_t active = 0;
+  const ProgressCallback progress = context.progress_callback("fuse");
+  for (std::size_t i = 0; i < recording.frame_count(); ++i) {
+    report_progress(progress, {"fuse", i, recording.frame_count(), ""});
+    Image32f depth;
+    try {
+      if (decoder) {
+        if (!recording.frame(i).complete) throw_error(ErrorCode::kFormat, "incomplete pattern stack");
+        auto start = Clock::now();
+        const std::vector<Image16u> images = recording.load_images(i);
+        read_ms += ms_since(start);
+        start = Clock::now();
+        depth = decoder->decode(images).depth_m;
+        decode_ms += ms_since(start);
+      } else {
+        const auto start = Clock::now();
+        std::optional<Image32f> map = recording.load_depth_m(i);
+        read_ms += ms_since(start);
+        if (!map) throw_error(ErrorCode::kFormat, "no depth map");
+        depth = std::move(*map);
+      }
+    } catch (const Error& error) {
+      // A bad frame is reported and skipped; the frames fused so far are kept.
+      skipped.push_back({{"frame", i}, {"reason", error.what()}});
+      continue;
+    }
+    const auto start = Clock::now();
+    active += integrator.integrate(volume, depth, camera, truth[i].T_world_camera).active_voxels;
+    integrate_ms += ms_since(start);
+    used.push_back(truth[i]);
+  }
+  report_progress(progress, {"fuse", recording.frame_count(), recording.frame_count(), ""});
+
+  auto start = Clock::now();
+  const fusion::Volume on_host = volume.to_host();
+  const fusion::ExtractedSurface surface = fusion::extract_surface(on_host);
+  const PointCloud& cloud = surface.cloud;
+  const TriangleMesh& mesh = surface.mesh;
+  const double extract_ms = ms_since(start);
+  std::filesystem::create_directories(options.out);
+  write_ply(options.out + "/cloud.ply", cloud);
+  write_ply(options.out + "/mesh.ply", mesh);
+  write_tum_trajectory(options.out + "/trajectory.txt", used);
+
+  nlohmann::json report;
+  report["format"] = "slscan-scan-report";
+  report["format_version"] = 1;
+  report["input"] = recording.folder();
+  report["device"] = device.to_string();
+  report["poses"] = "groundtruth";
+  report["fusion"] = {{"method", options.fusion},
+                      {"truncation_voxels", fusion_options.truncation_voxels},
+                      {"eta_voxels", fusion_options.eta_voxels},
+                      {"weight_max", fusion_options.weight_max},
+                      {"lambda", fusion_options.lambda},
+                      {"beta", fusion_options.beta},
+                      {"kappa", fusion_options.kappa},
+                      {"penalty", fusion::penalty_name(fusion_options.penalty)},
+                      {"iterations", fusion_options.iterations}};
+  report["voxel_size_m"] = geometry.voxel_size_m;
+  report["volume"] = {{"voxels", {geometry.nx, geometry.ny, geometry.nz}},
+                      {"format", fusion::voxel_format_name(volume.format())},
+                      {"bytes", volume.bytes()}};
+  report["frames"] = recording.frame_count();
+  report["frames_fused"] = used.size();
+  report["lost_frames"] = skipped;
+  report["active_voxels_per_frame"] = used.empty() ? 0.0 : static_cast<double>(active) / static_cast<double>(used.size());
+  report["ms_per_stage"] = {{"read", read_ms}, {"decode", decode_ms}, {"integrate", integrate_ms},
+                            {"extract", extract_ms}};
+  report["points"] = cloud.size();
+  report["triangles"] = mesh.faces.size();
+  report["outputs"] = {{"cloud", options.out + "/cloud.ply"}, {"mesh", options.out + "/mesh.ply"},
+                       {"trajectory", options.out + "/trajectory.txt"}, {"report", options.out + "/report.json"}};
+  write_file_atomic(options.out + "/report.json", report.dump(2) + "\n");
+  return report;
+}
 
 int run_scan(const Context& context, const ScanOptions& options) {
   // An explicit --device cuda without a GPU is an error, not a silent fallback.
@@ -54,6 +224,20 @@ int run_scan(const Context& context, const ScanOptions& options) {
   if (!recording.has_calibration()) {
     throw_error(ErrorCode::kInvalidArgument, "{} has no calibration.yml: a scan needs a calibrated recording", input);
   }
+  if (options.poses == "groundtruth") {
+    const nlohmann::json report = fuse_with_groundtruth(context, recording, options, device);
+    if (context.options.json) {
+      std::cout << report.dump(2) << "\n";
+    } else {
+      std::cout << fmt::format("fused {} of {} frames: {} points, {} triangles\n  {}\n  {}\n  {}\n",
+                               report["frames_fused"].get<std::size_t>(), report["frames"].get<std::size_t>(),
+                               report["points"].get<std::size_t>(), report["triangles"].get<std::size_t>(),
+                               report["outputs"]["cloud"].get<std::string>(),
+                               report["outputs"]["mesh"].get<std::string>(),
+                               report["outputs"]["report"].get<std::string>());
+    }
+    return 0;
+  }
   const RecordingInfo& info = recording.info();
   std::size_t decoded_pixels = 0, frames_decoded = 0, frames_with_depth = 0;
   if (info.images_per_frame > 0) {
@@ -80,8 +264,8 @@ int run_scan(const Context& context, const ScanOptions& options) {
                                            : 0.0)
           : fmt::format("read {} depth map(s) from {}", frames_with_depth, input);
   throw_error(ErrorCode::kUnsupported,
-              "{}; tracking and fusion (fusion/) are not in this build yet, so no cloud, mesh or trajectory can be "
-              "made. Missing stages: tracking, fusion.",
+              "{}; the tracker (--poses track) is not in this build yet, so no trajectory, cloud or mesh can be "
+              "made. Missing stage: tracking. A simulated recording can be fused with --poses groundtruth.",
               done);
 }
 
@@ -109,6 +293,13 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--poses", options->poses, "Camera poses: track (ICP) or groundtruth (simulated recordings)")
       ->check(CLI::IsMember({"track", "groundtruth"}))
       ->capture_default_str();
+  command->add_option("--voxel-um", options->voxel_um,
+                      "Voxel size in um (0: twice the pixel footprint, grown to fit --max-voxels)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  command->add_option("--max-voxels", options->max_voxels_million,
+                      "Largest volume in millions of voxels for the automatic voxel size (0: 256 on a GPU, 48 on the CPU)")
+      ->check(CLI::NonNegativeNumber);
   command->callback([&context, exit_code, options, command] {
     run_command(context, "scan", [&context, options, command] {
       if (options->input.empty() && options->sim_preset.empty()) {
