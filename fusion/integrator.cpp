@@ -187,7 +187,13 @@ struct Integrator::Impl {
   DeviceBuffer<ActiveVoxel> device_active[2];
   DeviceBuffer<std::uint32_t> counters;
   std::uint32_t capacity = 0;
+  void* sort_scratch = nullptr;  // cub's temporary storage and the sorted copy, grown as needed
+  std::size_t sort_scratch_bytes = 0;
+  ActiveVoxel* sorted = nullptr;
+  std::size_t sorted_capacity = 0;
   ~Impl() {
+    if (sort_scratch != nullptr) (void)cudaFree(sort_scratch);
+    if (sorted != nullptr) (void)cudaFree(sorted);
     if (stream != nullptr) (void)cudaStreamDestroy(stream);
   }
 #endif
@@ -364,6 +370,10 @@ IntegrationStats Integrator::integrate_device(Volume& volume, const float* depth
       stats.overflow += counts[parity] - capacity;
       counts[parity] = capacity;
     }
+  }
+  for (int parity = 0; parity < 2; ++parity) {
+    detail::sort_active_cuda(s.device_active[parity].data(), counts[parity], &s.sort_scratch, &s.sort_scratch_bytes,
+                             &s.sorted, &s.sorted_capacity, s.stream);
   }
   for (int t = 0; t < s.options.iterations; ++t) {
     for (int parity = 0; parity < 2; ++parity) {

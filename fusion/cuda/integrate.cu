@@ -2,6 +2,8 @@
 // per active voxel around relax_voxel (integrate_shared.h, the code the CPU loops run).
 #include "fusion/cuda/integrate_cuda.h"
 
+#include <cub/device/device_radix_sort.cuh>
+
 #include "sdk/core/cuda/cuda_check.h"
 
 namespace sls::fusion::detail {
@@ -45,6 +47,33 @@ void launch_integrate_cuda(const VolumeView& volume, const IntegrationParams& pa
                                                first[0] + extent[0], first[1] + extent[1], active[0], active[1],
                                                counters, capacity);
   SLS_CUDA_CHECK_LAUNCH();
+}
+
+void sort_active_cuda(ActiveVoxel* active, std::uint32_t count, void** scratch, std::size_t* scratch_bytes,
+                      ActiveVoxel** sorted, std::size_t* sorted_capacity, cudaStream_t stream) {
+  if (count < 2) return;
+  // An ActiveVoxel is 8 bytes, index in the low word: sort it as a 64-bit key on bits 0..31.
+  static_assert(sizeof(ActiveVoxel) == sizeof(unsigned long long), "ActiveVoxel packs into 64 bits");
+  const auto* keys_in = reinterpret_cast<const unsigned long long*>(active);
+  if (*sorted_capacity < count) {
+    if (*sorted != nullptr) SLS_CUDA_CHECK(cudaFree(*sorted));
+    *sorted = nullptr;
+    SLS_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(sorted), count * sizeof(ActiveVoxel)));
+    *sorted_capacity = count;
+  }
+  auto* keys_out = reinterpret_cast<unsigned long long*>(*sorted);
+  std::size_t needed = 0;
+  SLS_CUDA_CHECK(cub::DeviceRadixSort::SortKeys(nullptr, needed, keys_in, keys_out, static_cast<int>(count), 0, 32,
+                                                stream));
+  if (*scratch_bytes < needed) {
+    if (*scratch != nullptr) SLS_CUDA_CHECK(cudaFree(*scratch));
+    *scratch = nullptr;
+    SLS_CUDA_CHECK(cudaMalloc(scratch, needed));
+    *scratch_bytes = needed;
+  }
+  SLS_CUDA_CHECK(cub::DeviceRadixSort::SortKeys(*scratch, needed, keys_in, keys_out, static_cast<int>(count), 0, 32,
+                                                stream));
+  SLS_CUDA_CHECK(cudaMemcpyAsync(active, *sorted, count * sizeof(ActiveVoxel), cudaMemcpyDeviceToDevice, stream));
 }
 
 void launch_relax_cuda(const VolumeView& volume, const IntegrationParams& params, const ActiveVoxel* active,

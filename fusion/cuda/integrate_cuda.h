@@ -17,6 +17,10 @@ namespace sls::fusion::detail {
 void launch_integrate_cuda(const VolumeView& volume, const IntegrationParams& params, const DepthFrameView& frame,
                            const int first[3], const int extent[3], ActiveVoxel* const active[2],
                            std::uint32_t* counters, std::uint32_t capacity, cudaStream_t stream);
+// Sorts `count` active voxels by index in place (atomics append them in no order; sorted,
+// neighbouring threads read neighbouring voxels). `scratch` grows as needed.
+void sort_active_cuda(ActiveVoxel* active, std::uint32_t count, void** scratch, std::size_t* scratch_bytes,
+                      ActiveVoxel** sorted, std::size_t* sorted_capacity, cudaStream_t stream);
 // One half-sweep over `count` active voxels of one parity.
 void launch_relax_cuda(const VolumeView& volume, const IntegrationParams& params, const ActiveVoxel* active,
                        std::uint32_t count, cudaStream_t stream);
