@@ -400,6 +400,7 @@ TEST(AravisCamera, FrameIdGapsAreCountedWhenThePoolRunsDry) {
     while (fake.frames_sent() == sent && Clock::now() < deadline) std::this_thread::sleep_for(milliseconds(1));
     std::this_thread::sleep_for(milliseconds(30));  // let it cross loopback
   }
+  std::this_thread::sleep_for(milliseconds(200));  // the last ones too, before a buffer frees up
   const CapturedImage first = camera->wait_image(kFrameTimeout);
   const CapturedImage second = camera->wait_image(kFrameTimeout);
   EXPECT_EQ(second.frame_id, first.frame_id + 1);
