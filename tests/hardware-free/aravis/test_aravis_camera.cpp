@@ -104,6 +104,15 @@ TEST(AravisCamera, OpensByAddressAndReportsItself) {
   EXPECT_EQ(camera->feature_value("Width"), "64");
 }
 
+TEST(AravisCamera, NobodyAtTheAddressIsNotFound) {
+  SLS_REQUIRE_NETNS();
+  const auto before = Clock::now();
+  const std::string message = expect_error(
+      [&] { AravisCamera::open("127.0.0.2", camera_options("Mono8", 0, 0)); }, {ErrorCode::kNotFound});
+  EXPECT_NE(message.find("127.0.0.2"), std::string::npos) << message;
+  EXPECT_LT(Clock::now() - before, std::chrono::seconds(10));
+}
+
 struct FormatCase {
   const char* format;
   bool sfnc_xml;  // Mono12 exists only in tests/hardware-free/aravis/fake-sfnc.xml
