@@ -47,7 +47,9 @@ struct FakeGigeCameraOptions {
   // How often the fake looks for a software trigger. Aravis's default, 25 Hz, delays every
   // triggered frame by up to 40 ms.
   double trigger_poll_hz = 1000.0;
-  double packet_loss_ratio = 0.0;     // fraction of GVSP packets the fake drops (no resend)
+  // Fraction of GVSP packets the fake drops, never resent: ArvGvFakeCamera's "gvsp-lost-ratio"
+  // property, the in-process form of `arv-fake-gv-camera-0.8 -r`.
+  double packet_loss_ratio = 0.0;
   FakeImageSource image_source;       // empty: fake_test_pattern
 };
 
