@@ -29,6 +29,9 @@ struct CapturedImage {
   Image16u image;             // values 0 .. 2^bit_depth − 1
   std::int64_t timestamp_ns = 0;  // device clock when the exposure started
   std::uint64_t frame_id = 0;     // the camera's own counter; gaps reveal dropped frames
+  // Frames the camera counted (by frame id) since the previous image that never arrived: with
+  // hardware triggers a gap means this image belongs to a later trigger than expected.
+  std::uint64_t frames_missed = 0;
   // false when the transport lost part of the image (e.g. missing GigE Vision packets): the
   // sequencer must re-capture or mark the stack incomplete, never use it as if whole.
   bool complete = true;

@@ -4,7 +4,8 @@
 Every file belongs to the component of its folder; it may include its own component and
 the components below it, never one above. Third-party headers of the wrapped stacks
 (Aravis, libusb, OpenCV, CHOLMOD, CUDA runtime) may appear only inside the folders that
-wrap them, and never in the public C API headers. Exit status 1 lists each violation.
+wrap them, and never in the public C API headers; Aravis headers only in .cpp files.
+Exit status 1 lists each violation.
 """
 import pathlib
 import re
@@ -30,12 +31,16 @@ ALLOWED = {
 }
 # Third-party headers and the only folders allowed to include them.
 WRAPPED = {
-    r"^arv": ["drivers/aravis", "tests"],
+    r"^arv": ["drivers/aravis", "tests/hardware-free"],
     r"^libusb": ["drivers/dlpc350", "drivers/headctl", "firmware-interface", "tests"],
     r"^umockdev": ["firmware-interface", "tests"],
     r"^opencv2/": ["calib", "tests"],
     r"^(cholmod|SuiteSparse)": ["fusion/deformation", "tests"],
 }
+# Third-party headers no header file may include, even in the folder that wraps them: their
+# types stay in .cpp files (pimpl), so users of the wrapper never compile against them.
+SOURCE_ONLY = [r"^arv"]
+HEADER_SUFFIXES = {".h", ".hpp", ".cuh"}
 SOURCE_SUFFIXES = {".h", ".hpp", ".c", ".cc", ".cpp", ".cu", ".cuh"}
 INCLUDE = re.compile(r'^\s*#\s*include\s*[<"]([^>"]+)[>"]')
 
@@ -74,6 +79,8 @@ def main() -> int:
             for pattern, owners in WRAPPED.items():
                 if re.match(pattern, target) and not any(relative.startswith(o + "/") or relative == o for o in owners):
                     violations.append(f"{relative}:{number}: {target} may only be included under {', '.join(owners)}")
+            if path.suffix in HEADER_SUFFIXES and any(re.match(pattern, target) for pattern in SOURCE_ONLY):
+                violations.append(f"{relative}:{number}: header includes {target}: keep it in the .cpp (pimpl)")
             if component == "sdk/include" and not target.startswith("sls/") and target not in {"stddef.h", "stdint.h", "stdbool.h"}:
                 violations.append(f"{relative}:{number}: public header includes {target}")
     for violation in violations:
