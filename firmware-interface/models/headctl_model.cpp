@@ -134,8 +134,8 @@ TransferOutcome HeadctlModel::handle_write(std::uint8_t endpoint, const std::uin
   Reply reply;
   try {
     const Frame frame = decode_frame(data, size);
-    if (frame.is_reply()) {
-      reply = refuse(DeviceError::kBadFrame, 0, "a request must not carry the reply flag");
+    if (frame.is_reply() || frame.is_error()) {
+      reply = refuse(DeviceError::kBadFrame, 0, "a request must not carry the reply or error flag");
     } else if (!is_known_message_type(frame.type)) {
       reply = refuse(DeviceError::kUnknownMessage, frame.type, "unknown message type");
     } else {
