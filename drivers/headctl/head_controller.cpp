@@ -156,8 +156,8 @@ TurntableStatusReply HeadController::turntable_status() const {
 void HeadController::stop_turntable() { expect<Acknowledge>(TurntableStopRequest{}); }
 
 template <typename Done>
-void HeadController::wait_for_turntable(Done done, milliseconds timeout, const std::string& goal) {
-  const Clock::time_point deadline = Clock::now() + timeout;
+void HeadController::wait_for_turntable(Done done, Clock::time_point deadline, milliseconds timeout,
+                                        const std::string& goal) {
   for (;;) {
     const TurntableStatusReply status = turntable_status();
     if (status.state == TurntableState::kFault || status.fault != Fault::kNone) {
@@ -180,11 +180,10 @@ void HeadController::wait_for_turntable(Done done, milliseconds timeout, const s
 
 void HeadController::home(milliseconds timeout) {
   require_turntable();
-  const Clock::time_point start = Clock::now();
+  const Clock::time_point deadline = Clock::now() + timeout;
   expect<Acknowledge>(TurntableHomeRequest{});
-  const auto left = timeout - std::chrono::duration_cast<milliseconds>(Clock::now() - start);
-  wait_for_turntable([](const TurntableStatusReply& s) { return s.state == TurntableState::kIdle && s.homed; }, left,
-                     "homing");
+  wait_for_turntable([](const TurntableStatusReply& s) { return s.state == TurntableState::kIdle && s.homed; },
+                     deadline, timeout, "homing");
 }
 
 void HeadController::move_to_step(std::uint32_t step, Direction direction, milliseconds timeout,
@@ -194,13 +193,12 @@ void HeadController::move_to_step(std::uint32_t step, Direction direction, milli
     throw_error(ErrorCode::kInvalidArgument, "{}: step {} is outside the revolution of {} steps", name(), step,
                 identity_.steps_per_revolution);
   }
-  const Clock::time_point start = Clock::now();
+  const Clock::time_point deadline = Clock::now() + timeout;
   expect<Acknowledge>(TurntableMoveRequest{step, direction, speed_steps_per_s});
-  const auto left = timeout - std::chrono::duration_cast<milliseconds>(Clock::now() - start);
   const double degrees = step * 360.0 / identity_.steps_per_revolution;
   wait_for_turntable(
       [step](const TurntableStatusReply& s) { return s.state == TurntableState::kIdle && s.position_step == step; },
-      left, fmt::format("moving to {:.3f} deg (step {})", degrees, step));
+      deadline, timeout, fmt::format("moving to {:.3f} deg (step {})", degrees, step));
 }
 
 void HeadController::move_to_deg(double angle_deg, milliseconds timeout) {

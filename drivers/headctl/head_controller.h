@@ -72,9 +72,11 @@ class HeadController final : public Turntable {
   void require_turntable() const;
   template <typename T>
   T expect(const fwif::headctl::Request& request) const;
-  // Polls the status until `done` or a fault; kTimeout after stopping the table.
+  // Polls the status until `done` or a fault; kTimeout (after stopping the table) once
+  // `deadline` passes, naming the caller's `timeout`.
   template <typename Done>
-  void wait_for_turntable(Done done, std::chrono::milliseconds timeout, const std::string& goal);
+  void wait_for_turntable(Done done, std::chrono::steady_clock::time_point deadline,
+                          std::chrono::milliseconds timeout, const std::string& goal);
 
   std::unique_ptr<usb::UsbConnection> connection_;
   const HeadControllerOptions options_;
