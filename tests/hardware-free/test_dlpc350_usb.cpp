@@ -300,18 +300,5 @@ TEST_F(Dlpc350UsbTest, EnumerationAndOpeningBySerialOrAddress) {
   error_message([] { Dlpc350Projector::open("headctl://"); }, ErrorCode::kInvalidArgument);
 }
 
-TEST_F(Dlpc350UsbTest, RoundTripLatency) {
-  plug();
-  auto projector = Dlpc350Projector::open("dlpc350://");
-  constexpr int kRounds = 200;
-  const auto start = std::chrono::steady_clock::now();
-  for (int i = 0; i < kRounds; ++i) projector->status();  // 3 reads each
-  const double per_round_trip_us = elapsed_ms(start) * 1000.0 / (3 * kRounds);
-  RecordProperty("dlpc350_round_trip_us", std::to_string(per_round_trip_us));
-  std::printf("[ measured ] DLPC350 read round trip through libusb + umockdev: %.1f us (%d round trips)\n",
-              per_round_trip_us, 3 * kRounds);
-  EXPECT_LT(per_round_trip_us, 20'000.0);
-}
-
 }  // namespace
 }  // namespace sls::test

@@ -212,18 +212,5 @@ TEST_F(HeadctlUsbTest, AStalledOrSilentBoardIsAClearErrorWithinTheTimeout) {
   EXPECT_NE(gone.find("disconnected during TEMPERATURES"), std::string::npos) << gone;
 }
 
-TEST_F(HeadctlUsbTest, RoundTripLatency) {
-  plug({}, fast_table());
-  auto board = HeadController::open("headctl://");
-  constexpr int kRounds = 500;
-  const auto start = std::chrono::steady_clock::now();
-  for (int i = 0; i < kRounds; ++i) board->turntable_status();
-  const double per_round_trip_us = elapsed_ms(start) * 1000.0 / kRounds;
-  RecordProperty("headctl_round_trip_us", std::to_string(per_round_trip_us));
-  std::printf("[ measured ] head-controller request round trip through libusb + umockdev: %.1f us (%d)\n",
-              per_round_trip_us, kRounds);
-  EXPECT_LT(per_round_trip_us, 20'000.0);
-}
-
 }  // namespace
 }  // namespace sls::test
