@@ -27,6 +27,13 @@ Dlpc350FlashSlot dlpc350_flash_slot(int index, int first_flash_image) {
   return {first_flash_image + index / kPatternsPerImage, index % kPatternsPerImage};
 }
 
+int dlpc350_pattern_index(const Dlpc350FlashSlot& slot, int first_flash_image) {
+  if (slot.flash_image < first_flash_image || slot.pattern_number < 0 || slot.pattern_number >= kPatternsPerImage) {
+    return -1;
+  }
+  return (slot.flash_image - first_flash_image) * kPatternsPerImage + slot.pattern_number;
+}
+
 std::vector<std::array<int, 3>> dlpc350_flash_layout(const PatternSet& set) {
   std::vector<std::array<int, 3>> images((set.size() + kPatternsPerImage - 1) / kPatternsPerImage, {-1, -1, -1});
   for (std::size_t i = 0; i < set.size(); ++i) images[i / kPatternsPerImage][i % kPatternsPerImage] = static_cast<int>(i);

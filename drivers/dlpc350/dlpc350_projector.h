@@ -15,6 +15,8 @@
 // answered within Dlpc350Options::retry.command_timeout (retries included) throws
 // sls::Error(kTimeout), a stalled endpoint or a refused command throws kDevice; each message
 // names the device and the command.
+//
+// Not thread-safe: one thread (the capture sequencer) drives a projector.
 #pragma once
 
 #include <array>
@@ -48,6 +50,9 @@ struct Dlpc350FlashSlot {
   int pattern_number = 0;  // 0 = G, 1 = R, 2 = B bit planes
 };
 Dlpc350FlashSlot dlpc350_flash_slot(int index, int first_flash_image);
+// The inverse: the pattern index a flash slot holds for a set loaded at `first_flash_image`
+// (e.g. to render what an emulated DMD shows); -1 for a slot before the set's images.
+int dlpc350_pattern_index(const Dlpc350FlashSlot& slot, int first_flash_image);
 // The flash images a set needs, with the pattern index of each of their G, R, B planes (-1:
 // unused).
 std::vector<std::array<int, 3>> dlpc350_flash_layout(const PatternSet& set);

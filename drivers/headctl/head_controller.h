@@ -9,6 +9,8 @@
 // sls::Error(kTimeout); a stalled endpoint, a disconnect or a board that refuses the request
 // throw kDevice (kBusy, kInvalidArgument, kVersionMismatch where the board's error says so).
 // Every message names the device and the request.
+//
+// Thread-safe: requests from several threads go on the wire one at a time.
 #pragma once
 
 #include <chrono>

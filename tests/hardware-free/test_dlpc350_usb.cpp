@@ -159,6 +159,7 @@ TEST_F(Dlpc350UsbTest, ShowPatternPutsThePatternOnTheDmd) {
     EXPECT_EQ(shown->flash_image, index / 3);
     EXPECT_EQ(shown->pattern_number, index % 3);
     EXPECT_EQ(shown->bit_depth, 8);
+    EXPECT_EQ(drivers::dlpc350_pattern_index({shown->flash_image, shown->pattern_number}, 0), index);
     EXPECT_TRUE(projector->status().main.sequence_running());
     // PAT_START_STOP start: flags, sequence, length 3, CMD3 0x24, CMD2 0x1A, action 2.
     const Request start = last(*projector_model_, Command::kPatternStartStop);
@@ -169,6 +170,20 @@ TEST_F(Dlpc350UsbTest, ShowPatternPutsThePatternOnTheDmd) {
   EXPECT_EQ(projector->current_pattern(), -1);
   EXPECT_FALSE(projector_model_->displayed_pattern().has_value());
   EXPECT_EQ(last(*projector_model_, Command::kPatternStartStop).data, std::vector<std::uint8_t>{0});
+}
+
+TEST(Dlpc350FlashLayout, PatternsFillTheGreenRedAndBluePlanesOfConsecutiveImages) {
+  const PatternSet set = make_gray_phase_pattern_set();
+  const std::vector<std::array<int, 3>> layout = drivers::dlpc350_flash_layout(set);
+  ASSERT_EQ(layout.size(), 8u);
+  EXPECT_EQ(layout[0], (std::array<int, 3>{0, 1, 2}));
+  EXPECT_EQ(layout[7], (std::array<int, 3>{21, -1, -1}));
+  for (int index = 0; index < 22; ++index) {
+    const drivers::Dlpc350FlashSlot slot = drivers::dlpc350_flash_slot(index, 5);
+    EXPECT_EQ(slot.flash_image, 5 + index / 3);
+    EXPECT_EQ(drivers::dlpc350_pattern_index(slot, 5), index);
+  }
+  EXPECT_EQ(drivers::dlpc350_pattern_index({4, 0}, 5), -1);
 }
 
 TEST_F(Dlpc350UsbTest, PlaySequenceRunsTheWholeSetOnce) {
