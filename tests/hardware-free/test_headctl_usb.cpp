@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "drivers/headctl/head_controller.h"
+#include "drivers/usb/usb_scanner_devices.h"
 #include "tests/hardware-free/usb_test_bench.h"
 
 namespace sls::test {
@@ -48,6 +49,23 @@ TEST_F(HeadctlUsbTest, OpensAndIdentifiesTheBoard) {
   ASSERT_EQ(temperatures.size(), 2u);
   EXPECT_DOUBLE_EQ(temperatures[1].celsius(), 42.1);
   EXPECT_EQ(HeadController::open("headctl://1:3?serial=HC-EMU-0001")->uri(), "headctl://1:3");
+}
+
+TEST_F(HeadctlUsbTest, ABoardWithAnOemsOwnIdsIsListedAndOpenedByItsUri) {
+  plug({}, fast_table());
+  fwif::models::HeadctlModelOptions oem = fast_table();
+  oem.vendor_id = 0x1234;
+  oem.product_id = 0x0042;
+  oem.serial = "OEM-7";
+  bus_->plug(std::make_shared<fwif::models::HeadctlModel>(oem), 2, 9);
+  const auto devices = drivers::usb::list_usb_scanner_devices({{0x1234, 0x0042}});
+  ASSERT_EQ(devices.size(), 3u);
+  EXPECT_EQ(devices[2].uri, "headctl://2:9?vid=0x1234&pid=0x0042");
+  EXPECT_EQ(devices[2].usb.serial, "OEM-7");
+  auto board = HeadController::open(devices[2].uri);
+  EXPECT_EQ(board->identity().serial, "OEM-7");
+  EXPECT_EQ(board->name(), "head controller 1234:0042 on bus 2 address 9 (serial OEM-7)");
+  EXPECT_EQ(drivers::usb::list_usb_scanner_devices().size(), 2u) << "unknown IDs are not listed";
 }
 
 TEST_F(HeadctlUsbTest, HomesMovesAndReportsThePosition) {
