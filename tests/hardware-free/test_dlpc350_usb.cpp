@@ -191,12 +191,16 @@ TEST_F(Dlpc350UsbTest, PlaySequenceRunsTheWholeSetOnce) {
   auto projector = Dlpc350Projector::open("dlpc350://");
   projector->load_patterns(make_gray_phase_pattern_set());
   projector->show_pattern(5);  // leaves a one-pattern LUT that play_sequence must replace
+  projector->go_dark();        // stops its pulses, so the count below is the sequence's alone
   const std::uint64_t pulses_before = projector_model_->trigger_out1_pulses();
+  const auto start = std::chrono::steady_clock::now();
   projector->play_sequence();
-  EXPECT_EQ(projector_model_->state().pattern_config.lut_entries, 22);
   const int early = projector->current_pattern();
-  EXPECT_GE(early, 0);
-  EXPECT_LT(early, 22);
+  if (elapsed_ms(start) < 150.0) {  // well inside the 183 ms the sequence lasts (a loaded machine may be slower)
+    EXPECT_GE(early, 0);
+    EXPECT_LT(early, 22);
+  }
+  EXPECT_EQ(projector_model_->state().pattern_config.lut_entries, 22);
   std::this_thread::sleep_for(std::chrono::milliseconds(22 * 8333 / 1000 + 150));
   EXPECT_EQ(projector->current_pattern(), -1);
   EXPECT_FALSE(projector_model_->displayed_pattern().has_value());
