@@ -32,8 +32,10 @@ ALLOWED = {
 # Third-party headers and the only folders allowed to include them.
 WRAPPED = {
     r"^arv": ["drivers/aravis", "tests/hardware-free"],
-    r"^libusb": ["drivers/dlpc350", "drivers/headctl", "firmware-interface", "tests"],
-    r"^umockdev": ["firmware-interface", "tests"],
+    # libusb: the drivers' USB transport (drivers/usb), used by drivers/dlpc350 and drivers/headctl.
+    r"^libusb": ["drivers/usb", "tests"],
+    # umockdev: the test-only adapter that puts the device models behind real libusb.
+    r"^umockdev": ["firmware-interface/models/umockdev", "tests"],
     r"^opencv2/": ["calib", "tests"],
     r"^(cholmod|SuiteSparse)": ["fusion/deformation", "tests"],
 }
