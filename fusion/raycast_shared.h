@@ -104,11 +104,14 @@ SLS_HOST_DEVICE inline RaycastHit raycast_pixel(const VolumeView& v, const Rayca
   return hit;
 }
 
-// A grey level for pictures: Lambertian shading with the light at the camera.
+// A grey level for pictures: Lambertian shading under a light from the upper left behind the
+// camera (a raking light shows relief that a light at the camera flattens), plus ambient.
 SLS_HOST_DEVICE inline unsigned char shade(const RaycastHit& hit, Vec3f ray_camera) {
+  (void)ray_camera;
   if (!(hit.depth_m > 0.0f)) return 0;
-  const float cosine = -dot(hit.normal_camera, ray_camera) / norm(ray_camera);
-  const float level = 20.0f + 235.0f * std::fmax(0.0f, cosine);
+  const Vec3f light_travel{0.6396f, 0.4264f, 0.6396f};  // unit: the light's direction of travel
+  const float cosine = -dot(hit.normal_camera, light_travel);
+  const float level = 25.0f + 230.0f * std::fmax(0.0f, cosine);
   return static_cast<unsigned char>(level);
 }
 

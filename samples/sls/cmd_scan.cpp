@@ -16,10 +16,12 @@
 #include "drivers/sim/sim_recording.h"
 #include "fusion/extract.h"
 #include "fusion/integrator.h"
+#include "fusion/raycaster.h"
 #include "samples/sls/commands.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
+#include "sdk/core/image_io.h"
 #include "sdk/core/ply.h"
 #include "sdk/core/recording.h"
 #include "sdk/core/trajectory.h"
@@ -160,6 +162,14 @@ nlohmann::json fuse_with_groundtruth(const Context& context, const RecordingRead
   const TriangleMesh& mesh = surface.mesh;
   const double extract_ms = ms_since(start);
   std::filesystem::create_directories(options.out);
+  // A shaded picture of the model seen from the first fused view, with the camera's own
+  // model (render.png): the fused surface at the scanner's resolution.
+  if (!used.empty()) {
+    fusion::RaycastOptions raycast_options;
+    raycast_options.truncation_voxels = fusion_options.truncation_voxels;
+    fusion::Raycaster raycaster(device, camera, raycast_options);
+    write_png(options.out + "/render.png", raycaster.raycast(volume, used.front().T_world_camera).shaded);
+  }
   write_ply(options.out + "/cloud.ply", cloud);
   write_ply(options.out + "/mesh.ply", mesh);
   write_tum_trajectory(options.out + "/trajectory.txt", used);
@@ -192,6 +202,7 @@ nlohmann::json fuse_with_groundtruth(const Context& context, const RecordingRead
   report["points"] = cloud.size();
   report["triangles"] = mesh.faces.size();
   report["outputs"] = {{"cloud", options.out + "/cloud.ply"}, {"mesh", options.out + "/mesh.ply"},
+                       {"render", options.out + "/render.png"},
                        {"trajectory", options.out + "/trajectory.txt"}, {"report", options.out + "/report.json"}};
   write_file_atomic(options.out + "/report.json", report.dump(2) + "\n");
   return report;
