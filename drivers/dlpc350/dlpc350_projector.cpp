@@ -80,28 +80,9 @@ std::vector<std::uint8_t> Dlpc350Projector::transact(Command command, bool read,
   const milliseconds attempt_timeout = options_.retry.attempt_timeout();
   ErrorCode failure = ErrorCode::kTimeout;
   std::string problem;
-  // Records a failed transfer; false means "give up this attempt".
+  // Records a failed transfer; true means "give up this attempt".
   auto failed = [&](const usb::TransferResult& result, std::uint8_t endpoint) {
-    switch (result.status) {
-      case usb::TransferStatus::kOk: return false;
-      case usb::TransferStatus::kTimeout:
-        failure = ErrorCode::kTimeout;
-        problem = fmt::format("endpoint 0x{:02x} {} within {} ms", endpoint,
-                              (endpoint & 0x80) != 0 ? "gave no reply" : "took no report", attempt_timeout.count());
-        return true;
-      case usb::TransferStatus::kStall:
-        failure = ErrorCode::kDevice;
-        problem = fmt::format("endpoint 0x{:02x} stalled ({})", endpoint, result.error);
-        connection_->clear_halt(endpoint);
-        return true;
-      case usb::TransferStatus::kNoDevice:
-        throw_error(ErrorCode::kDevice, "{}: disconnected during {}", name(), command_name(command));
-      case usb::TransferStatus::kError:
-        failure = ErrorCode::kDevice;
-        problem = fmt::format("transfer on endpoint 0x{:02x} failed: {}", endpoint, result.error);
-        return true;
-    }
-    return true;
+    return connection_->transfer_failed(result, endpoint, attempt_timeout, command_name(command), &failure, &problem);
   };
 
   for (int attempt = 0; attempt < attempts; ++attempt) {

@@ -56,26 +56,7 @@ Reply HeadController::transact(const Request& request) const {
   ErrorCode failure = ErrorCode::kTimeout;
   std::string problem;
   auto failed = [&](const usb::TransferResult& result, std::uint8_t endpoint) {
-    switch (result.status) {
-      case usb::TransferStatus::kOk: return false;
-      case usb::TransferStatus::kTimeout:
-        failure = ErrorCode::kTimeout;
-        problem = fmt::format("endpoint 0x{:02x} {} within {} ms", endpoint,
-                              (endpoint & 0x80) != 0 ? "gave no reply" : "took no data", attempt_timeout.count());
-        return true;
-      case usb::TransferStatus::kStall:
-        failure = ErrorCode::kDevice;
-        problem = fmt::format("endpoint 0x{:02x} stalled ({})", endpoint, result.error);
-        connection_->clear_halt(endpoint);
-        return true;
-      case usb::TransferStatus::kNoDevice:
-        throw_error(ErrorCode::kDevice, "{}: disconnected during {}", name(), message_type_name(type));
-      case usb::TransferStatus::kError:
-        failure = ErrorCode::kDevice;
-        problem = fmt::format("transfer on endpoint 0x{:02x} failed: {}", endpoint, result.error);
-        return true;
-    }
-    return true;
+    return connection_->transfer_failed(result, endpoint, attempt_timeout, message_type_name(type), &failure, &problem);
   };
 
   // PROTOCOL.md "Retries": every attempt sends the same bytes (same sequence number).

@@ -299,4 +299,30 @@ TransferResult UsbConnection::read(std::uint8_t endpoint, std::uint8_t* data, st
 
 bool UsbConnection::clear_halt(std::uint8_t endpoint) { return libusb_clear_halt(impl_->handle, endpoint) == 0; }
 
+bool UsbConnection::transfer_failed(const TransferResult& result, std::uint8_t endpoint,
+                                    std::chrono::milliseconds attempt_timeout, const std::string& during,
+                                    ErrorCode* failure, std::string* problem) {
+  switch (result.status) {
+    case TransferStatus::kOk:
+      return false;
+    case TransferStatus::kTimeout:
+      *failure = ErrorCode::kTimeout;
+      *problem = fmt::format("endpoint 0x{:02x} {} within {} ms", endpoint,
+                             (endpoint & 0x80) != 0 ? "gave no reply" : "took no data", attempt_timeout.count());
+      return true;
+    case TransferStatus::kStall:
+      *failure = ErrorCode::kDevice;
+      *problem = fmt::format("endpoint 0x{:02x} stalled ({})", endpoint, result.error);
+      clear_halt(endpoint);
+      return true;
+    case TransferStatus::kNoDevice:
+      throw_error(ErrorCode::kDevice, "{}: disconnected during {}", name(), during);
+    case TransferStatus::kError:
+      *failure = ErrorCode::kDevice;
+      *problem = fmt::format("transfer on endpoint 0x{:02x} failed: {}", endpoint, result.error);
+      return true;
+  }
+  return true;
+}
+
 }  // namespace sls::drivers::usb

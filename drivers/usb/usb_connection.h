@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "drivers/interfaces/device_uri.h"
+#include "sdk/core/error.h"
 
 namespace sls::drivers::usb {
 
@@ -92,6 +93,14 @@ class UsbConnection {
                       std::chrono::milliseconds timeout);
   // CLEAR_FEATURE(ENDPOINT_HALT); false when that fails too.
   bool clear_halt(std::uint8_t endpoint);
+
+  // What a transfer of one request attempt means for the request, the same for every driver:
+  // false for success; otherwise true with the error code to raise if no retry succeeds
+  // (kTimeout, or kDevice for a stall or I/O error) and a phrase for the message in *problem
+  // ("endpoint 0x81 gave no reply within 100 ms"), clearing a stalled endpoint's halt first.
+  // An unplugged device throws sls::Error(kDevice) at once, naming the device and `during`.
+  bool transfer_failed(const TransferResult& result, std::uint8_t endpoint, std::chrono::milliseconds attempt_timeout,
+                       const std::string& during, ErrorCode* failure, std::string* problem);
 
  private:
   struct Impl;
