@@ -75,7 +75,9 @@ SLS_HOST_DEVICE inline bool integrate_voxel(const VolumeView& v, const Integrati
   v.set_u(index, a);
   v.set_w(index, std::fmin(weight + 1.0f, p.weight_max));
   *average = a;
-  return std::fabs(a) < 1.0f;
+  const bool near_surface = std::fabs(a) < 1.0f;
+  if (near_surface) v.mark_surface(i, j, k);
+  return near_surface;
 }
 
 SLS_HOST_DEVICE inline float penalty_weight(Penalty penalty, float s, float kappa) {

@@ -54,6 +54,23 @@ SLS_HOST_DEVICE inline bool clip_to_volume(const VolumeView& v, Vec3f origin, Ve
   return enter < leave;
 }
 
+// The ray parameter where origin + t * direction leaves the brick holding voxel (i, j, k)
+// (at least t).
+SLS_HOST_DEVICE inline float brick_exit(const VolumeView& v, Vec3f origin, Vec3f direction, int i, int j, int k,
+                                        float t) {
+  const float brick_m = static_cast<float>(1 << VolumeView::kBrickShift) * v.voxel_size_m;
+  const int b[3] = {i >> VolumeView::kBrickShift, j >> VolumeView::kBrickShift, k >> VolumeView::kBrickShift};
+  const float o[3] = {origin.x, origin.y, origin.z};
+  const float d[3] = {direction.x, direction.y, direction.z};
+  float exit = 3.0e38f;
+  for (int axis = 0; axis < 3; ++axis) {
+    if (d[axis] == 0.0f) continue;
+    const float face = (d[axis] > 0.0f ? static_cast<float>(b[axis] + 1) : static_cast<float>(b[axis])) * brick_m;
+    exit = std::fmin(exit, (face - o[axis]) / d[axis]);
+  }
+  return std::fmax(exit, t);
+}
+
 // One pixel: `ray_camera` is the ray map's direction (z = 1), T_volume_camera the camera in
 // the volume. Returns the hit (depth 0 when none).
 SLS_HOST_DEVICE inline RaycastHit raycast_pixel(const VolumeView& v, const RaycastParams& p,
@@ -72,6 +89,15 @@ SLS_HOST_DEVICE inline RaycastHit raycast_pixel(const VolumeView& v, const Rayca
   bool have_previous = false;
   while (t <= t1) {
     const Vec3f point = origin + t * direction;
+    // Empty-space skipping: a brick no surface voxel has touched is crossed in one jump.
+    const int vi = static_cast<int>(point.x / v.voxel_size_m);
+    const int vj = static_cast<int>(point.y / v.voxel_size_m);
+    const int vk = static_cast<int>(point.z / v.voxel_size_m);
+    if (v.contains(vi, vj, vk) && !v.may_hold_surface(vi, vj, vk)) {
+      t = brick_exit(v, origin, direction, vi, vj, vk, t) + 1e-3f * min_step;
+      have_previous = false;
+      continue;
+    }
     float value = 0.0f;
     if (!sample_u(v, point, &value)) {
       have_previous = false;
@@ -79,9 +105,23 @@ SLS_HOST_DEVICE inline RaycastHit raycast_pixel(const VolumeView& v, const Rayca
       continue;
     }
     if (have_previous && previous > 0.0f && value <= 0.0f) {
-      // Zero crossing between the two samples: linear interpolation of U along the ray.
-      const float denominator = previous - value;
-      const float z = denominator > 0.0f ? previous_t + (t - previous_t) * previous / denominator : t;
+      // Zero crossing between the two samples: regula falsi on the trilinear U along the ray
+      // (U is not linear along it, so one interpolation can be off by a few hundredths of a voxel).
+      float t_in = previous_t, u_in = previous, t_out = t, u_out = value;
+      float z = t;
+      for (int refine = 0; refine < 4; ++refine) {
+        const float denominator = u_in - u_out;
+        z = denominator > 0.0f ? t_in + (t_out - t_in) * u_in / denominator : t_out;
+        float u_z = 0.0f;
+        if (refine == 3 || !sample_u(v, origin + z * direction, &u_z)) break;
+        if (u_z > 0.0f) {
+          t_in = z;
+          u_in = u_z;
+        } else {
+          t_out = z;
+          u_out = u_z;
+        }
+      }
       const Vec3f surface_volume = origin + z * direction;
       Vec3f normal_volume;
       if (!surface_normal(v, surface_volume, &normal_volume)) return hit;

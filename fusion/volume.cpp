@@ -76,11 +76,20 @@ struct Volume::Impl {
   std::vector<float> u32, w32;
   std::vector<std::uint16_t> u16;
   std::vector<std::uint8_t> w8;
+  std::vector<std::uint8_t> bricks;  // VolumeView::surface_bricks
 #if defined(SLS_HAVE_CUDA)
   DeviceBuffer<float> device_u32, device_w32;
   DeviceBuffer<std::uint16_t> device_u16;
   DeviceBuffer<std::uint8_t> device_w8;
+  DeviceBuffer<std::uint8_t> device_bricks;
 #endif
+  std::size_t brick_count() const {
+    VolumeView v;
+    v.nx = geometry.nx;
+    v.ny = geometry.ny;
+    v.nz = geometry.nz;
+    return v.brick_count();
+  }
 };
 
 namespace {
@@ -113,6 +122,7 @@ Volume::Volume(const VolumeGeometry& geometry, VoxelFormat format, const Device&
       allocate_host(&impl_->u16, count, geometry, format);
       allocate_host(&impl_->w8, count, geometry, format);
     }
+    allocate_host(&impl_->bricks, impl_->brick_count(), geometry, format);
     return;
   }
 #if defined(SLS_HAVE_CUDA)
@@ -136,6 +146,7 @@ Volume::Volume(const VolumeGeometry& geometry, VoxelFormat format, const Device&
     impl_->device_u16.allocate(count);
     impl_->device_w8.allocate(count);
   }
+  impl_->device_bricks.allocate(impl_->brick_count());
   clear();
 #else
   require_device(device);  // throws kUnsupported: CUDA asked of a build without it
@@ -160,6 +171,7 @@ void Volume::clear() {
     std::fill(s.w32.begin(), s.w32.end(), 0.0f);
     std::fill(s.u16.begin(), s.u16.end(), std::uint16_t{0});
     std::fill(s.w8.begin(), s.w8.end(), std::uint8_t{0});
+    std::fill(s.bricks.begin(), s.bricks.end(), std::uint8_t{0});
     return;
   }
 #if defined(SLS_HAVE_CUDA)
@@ -168,6 +180,7 @@ void Volume::clear() {
   if (s.device_w32.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_w32.data(), 0, s.device_w32.size_bytes()));
   if (s.device_u16.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_u16.data(), 0, s.device_u16.size_bytes()));
   if (s.device_w8.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_w8.data(), 0, s.device_w8.size_bytes()));
+  SLS_CUDA_CHECK(cudaMemset(s.device_bricks.data(), 0, s.device_bricks.size_bytes()));
 #endif
 }
 
@@ -187,6 +200,7 @@ VolumeView Volume::view() const {
     v.w32 = s.w32.empty() ? nullptr : s.w32.data();
     v.u16 = s.u16.empty() ? nullptr : s.u16.data();
     v.w8 = s.w8.empty() ? nullptr : s.w8.data();
+    v.surface_bricks = s.bricks.data();
     return v;
   }
 #if defined(SLS_HAVE_CUDA)
@@ -194,6 +208,7 @@ VolumeView Volume::view() const {
   v.w32 = s.device_w32.data();
   v.u16 = s.device_u16.data();
   v.w8 = s.device_w8.data();
+  v.surface_bricks = s.device_bricks.data();
 #endif
   return v;
 }
@@ -227,6 +242,7 @@ void Volume::copy_from(const Volume& other) {
       std::copy(from.u16, from.u16 + count, to.u16);
       std::copy(from.w8, from.w8 + count, to.w8);
     }
+    std::copy(from.surface_bricks, from.surface_bricks + from.brick_count(), to.surface_bricks);
     return;
   }
 #if defined(SLS_HAVE_CUDA)
@@ -238,6 +254,7 @@ void Volume::copy_from(const Volume& other) {
     copy_bytes(to.u16, from.u16, count * sizeof(std::uint16_t));
     copy_bytes(to.w8, from.w8, count);
   }
+  copy_bytes(to.surface_bricks, from.surface_bricks, from.brick_count());
 #endif
 }
 

@@ -91,6 +91,11 @@ struct VolumeView {
   float* w32 = nullptr;
   std::uint16_t* u16 = nullptr;    // kCompact
   std::uint8_t* w8 = nullptr;
+  // One flag per brick of kBrick³ voxels, set once a voxel within one voxel of the brick has
+  // been observed with |U| < 1 (never cleared until the volume is): where it is 0 there is no
+  // surface, and a raycast jumps the whole brick. nullptr: no flags (every brick may hold one).
+  std::uint8_t* surface_bricks = nullptr;
+  static constexpr int kBrickShift = 3;  // 8 voxels a side
 
   SLS_HOST_DEVICE std::size_t voxel_count() const {
     return static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny) * static_cast<std::size_t>(nz);
@@ -123,6 +128,34 @@ struct VolumeView {
     } else {
       w8[index] = static_cast<std::uint8_t>(weight);
     }
+  }
+  SLS_HOST_DEVICE int bricks_x() const { return (nx + (1 << kBrickShift) - 1) >> kBrickShift; }
+  SLS_HOST_DEVICE int bricks_y() const { return (ny + (1 << kBrickShift) - 1) >> kBrickShift; }
+  SLS_HOST_DEVICE int bricks_z() const { return (nz + (1 << kBrickShift) - 1) >> kBrickShift; }
+  SLS_HOST_DEVICE std::size_t brick_count() const {
+    return static_cast<std::size_t>(bricks_x()) * static_cast<std::size_t>(bricks_y()) *
+           static_cast<std::size_t>(bricks_z());
+  }
+  SLS_HOST_DEVICE std::size_t brick_index(int bi, int bj, int bk) const {
+    return (static_cast<std::size_t>(bk) * static_cast<std::size_t>(bricks_y()) + static_cast<std::size_t>(bj)) *
+               static_cast<std::size_t>(bricks_x()) +
+           static_cast<std::size_t>(bi);
+  }
+  // Flags the bricks within one voxel of voxel (i, j, k): trilinear samples near a brick's
+  // face read voxels of the next brick. Racing writers all write 1.
+  SLS_HOST_DEVICE void mark_surface(int i, int j, int k) const {
+    if (surface_bricks == nullptr) return;
+    const int i0 = (i > 0 ? i - 1 : 0) >> kBrickShift, i1 = (i + 1 < nx ? i + 1 : nx - 1) >> kBrickShift;
+    const int j0 = (j > 0 ? j - 1 : 0) >> kBrickShift, j1 = (j + 1 < ny ? j + 1 : ny - 1) >> kBrickShift;
+    const int k0 = (k > 0 ? k - 1 : 0) >> kBrickShift, k1 = (k + 1 < nz ? k + 1 : nz - 1) >> kBrickShift;
+    for (int bk = k0; bk <= k1; ++bk)
+      for (int bj = j0; bj <= j1; ++bj)
+        for (int bi = i0; bi <= i1; ++bi) surface_bricks[brick_index(bi, bj, bk)] = 1u;
+  }
+  // False only where flags exist and say the brick holding voxel (i, j, k) has no surface.
+  SLS_HOST_DEVICE bool may_hold_surface(int i, int j, int k) const {
+    return surface_bricks == nullptr ||
+           surface_bricks[brick_index(i >> kBrickShift, j >> kBrickShift, k >> kBrickShift)] != 0u;
   }
   SLS_HOST_DEVICE Vec3f voxel_centre(int i, int j, int k) const {
     return Vec3f{(static_cast<float>(i) + 0.5f) * voxel_size_m, (static_cast<float>(j) + 0.5f) * voxel_size_m,

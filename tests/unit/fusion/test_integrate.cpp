@@ -243,6 +243,43 @@ TEST(Integrate, GtsdfReducesNoiseAndKeepsTheCrease) {
   EXPECT_LT(gtsdf.crease_rms_um, tsdf.crease_rms_um);
 }
 
+// Empty-space skipping jumps bricks no surface voxel touched: the same surface as marching
+// every step (the samples just land elsewhere along the ray), and it visits most bricks empty.
+TEST(Raycast, SkippingEmptyBricksFindsTheSameSurface) {
+  CameraIntrinsics camera = test::small_camera();
+  camera.fx = camera.fy = 3200.0;
+  const VolumeGeometry geometry = VolumeGeometry::centred(Eigen::Vector3d(0.0, 0.0, 0.102), 64, 64, 96, 125e-6);
+  Volume volume(geometry, VoxelFormat::kFloat32, Device::cpu());
+  Integrator integrator(Device::cpu(), IntegrationOptions::tsdf());
+  integrator.integrate(volume, test::ridge_depth(camera, 0.1, 20e-6, 3), camera, Pose());
+  const VolumeView with_bricks = volume.view();
+  VolumeView without_bricks = with_bricks;
+  without_bricks.surface_bricks = nullptr;
+  std::size_t flagged = 0;
+  for (std::size_t b = 0; b < with_bricks.brick_count(); ++b) flagged += with_bricks.surface_bricks[b] != 0 ? 1u : 0u;
+  RaycastParams params;
+  params.truncation_m = static_cast<float>(4 * geometry.voxel_size_m);
+  params.max_depth_m = 1.0f;
+  const Rigid3f T_volume_camera = geometry.T_world_volume.inverse().to_rigid3f();
+  const RayMap rays = compute_ray_map(camera);
+  std::size_t hits = 0, differ = 0;
+  double worst = 0.0;
+  for (std::size_t i = 0; i < rays.rays.size(); ++i) {
+    const RaycastHit a = raycast_pixel(with_bricks, params, T_volume_camera, rays.rays[i]);
+    const RaycastHit b = raycast_pixel(without_bricks, params, T_volume_camera, rays.rays[i]);
+    if ((a.depth_m > 0.0f) != (b.depth_m > 0.0f)) ++differ;
+    if (!(a.depth_m > 0.0f) || !(b.depth_m > 0.0f)) continue;
+    ++hits;
+    worst = std::max(worst, std::fabs(static_cast<double>(a.depth_m - b.depth_m)));
+  }
+  std::printf("[fusion] brick skipping: %zu of %zu bricks flagged; %zu hits, %zu differ, max |dz| %.2e voxels\n", flagged,
+              with_bricks.brick_count(), hits, differ, worst / geometry.voxel_size_m);
+  EXPECT_LT(flagged, with_bricks.brick_count() / 2);
+  EXPECT_GT(hits, rays.rays.size() / 2);
+  EXPECT_EQ(differ, 0u);
+  EXPECT_LT(worst, 0.01 * geometry.voxel_size_m);
+}
+
 TEST(Integrate, BadInputIsAClearError) {
   const CameraIntrinsics camera = test::small_camera();
   Volume volume(plane_volume(), VoxelFormat::kCompact, Device::cpu());
