@@ -142,7 +142,8 @@ struct VolumeView {
            static_cast<std::size_t>(bi);
   }
   // Flags the bricks within one voxel of voxel (i, j, k): trilinear samples near a brick's
-  // face read voxels of the next brick. Racing writers all write 1.
+  // face read voxels of the next brick. Racing writers all write 1. Code that writes voxels
+  // other than through the integrator calls it for every voxel it gives |U| < 1.
   SLS_HOST_DEVICE void mark_surface(int i, int j, int k) const {
     if (surface_bricks == nullptr) return;
     const int i0 = (i > 0 ? i - 1 : 0) >> kBrickShift, i1 = (i + 1 < nx ? i + 1 : nx - 1) >> kBrickShift;
@@ -150,7 +151,12 @@ struct VolumeView {
     const int k0 = (k > 0 ? k - 1 : 0) >> kBrickShift, k1 = (k + 1 < nz ? k + 1 : nz - 1) >> kBrickShift;
     for (int bk = k0; bk <= k1; ++bk)
       for (int bj = j0; bj <= j1; ++bj)
-        for (int bi = i0; bi <= i1; ++bi) surface_bricks[brick_index(bi, bj, bk)] = 1u;
+        for (int bi = i0; bi <= i1; ++bi) {
+          // Read first: most flags are already set, and a cached read costs far less than
+          // millions of threads writing the same few bytes.
+          std::uint8_t& flag = surface_bricks[brick_index(bi, bj, bk)];
+          if (flag == 0u) flag = 1u;
+        }
   }
   // False only where flags exist and say the brick holding voxel (i, j, k) has no surface.
   SLS_HOST_DEVICE bool may_hold_surface(int i, int j, int k) const {
