@@ -125,8 +125,8 @@ DeviceDescription simulator_entry() {
   device.uri = fmt::format("sim://{}?preset={}", kSimObject, kSimPreset);
   device.model = "slscan simulated scanner";
   device.details = fmt::format(
-      "built in: camera {}x{} ({}-bit), projector {}x{}, turntable {} steps; other objects ({}) and presets (ci, "
-      "demo, paper) by URI",
+      "built in; camera {}x{} {}-bit, projector {}x{}, turntable {} steps; objects {} and presets ci, demo, paper "
+      "by URI",
       rig.camera.width, rig.camera.height, rig.optics.camera_sensor.bit_depth, rig.projector.width,
       rig.projector.height, rig.turntable.steps_per_revolution, join(sim::scene_names(), ", "));
   device.roles = kRoleCamera | kRoleProjector | kRoleTurntable;

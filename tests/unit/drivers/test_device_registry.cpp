@@ -46,7 +46,7 @@ TEST(DeviceRegistry, ListsTheSimulatorAndReportsEveryTransport) {
   EXPECT_EQ(sim.kind, DeviceKind::kScanner);
   EXPECT_EQ(sim.uri, "sim://knurled-screw?preset=ci");
   EXPECT_EQ(sim.roles, unsigned{kRoleCamera | kRoleProjector | kRoleTurntable});
-  EXPECT_TRUE(contains(sim.details, "camera 400x300")) << sim.details;
+  EXPECT_TRUE(contains(sim.details, "camera 400x300 12-bit")) << sim.details;
   // Only the simulator is a scanner; hardware_found() says whether anything else is there.
   const auto scanners = std::count_if(found.devices.begin(), found.devices.end(),
                                       [](const DeviceDescription& d) { return d.kind == DeviceKind::kScanner; });
