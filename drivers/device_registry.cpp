@@ -272,7 +272,9 @@ std::unique_ptr<Turntable> open_turntable(const std::string& text, const OpenOpt
   if (uri.scheme == "sim") return shared_sim_scanner(uri, options)->turntable();
 #if defined(SLS_HAVE_LIBUSB)
   std::unique_ptr<HeadController> controller = HeadController::open(text);
-  if ((controller->identity().capabilities & HEADCTL_CAP_TURNTABLE) == 0) {
+  // The same test as the driver's own before any turntable command: the capability and a
+  // step count to turn angles into steps.
+  if ((controller->identity().capabilities & HEADCTL_CAP_TURNTABLE) == 0 || controller->steps_per_revolution() <= 0) {
     throw_error(ErrorCode::kUnsupported, "'{}': {} has no turntable", text, controller->name());
   }
   return controller;
