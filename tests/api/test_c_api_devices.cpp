@@ -71,6 +71,34 @@ TEST(CApiCamera, GrabsExactlyWhatTheDriverRenders) {
   EXPECT_EQ(differing, 0u);
 }
 
+// A context's device choice reaches the simulated camera: with SLS_DEVICE_AUTO on a machine
+// with a GPU the image is rendered by CUDA, and it must still be a proper image.
+TEST(CApiCamera, RendersOnTheContextsDevice) {
+  sls_context* raw_context = nullptr;
+  ASSERT_EQ(sls_context_create(SLS_API_VERSION, nullptr, &raw_context, nullptr), SLS_OK);
+  std::unique_ptr<sls_context, ContextDeleter> context(raw_context);
+  sls_camera* raw = nullptr;
+  sls_error* error = nullptr;
+  ASSERT_EQ(sls_camera_open(context.get(), "sim://sphere?preset=ci", &raw, &error), SLS_OK)
+      << sls_error_message(error);
+  std::unique_ptr<sls_camera, CameraDeleter> camera(raw);
+  sls_camera_info info;
+  sls_camera_info_init(&info);
+  ASSERT_EQ(sls_camera_get_info(camera.get(), &info, nullptr), SLS_OK);
+  std::vector<std::uint16_t> pixels(static_cast<std::size_t>(info.width) * static_cast<std::size_t>(info.height),
+                                    std::uint16_t{0xFFFF});
+  ASSERT_EQ(sls_camera_grab(camera.get(), 1000, pixels.data(), pixels.size(), nullptr, &error), SLS_OK)
+      << sls_error_message(error);
+  const std::uint16_t max_value = static_cast<std::uint16_t>((1u << info.bit_depth) - 1u);
+  std::size_t above = 0, nonzero = 0;
+  for (const std::uint16_t value : pixels) {
+    above += value > max_value;
+    nonzero += value != 0;
+  }
+  EXPECT_EQ(above, 0u);
+  EXPECT_GT(nonzero, pixels.size() / 2);
+}
+
 TEST(CApiCamera, ErrorsNameTheUri) {
   auto context = cpu_context();
   sls_camera* camera = nullptr;
