@@ -9,6 +9,7 @@
 namespace sls::cli {
 
 void add_decode_command(CLI::App& app, Context& context, int* exit_code);
+void add_devices_command(CLI::App& app, Context& context, int* exit_code);
 void add_eval_command(CLI::App& app, Context& context, int* exit_code);
 void add_info_command(CLI::App& app, Context& context, int* exit_code);
 void add_inspect_command(CLI::App& app, Context& context, int* exit_code);

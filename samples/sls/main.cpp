@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.footer(
       "Run `sls COMMAND --help` for a command's options.\n"
+      "Devices are named by URI (sim://, gige://, usb3://, dlpc350://, headctl://): `sls devices` lists them.\n"
       "Exit status: 0 ok, 1 the work failed (the message says why), 2 bad command line,\n"
       "3 the feature is not available in this build or not implemented yet.");
 
@@ -22,6 +23,7 @@ int main(int argc, char** argv) {
 
   int exit_code = kExitOk;
   add_decode_command(app, context, &exit_code);
+  add_devices_command(app, context, &exit_code);
   add_eval_command(app, context, &exit_code);
   add_info_command(app, context, &exit_code);
   add_inspect_command(app, context, &exit_code);

@@ -5,15 +5,11 @@
 #include <new>
 
 #include "sdk/capi/capi_guard.h"
+#include "sdk/capi/context_internal.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sls/sls_context.h"
 #include "sls/sls_version.h"
-
-struct sls_context {
-  sls_context_config config;
-  sls::Device device;
-};
 
 namespace {
 

@@ -40,7 +40,7 @@ class SlsCli(unittest.TestCase):
     def test_help_lists_every_command_and_each_has_help(self):
         result = run("--help")
         self.assertEqual(result.returncode, 0)
-        for command in ("info", "inspect", "scan", "sim", "decode", "eval"):
+        for command in ("info", "inspect", "scan", "sim", "decode", "eval", "devices"):
             self.assertIn(command, result.stdout)
             sub = run(command, "--help")
             self.assertEqual(sub.returncode, 0, sub.stderr)
@@ -61,6 +61,28 @@ class SlsCli(unittest.TestCase):
         info = json.loads(result.stdout)
         self.assertIn("cuda_compiled", info)
         self.assertIsInstance(info["cuda_devices"], list)
+
+    def test_devices_lists_the_simulator_with_an_openable_uri(self):
+        # --json before or after the command.
+        for args in (("--json", "devices"), ("devices", "--json")):
+            result = run(*args)
+            self.assertEqual(result.returncode, 0, result.stderr)
+            out = json.loads(result.stdout)
+            uris = [device["uri"] for device in out["devices"]]
+            self.assertIn("sim://knurled-screw?preset=ci", uris)
+            for device in out["devices"]:
+                self.assertIn(device["kind"], ("camera", "projector", "controller", "scanner"))
+                self.assertTrue(device["opens_as"], device)
+            self.assertEqual(out["hardware_found"], any(d["kind"] != "scanner" for d in out["devices"]))
+            self.assertEqual([t["name"] for t in out["transports"]], ["simulator", "Aravis", "USB"])
+        human = run("devices")
+        self.assertEqual(human.returncode, 0, human.stderr)
+        lines = human.stdout.splitlines()
+        # One line per device, each with its URI.
+        for uri in uris:
+            self.assertEqual(sum(uri in line for line in lines), 1, human.stdout)
+        if not out["hardware_found"]:
+            self.assertIn("No hardware found", human.stdout)
 
     def test_inspect_good_ply_and_trajectory(self):
         ply = self.dir / "cloud.ply"

@@ -20,5 +20,7 @@
 #include "sls/sls_version.h"
 #include "sls/sls_status.h"
 #include "sls/sls_context.h"
+#include "sls/sls_device.h"
+#include "sls/sls_camera.h"
 
 #endif /* SLS_SLS_H */
