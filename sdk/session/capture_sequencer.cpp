@@ -280,11 +280,20 @@ CaptureSequencer::Attempt CaptureSequencer::capture_attempt(int frame) {
   attempt.cameras.resize(cameras_.size());
   const bool software = options_.trigger == drivers::TriggerSource::kSoftware;
   for (int pattern = 0; pattern < static_cast<int>(patterns_.size()); ++pattern) {
+    const Clock::time_point show_start = Clock::now();
     try {
       projector_.show_pattern(pattern);
     } catch (const Error& error) {
       fail(projector_name_, where(frame, pattern), error);
     }
+    const Clock::time_point shown = Clock::now();
+    statistics_.projector_seconds += std::chrono::duration<double>(shown - show_start).count();
+    // Counted when the scope ends, however the cameras' part ends.
+    struct CameraTime {
+      double& total;
+      Clock::time_point since;
+      ~CameraTime() { total += seconds_since(since); }
+    } camera_time{statistics_.camera_seconds, shown};
     for (std::size_t c = 0; c < cameras_.size(); ++c) {
       if (software) {
         try {

@@ -121,8 +121,10 @@ struct CaptureStatistics {
   int lost_images = 0;        // never arrived: frame-id gaps and timeouts
   int timeouts = 0;           // waits for an image that ran out (counted in lost_images too)
   int stale_images = 0;       // arrived late for an earlier trigger and were dropped
-  double seconds = 0.0;       // wall time of run(), setup included
-  double capture_seconds = 0.0;  // wall time spent capturing stacks (turntable moves excluded)
+  double seconds = 0.0;          // wall time of run(), setup included
+  double capture_seconds = 0.0;  // capturing stacks: turntable moves and recording excluded
+  double projector_seconds = 0.0;  // of that, in show_pattern
+  double camera_seconds = 0.0;     // of that, triggering cameras and waiting for their images
 };
 
 using FrameCallback = std::function<void(const CapturedFrame& frame)>;
