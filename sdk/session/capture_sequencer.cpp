@@ -164,12 +164,12 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
       report_progress(progress, {"capture", static_cast<std::size_t>(frame + 1), static_cast<std::size_t>(frames),
                                  captured.complete ? std::string() : captured.note});
     }
-    finish(false);
   } catch (...) {
     finish(true);
     statistics_.seconds = seconds_since(start);
     throw;
   }
+  finish(false);
   statistics_.seconds = seconds_since(start);
   return statistics_;
 }

@@ -34,7 +34,8 @@
 // stack timed out waiting for it; a projector or turntable error ends the scan at once (their
 // drivers retry themselves). Frames appended before the error stay in the recording, which
 // reads back as a valid recording of those frames. The progress callback returning false ends
-// the scan with kCancelled after the current frame, which is kept.
+// the scan with kCancelled after the current frame, which is kept; an exception from the
+// per-frame callback ends it the same way and propagates unchanged.
 //
 // Not thread-safe: run() drives the devices from the calling thread; the callbacks are called on
 // it. The sequencer does not own the devices or the recordings; they must outlive run().
@@ -69,7 +70,9 @@ struct CaptureOptions {
   double exposure_us = 0.0;
   // kSoftware: the sequencer triggers each camera after the projector shows a pattern.
   // kHardwareLine: the cameras wait for the projector's trigger output (show_pattern fires it
-  // once per pattern, per the Projector interface); the sequencer only shows patterns.
+  // once per pattern, per the Projector interface); the sequencer only shows patterns. The line
+  // must carry exactly that one pulse: a spurious pulse cannot be told from a real one by frame
+  // numbers (a projector that keeps pulsing while a pattern stays on does not fit this mode).
   drivers::TriggerSource trigger = drivers::TriggerSource::kSoftware;
   // How long one image may take to arrive after its trigger.
   std::chrono::milliseconds image_timeout{2000};
