@@ -271,6 +271,37 @@ TEST_F(ScanThroughRealStacks, WithPacketLossNoFrameIsSilentlyWrong) {
   expect_same_images(scanned, direct, kFrames);
 }
 
+TEST_F(ScanThroughRealStacks, ACameraThatVanishesIsNamedAndTheFramesBeforeAreKept) {
+  start_scanner();
+  session::CaptureOptions options = capture_options();
+  options.image_timeout = milliseconds(300);
+  session::CaptureSequencer scan = sequencer(options);
+  Clock::time_point vanished_at{};
+  const auto vanish_after_frame_one = [&](const session::CapturedFrame& frame) {
+    if (frame.index != 1) return;
+    fake_camera_.reset();  // stops answering GVCP and sending GVSP, without a goodbye
+    vanished_at = Clock::now();
+  };
+  const std::string message = error_message([&] { scan.run({writer_.get()}, vanish_after_frame_one); },
+                                            ErrorCode::kTimeout);
+  const double latency_ms = std::chrono::duration<double, std::milli>(Clock::now() - vanished_at).count();
+  std::printf("[ measured ] vanished GigE camera: kTimeout after %.0f ms (Aravis's GVCP retries on the trigger)\n",
+              latency_ms);
+  EXPECT_LT(latency_ms, 5000.0);
+  EXPECT_NE(message.find("capture frame 2 of 4 (turntable at 180.000 deg), pattern 0 of 22: camera gige://127.0.0.1"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("SLS-SIM-CAM"), std::string::npos) << message;
+  EXPECT_FALSE(projector_model_->displayed_pattern().has_value()) << "the projector still answering went dark";
+
+  writer_.reset();
+  const RecordingReader scanned = RecordingReader::open(dir_.file("scan"));
+  scanned.verify(true);
+  ASSERT_EQ(scanned.frame_count(), 2u);
+  const RecordingReader direct = RecordingReader::open(direct_recording(dir_));
+  EXPECT_EQ(expect_same_images(scanned, direct, 2), 2 * rig_->patterns.size());
+}
+
 // Which device fails, and how.
 struct Failure {
   const char* name;
