@@ -1,6 +1,8 @@
 // sls scan: the scan pipeline, from a recording or the built-in simulator, to a model.
 // It runs the stages that exist in this build and names the first one that does not;
-// it never writes made-up output. With --poses groundtruth (simulated recordings) every
+// it never writes made-up output. Devices given by URI (--camera/--projector/--turntable,
+// hardware or sim://) are scanned through the capture sequencer first. With --poses
+// groundtruth (simulated recordings) every
 // frame is decoded (or its depth map read) and fused with its true pose into one volume
 // around the object; --poses track needs the tracker of issue #6.
 #include <algorithm>
@@ -13,6 +15,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "drivers/device_registry.h"
 #include "drivers/sim/sim_recording.h"
 #include "fusion/extract.h"
 #include "fusion/integrator.h"
@@ -26,6 +29,7 @@
 #include "sdk/core/recording.h"
 #include "sdk/core/trajectory.h"
 #include "sdk/decode/decoder.h"
+#include "sdk/session/capture_sequencer.h"
 
 namespace sls::cli {
 namespace {
@@ -33,6 +37,10 @@ namespace {
 struct ScanOptions {
   std::string input;
   std::string sim_preset;
+  std::string camera_uri;      // devices by URI (sls devices lists them): capture through the sequencer
+  std::string projector_uri;
+  std::string turntable_uri;
+  std::string calibration;     // calibration.yml of those devices, stored in the recording
   std::string object = "knurled-screw";
   int frames = 0;
   std::string out;
@@ -214,7 +222,43 @@ int run_scan(const Context& context, const ScanOptions& options) {
   require_device(device);
 
   std::string input = options.input;
-  if (!options.sim_preset.empty()) {
+  if (!options.camera_uri.empty()) {
+    // Devices by URI (hardware or sim://): the capture sequencer scans into OUT/recording,
+    // appending every stack as it arrives, so an interrupted scan keeps what it captured.
+    if (options.projector_uri.empty()) {
+      throw_error(ErrorCode::kInvalidArgument, "--camera needs --projector (the device that shows the patterns)");
+    }
+    drivers::OpenOptions open_options;
+    open_options.sim_device = device;
+    const std::unique_ptr<drivers::Projector> projector = drivers::open_projector(options.projector_uri, open_options);
+    const std::unique_ptr<drivers::Camera> camera = drivers::open_camera(options.camera_uri, open_options);
+    const std::unique_ptr<drivers::Turntable> turntable =
+        options.turntable_uri.empty() ? nullptr : drivers::open_turntable(options.turntable_uri, open_options);
+    GrayPhaseOptions pattern_options;
+    pattern_options.projector_width = projector->info().width;
+    pattern_options.projector_height = projector->info().height;
+    const PatternSet patterns = make_gray_phase_pattern_set(pattern_options);
+    std::optional<ScannerCalibration> calibration;
+    if (!options.calibration.empty()) calibration = read_calibration(options.calibration);
+    session::CaptureOptions capture;
+    capture.frames_per_revolution = options.frames > 0 ? options.frames : (turntable ? 36 : 1);
+    capture.frames = capture.frames_per_revolution;
+    session::CaptureSequencer sequencer(*projector, {camera.get()}, turntable.get(), patterns, capture);
+    input = options.out + "/recording";
+    RecordingWriter writer =
+        RecordingWriter::create(input, session::make_recording_info(*projector, *camera, patterns), calibration);
+    const session::CaptureStatistics stats = sequencer.run({&writer}, {}, context.progress_callback("capture"));
+    if (!context.options.json) {
+      std::cerr << fmt::format("captured {} frame(s) ({} incomplete, {} re-captured stacks) x {} images from {} into {}\n",
+                               stats.frames, stats.incomplete_frames, stats.retries, patterns.size(),
+                               options.camera_uri, input);
+    }
+    if (!calibration) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "captured {} frame(s) into {}; without --calibration they cannot be decoded (the recording is kept)",
+                  stats.frames, input);
+    }
+  } else if (!options.sim_preset.empty()) {
     // Capture: scan the simulated scanner into OUT/recording, as a hardware scan would record.
     sim::SimRecordingOptions sim_options;
     sim_options.rig.preset = options.sim_preset;
@@ -288,12 +332,20 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   auto* input = command->add_option("--input", options->input, "Recording folder to scan");
   auto* sim = command->add_option("--sim", options->sim_preset, "Scan the simulated scanner with this preset")
                   ->check(CLI::IsMember({"ci", "demo", "paper"}));
+  auto* camera = command->add_option("--camera", options->camera_uri,
+                                     "Scan with devices by URI (see `sls devices`): the camera, e.g. gige://192.168.1.20");
+  command->add_option("--projector", options->projector_uri, "With --camera: the projector, e.g. dlpc350://");
+  command->add_option("--turntable", options->turntable_uri, "With --camera: the turntable, e.g. headctl://");
+  command->add_option("--calibration", options->calibration, "With --camera: calibration.yml of these devices");
   input->excludes(sim);
   sim->excludes(input);
+  camera->excludes(input);
+  camera->excludes(sim);
   command->add_option("--object", options->object, "Simulated object (with --sim)")
       ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
       ->capture_default_str();
-  command->add_option("--frames", options->frames, "Simulated frames per revolution (with --sim; 0: the preset's)")
+  command->add_option("--frames", options->frames,
+                      "Frames per revolution (--sim: 0 is the preset's; --camera: 0 is 36 with a turntable, else 1)")
       ->check(CLI::NonNegativeNumber);
   command->add_option("--out", options->out, "Output folder for cloud.ply, mesh.ply, trajectory.txt, report.json")
       ->required();
@@ -313,8 +365,8 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::NonNegativeNumber);
   command->callback([&context, exit_code, options, command] {
     run_command(context, "scan", [&context, options, command] {
-      if (options->input.empty() && options->sim_preset.empty()) {
-        throw_error(ErrorCode::kInvalidArgument, "give --input REC or --sim PRESET");
+      if (options->input.empty() && options->sim_preset.empty() && options->camera_uri.empty()) {
+        throw_error(ErrorCode::kInvalidArgument, "give --input REC, --sim PRESET or --camera URI --projector URI");
       }
       options->device_given = command->count("--device") > 0;
       return run_scan(context, *options);

@@ -162,6 +162,32 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(again.returncode, 1)
         self.assertIn("ground-truth trajectory", again.stderr)
 
+    def test_scan_devices_by_uri_through_the_sequencer(self):
+        uri = "sim://knurled-screw?preset=ci"
+        rec = self.dir / "calibrated"
+        self.assertEqual(run("sim", "--preset", "ci", "--frames", "1", "--device", "cpu", "--out", str(rec)).returncode, 0)
+        out = self.dir / "byuri"
+        result = run("scan", "--camera", uri, "--projector", uri, "--turntable", uri, "--frames", "3",
+                     "--calibration", str(rec / "calibration.yml"), "--device", "cpu", "--out", str(out))
+        # Captured and decoded through the devices; the tracker is the missing stage.
+        self.assertEqual(result.returncode, 3, result.stderr)
+        self.assertIn("decoded 3 of 3 frame(s)", result.stderr)
+        inspect = json.loads(run("--json", "inspect", str(out / "recording")).stdout)["results"][0]
+        self.assertTrue(inspect["calibrated"])
+        self.assertEqual(inspect["frames"], 3)
+        self.assertEqual(inspect["frames_with_turntable_angle"], 3)
+        # Without a calibration the capture is kept and the command says why it stops.
+        result = run("scan", "--camera", uri, "--projector", uri, "--frames", "1", "--device", "cpu",
+                     "--out", str(self.dir / "uncalibrated"))
+        self.assertEqual(result.returncode, 1)
+        self.assertIn("without --calibration", result.stderr)
+        self.assertEqual(json.loads(run("--json", "inspect", str(self.dir / "uncalibrated/recording")).stdout)
+                         ["results"][0]["frames"], 1)
+        # A scheme no driver handles is named.
+        result = run("scan", "--camera", "nonsense://x", "--projector", uri, "--out", str(self.dir / "bad"))
+        self.assertEqual(result.returncode, 3, result.stderr)
+        self.assertIn("nonsense://x", result.stderr)
+
     def test_sim_writes_recording_with_ground_truth(self):
         out = self.dir / "rec"
         result = run("--json", "sim", "--preset", "ci", "--object", "knurled-knob", "--frames", "3",
