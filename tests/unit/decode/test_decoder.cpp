@@ -275,38 +275,61 @@ TEST(DecodeShared, PhaseConventionMatchesThePatterns) {
   }
 }
 
-TEST(TriangulateShared, ExactThroughADistortedProjector) {
-  const sim::Scene scene = sim::make_plane_scene();
+// The ci rig's calibration with a strongly distorted projector (k1 = -0.3, so a plane
+// assumption would be visibly wrong), and points of it with exact projector coordinates:
+// camera rays on a grid at three depths, each with the projector pixel its point lands on.
+struct DistortedProjectorCase {
+  ScannerCalibration calibration;
+  struct Sample {
+    int x, y;
+    Vec3f ray;
+    double z;
+    Vec2d projector_pixel;
+  };
+  std::vector<Sample> samples;
+};
+
+DistortedProjectorCase distorted_projector_case() {
   sim::RigOptions rig_options;
   rig_options.preset = "ci";
-  const sim::SimRig rig = sim::make_rig(rig_options, scene);
-  ScannerCalibration calibration = rig.calibration();
-  calibration.projector.k1 = -0.3;  // strong, so a plane assumption would be visibly wrong
-  calibration.projector.p1 = 1e-3;
-  const TriangulationParams params = make_triangulation_params(calibration, working_volume_options());
-  TriangulationParams no_newton = params;
-  no_newton.iterations = 0;
-  no_newton.max_residual_px = 1e30f;
-  const RayMap rays = compute_ray_map(calibration.camera);
-  double worst = 0.0, worst_plane = 0.0;
+  DistortedProjectorCase c;
+  c.calibration = sim::make_rig(rig_options, sim::make_plane_scene()).calibration();
+  c.calibration.projector.k1 = -0.3;
+  c.calibration.projector.p1 = 1e-3;
+  const RayMap rays = compute_ray_map(c.calibration.camera);
   for (const double z : {0.095, 0.1, 0.105}) {
     for (int y = 0; y < rays.height; y += 37) {
       for (int x = 0; x < rays.width; x += 41) {
         const Vec3f r = rays.ray(x, y);
         const Eigen::Vector3d point_camera(z * static_cast<double>(r.x), z * static_cast<double>(r.y), z);
-        const Eigen::Vector3d point_projector = calibration.T_camera_projector.inverse() * point_camera;
-        Vec2d pixel;
-        ASSERT_TRUE(project(calibration.projector, Vec3d{point_projector.x(), point_projector.y(), point_projector.z()},
-                            &pixel));
-        if (pixel.x < 0.0 || pixel.x > 911.0) continue;
-        float depth = 0.0f;
-        ASSERT_TRUE(triangulate_coordinate(params, r, static_cast<float>(pixel.x), 0, &depth)) << x << "," << y;
-        worst = std::max(worst, std::fabs(static_cast<double>(depth) - z));
-        float plane_depth = 0.0f;
-        if (triangulate_coordinate(no_newton, r, static_cast<float>(pixel.x), 0, &plane_depth)) {
-          worst_plane = std::max(worst_plane, std::fabs(static_cast<double>(plane_depth) - z));
-        }
+        const Eigen::Vector3d point_projector = c.calibration.T_camera_projector.inverse() * point_camera;
+        Vec2d pixel{-1.0, -1.0};
+        const bool in_front = project(c.calibration.projector,
+                                      Vec3d{point_projector.x(), point_projector.y(), point_projector.z()}, &pixel);
+        EXPECT_TRUE(in_front);
+        if (!in_front || pixel.x < 0.0 || pixel.x > 911.0) continue;
+        c.samples.push_back({x, y, r, z, pixel});
       }
+    }
+  }
+  return c;
+}
+
+TEST(TriangulateShared, ExactThroughADistortedProjector) {
+  const DistortedProjectorCase c = distorted_projector_case();
+  const TriangulationParams params = make_triangulation_params(c.calibration, working_volume_options());
+  TriangulationParams no_newton = params;
+  no_newton.iterations = 0;
+  no_newton.max_residual_px = 1e30f;
+  double worst = 0.0, worst_plane = 0.0;
+  for (const auto& sample : c.samples) {
+    const float u = static_cast<float>(sample.projector_pixel.x);
+    float depth = 0.0f;
+    ASSERT_TRUE(triangulate_coordinate(params, sample.ray, u, 0, &depth)) << sample.x << "," << sample.y;
+    worst = std::max(worst, std::fabs(static_cast<double>(depth) - sample.z));
+    float plane_depth = 0.0f;
+    if (triangulate_coordinate(no_newton, sample.ray, u, 0, &plane_depth)) {
+      worst_plane = std::max(worst_plane, std::fabs(static_cast<double>(plane_depth) - sample.z));
     }
   }
   std::printf("[decode] triangulation through k1 = -0.3: max depth error %.3f um (pinhole plane alone: %.1f um)\n",
@@ -318,44 +341,29 @@ TEST(TriangulateShared, ExactThroughADistortedProjector) {
 // Columns and rows: ray against ray through the same strongly distorted projector, exact; a
 // decode moved off its epipolar curve is inconsistent, one moved along it is a new depth.
 TEST(TriangulateShared, RayAgainstRayExactAndRejectsOffEpipolarDecodes) {
-  const sim::Scene scene = sim::make_plane_scene();
-  sim::RigOptions rig_options;
-  rig_options.preset = "ci";
-  const sim::SimRig rig = sim::make_rig(rig_options, scene);
-  ScannerCalibration calibration = rig.calibration();
-  calibration.projector.k1 = -0.3;
-  calibration.projector.p1 = 1e-3;
-  const TriangulationParams params = make_triangulation_params(calibration, working_volume_options());
-  const RayMap rays = compute_ray_map(calibration.camera);
+  const DistortedProjectorCase c = distorted_projector_case();
+  const TriangulationParams params = make_triangulation_params(c.calibration, working_volume_options());
   double worst = 0.0, worst_epipolar = 0.0;
   std::size_t checked = 0;
-  for (const double z : {0.095, 0.1, 0.105}) {
-    for (int y = 0; y < rays.height; y += 37) {
-      for (int x = 0; x < rays.width; x += 41) {
-        const Vec3f r = rays.ray(x, y);
-        const Eigen::Vector3d point_camera(z * static_cast<double>(r.x), z * static_cast<double>(r.y), z);
-        const Eigen::Vector3d point_projector = calibration.T_camera_projector.inverse() * point_camera;
-        Vec2d pixel;
-        ASSERT_TRUE(project(calibration.projector, Vec3d{point_projector.x(), point_projector.y(), point_projector.z()},
-                            &pixel));
-        if (pixel.x < 0.0 || pixel.x > 911.0) continue;
-        const float u = static_cast<float>(pixel.x), v = static_cast<float>(pixel.y);
-        float depth = 0.0f, epipolar = 0.0f;
-        ASSERT_EQ(triangulate_ray_ray(params, r, u, v, &depth, &epipolar), 0u) << x << "," << y;
-        worst = std::max(worst, std::fabs(static_cast<double>(depth) - z));
-        worst_epipolar = std::max(worst_epipolar, static_cast<double>(epipolar));
-        ++checked;
-        // Epipolar curves run along the rig's horizontal baseline: 3 rows off is off the curve.
-        EXPECT_EQ(triangulate_ray_ray(params, r, u, v + 3.0f, &depth, &epipolar), kDecodeInconsistent);
-        EXPECT_NEAR(static_cast<double>(epipolar), 3.0, 0.3);
-        EXPECT_EQ(depth, 0.0f);
-        // 3 columns along it: accepted, at the depth the column code alone gives.
-        float column_depth = 0.0f;
-        ASSERT_EQ(triangulate_ray_ray(params, r, u + 3.0f, v, &depth, &epipolar), 0u);
-        ASSERT_TRUE(triangulate_coordinate(params, r, u + 3.0f, 0, &column_depth));
-        EXPECT_NEAR(static_cast<double>(depth), static_cast<double>(column_depth), 0.5e-6);
-      }
-    }
+  for (const auto& sample : c.samples) {
+    const Vec3f r = sample.ray;
+    const int x = sample.x, y = sample.y;
+    const double z = sample.z;
+    const float u = static_cast<float>(sample.projector_pixel.x), v = static_cast<float>(sample.projector_pixel.y);
+    float depth = 0.0f, epipolar = 0.0f;
+    ASSERT_EQ(triangulate_ray_ray(params, r, u, v, &depth, &epipolar), 0u) << x << "," << y;
+    worst = std::max(worst, std::fabs(static_cast<double>(depth) - z));
+    worst_epipolar = std::max(worst_epipolar, static_cast<double>(epipolar));
+    ++checked;
+    // Epipolar curves run along the rig's horizontal baseline: 3 rows off is off the curve.
+    EXPECT_EQ(triangulate_ray_ray(params, r, u, v + 3.0f, &depth, &epipolar), kDecodeInconsistent);
+    EXPECT_NEAR(static_cast<double>(epipolar), 3.0, 0.3);
+    EXPECT_EQ(depth, 0.0f);
+    // 3 columns along it: accepted, at the depth the column code alone gives.
+    float column_depth = 0.0f;
+    ASSERT_EQ(triangulate_ray_ray(params, r, u + 3.0f, v, &depth, &epipolar), 0u);
+    ASSERT_TRUE(triangulate_coordinate(params, r, u + 3.0f, 0, &column_depth));
+    EXPECT_NEAR(static_cast<double>(depth), static_cast<double>(column_depth), 0.5e-6);
   }
   std::printf("[decode] ray-ray through k1 = -0.3: %zu points, max depth error %.3f um, max epipolar %.2e px\n",
               checked, worst * 1e6, worst_epipolar);
