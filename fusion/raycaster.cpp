@@ -71,6 +71,9 @@ Raycaster::~Raycaster() = default;
 Raycaster::Raycaster(Raycaster&&) noexcept = default;
 Raycaster& Raycaster::operator=(Raycaster&&) noexcept = default;
 
+const CameraIntrinsics& Raycaster::camera() const { return impl_->camera; }
+const Device& Raycaster::device() const { return impl_->device; }
+
 RaycastResult Raycaster::raycast(const Volume& volume, const Pose& T_world_camera) {
   Impl& s = *impl_;
   if (!(volume.device() == s.device)) {
@@ -130,6 +133,9 @@ void Raycaster::raycast_device(const Volume& volume, const Pose& T_world_camera)
 }
 
 void Raycaster::synchronize() { SLS_CUDA_CHECK(cudaStreamSynchronize(impl_->stream)); }
+const float* Raycaster::depth_device() const { return impl_->depth.data(); }
+const Vec3f* Raycaster::points_device() const { return impl_->points.data(); }
+const Vec3f* Raycaster::normals_device() const { return impl_->normals.data(); }
 #endif
 
 }  // namespace sls::fusion

@@ -35,6 +35,9 @@ class Raycaster {
   Raycaster(Raycaster&&) noexcept;
   Raycaster& operator=(Raycaster&&) noexcept;
 
+  const CameraIntrinsics& camera() const;
+  const Device& device() const;
+
   // The volume from T_world_camera. The volume must live on the raycaster's device.
   RaycastResult raycast(const Volume& volume, const Pose& T_world_camera);
 #if defined(SLS_HAVE_CUDA)
@@ -42,6 +45,11 @@ class Raycaster {
   // tracker and for timing; asynchronous on the raycaster's stream until synchronize().
   void raycast_device(const Volume& volume, const Pose& T_world_camera);
   void synchronize();
+  // The maps of the last raycast_device (width x height each, row-major; what RaycastResult
+  // holds, on the GPU): for the tracker. Read them after synchronize().
+  const float* depth_device() const;
+  const Vec3f* points_device() const;
+  const Vec3f* normals_device() const;
 #endif
 
  private:

@@ -1,0 +1,143 @@
+// CUDA launchers of the ICP tracker: one thread per pixel around downsample_depth,
+// live_normal, accumulate_frame_statistics and track_pixel (track_shared.h, the code the CPU
+// loops run), with the two-stage reductions described in track_cuda.h.
+#include "fusion/cuda/track_cuda.h"
+
+#include "sdk/core/cuda/cuda_check.h"
+
+namespace sls::fusion::detail {
+namespace {
+
+constexpr int kWarps = kTrackThreads / 32;
+
+int reduction_blocks(int pixels) {
+  const int blocks = (pixels + kTrackThreads - 1) / kTrackThreads;
+  return blocks < 1 ? 1 : (blocks > kTrackMaxBlocks ? kTrackMaxBlocks : blocks);
+}
+
+// The block's N sums (each thread's in `values`) into partials[blockIdx.x * N + k], in double.
+// Every thread of the block must call it.
+template <int N>
+__device__ void block_sums_to_partials(float (&values)[N], double* partials) {
+  __shared__ float warp_sums[N][kWarps];
+  const int lane = static_cast<int>(threadIdx.x) & 31;
+  const int warp = static_cast<int>(threadIdx.x) >> 5;
+#pragma unroll
+  for (int k = 0; k < N; ++k) {
+    float value = values[k];
+#pragma unroll
+    for (int offset = 16; offset > 0; offset >>= 1) value += __shfl_down_sync(0xffffffffu, value, offset);
+    if (lane == 0) warp_sums[k][warp] = value;
+  }
+  __syncthreads();
+  if (threadIdx.x < static_cast<unsigned>(N)) {
+    double sum = 0.0;
+    for (int w = 0; w < kWarps; ++w) sum += static_cast<double>(warp_sums[threadIdx.x][w]);
+    partials[static_cast<std::size_t>(blockIdx.x) * N + threadIdx.x] = sum;
+  }
+}
+
+// Block k adds column k of the partials over `blocks` blocks, in double, in a fixed order.
+template <int N>
+__global__ void finish_sums_kernel(const double* __restrict__ partials, int blocks, double* __restrict__ out) {
+  __shared__ double shared[kTrackThreads];
+  const int k = static_cast<int>(blockIdx.x);
+  double sum = 0.0;
+  for (int b = static_cast<int>(threadIdx.x); b < blocks; b += kTrackThreads) {
+    sum += partials[static_cast<std::size_t>(b) * N + static_cast<std::size_t>(k)];
+  }
+  shared[threadIdx.x] = sum;
+  __syncthreads();
+  for (int stride = kTrackThreads / 2; stride > 0; stride >>= 1) {
+    if (static_cast<int>(threadIdx.x) < stride) shared[threadIdx.x] += shared[threadIdx.x + static_cast<unsigned>(stride)];
+    __syncthreads();
+  }
+  if (threadIdx.x == 0) out[k] = shared[0];
+}
+
+__global__ void downsample_kernel(const float* __restrict__ fine, int fine_width, int fine_height, float fine_fx,
+                                  float* __restrict__ coarse, int coarse_width, int coarse_height) {
+  const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  if (x >= coarse_width || y >= coarse_height) return;
+  coarse[static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse_width) + static_cast<std::size_t>(x)] =
+      downsample_depth(fine, fine_width, fine_height, fine_fx, x, y);
+}
+
+__global__ void live_normals_kernel(const float* __restrict__ depth, const Vec3f* __restrict__ rays, int width,
+                                    int height, float fx, Vec3f* __restrict__ normals) {
+  const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  if (x >= width || y >= height) return;
+  normals[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)] =
+      live_normal(depth, rays, width, height, fx, x, y);
+}
+
+__global__ void frame_statistics_kernel(const Vec3f* __restrict__ model_points, const float* __restrict__ live_depth,
+                                        int pixels, Vec3f reference, double* __restrict__ partials) {
+  float sums[kFrameSums] = {};
+  for (int n = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x); n < pixels;
+       n += static_cast<int>(gridDim.x * blockDim.x)) {
+    accumulate_frame_statistics(model_points[n], live_depth[n], reference, sums);
+  }
+  block_sums_to_partials<kFrameSums>(sums, partials);
+}
+
+__global__ void track_kernel(TrackLiveView live, TrackModelView model, TrackParams params,
+                             double* __restrict__ partials) {
+  float sums[kTrackSums] = {};
+  const int pixels = live.width * live.height;
+  for (int n = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x); n < pixels;
+       n += static_cast<int>(gridDim.x * blockDim.x)) {
+    const int y = n / live.width;
+    const int x = n - y * live.width;
+    float jacobian[6];
+    float residual = 0.0f;
+    if (track_pixel(live, model, params, x, y, jacobian, &residual)) accumulate_track_row(jacobian, residual, sums);
+  }
+  block_sums_to_partials<kTrackSums>(sums, partials);
+}
+
+dim3 image_grid(int width, int height, dim3 block) {
+  return dim3((static_cast<unsigned>(width) + block.x - 1) / block.x,
+              (static_cast<unsigned>(height) + block.y - 1) / block.y);
+}
+
+}  // namespace
+
+void launch_downsample_depth_cuda(const float* fine, int fine_width, int fine_height, float fine_fx, float* coarse,
+                                  int coarse_width, int coarse_height, cudaStream_t stream) {
+  const dim3 block(32, 8);
+  downsample_kernel<<<image_grid(coarse_width, coarse_height, block), block, 0, stream>>>(
+      fine, fine_width, fine_height, fine_fx, coarse, coarse_width, coarse_height);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+void launch_live_normals_cuda(const float* depth, const Vec3f* rays, int width, int height, float fx, Vec3f* normals,
+                              cudaStream_t stream) {
+  const dim3 block(32, 8);
+  live_normals_kernel<<<image_grid(width, height, block), block, 0, stream>>>(depth, rays, width, height, fx,
+                                                                              normals);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+void launch_frame_statistics_cuda(const Vec3f* model_points, const float* live_depth, int pixels, Vec3f reference,
+                                  double* partials, double* out, cudaStream_t stream) {
+  const int blocks = reduction_blocks(pixels);
+  frame_statistics_kernel<<<blocks, kTrackThreads, 0, stream>>>(model_points, live_depth, pixels, reference,
+                                                                 partials);
+  SLS_CUDA_CHECK_LAUNCH();
+  finish_sums_kernel<kFrameSums><<<kFrameSums, kTrackThreads, 0, stream>>>(partials, blocks, out);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+void launch_track_cuda(const TrackLiveView& live, const TrackModelView& model, const TrackParams& params,
+                       double* partials, double* out, cudaStream_t stream) {
+  const int blocks = reduction_blocks(live.width * live.height);
+  track_kernel<<<blocks, kTrackThreads, 0, stream>>>(live, model, params, partials);
+  SLS_CUDA_CHECK_LAUNCH();
+  finish_sums_kernel<kTrackSums><<<kTrackSums, kTrackThreads, 0, stream>>>(partials, blocks, out);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+}  // namespace sls::fusion::detail

@@ -1,0 +1,37 @@
+// Internal: the CUDA launchers of the ICP tracker (fusion/tracker.h) around track_shared.h.
+// Only built and included when SLS_HAVE_CUDA is defined; free of Eigen.
+//
+// Reductions are two-stage and deterministic: each block of kTrackThreads threads sums its
+// pixels in float (per thread, then warp shuffles, then shared memory across the warps) and
+// writes its sums as doubles to `partials` (at most kTrackMaxBlocks blocks x the number of
+// sums, a grid-stride loop covers larger images); a second kernel adds the blocks' partials
+// in double, in block order, into `out`.
+#pragma once
+
+#include <cuda_runtime_api.h>
+
+#include "fusion/track_shared.h"
+
+namespace sls::fusion::detail {
+
+constexpr int kTrackThreads = 256;
+constexpr int kTrackMaxBlocks = 512;
+// Doubles `partials` must hold.
+constexpr int kTrackPartials = kTrackMaxBlocks * kTrackSums;
+
+// Level l + 1 of the live pyramid from level l (downsample_depth per coarse pixel).
+void launch_downsample_depth_cuda(const float* fine, int fine_width, int fine_height, float fine_fx, float* coarse,
+                                  int coarse_width, int coarse_height, cudaStream_t stream);
+// live_normal per pixel of a level.
+void launch_live_normals_cuda(const float* depth, const Vec3f* rays, int width, int height, float fx, Vec3f* normals,
+                              cudaStream_t stream);
+// accumulate_frame_statistics over `pixels` pixels (model points and live depth of the finest
+// level) into out[kFrameSums].
+void launch_frame_statistics_cuda(const Vec3f* model_points, const float* live_depth, int pixels, Vec3f reference,
+                                  double* partials, double* out, cudaStream_t stream);
+// One Gauss–Newton step's sums (track_pixel + accumulate_track_row over the live level) into
+// out[kTrackSums].
+void launch_track_cuda(const TrackLiveView& live, const TrackModelView& model, const TrackParams& params,
+                       double* partials, double* out, cudaStream_t stream);
+
+}  // namespace sls::fusion::detail

@@ -1,0 +1,95 @@
+// Frame-to-model tracking (paper section II, DESIGN.md section 3): KinectFusion projective ICP,
+// point-to-plane, coarse to fine over a pyramid of the live depth map, against the model's
+// vertex and normal maps raycast from the previous pose. Each Gauss–Newton step reduces the
+// 6x6 normal equations over all pixels (on the GPU for a CUDA tracker; one per-pixel body in
+// track_shared.h for both backends) and solves them on the host.
+//
+//   Tracker tracker(Device::cuda(), camera, TrackingOptions{});
+//   raycaster.raycast(volume, T_world_model)                       -> model (camera frame of T_world_model)
+//   TrackingResult r = tracker.track(depth_m, model, T_world_model, T_world_camera_guess);
+//   if (!r.lost) integrate with r.T_world_camera;
+//
+// Degenerate geometry (a cylinder slides along its axis, a plane in three directions) leaves
+// directions of the 6x6 system unconstrained: those directions keep the guess (the prior) and
+// are counted in TrackingResult::degenerate_directions; they do not make a frame lost.
+// A frame is lost when too few pixels match, the residual stays large, or the motion the ICP
+// wants is implausibly large: the result then carries the guess and `reason`.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "fusion/raycaster.h"
+#include "sdk/core/camera_model_shared.h"
+#include "sdk/core/device.h"
+#include "sdk/core/image.h"
+#include "sdk/core/pose.h"
+
+namespace sls::fusion {
+
+struct TrackingOptions {
+  // Gauss–Newton iterations per pyramid level, finest first (level l halves the size l times).
+  std::vector<int> iterations = {4, 4, 6};
+  // Projective association: a pair is kept when the points are closer than this and their
+  // normals agree within max_normal_angle_deg (distance in metres at the finest level; it
+  // doubles per coarser level).
+  double max_distance_m = 200e-6;
+  double max_normal_angle_deg = 30.0;
+  // Stop a level early when the update is smaller than these.
+  double min_translation_step_m = 0.05e-6;
+  double min_rotation_step_rad = 1e-7;
+  // Directions whose eigenvalue of the normal matrix is below this fraction of the largest
+  // are degenerate: they keep the guess.
+  double degenerate_eigen_ratio = 1e-5;
+  // Lost-frame tests (after the finest level).
+  double min_inlier_fraction = 0.25;    // of the live pixels with a depth
+  double max_residual_rms_m = 60e-6;    // point-to-plane RMS of the inliers
+  double max_correction_m = 3e-3;       // |translation| of T_guess^-1 * T_result
+  double max_correction_deg = 10.0;
+  // Throws sls::Error(kInvalidArgument) naming the bad value.
+  void validate() const;
+};
+
+struct TrackingResult {
+  Pose T_world_camera;          // the registered pose (the guess when lost)
+  bool lost = false;
+  std::string reason;           // why it is lost (empty otherwise)
+  std::size_t live_pixels = 0;  // finest level pixels with a depth
+  std::size_t inliers = 0;      // of those, matched at the last iteration
+  double inlier_fraction = 0.0;
+  double residual_rms_m = 0.0;  // point-to-plane RMS of the inliers, finest level
+  double condition = 0.0;       // largest / smallest eigenvalue of the last normal matrix
+  int degenerate_directions = 0;
+  int iterations = 0;           // Gauss–Newton steps taken over all levels
+};
+
+class Tracker {
+ public:
+  // camera: the live depth map's camera (its size is the finest level's).
+  Tracker(const Device& device, const CameraIntrinsics& camera, const TrackingOptions& options = {});
+  ~Tracker();
+  Tracker(Tracker&&) noexcept;
+  Tracker& operator=(Tracker&&) noexcept;
+
+  const TrackingOptions& options() const;
+  const Device& device() const;
+
+  // Registers a live depth map (camera-frame z in metres, 0 = none, the camera's size) to the
+  // model seen from T_world_model (a raycast from that pose with the same camera), starting
+  // from T_world_camera_guess. sls::Error(kInvalidArgument) for maps of another size.
+  TrackingResult track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
+                       const Pose& T_world_camera_guess);
+#if defined(SLS_HAVE_CUDA)
+  // Both on the GPU: the live depth map (the decoder's output, width x height floats) and the
+  // model in `raycaster` after raycast_device(volume, T_world_model).
+  TrackingResult track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
+                              const Pose& T_world_camera_guess);
+#endif
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sls::fusion
