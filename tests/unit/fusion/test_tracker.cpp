@@ -1,0 +1,289 @@
+// The ICP tracker against exact ground truth (tests/unit/fusion/tracker_test_scenes.h): a
+// model volume filled with the closed-form truncated distance of a plane with spherical caps,
+// raycast from T_world_model; live depth maps cast exactly from T_true = T_world_model ·
+// motion. The registration must land the live surface on the model to a small fraction of
+// a voxel; a plane leaves three directions degenerate; unrelated geometry is lost; bad input
+// is a clear error. Also the per-pixel pyramid and normal code of track_shared.h.
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "fusion/track_shared.h"
+#include "fusion/tracker.h"
+#include "sdk/core/error.h"
+#include "tests/unit/fusion/tracker_test_scenes.h"
+
+namespace sls::fusion {
+namespace {
+
+using test::kVoxel;
+
+using test::Model;
+
+const Model& bumpy_model() {
+  static const Model model(test::bumpy_scene());
+  return model;
+}
+
+const Model& plane_model() {
+  static const Model model(test::plane_scene());
+  return model;
+}
+
+using test::test_motion;
+
+double degrees(double radians) { return radians * 180.0 / M_PI; }
+
+void print(const char* name, const TrackingResult& r, const Pose& truth, const test::SurfaceError& e) {
+  const Pose error = truth.inverse() * r.T_world_camera;
+  std::printf("[tracker] %s: lost=%d %s| |dt| %.3f um, angle %.5f deg, surface RMS %.3f um max %.3f um; "
+              "%zu/%zu inliers, residual RMS %.3f um, %d degenerate, condition %.3g, %d iterations\n",
+              name, r.lost ? 1 : 0, r.reason.empty() ? "" : (r.reason + " ").c_str(),
+              (r.T_world_camera.translation() - truth.translation()).norm() * 1e6, degrees(error.angle_rad()),
+              e.rms_m * 1e6, e.max_m * 1e6, r.inliers, r.live_pixels, r.residual_rms_m * 1e6,
+              r.degenerate_directions, r.condition, r.iterations);
+}
+
+// The bound on the registration error: the model is the closed-form TSDF sampled at 50 um
+// voxels and read back by trilinear interpolation and a regula-falsi raycast, which places
+// the surface within a few hundredths of a voxel (caps of 0.7 mm radius bend over a voxel by
+// h²/8R = 0.4 um); the association is to the nearest model pixel (37 um) on the model's
+// tangent plane. So the live surface must land within 0.05 voxel (2.5 um) of the truth.
+constexpr double kSurfaceBound = 0.05 * kVoxel;
+
+TEST(Tracker, RegistersAKnownMotion) {
+  const Model& m = bumpy_model();
+  const Pose truth = m.T_world_model * test_motion();
+  const Image32f live = test::exact_depth(m.scene, m.camera, truth);
+  Tracker tracker(Device::cpu(), m.camera);
+  const Pose guess = m.T_world_model;
+  const TrackingResult r = tracker.track(live, m.raycast, m.T_world_model, guess);
+  const test::SurfaceError before = test::surface_error(live, m.camera, guess, truth);
+  const test::SurfaceError after = test::surface_error(live, m.camera, r.T_world_camera, truth);
+  std::printf("[tracker] motion: %.3f mm, %.3f deg; surface moved %.1f um RMS (max %.1f um)\n",
+              test_motion().translation().norm() * 1e3, degrees(test_motion().angle_rad()), before.rms_m * 1e6,
+              before.max_m * 1e6);
+  print("bumps", r, truth, after);
+  EXPECT_FALSE(r.lost) << r.reason;
+  EXPECT_TRUE(r.reason.empty());
+  EXPECT_LT(after.rms_m, kSurfaceBound);
+  EXPECT_LT(after.max_m, 2.0 * kSurfaceBound);
+  // The same in pose terms: translation of the camera and its rotation. A rotation error ε
+  // about a point of the surface moves the camera centre by 0.1 m · ε, so the bound on |dt|
+  // follows from the surface bound over the field (±6 mm): 0.1 / 6e-3 · 2.5 um ≈ 40 um would
+  // be the worst coupling; the measured figures sit far inside these bounds.
+  const Pose error = truth.inverse() * r.T_world_camera;
+  EXPECT_LT((r.T_world_camera.translation() - truth.translation()).norm(), 10e-6);
+  EXPECT_LT(degrees(error.angle_rad()), 0.002);
+  EXPECT_EQ(r.degenerate_directions, 0);
+  EXPECT_GT(r.inlier_fraction, 0.8);
+  EXPECT_LT(r.residual_rms_m, 0.02 * kVoxel);
+  EXPECT_GT(r.iterations, 0);
+  EXPECT_TRUE(std::isfinite(r.condition));
+  EXPECT_EQ(r.live_pixels, static_cast<std::size_t>(m.camera.width * m.camera.height));
+}
+
+TEST(Tracker, StaysPutWhenTheGuessIsRightAndIsDeterministic) {
+  const Model& m = bumpy_model();
+  const Image32f live = test::exact_depth(m.scene, m.camera, m.T_world_model);
+  Tracker tracker(Device::cpu(), m.camera);
+  const TrackingResult a = tracker.track(live, m.raycast, m.T_world_model, m.T_world_model);
+  const TrackingResult b = tracker.track(live, m.raycast, m.T_world_model, m.T_world_model);
+  const test::SurfaceError e = test::surface_error(live, m.camera, a.T_world_camera, m.T_world_model);
+  print("no motion", a, m.T_world_model, e);
+  EXPECT_FALSE(a.lost) << a.reason;
+  EXPECT_LT(e.rms_m, kSurfaceBound);
+  EXPECT_TRUE(a.T_world_camera.is_approx(b.T_world_camera, 0.0));
+  EXPECT_EQ(a.inliers, b.inliers);
+  EXPECT_EQ(a.iterations, b.iterations);
+}
+
+// A plane seen face on: sliding in it and turning about its normal change nothing, so three
+// directions are degenerate and keep the guess; depth and tilt are registered.
+TEST(Tracker, PlaneLeavesThreeDirectionsDegenerate) {
+  const Model& m = plane_model();
+  // Constrained motion (depth and tilt) plus motion along the degenerate directions.
+  const Pose motion = test::camera_motion(Eigen::Vector3d(0.1e-3, 0.05e-3, 0.15e-3), Eigen::Vector3d(1.0, -0.5, 0.2), 0.8);
+  const Pose truth = m.T_world_model * motion;
+  const Image32f live = test::exact_depth(m.scene, m.camera, truth);
+  Tracker tracker(Device::cpu(), m.camera);
+  const TrackingResult r = tracker.track(live, m.raycast, m.T_world_model, m.T_world_model);
+  print("plane", r, truth, test::surface_error(live, m.camera, r.T_world_camera, truth));
+  EXPECT_FALSE(r.lost) << r.reason;
+  EXPECT_EQ(r.degenerate_directions, 3);
+  EXPECT_GT(r.condition, 1e5);
+  // The plane z = plane_z (world) seen from the estimate equals the one seen from the truth:
+  // its normal and distance in the camera frame.
+  auto plane_in_camera = [&](const Pose& T_world_camera) {
+    const Eigen::Vector3d normal = T_world_camera.rotation().transpose() * Eigen::Vector3d::UnitZ();
+    const double distance = m.scene.plane_z - T_world_camera.translation().z();
+    return std::make_pair(normal, distance);
+  };
+  const auto [n_est, d_est] = plane_in_camera(r.T_world_camera);
+  const auto [n_true, d_true] = plane_in_camera(truth);
+  const double angle = std::acos(std::min(1.0, n_est.dot(n_true)));
+  std::printf("[tracker] plane: normal off by %.5f deg, distance by %.3f um\n", degrees(angle), (d_est - d_true) * 1e6);
+  EXPECT_LT(degrees(angle), 0.002);
+  EXPECT_LT(std::fabs(d_est - d_true), 0.02 * kVoxel);  // a plane is exact in the model
+  // The degenerate directions kept the guess: the camera did not turn about the plane's
+  // normal (the guess has the model's roll).
+  const Pose correction = m.T_world_model.inverse() * r.T_world_camera;
+  const Eigen::Vector3d rotation_vector = correction.log().tail<3>();
+  const Eigen::Vector3d normal_in_camera = m.T_world_model.rotation().transpose() * Eigen::Vector3d::UnitZ();
+  EXPECT_LT(std::fabs(rotation_vector.dot(normal_in_camera)), 1e-6);
+}
+
+TEST(Tracker, UnrelatedGeometryIsLost) {
+  const Model& m = bumpy_model();
+  // A plane 20 mm behind the scene, tilted: nothing of it is near the model.
+  test::BumpyScene far = test::plane_scene();
+  far.plane_z += 20e-3;
+  const Image32f live = test::exact_depth(far, m.camera, m.T_world_model * test_motion());
+  Tracker tracker(Device::cpu(), m.camera);
+  const Pose guess = m.T_world_model * test::camera_motion(Eigen::Vector3d(1e-5, 0, 0), Eigen::Vector3d::UnitZ(), 0.0);
+  const TrackingResult r = tracker.track(live, m.raycast, m.T_world_model, guess);
+  std::printf("[tracker] unrelated: %s\n", r.reason.c_str());
+  EXPECT_TRUE(r.lost);
+  EXPECT_NE(r.reason.find("match the model"), std::string::npos) << r.reason;
+  EXPECT_TRUE(r.T_world_camera.is_approx(guess, 0.0));
+  EXPECT_EQ(r.inliers, 0u);
+}
+
+TEST(Tracker, EmptyLiveMapIsLost) {
+  const Model& m = bumpy_model();
+  Tracker tracker(Device::cpu(), m.camera);
+  const TrackingResult r = tracker.track(Image32f(m.camera.width, m.camera.height, 0.0f), m.raycast, m.T_world_model,
+                                         m.T_world_model);
+  EXPECT_TRUE(r.lost);
+  EXPECT_NE(r.reason.find("no valid depth"), std::string::npos) << r.reason;
+  EXPECT_TRUE(r.T_world_camera.is_approx(m.T_world_model, 0.0));
+}
+
+TEST(Tracker, ImplausibleCorrectionAndResidualAreLost) {
+  const Model& m = bumpy_model();
+  const Pose truth = m.T_world_model * test_motion();
+  const Image32f live = test::exact_depth(m.scene, m.camera, truth);
+  {
+    TrackingOptions options;
+    options.max_correction_m = 0.1e-3;  // the true correction is larger
+    Tracker tracker(Device::cpu(), m.camera, options);
+    const TrackingResult r = tracker.track(live, m.raycast, m.T_world_model, m.T_world_model);
+    std::printf("[tracker] correction: %s\n", r.reason.c_str());
+    EXPECT_TRUE(r.lost);
+    EXPECT_NE(r.reason.find("moves the camera"), std::string::npos) << r.reason;
+    EXPECT_TRUE(r.T_world_camera.is_approx(m.T_world_model, 0.0));
+  }
+  {
+    TrackingOptions options;
+    options.max_correction_deg = 0.5;  // the true rotation is 1.5°
+    Tracker tracker(Device::cpu(), m.camera, options);
+    const TrackingResult r = tracker.track(live, m.raycast, m.T_world_model, m.T_world_model);
+    EXPECT_TRUE(r.lost);
+    EXPECT_NE(r.reason.find("deg allowed"), std::string::npos) << r.reason;
+  }
+  {
+    // Depth noise of 20 um against a residual limit of 5 um.
+    Image32f noisy = live;
+    std::uint32_t state = 12345u;
+    for (std::size_t i = 0; i < noisy.pixel_count(); ++i) {
+      if (!(noisy.data()[i] > 0.0f)) continue;
+      state = state * 1664525u + 1013904223u;
+      const double uniform = static_cast<double>(state >> 8) / 16777216.0 - 0.5;  // sigma 0.29
+      noisy.data()[i] += static_cast<float>(uniform * 69e-6);                    // sigma 20 um
+    }
+    TrackingOptions options;
+    options.max_residual_rms_m = 5e-6;
+    Tracker tracker(Device::cpu(), m.camera, options);
+    const TrackingResult r = tracker.track(noisy, m.raycast, m.T_world_model, m.T_world_model);
+    std::printf("[tracker] residual: %s\n", r.reason.c_str());
+    EXPECT_TRUE(r.lost);
+    EXPECT_NE(r.reason.find("residual RMS"), std::string::npos) << r.reason;
+    EXPECT_GT(r.residual_rms_m, 10e-6);
+  }
+}
+
+void expect_invalid(const std::function<void()>& call, const std::string& fragment) {
+  try {
+    call();
+    ADD_FAILURE() << "no error; expected one mentioning '" << fragment << "'";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument) << error.what();
+    EXPECT_NE(std::string(error.what()).find(fragment), std::string::npos) << error.what();
+  }
+}
+
+TEST(Tracker, BadInputIsAClearError) {
+  const Model& m = bumpy_model();
+  Tracker tracker(Device::cpu(), m.camera);
+  expect_invalid([&] { tracker.track(Image32f(100, 80), m.raycast, m.T_world_model, m.T_world_model); },
+                 "live depth map is 100x80");
+  RaycastResult small = m.raycast;
+  small.points_camera.resize(10);
+  expect_invalid([&] { tracker.track(m.raycast.depth_m, small, m.T_world_model, m.T_world_model); }, "model maps");
+  expect_invalid([&] { Tracker(Device::cpu(), test::tracker_camera(40, 30)); }, "too small");
+  auto invalid_option = [&](auto change, const std::string& fragment) {
+    TrackingOptions options;
+    change(options);
+    expect_invalid([&] { options.validate(); }, fragment);
+    expect_invalid([&] { Tracker(Device::cpu(), m.camera, options); }, fragment);
+  };
+  TrackingOptions{}.validate();
+  invalid_option([](TrackingOptions& o) { o.iterations.clear(); }, "pyramid levels");
+  invalid_option([](TrackingOptions& o) { o.iterations = {0, 3}; }, "finest level");
+  invalid_option([](TrackingOptions& o) { o.iterations = {3, -1}; }, "iterations at level 1");
+  invalid_option([](TrackingOptions& o) { o.max_distance_m = 0.0; }, "max_distance_m");
+  invalid_option([](TrackingOptions& o) { o.max_normal_angle_deg = 0.0; }, "max_normal_angle_deg");
+  invalid_option([](TrackingOptions& o) { o.min_translation_step_m = -1.0; }, "minimum steps");
+  invalid_option([](TrackingOptions& o) { o.degenerate_eigen_ratio = 1.0; }, "degenerate_eigen_ratio");
+  invalid_option([](TrackingOptions& o) { o.min_inlier_fraction = 1.5; }, "min_inlier_fraction");
+  invalid_option([](TrackingOptions& o) { o.max_residual_rms_m = std::nan(""); }, "max_residual_rms_m");
+  invalid_option([](TrackingOptions& o) { o.max_correction_deg = -1.0; }, "max_correction");
+#if !defined(SLS_HAVE_CUDA)
+  try {
+    Tracker cuda(Device::cuda(), m.camera);
+    ADD_FAILURE() << "a CUDA tracker in a build without CUDA";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kUnsupported);
+  }
+#endif
+}
+
+// track_shared.h: the 2x2 block keeps the nearest surface across a depth step and averages
+// the rest; live normals face the camera and are not formed across a step.
+TEST(TrackShared, PyramidAndNormals) {
+  const float fx = 2700.0f;
+  // A block on one surface (within 8 footprints = 0.3 mm at 0.1 m), and one across a 1 mm step.
+  const float fine[8] = {0.1000f, 0.1001f, 0.1000f, 0.1010f,  //
+                         0.1002f, 0.0f, 0.1000f, 0.1010f};
+  EXPECT_NEAR(downsample_depth(fine, 4, 2, fx, 0, 0), (0.1000f + 0.1001f + 0.1002f) / 3.0f, 1e-7f);
+  EXPECT_NEAR(downsample_depth(fine, 4, 2, fx, 1, 0), 0.1000f, 1e-7f);
+  const float empty[4] = {0.0f, 0.0f, std::nanf(""), -1.0f};
+  EXPECT_EQ(downsample_depth(empty, 2, 2, fx, 0, 0), 0.0f);
+
+  // A plane z = 0.1 + 0.5 x (tilted about y), on a pinhole ray map.
+  const int w = 4, h = 3;
+  Vec3f rays[w * h];
+  float depth[w * h];
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const Vec3f ray{(static_cast<float>(x) - 1.5f) / fx, (static_cast<float>(y) - 1.0f) / fx, 1.0f};
+      rays[y * w + x] = ray;
+      depth[y * w + x] = 0.1f / (1.0f - 0.5f * ray.x);  // z = 0.1 + 0.5 (ray.x z)
+    }
+  }
+  const Vec3f n = live_normal(depth, rays, w, h, fx, 1, 1);
+  const float expected = 1.0f / std::sqrt(1.25f);  // (0.5, 0, -1) / |.|, facing the camera
+  EXPECT_NEAR(n.x, 0.5f * expected, 1e-3f);
+  EXPECT_NEAR(n.y, 0.0f, 1e-3f);
+  EXPECT_NEAR(n.z, -expected, 1e-3f);
+  const Vec3f border = live_normal(depth, rays, w, h, fx, 3, 1);
+  EXPECT_EQ(norm(border), 0.0f);
+  depth[1 * w + 2] += 1e-3f;  // a 1 mm step to the right of (1, 1)
+  EXPECT_EQ(norm(live_normal(depth, rays, w, h, fx, 1, 1)), 0.0f);
+}
+
+}  // namespace
+}  // namespace sls::fusion
