@@ -9,6 +9,11 @@
 //   TrackingResult r = tracker.track(depth_m, model, T_world_model, T_world_camera_guess);
 //   if (!r.lost) integrate with r.T_world_camera;
 //
+// Live pixels at every level associate against the finest model maps (projected with the
+// full camera model); the update is a left increment of T_model_live about the model points'
+// centroid with the rotation scaled by their RMS radius (track_shared.h), so the eigenvalues
+// compared for degeneracy share units. Solved on the host in double.
+//
 // Degenerate geometry (a cylinder slides along its axis, a plane in three directions) leaves
 // directions of the 6x6 system unconstrained: those directions keep the guess (the prior) and
 // are counted in TrackingResult::degenerate_directions; they do not make a frame lost.
@@ -59,7 +64,8 @@ struct TrackingResult {
   std::size_t inliers = 0;      // of those, matched at the last iteration
   double inlier_fraction = 0.0;
   double residual_rms_m = 0.0;  // point-to-plane RMS of the inliers, finest level
-  double condition = 0.0;       // largest / smallest eigenvalue of the last normal matrix
+  double condition = 0.0;       // largest / smallest eigenvalue of the last normal matrix (finest
+                                //  level, scaled parameterisation; infinity when singular)
   int degenerate_directions = 0;
   int iterations = 0;           // Gauss–Newton steps taken over all levels
 };
@@ -81,8 +87,10 @@ class Tracker {
   TrackingResult track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
                        const Pose& T_world_camera_guess);
 #if defined(SLS_HAVE_CUDA)
-  // Both on the GPU: the live depth map (the decoder's output, width x height floats) and the
-  // model in `raycaster` after raycast_device(volume, T_world_model).
+  // Both on the GPU: the live depth map (the decoder's output, width x height floats, complete
+  // when called: synchronize its stream first) and the model in `raycaster` (a CUDA raycaster
+  // with the tracker's camera) after raycast_device(volume, T_world_model); the raycaster's
+  // stream is synchronized here. No allocation: the pyramid lives in buffers made once.
   TrackingResult track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
                               const Pose& T_world_camera_guess);
 #endif

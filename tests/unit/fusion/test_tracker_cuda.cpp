@@ -1,0 +1,218 @@
+// The CUDA tracker equals the CPU one (same per-pixel code of track_shared.h; the GPU sums
+// each block in float and the blocks in double, the CPU in double): poses within 1e-6 m and
+// 1e-5 rad, inliers within a few pixels, the same lost verdicts and degenerate directions.
+// track_device registers on the CUDA raycaster's maps with the live depth map on the GPU,
+// deterministically (two-stage reductions in a fixed order). Skipped without a GPU.
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "fusion/tracker.h"
+#include "sdk/core/cuda/device_buffer.h"
+#include "sdk/core/error.h"
+#include "tests/support/test_support.h"
+#include "tests/unit/fusion/tracker_test_scenes.h"
+
+namespace sls::fusion {
+namespace {
+
+using test::kVoxel;
+using test::Model;
+using test::test_motion;
+
+constexpr double kSurfaceBound = 0.05 * kVoxel;  // as in test_tracker.cpp
+
+double translation_difference(const Pose& a, const Pose& b) { return (a.translation() - b.translation()).norm(); }
+double rotation_difference(const Pose& a, const Pose& b) { return (a.inverse() * b).angle_rad(); }
+
+void print(const char* name, const TrackingResult& cpu, const TrackingResult& gpu) {
+  std::printf("[tracker-cuda] %s: cpu lost=%d inliers %zu rms %.4f um it %d degenerate %d | cuda lost=%d inliers %zu "
+              "rms %.4f um it %d degenerate %d | pose differs %.3g m, %.3g rad\n",
+              name, cpu.lost ? 1 : 0, cpu.inliers, cpu.residual_rms_m * 1e6, cpu.iterations,
+              cpu.degenerate_directions, gpu.lost ? 1 : 0, gpu.inliers, gpu.residual_rms_m * 1e6, gpu.iterations,
+              gpu.degenerate_directions, translation_difference(cpu.T_world_camera, gpu.T_world_camera),
+              rotation_difference(cpu.T_world_camera, gpu.T_world_camera));
+}
+
+// CPU and CUDA agree on one frame.
+void expect_equal(const TrackingResult& cpu, const TrackingResult& gpu) {
+  EXPECT_EQ(cpu.lost, gpu.lost) << cpu.reason << " | " << gpu.reason;
+  EXPECT_LT(translation_difference(cpu.T_world_camera, gpu.T_world_camera), 1e-6);
+  EXPECT_LT(rotation_difference(cpu.T_world_camera, gpu.T_world_camera), 1e-5);
+  EXPECT_EQ(cpu.live_pixels, gpu.live_pixels);
+  const double inlier_difference = std::fabs(static_cast<double>(cpu.inliers) - static_cast<double>(gpu.inliers));
+  EXPECT_LE(inlier_difference, std::max(5.0, 1e-4 * static_cast<double>(cpu.live_pixels)));
+  EXPECT_EQ(cpu.degenerate_directions, gpu.degenerate_directions);
+  EXPECT_LE(std::abs(cpu.iterations - gpu.iterations), 1);
+  EXPECT_NEAR(cpu.residual_rms_m, gpu.residual_rms_m, 0.02 * cpu.residual_rms_m + 1e-9);
+}
+
+const Model& bumpy_model() {
+  static const Model model(test::bumpy_scene());
+  return model;
+}
+
+TEST(TrackerCuda, EqualsCpuOnEveryCase) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Model& m = bumpy_model();
+  Tracker cpu(Device::cpu(), m.camera), gpu(Device::cuda(), m.camera);
+  EXPECT_TRUE(gpu.device().is_cuda());
+  // A known motion.
+  {
+    const Pose truth = m.T_world_model * test_motion();
+    const Image32f live = test::exact_depth(m.scene, m.camera, truth);
+    const TrackingResult a = cpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+    const TrackingResult b = gpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+    print("motion", a, b);
+    expect_equal(a, b);
+    EXPECT_FALSE(b.lost) << b.reason;
+    EXPECT_EQ(b.degenerate_directions, 0);
+    const test::SurfaceError e = test::surface_error(live, m.camera, b.T_world_camera, truth);
+    std::printf("[tracker-cuda] motion: CUDA surface error RMS %.3f um, max %.3f um\n", e.rms_m * 1e6, e.max_m * 1e6);
+    EXPECT_LT(e.rms_m, kSurfaceBound);
+    EXPECT_LT(e.max_m, 2.0 * kSurfaceBound);
+  }
+  // No motion.
+  {
+    const Image32f live = test::exact_depth(m.scene, m.camera, m.T_world_model);
+    const TrackingResult a = cpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+    const TrackingResult b = gpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+    print("still", a, b);
+    expect_equal(a, b);
+  }
+  // Unrelated geometry: lost, the guess returned.
+  {
+    test::BumpyScene far = test::plane_scene();
+    far.plane_z += 20e-3;
+    const Image32f live = test::exact_depth(far, m.camera, m.T_world_model * test_motion());
+    const TrackingResult a = cpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+    const TrackingResult b = gpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+    print("unrelated", a, b);
+    EXPECT_TRUE(b.lost);
+    EXPECT_EQ(a.reason, b.reason);
+    EXPECT_TRUE(b.T_world_camera.is_approx(m.T_world_model, 0.0));
+  }
+  // An empty live map.
+  {
+    const Image32f live(m.camera.width, m.camera.height, 0.0f);
+    const TrackingResult b = gpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+    EXPECT_TRUE(b.lost);
+    EXPECT_NE(b.reason.find("no valid depth"), std::string::npos) << b.reason;
+  }
+  // Too large a correction.
+  {
+    TrackingOptions options;
+    options.max_correction_m = 0.1e-3;
+    Tracker strict(Device::cuda(), m.camera, options);
+    const Image32f live = test::exact_depth(m.scene, m.camera, m.T_world_model * test_motion());
+    const TrackingResult b = strict.track(live, m.raycast, m.T_world_model, m.T_world_model);
+    EXPECT_TRUE(b.lost);
+    EXPECT_NE(b.reason.find("moves the camera"), std::string::npos) << b.reason;
+    EXPECT_TRUE(b.T_world_camera.is_approx(m.T_world_model, 0.0));
+  }
+}
+
+TEST(TrackerCuda, PlaneIsDegenerateAsOnTheCpu) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Model m(test::plane_scene());
+  const Pose motion = test::camera_motion(Eigen::Vector3d(0.1e-3, 0.05e-3, 0.15e-3), Eigen::Vector3d(1.0, -0.5, 0.2), 0.8);
+  const Image32f live = test::exact_depth(m.scene, m.camera, m.T_world_model * motion);
+  Tracker cpu(Device::cpu(), m.camera), gpu(Device::cuda(), m.camera);
+  const TrackingResult a = cpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+  const TrackingResult b = gpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+  print("plane", a, b);
+  EXPECT_FALSE(b.lost) << b.reason;
+  EXPECT_EQ(b.degenerate_directions, 3);
+  expect_equal(a, b);
+}
+
+// More pixels than the reduction's threads (512 blocks x 256): the grid-stride loop.
+TEST(TrackerCuda, LargeImageEqualsCpu) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Model m(test::bumpy_scene(), test::tracker_camera(640, 480));
+  const Pose truth = m.T_world_model * test_motion();
+  const Image32f live = test::exact_depth(m.scene, m.camera, truth);
+  Tracker cpu(Device::cpu(), m.camera), gpu(Device::cuda(), m.camera);
+  const TrackingResult a = cpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+  const TrackingResult b = gpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+  print("640x480", a, b);
+  EXPECT_FALSE(b.lost) << b.reason;
+  expect_equal(a, b);
+  EXPECT_LT(test::surface_error(live, m.camera, b.T_world_camera, truth).rms_m, kSurfaceBound);
+}
+
+// The whole frame on the GPU: the volume, its raycast (raycast_device) and the live depth map.
+TEST(TrackerCuda, TrackDeviceOnTheRaycastersMaps) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Model& m = bumpy_model();
+  Volume volume(m.volume.geometry(), VoxelFormat::kFloat32, Device::cuda());
+  volume.copy_from(m.volume);
+  Raycaster raycaster(Device::cuda(), m.camera, Model::raycast_options());
+  raycaster.raycast_device(volume, m.T_world_model);
+  const Pose truth = m.T_world_model * test_motion();
+  const Image32f live = test::exact_depth(m.scene, m.camera, truth);
+  DeviceBuffer<float> live_device(live.pixel_count());
+  live_device.upload(live.data(), live.pixel_count(), nullptr);
+  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+
+  Tracker gpu(Device::cuda(), m.camera), cpu(Device::cpu(), m.camera);
+  const TrackingResult a = cpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
+  const TrackingResult b = gpu.track_device(live_device.data(), raycaster, m.T_world_model, m.T_world_model);
+  print("track_device", a, b);
+  EXPECT_FALSE(b.lost) << b.reason;
+  // The GPU raycast differs from the CPU one by float rounding (test_fusion_cuda: < 1e-3
+  // voxel almost everywhere), far below what moves the pose by 1e-6 m.
+  expect_equal(a, b);
+  const test::SurfaceError e = test::surface_error(live, m.camera, b.T_world_camera, truth);
+  std::printf("[tracker-cuda] track_device: surface error RMS %.3f um, max %.3f um\n", e.rms_m * 1e6, e.max_m * 1e6);
+  EXPECT_LT(e.rms_m, kSurfaceBound);
+  // Deterministic: the same frame again gives the same bits; and the maps downloaded by
+  // raycast() give the same result through track().
+  for (int n = 0; n < 3; ++n) {
+    const TrackingResult again = gpu.track_device(live_device.data(), raycaster, m.T_world_model, m.T_world_model);
+    EXPECT_TRUE(again.T_world_camera.is_approx(b.T_world_camera, 0.0)) << n;
+    EXPECT_EQ(again.inliers, b.inliers);
+    EXPECT_EQ(again.iterations, b.iterations);
+    EXPECT_EQ(again.residual_rms_m, b.residual_rms_m);
+  }
+  const RaycastResult downloaded = raycaster.raycast(volume, m.T_world_model);
+  const TrackingResult c = gpu.track(live, downloaded, m.T_world_model, m.T_world_model);
+  EXPECT_TRUE(c.T_world_camera.is_approx(b.T_world_camera, 1e-12));
+  EXPECT_EQ(c.inliers, b.inliers);
+  // The device pointers are the raycaster's own buffers.
+  EXPECT_NE(raycaster.depth_device(), nullptr);
+  EXPECT_NE(raycaster.points_device(), raycaster.normals_device());
+}
+
+void expect_invalid(const std::function<void()>& call, const std::string& fragment) {
+  try {
+    call();
+    ADD_FAILURE() << "no error; expected one mentioning '" << fragment << "'";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument) << error.what();
+    EXPECT_NE(std::string(error.what()).find(fragment), std::string::npos) << error.what();
+  }
+}
+
+TEST(TrackerCuda, BadInputIsAClearError) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Model& m = bumpy_model();
+  Tracker gpu(Device::cuda(), m.camera);
+  expect_invalid([&] { gpu.track(Image32f(100, 80), m.raycast, m.T_world_model, m.T_world_model); },
+                 "live depth map is 100x80");
+  DeviceBuffer<float> live(m.raycast.depth_m.pixel_count());
+  Raycaster cpu_raycaster(Device::cpu(), m.camera, Model::raycast_options());
+  expect_invalid([&] { gpu.track_device(live.data(), cpu_raycaster, m.T_world_model, m.T_world_model); },
+                 "CUDA raycaster");
+  Raycaster other(Device::cuda(), test::tracker_camera(160, 120), Model::raycast_options());
+  expect_invalid([&] { gpu.track_device(live.data(), other, m.T_world_model, m.T_world_model); },
+                 "raycaster's camera is 160x120");
+  Raycaster same(Device::cuda(), m.camera, Model::raycast_options());
+  expect_invalid([&] { gpu.track_device(nullptr, same, m.T_world_model, m.T_world_model); }, "null device pointer");
+}
+
+}  // namespace
+}  // namespace sls::fusion
