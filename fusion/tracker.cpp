@@ -482,6 +482,10 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
 TrackingResult Tracker::track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
                                      const Pose& T_world_camera_guess) {
   Impl& s = *impl_;
+  if (!s.device.is_cuda()) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: track_device on a tracker for {}; make it for CUDA",
+                s.device.to_string());
+  }
   require_device(s.device);
   if (!raycaster.device().is_cuda()) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: track_device needs a CUDA raycaster, not {}",

@@ -218,6 +218,8 @@ TEST(TrackerCuda, BadInputIsAClearError) {
                  "raycaster's camera is 160x120");
   Raycaster same(Device::cuda(), m.camera, Model::raycast_options());
   expect_invalid([&] { gpu.track_device(nullptr, same, m.T_world_model, m.T_world_model); }, "null device pointer");
+  Tracker cpu(Device::cpu(), m.camera);
+  expect_invalid([&] { cpu.track_device(live.data(), same, m.T_world_model, m.T_world_model); }, "make it for CUDA");
 }
 
 }  // namespace
