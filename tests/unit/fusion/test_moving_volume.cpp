@@ -60,8 +60,8 @@ MovingVolume make_filled(VoxelFormat format, bool band, int weight_cycle) {
 //    the sphere's SDF, h²/8 · Σ_axes max |∂²d/∂x_a²| / δ <= 3 h² / (8 ρ δ), ρ the distance to the
 //    sphere's centre less a cell diagonal (the Hessian of |p - c| has eigenvalues 0, 1/ρ, 1/ρ);
 //  - otherwise (clamped corners, or the rim of the old volume where unobserved corners drop
-//    out of the renormalised average): U is an average of corner values clamp(d_c / δ), each
-//    within |c - p| <= √3/2 h... of a corner up to √3 h away, so |ΔU| <= √3 h / δ.
+//    out of the renormalised average): U is a weighted mean of corner values clamp(d_c / δ),
+//    clamp is 1-Lipschitz and every corner lies within √3 h of the centre, so |ΔU| <= √3 h / δ.
 TEST_P(MovingVolumeTest, ResampledVoxelsMatchTheAnalyticSdf) {
   const VoxelFormat format = GetParam();
   MovingVolume moving = make_filled(format, false, 1);
