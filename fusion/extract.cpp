@@ -8,6 +8,7 @@
 #include <limits>
 #include <vector>
 
+#include "fusion/extract_internal.h"
 #include "fusion/extract_shared.h"
 #include "sdk/core/error.h"
 
@@ -19,11 +20,6 @@ struct GridRange {
   int begin[3] = {0, 0, 0};
   int end[3] = {0, 0, 0};
   bool empty() const { return end[0] <= begin[0] || end[1] <= begin[1] || end[2] <= begin[2]; }
-};
-
-struct EdgeCrossing {
-  std::uint64_t edge_id = 0;
-  SurfaceCrossing crossing;
 };
 
 void check_options(const ExtractOptions& options) {
@@ -175,14 +171,31 @@ void append_point(PointCloud* cloud, const Eigen::Vector3d& world, const ToWorld
   cloud->properties.front().values.push_back(crossing.weight);
 }
 
-// The cloud of the crossings inside `region` (all without one).
-PointCloud make_cloud(const std::vector<EdgeCrossing>& crossings, const Pose& T_world_volume, const Box* region,
+// What a region keeps, one predicate for every filter: nothing set keeps everything; a world
+// Box tests the world point (double); an oriented region tests the volume-frame point with
+// region_keeps() (float, as the CUDA kernels do).
+struct Region {
+  const Box* box = nullptr;
+  const RegionFilter* filter = nullptr;
+  bool keeps(const Eigen::Vector3d& world, const Vec3f& point_volume) const {
+    if (box != nullptr && !box->contains(world)) return false;
+    return filter == nullptr || region_keeps(*filter, point_volume);
+  }
+  // A cell belongs to the region when its centre does (oriented regions only: Box filters
+  // clouds alone).
+  bool keeps_cell(const VolumeView& view, int i, int j, int k) const {
+    return filter == nullptr || region_keeps(*filter, cell_centre(view, i, j, k));
+  }
+};
+
+// The cloud of the crossings the region keeps.
+PointCloud make_cloud(const std::vector<EdgeCrossing>& crossings, const Pose& T_world_volume, const Region& region,
                       const ExtractOptions& options) {
   const ToWorld to_world(T_world_volume);
   PointCloud cloud = reserve_cloud(crossings.size());
   for (const EdgeCrossing& found : crossings) {
     const Eigen::Vector3d world = to_world.point(found.crossing.point_volume);
-    if (region != nullptr && !region->contains(world)) continue;
+    if (!region.keeps(world, found.crossing.point_volume)) continue;
     append_point(&cloud, world, to_world, found.crossing, options);
   }
   return cloud;
@@ -219,39 +232,68 @@ std::vector<std::uint64_t> candidate_cells(const VolumeView& view, const std::ve
   return cells;
 }
 
-// The marching-cubes mesh over the crossings (all of the volume's, in edge-id order, so a
-// cell finds its edge's vertex by binary search and all cells around an edge agree on it).
-TriangleMesh make_mesh(const VolumeView& view, const std::vector<EdgeCrossing>& crossings, const Pose& T_world_volume,
-                       const ExtractOptions& options) {
+// The surface cells among the candidates that the region keeps, with their cases, in cell
+// order (chunks of cells on threads).
+std::vector<CellCase> surface_cells(const VolumeView& view, const std::vector<std::uint64_t>& cells,
+                                    const Region& region, float min_weight) {
+  constexpr std::size_t kChunk = 4096;
+  const std::size_t chunks = (cells.size() + kChunk - 1) / kChunk;
+  std::vector<std::vector<CellCase>> per_chunk(chunks);
+  const auto nx = static_cast<std::uint64_t>(view.nx), ny = static_cast<std::uint64_t>(view.ny);
+#pragma omp parallel for schedule(dynamic, 1)
+  for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {
+    std::vector<CellCase>& out = per_chunk[static_cast<std::size_t>(c)];
+    const std::size_t end = std::min(cells.size(), (static_cast<std::size_t>(c) + 1) * kChunk);
+    for (std::size_t n = static_cast<std::size_t>(c) * kChunk; n < end; ++n) {
+      const int i = static_cast<int>(cells[n] % nx), j = static_cast<int>((cells[n] / nx) % ny),
+                k = static_cast<int>(cells[n] / (nx * ny));
+      if (!region.keeps_cell(view, i, j, k)) continue;
+      const int cube_case = cell_case(view, i, j, k, min_weight);
+      if (cube_case <= 0 || cube_case == 255) continue;
+      out.push_back(CellCase{cells[n], cube_case});
+    }
+  }
+  std::vector<CellCase> all;
+  for (const std::vector<CellCase>& chunk : per_chunk) all.insert(all.end(), chunk.begin(), chunk.end());
+  return all;
+}
+
+// The marching-cubes mesh of the cells over the crossings (in edge-id order, so a cell finds
+// its edge's vertex by binary search and all cells around an edge agree on it). Reads no voxel.
+TriangleMesh assemble_mesh(int grid_nx, int grid_ny, const std::vector<EdgeCrossing>& crossings,
+                           const std::vector<CellCase>& cells, const Pose& T_world_volume,
+                           const ExtractOptions& options) {
   if (crossings.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
     throw_error(ErrorCode::kUnsupported, "extract_mesh: {} vertices, more than a PLY int index holds",
                 crossings.size());
   }
   std::vector<std::uint64_t> edge_ids(crossings.size());
   for (std::size_t n = 0; n < crossings.size(); ++n) edge_ids[n] = crossings[n].edge_id;
-  const std::vector<std::uint64_t> cells = candidate_cells(view, crossings);
+  VolumeView ids;  // grid_edge_id() needs only the counts
+  ids.nx = grid_nx;
+  ids.ny = grid_ny;
 
   // Cells in chunks on threads; faces keep the cells' order.
   constexpr std::size_t kChunk = 4096;
   const std::size_t chunks = (cells.size() + kChunk - 1) / kChunk;
   std::vector<std::vector<std::array<std::int32_t, 3>>> per_chunk(chunks);
-  const auto nx = static_cast<std::uint64_t>(view.nx), ny = static_cast<std::uint64_t>(view.ny);
+  const auto nx = static_cast<std::uint64_t>(grid_nx), ny = static_cast<std::uint64_t>(grid_ny);
   bool missing_vertex = false;
 #pragma omp parallel for schedule(dynamic, 1) reduction(|| : missing_vertex)
   for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {
     std::vector<std::array<std::int32_t, 3>>& faces = per_chunk[static_cast<std::size_t>(c)];
     const std::size_t end = std::min(cells.size(), (static_cast<std::size_t>(c) + 1) * kChunk);
     for (std::size_t n = static_cast<std::size_t>(c) * kChunk; n < end; ++n) {
-      const int i = static_cast<int>(cells[n] % nx), j = static_cast<int>((cells[n] / nx) % ny),
-                k = static_cast<int>(cells[n] / (nx * ny));
-      const int cube_case = cell_case(view, i, j, k, options.min_weight);
-      if (cube_case <= 0 || cube_case == 255) continue;
+      const std::uint64_t cell = cells[n].cell;
+      const int i = static_cast<int>(cell % nx), j = static_cast<int>((cell / nx) % ny),
+                k = static_cast<int>(cell / (nx * ny));
+      const int cube_case = cells[n].cube_case;
       for (int t = 0; t < 15 && mc::triangle_edge(cube_case, t) >= 0; t += 3) {
         std::array<std::int32_t, 3> face{};
         for (int corner = 0; corner < 3; ++corner) {
           int gi = 0, gj = 0, gk = 0, axis = 0;
           cell_grid_edge(i, j, k, mc::triangle_edge(cube_case, t + corner), &gi, &gj, &gk, &axis);
-          const std::uint64_t id = grid_edge_id(view, gi, gj, gk, axis);
+          const std::uint64_t id = grid_edge_id(ids, gi, gj, gk, axis);
           const auto found = std::lower_bound(edge_ids.begin(), edge_ids.end(), id);
           if (found == edge_ids.end() || *found != id) {
             missing_vertex = true;
@@ -298,14 +340,77 @@ TriangleMesh make_mesh(const VolumeView& view, const std::vector<EdgeCrossing>& 
   return mesh;
 }
 
+// The mesh of the region's cells over every crossing of the volume (in edge-id order).
+TriangleMesh make_mesh(const VolumeView& view, const std::vector<EdgeCrossing>& crossings, const Pose& T_world_volume,
+                       const Region& region, const ExtractOptions& options) {
+  const std::vector<CellCase> cells =
+      surface_cells(view, candidate_cells(view, crossings), region, options.min_weight);
+  return assemble_mesh(view.nx, view.ny, crossings, cells, T_world_volume, options);
+}
+
 }  // namespace
+
+namespace detail {
+
+void check_extract_options(const ExtractOptions& options) { check_options(options); }
+
+RegionFilter region_filter(const OrientedRegion& region, const Pose& T_world_volume) {
+  RegionFilter filter;
+  filter.T_box_volume = (region.T_world_box.inverse() * T_world_volume).to_rigid3f();
+  filter.lo = Vec3f{static_cast<float>(region.min.x()), static_cast<float>(region.min.y()),
+                    static_cast<float>(region.min.z())};
+  filter.hi = Vec3f{static_cast<float>(region.max.x()), static_cast<float>(region.max.y()),
+                    static_cast<float>(region.max.z())};
+  filter.keep_outside = region.keep_outside ? 1 : 0;
+  return filter;
+}
+
+PointCloud crossing_cloud(const std::vector<EdgeCrossing>& crossings, const Pose& T_world_volume,
+                          const RegionFilter* filter, const ExtractOptions& options) {
+  Region region;
+  region.filter = filter;
+  return make_cloud(crossings, T_world_volume, region, options);
+}
+
+TriangleMesh cell_mesh(int nx, int ny, const std::vector<EdgeCrossing>& crossings, const std::vector<CellCase>& cells,
+                       const Pose& T_world_volume, const ExtractOptions& options) {
+  return assemble_mesh(nx, ny, crossings, cells, T_world_volume, options);
+}
+
+}  // namespace detail
 
 PointCloud extract_points(const VolumeView& view, const Pose& T_world_volume, const Box* region,
                           const ExtractOptions& options) {
   check_options(options);
   check_view(view);
   const GridRange range = region != nullptr ? grid_range_of(view, T_world_volume, *region) : whole_grid(view);
-  return make_cloud(find_crossings(view, range, options.min_weight), T_world_volume, region, options);
+  Region filter;
+  filter.box = region;
+  return make_cloud(find_crossings(view, range, options.min_weight), T_world_volume, filter, options);
+}
+
+PointCloud extract_points(const VolumeView& view, const Pose& T_world_volume, const OrientedRegion& region,
+                          const ExtractOptions& options) {
+  check_options(options);
+  check_view(view);
+  const RegionFilter filter = detail::region_filter(region, T_world_volume);
+  return detail::crossing_cloud(find_crossings(view, whole_grid(view), options.min_weight), T_world_volume, &filter,
+                                options);
+}
+
+ExtractedSurface extract_surface(const VolumeView& view, const Pose& T_world_volume, const OrientedRegion& region,
+                                 const ExtractOptions& options) {
+  check_options(options);
+  check_view(view);
+  const RegionFilter filter = detail::region_filter(region, T_world_volume);
+  Region part;
+  part.filter = &filter;
+  // Every crossing, not only the region's: the region's cells at its rim use vertices across it.
+  const std::vector<EdgeCrossing> crossings = find_crossings(view, whole_grid(view), options.min_weight);
+  ExtractedSurface surface;
+  surface.cloud = make_cloud(crossings, T_world_volume, part, options);
+  surface.mesh = make_mesh(view, crossings, T_world_volume, part, options);
+  return surface;
 }
 
 PointCloud extract_points(const Volume& volume, const Box* region, const ExtractOptions& options) {
@@ -315,7 +420,7 @@ PointCloud extract_points(const Volume& volume, const Box* region, const Extract
 TriangleMesh extract_mesh(const VolumeView& view, const Pose& T_world_volume, const ExtractOptions& options) {
   check_options(options);
   check_view(view);
-  return make_mesh(view, find_crossings(view, whole_grid(view), options.min_weight), T_world_volume, options);
+  return make_mesh(view, find_crossings(view, whole_grid(view), options.min_weight), T_world_volume, Region{}, options);
 }
 
 TriangleMesh extract_mesh(const Volume& volume, const ExtractOptions& options) {
@@ -327,8 +432,8 @@ ExtractedSurface extract_surface(const VolumeView& view, const Pose& T_world_vol
   check_view(view);
   const std::vector<EdgeCrossing> crossings = find_crossings(view, whole_grid(view), options.min_weight);
   ExtractedSurface surface;
-  surface.cloud = make_cloud(crossings, T_world_volume, nullptr, options);
-  surface.mesh = make_mesh(view, crossings, T_world_volume, options);
+  surface.cloud = make_cloud(crossings, T_world_volume, Region{}, options);
+  surface.mesh = make_mesh(view, crossings, T_world_volume, Region{}, options);
   return surface;
 }
 

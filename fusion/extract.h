@@ -51,9 +51,21 @@ struct Box {
   }
 };
 
-// The zero-crossing cloud of a CPU volume; with `region`, only the points inside it (the
-// moving volume ships the part of the surface that leaves). sls::Error(kInvalidArgument) for a
-// volume that is not on the CPU (call to_host() first) or bad options.
+// An oriented box placed in the world: the points whose coordinates in the box's frame
+// (T_world_box) lie in [min, max], bounds included; with keep_outside, everything else. The
+// moving volume ships the part of its old surface outside its new placement with one. The
+// test runs in float on volume-frame points (extract_shared.h's RegionFilter), the same code
+// on the CPU and on the GPU, so both backends keep exactly the same points.
+struct OrientedRegion {
+  Pose T_world_box;
+  Eigen::Vector3d min = Eigen::Vector3d::Zero();
+  Eigen::Vector3d max = Eigen::Vector3d::Zero();
+  bool keep_outside = false;
+};
+
+// The zero-crossing cloud of a CPU volume; with `region`, only the points inside it.
+// sls::Error(kInvalidArgument) for a volume that is not on the CPU (call to_host() first) or
+// bad options.
 PointCloud extract_points(const Volume& volume, const Box* region = nullptr, const ExtractOptions& options = {});
 
 // The marching-cubes mesh of a CPU volume (same errors).
@@ -72,5 +84,15 @@ PointCloud extract_points(const VolumeView& view, const Pose& T_world_volume, co
                           const ExtractOptions& options);
 TriangleMesh extract_mesh(const VolumeView& view, const Pose& T_world_volume, const ExtractOptions& options);
 ExtractedSurface extract_surface(const VolumeView& view, const Pose& T_world_volume, const ExtractOptions& options);
+
+// The part of the surface in an oriented region: the crossings whose point it keeps (cloud,
+// in edge-id order) and the marching-cubes triangles of the cells whose centre it keeps (mesh;
+// its vertices are the crossings those cells use, a few of them just across the region's
+// border, so the part's mesh reaches its rim). Every crossing and every cell belongs to
+// exactly one of a region and its complement.
+PointCloud extract_points(const VolumeView& view, const Pose& T_world_volume, const OrientedRegion& region,
+                          const ExtractOptions& options);
+ExtractedSurface extract_surface(const VolumeView& view, const Pose& T_world_volume, const OrientedRegion& region,
+                                 const ExtractOptions& options);
 
 }  // namespace sls::fusion

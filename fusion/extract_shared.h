@@ -135,4 +135,64 @@ SLS_HOST_DEVICE inline void cell_grid_edge(int i, int j, int k, int e, int* gi, 
   *axis = ax != bx ? 0 : (ay != by ? 1 : 2);
 }
 
+
+// A crossing found on grid edge `edge_id` (grid_edge_id()): what the CPU loops and the CUDA
+// kernels hand to the host, which orders them by edge id.
+struct EdgeCrossing {
+  std::uint64_t edge_id = 0;
+  SurfaceCrossing crossing;
+};
+
+// A marching-cubes cell (the voxel index of its first corner) and its case (1..254).
+struct CellCase {
+  std::uint64_t cell = 0;
+  std::int32_t cube_case = 0;
+};
+
+// The centre of cell (i, j, k) (corners voxels i..i+1, j..j+1, k..k+1), volume frame.
+SLS_HOST_DEVICE inline Vec3f cell_centre(const VolumeView& v, int i, int j, int k) {
+  return Vec3f{(static_cast<float>(i) + 1.0f) * v.voxel_size_m, (static_cast<float>(j) + 1.0f) * v.voxel_size_m,
+               (static_cast<float>(k) + 1.0f) * v.voxel_size_m};
+}
+
+// An oriented box as an extraction filter (fusion/extract.h's OrientedRegion holds it on the
+// host): a volume-frame point p is inside when q = T_box_volume * p lies in [lo, hi] on every
+// axis, bounds included; the filter keeps the inside, or the outside with keep_outside (the
+// moving volume ships what lies outside its new placement). Evaluated in float on the
+// volume-frame point, by the same code on both backends, so they keep the same points.
+struct RegionFilter {
+  Rigid3f T_box_volume{};
+  Vec3f lo{0.0f, 0.0f, 0.0f};
+  Vec3f hi{0.0f, 0.0f, 0.0f};
+  int keep_outside = 0;
+};
+
+SLS_HOST_DEVICE inline bool region_keeps(const RegionFilter& r, Vec3f point_volume) {
+  const Vec3f q = transform_point(r.T_box_volume, point_volume);
+  const bool inside = q.x >= r.lo.x && q.y >= r.lo.y && q.z >= r.lo.z && q.x <= r.hi.x && q.y <= r.hi.y &&
+                      q.z <= r.hi.z;
+  return inside != (r.keep_outside != 0);
+}
+
+// Whether a cell of the region's mesh (a cell belongs to the region when its centre does) is
+// around grid edge (i, j, k, axis): the (up to) four cells sharing the edge, inside the grid.
+// The vertices of the region's triangles are the crossings on such edges.
+SLS_HOST_DEVICE inline bool edge_has_region_cell(const VolumeView& v, const RegionFilter& r, int i, int j, int k,
+                                                 int axis) {
+  const int u = (axis + 1) % 3, w = (axis + 2) % 3;  // the two axes across the edge
+  for (int du = 0; du < 2; ++du) {
+    for (int dw = 0; dw < 2; ++dw) {
+      int cell[3] = {i, j, k};
+      cell[u] -= du;
+      cell[w] -= dw;
+      if (cell[0] < 0 || cell[1] < 0 || cell[2] < 0 || cell[0] + 1 >= v.nx || cell[1] + 1 >= v.ny ||
+          cell[2] + 1 >= v.nz) {
+        continue;
+      }
+      if (region_keeps(r, cell_centre(v, cell[0], cell[1], cell[2]))) return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace sls::fusion

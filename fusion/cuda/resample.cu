@@ -1,0 +1,87 @@
+// CUDA launchers of the moving volume: one thread per voxel around resample_voxel, one per
+// voxel for the crossings on its three edges and one per cell for the marching-cubes cases of
+// the leaving part (resample_shared.h, extract_shared.h: the code the CPU loops run). Built
+// with -fmad=false (fusion/CMakeLists.txt): no fused multiply-adds, so every float operation
+// rounds as on the CPU and both backends produce the same bits.
+#include "fusion/cuda/resample_cuda.h"
+
+#include "sdk/core/cuda/cuda_check.h"
+
+namespace sls::fusion::detail {
+namespace {
+
+__global__ void resample_kernel(VolumeView from, VolumeView to, Rigid3f grid_from_to) {
+  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int j = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  const int k = static_cast<int>(blockIdx.z);
+  if (i >= to.nx || j >= to.ny) return;
+  resample_voxel(from, to, grid_from_to, i, j, k);
+}
+
+__global__ void region_crossings_kernel(VolumeView volume, RegionFilter region, float min_weight, EdgeCrossing* out,
+                                        std::uint32_t capacity, std::uint32_t* count) {
+  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int j = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  const int k = static_cast<int>(blockIdx.z);
+  if (i >= volume.nx || j >= volume.ny) return;
+  if (!voxel_usable(volume, volume.index(i, j, k), min_weight)) return;
+  for (int axis = 0; axis < 3; ++axis) {
+    EdgeCrossing found;
+    if (!edge_crossing(volume, i, j, k, axis, min_weight, &found.crossing)) continue;
+    if (!region_keeps(region, found.crossing.point_volume) && !edge_has_region_cell(volume, region, i, j, k, axis)) {
+      continue;
+    }
+    found.edge_id = grid_edge_id(volume, i, j, k, axis);
+    const std::uint32_t slot = atomicAdd(count, 1u);
+    if (slot < capacity) out[slot] = found;
+  }
+}
+
+__global__ void region_cells_kernel(VolumeView volume, RegionFilter region, float min_weight, CellCase* out,
+                                    std::uint32_t capacity, std::uint32_t* count) {
+  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int j = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  const int k = static_cast<int>(blockIdx.z);
+  if (i + 1 >= volume.nx || j + 1 >= volume.ny) return;
+  if (!voxel_usable(volume, volume.index(i, j, k), min_weight)) return;  // cheap reject of the unobserved bulk
+  const int cube_case = cell_case(volume, i, j, k, min_weight);
+  if (cube_case <= 0 || cube_case == 255) return;
+  if (!region_keeps(region, cell_centre(volume, i, j, k))) return;
+  const std::uint32_t slot = atomicAdd(count, 1u);
+  if (slot < capacity) out[slot] = CellCase{static_cast<std::uint64_t>(volume.index(i, j, k)), cube_case};
+}
+
+dim3 voxel_grid(int nx, int ny, int nz, const dim3& block) {
+  return dim3((static_cast<unsigned>(nx) + block.x - 1) / block.x, (static_cast<unsigned>(ny) + block.y - 1) / block.y,
+              static_cast<unsigned>(nz));
+}
+
+}  // namespace
+
+void launch_resample_cuda(const VolumeView& from, const VolumeView& to, const Rigid3f& grid_from_to,
+                          cudaStream_t stream) {
+  if (to.surface_bricks != nullptr) SLS_CUDA_CHECK(cudaMemsetAsync(to.surface_bricks, 0, to.brick_count(), stream));
+  const dim3 block(64, 4, 1);
+  resample_kernel<<<voxel_grid(to.nx, to.ny, to.nz, block), block, 0, stream>>>(from, to, grid_from_to);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+void launch_region_crossings_cuda(const VolumeView& volume, const RegionFilter& region, float min_weight,
+                                  EdgeCrossing* out, std::uint32_t capacity, std::uint32_t* count,
+                                  cudaStream_t stream) {
+  const dim3 block(64, 4, 1);
+  region_crossings_kernel<<<voxel_grid(volume.nx, volume.ny, volume.nz, block), block, 0, stream>>>(
+      volume, region, min_weight, out, capacity, count);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+void launch_region_cells_cuda(const VolumeView& volume, const RegionFilter& region, float min_weight, CellCase* out,
+                              std::uint32_t capacity, std::uint32_t* count, cudaStream_t stream) {
+  const dim3 block(64, 4, 1);
+  // Cells along z: nz - 1 layers.
+  region_cells_kernel<<<voxel_grid(volume.nx, volume.ny, volume.nz - 1, block), block, 0, stream>>>(
+      volume, region, min_weight, out, capacity, count);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+}  // namespace sls::fusion::detail

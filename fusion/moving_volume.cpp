@@ -1,0 +1,315 @@
+#include "fusion/moving_volume.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+#include <vector>
+
+#include "fusion/extract_internal.h"
+#include "fusion/extract_shared.h"
+#include "fusion/resample_shared.h"
+#include "sdk/core/error.h"
+
+#if defined(SLS_HAVE_CUDA)
+#include <cuda_runtime_api.h>
+
+#include "fusion/cuda/resample_cuda.h"
+#include "sdk/core/cuda/device_buffer.h"
+#endif
+
+namespace sls::fusion {
+
+void MovingVolumeOptions::validate() const {
+  if (!(focus_distance_m > 0.0) || !std::isfinite(focus_distance_m)) {
+    throw_error(ErrorCode::kInvalidArgument, "moving volume: focus distance {} m is not positive and finite",
+                focus_distance_m);
+  }
+  if (!(margin_fraction >= 0.0 && margin_fraction < 0.5)) {
+    throw_error(ErrorCode::kInvalidArgument, "moving volume: margin fraction {} outside [0, 0.5)", margin_fraction);
+  }
+  if (!(max_rotation_deg > 0.0) || !std::isfinite(max_rotation_deg)) {
+    throw_error(ErrorCode::kInvalidArgument, "moving volume: max rotation {} deg is not positive and finite",
+                max_rotation_deg);
+  }
+  detail::check_extract_options(extract);
+}
+
+namespace {
+
+constexpr double kDegPerRad = 57.295779513082320876798;
+
+double elapsed_ms(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
+}
+
+// Appends b's points to a (the same per-point arrays; a cloud that is empty takes b's layout).
+void append_cloud(PointCloud* a, const PointCloud& b) {
+  if (b.empty()) return;
+  if (a->empty()) {
+    *a = b;
+    return;
+  }
+  a->positions.insert(a->positions.end(), b.positions.begin(), b.positions.end());
+  a->normals.insert(a->normals.end(), b.normals.begin(), b.normals.end());
+  a->confidence.insert(a->confidence.end(), b.confidence.begin(), b.confidence.end());
+  a->colors.insert(a->colors.end(), b.colors.begin(), b.colors.end());
+  for (PointProperty& property : a->properties) {
+    const PointProperty* more = b.find_property(property.name);
+    if (more == nullptr) {
+      throw_error(ErrorCode::kInternal, "moving volume: a surface part lacks the property '{}'", property.name);
+    }
+    property.values.insert(property.values.end(), more->values.begin(), more->values.end());
+  }
+}
+
+void append_mesh(TriangleMesh* a, const TriangleMesh& b) {
+  const auto offset = static_cast<std::int32_t>(a->vertices.size());
+  append_cloud(&a->vertices, b.vertices);
+  a->faces.reserve(a->faces.size() + b.faces.size());
+  for (const auto& face : b.faces) a->faces.push_back({face[0] + offset, face[1] + offset, face[2] + offset});
+}
+
+// The old volume's grid coordinates of the new volume's (voxel centres at integers), both of
+// voxel size h: g_old = R g_new + R (0.5, 0.5, 0.5) + t / h - (0.5, 0.5, 0.5), (R, t) = T_old_new.
+Rigid3f grid_transform(const Pose& T_world_old, const Pose& T_world_new, double voxel_size_m) {
+  const Pose T_old_new = T_world_old.inverse() * T_world_new;
+  const Eigen::Matrix3d rotation = T_old_new.rotation();
+  const Eigen::Vector3d half = Eigen::Vector3d::Constant(0.5);
+  const Eigen::Vector3d offset = rotation * half + T_old_new.translation() / voxel_size_m - half;
+  Rigid3f grid;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) grid.rotation.m[r * 3 + c] = static_cast<float>(rotation(r, c));
+  }
+  grid.translation = Vec3f{static_cast<float>(offset.x()), static_cast<float>(offset.y()),
+                           static_cast<float>(offset.z())};
+  return grid;
+}
+
+void resample_cpu(const VolumeView& from, const VolumeView& to, const Rigid3f& grid_from_to) {
+  std::fill(to.surface_bricks, to.surface_bricks + to.brick_count(), std::uint8_t{0});
+#if defined(_OPENMP)
+#pragma omp parallel for schedule(dynamic, 1)
+#endif
+  for (int k = 0; k < to.nz; ++k) {
+    for (int j = 0; j < to.ny; ++j) {
+      for (int i = 0; i < to.nx; ++i) resample_voxel(from, to, grid_from_to, i, j, k);
+    }
+  }
+}
+
+}  // namespace
+
+struct MovingVolume::Impl {
+  MovingVolumeOptions options;
+  Device device;
+  std::vector<Volume> buffers;  // the ping-pong pair
+  int current = 0;
+  PointCloud shipped_cloud;
+  TriangleMesh shipped_mesh;
+  std::size_t moves = 0;
+#if defined(SLS_HAVE_CUDA)
+  cudaStream_t stream = nullptr;
+  DeviceBuffer<EdgeCrossing> crossings;
+  DeviceBuffer<CellCase> cells;
+  DeviceBuffer<std::uint32_t> counters;
+  ~Impl() {
+    if (stream != nullptr) (void)cudaStreamDestroy(stream);
+  }
+#endif
+
+  Volume& now() { return buffers[static_cast<std::size_t>(current)]; }
+  Volume& other() { return buffers[static_cast<std::size_t>(1 - current)]; }
+
+  // The part of `volume`'s surface in `region`, extracted where the volume lives.
+  ExtractedSurface extract_part(const Volume& volume, const OrientedRegion& region) {
+    if (!volume.device().is_cuda()) {
+      return extract_surface(volume.view(), volume.geometry().T_world_volume, region, options.extract);
+    }
+#if defined(SLS_HAVE_CUDA)
+    return extract_part_cuda(volume, region);
+#else
+    throw_error(ErrorCode::kUnsupported, "moving volume: a CUDA volume in a build without CUDA");
+#endif
+  }
+
+#if defined(SLS_HAVE_CUDA)
+  // On the device: the region's crossings (and the vertices of its cells) and its surface
+  // cells, appended by atomics; only those come to the host, where they are put in edge /
+  // cell order and assembled by the CPU extraction's own host code, so the cloud and the mesh
+  // are the CPU's, point for point.
+  ExtractedSurface extract_part_cuda(const Volume& volume, const OrientedRegion& region) {
+    require_device(device);
+    const VolumeView view = volume.view();
+    const Pose& T_world_volume = volume.geometry().T_world_volume;
+    const RegionFilter filter = detail::region_filter(region, T_world_volume);
+    const float min_weight = options.extract.min_weight;
+    if (crossings.size() == 0) crossings.allocate(std::size_t{1} << 16);
+    if (cells.size() == 0) cells.allocate(std::size_t{1} << 16);
+    std::uint32_t counts[2] = {0, 0};
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      SLS_CUDA_CHECK(cudaMemsetAsync(counters.data(), 0, 2 * sizeof(std::uint32_t), stream));
+      detail::launch_region_crossings_cuda(view, filter, min_weight, crossings.data(),
+                                           static_cast<std::uint32_t>(crossings.size()), counters.data(), stream);
+      detail::launch_region_cells_cuda(view, filter, min_weight, cells.data(), static_cast<std::uint32_t>(cells.size()),
+                                       counters.data() + 1, stream);
+      SLS_CUDA_CHECK(cudaMemcpyAsync(counts, counters.data(), sizeof counts, cudaMemcpyDeviceToHost, stream));
+      SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
+      const bool fits = counts[0] <= crossings.size() && counts[1] <= cells.size();
+      if (fits) break;
+      // Too many for the buffers: grow them to what was counted and run again (once).
+      if (counts[0] > crossings.size()) crossings.allocate(counts[0]);
+      if (counts[1] > cells.size()) cells.allocate(counts[1]);
+    }
+    std::vector<EdgeCrossing> found(counts[0]);
+    std::vector<CellCase> found_cells(counts[1]);
+    crossings.download(found.data(), found.size(), stream);
+    cells.download(found_cells.data(), found_cells.size(), stream);
+    SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
+    std::sort(found.begin(), found.end(),
+              [](const EdgeCrossing& a, const EdgeCrossing& b) { return a.edge_id < b.edge_id; });
+    std::sort(found_cells.begin(), found_cells.end(),
+              [](const CellCase& a, const CellCase& b) { return a.cell < b.cell; });
+    ExtractedSurface part;
+    part.cloud = detail::crossing_cloud(found, T_world_volume, &filter, options.extract);
+    part.mesh = detail::cell_mesh(view.nx, view.ny, found, found_cells, T_world_volume, options.extract);
+    return part;
+  }
+#endif
+
+  void resample(const Volume& from, Volume& to) {
+    const Rigid3f grid = grid_transform(from.geometry().T_world_volume, to.geometry().T_world_volume,
+                                        from.geometry().voxel_size_m);
+    if (!device.is_cuda()) {
+      resample_cpu(from.view(), to.view(), grid);
+      return;
+    }
+#if defined(SLS_HAVE_CUDA)
+    require_device(device);
+    detail::launch_resample_cuda(from.view(), to.view(), grid, stream);
+    SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
+#endif
+  }
+};
+
+MovingVolume::MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFormat format, const Device& device,
+                           const MovingVolumeOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  options.validate();
+  impl_->options = options;
+  impl_->device = device;
+  VolumeGeometry geometry;
+  geometry.nx = nx;
+  geometry.ny = ny;
+  geometry.nz = nz;
+  geometry.voxel_size_m = voxel_size_m;
+  impl_->buffers.reserve(2);
+  impl_->buffers.emplace_back(geometry, format, device);
+  impl_->buffers.emplace_back(geometry, format, device);
+#if defined(SLS_HAVE_CUDA)
+  if (device.is_cuda()) {
+    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&impl_->stream, cudaStreamNonBlocking));
+    impl_->counters.allocate(2);
+  }
+#endif
+}
+
+MovingVolume::~MovingVolume() = default;
+MovingVolume::MovingVolume(MovingVolume&&) noexcept = default;
+MovingVolume& MovingVolume::operator=(MovingVolume&&) noexcept = default;
+
+const MovingVolumeOptions& MovingVolume::options() const { return impl_->options; }
+
+Pose MovingVolume::placement(const Pose& T_world_camera) const {
+  const Eigen::Vector3d focus = T_world_camera * Eigen::Vector3d(0.0, 0.0, impl_->options.focus_distance_m);
+  const Eigen::Vector3d half = 0.5 * impl_->buffers.front().geometry().size_m();
+  return Pose(T_world_camera.quaternion(), focus - T_world_camera.rotation() * half);
+}
+
+void MovingVolume::place(const Pose& T_world_camera) {
+  Impl& s = *impl_;
+  s.now().clear();
+  s.now().set_pose(placement(T_world_camera));
+  s.shipped_cloud = PointCloud{};
+  s.shipped_mesh = TriangleMesh{};
+  s.moves = 0;
+}
+
+Volume& MovingVolume::volume() { return impl_->now(); }
+const Volume& MovingVolume::volume() const { return impl_->buffers[static_cast<std::size_t>(impl_->current)]; }
+
+MoveStats MovingVolume::follow(const Pose& T_world_camera) {
+  const VolumeGeometry& geometry = volume().geometry();
+  const Pose T_volume_world = geometry.T_world_volume.inverse();
+  const Eigen::Vector3d focus =
+      T_volume_world * (T_world_camera * Eigen::Vector3d(0.0, 0.0, impl_->options.focus_distance_m));
+  const Eigen::Vector3d size = geometry.size_m();
+  const double margin = impl_->options.margin_fraction;
+  bool leaves = false;
+  for (int axis = 0; axis < 3; ++axis) {
+    leaves = leaves || focus[axis] < margin * size[axis] || focus[axis] > (1.0 - margin) * size[axis];
+  }
+  const double turned_deg =
+      Pose(geometry.T_world_volume.quaternion().conjugate() * T_world_camera.quaternion(), Eigen::Vector3d::Zero())
+          .angle_rad() *
+      kDegPerRad;
+  if (!leaves && !(turned_deg > impl_->options.max_rotation_deg)) return MoveStats{};
+  return move_to(placement(T_world_camera));
+}
+
+MoveStats MovingVolume::move_to(const Pose& T_world_volume) {
+  Impl& s = *impl_;
+  Volume& from = s.now();
+  Volume& to = s.other();
+  const VolumeGeometry& geometry = from.geometry();
+  const Pose T_world_old = geometry.T_world_volume;
+  MoveStats stats;
+  stats.moved = true;
+  const Eigen::Vector3d centre = 0.5 * geometry.size_m();
+  stats.translation_m = (T_world_volume * centre - T_world_old * centre).norm();
+  stats.rotation_deg =
+      Pose(T_world_old.quaternion().conjugate() * T_world_volume.quaternion(), Eigen::Vector3d::Zero()).angle_rad() *
+      kDegPerRad;
+  to.set_pose(T_world_volume);
+
+  // Ship what leaves: the old surface outside the new volume's sample box (the hull of its
+  // voxel centres, where its own crossings and cells lie), so the two never overlap.
+  const auto ship_start = std::chrono::steady_clock::now();
+  OrientedRegion leaving;
+  leaving.T_world_box = T_world_volume;
+  const double h = geometry.voxel_size_m;
+  leaving.min = Eigen::Vector3d::Constant(0.5 * h);
+  leaving.max = geometry.size_m() - Eigen::Vector3d::Constant(0.5 * h);
+  leaving.keep_outside = true;
+  const ExtractedSurface part = s.extract_part(from, leaving);
+  stats.shipped_points = part.cloud.size();
+  stats.shipped_triangles = part.mesh.faces.size();
+  append_cloud(&s.shipped_cloud, part.cloud);
+  append_mesh(&s.shipped_mesh, part.mesh);
+  stats.ship_ms = elapsed_ms(ship_start);
+
+  const auto resample_start = std::chrono::steady_clock::now();
+  s.resample(from, to);
+  stats.resample_ms = elapsed_ms(resample_start);
+  s.current = 1 - s.current;
+  ++s.moves;
+  return stats;
+}
+
+const PointCloud& MovingVolume::shipped_cloud() const { return impl_->shipped_cloud; }
+const TriangleMesh& MovingVolume::shipped_mesh() const { return impl_->shipped_mesh; }
+std::size_t MovingVolume::moves() const { return impl_->moves; }
+
+ExtractedSurface MovingVolume::final_surface() const {
+  const Volume& current = volume();
+  const ExtractedSurface live = current.device().is_cuda() ? extract_surface(current.to_host(), impl_->options.extract)
+                                                           : extract_surface(current, impl_->options.extract);
+  ExtractedSurface model;
+  model.cloud = impl_->shipped_cloud;
+  model.mesh = impl_->shipped_mesh;
+  append_cloud(&model.cloud, live.cloud);
+  append_mesh(&model.mesh, live.mesh);
+  return model;
+}
+
+}  // namespace sls::fusion

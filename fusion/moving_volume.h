@@ -1,0 +1,91 @@
+// The moving, rotating RPV (paper section II, DESIGN.md section 3): a volume whose axes follow
+// the camera's (volume x, y, z along camera x, y, z) and whose centre follows the camera's focus
+// point (focus_distance_m along the optical axis). When the focus point leaves the central part
+// of the volume (margin_fraction of each extent on either side) or the camera has turned more
+// than max_rotation_deg from the volume's axes, the volume moves to the camera's current
+// placement: the old voxels are resampled into the new pose (trilinear on U over observed
+// voxels, weights carried; new space is unobserved), and the surface of every part of the old
+// volume that falls outside the new one is extracted (zero crossings with normals and weights,
+// and its marching-cubes triangles) and shipped to host memory. Two voxel buffers (ping-pong)
+// live on the volume's device; resampling and the shipping extraction run there (CPU loops or
+// CUDA kernels over one per-voxel body, resample_shared.h).
+//
+//   MovingVolume moving(geometry_counts_and_voxel, VoxelFormat::kCompact, Device::cuda(), options);
+//   moving.place(T_world_camera_first);
+//   per frame: integrate into moving.volume(); MoveStats s = moving.follow(T_world_camera);
+//   at the end: ExtractedSurface model = moving.final_surface();
+#pragma once
+
+#include <cstddef>
+#include <memory>
+
+#include "fusion/extract.h"
+#include "fusion/volume.h"
+#include "sdk/core/device.h"
+#include "sdk/core/point_cloud.h"
+#include "sdk/core/pose.h"
+
+namespace sls::fusion {
+
+struct MovingVolumeOptions {
+  double focus_distance_m = 0.1;   // the volume centre's distance along the optical axis
+  double margin_fraction = 0.15;   // move when the focus leaves the central 1 - 2 * margin of an extent
+  double max_rotation_deg = 5.0;   // or when the camera's axes turned this far from the volume's
+  ExtractOptions extract;          // for the shipped surface and final_surface()
+  // Throws sls::Error(kInvalidArgument) naming the bad value.
+  void validate() const;
+};
+
+struct MoveStats {
+  bool moved = false;
+  double translation_m = 0.0;       // of the volume centre
+  double rotation_deg = 0.0;        // of the volume axes
+  std::size_t shipped_points = 0;   // points shipped by this move
+  std::size_t shipped_triangles = 0;
+  double resample_ms = 0.0;
+  double ship_ms = 0.0;             // extraction of the leaving part and its copy to the host
+};
+
+class MovingVolume {
+ public:
+  // counts and voxel size of the volume; its pose comes from place(). Allocates both buffers
+  // (sls::Error(kOutOfMemory) as Volume's when they do not fit).
+  MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFormat format, const Device& device,
+               const MovingVolumeOptions& options);
+  ~MovingVolume();
+  MovingVolume(MovingVolume&&) noexcept;
+  MovingVolume& operator=(MovingVolume&&) noexcept;
+
+  const MovingVolumeOptions& options() const;
+  // The volume pose for a camera pose: axes along the camera's, centred on its focus point.
+  Pose placement(const Pose& T_world_camera) const;
+  // Starts a scan: clears the volume, forgets what was shipped (and the move count) and
+  // places the volume for this camera pose (the first frame).
+  void place(const Pose& T_world_camera);
+
+  Volume& volume();
+  const Volume& volume() const;
+
+  // Moves when the camera has left the margin or turned too far (see above).
+  MoveStats follow(const Pose& T_world_camera);
+  // Moves to this pose unconditionally (resample + ship). What ships: the old volume's
+  // crossings whose point lies outside the new volume's sample box (the hull of its voxel
+  // centres, where the new volume's own crossings lie: the two never overlap) and the
+  // marching-cubes triangles of the old cells whose centre does (extract.h's OrientedRegion).
+  // Resampling: resample_shared.h (which voxels stay observed, how weights are carried).
+  MoveStats move_to(const Pose& T_world_volume);
+
+  // Everything shipped so far (world frame), in shipping order.
+  const PointCloud& shipped_cloud() const;
+  const TriangleMesh& shipped_mesh() const;
+  std::size_t moves() const;
+
+  // The model: the shipped parts plus the current volume's surface (cloud and mesh, world frame).
+  ExtractedSurface final_surface() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sls::fusion

@@ -1,0 +1,498 @@
+// The moving, rotating RPV (fusion/moving_volume.h) on the CPU against synthetic ground truth:
+// a volume holding the exact truncated SDF of a sphere is moved by a translation and a
+// rotation; the resampled voxels must match the SDF at their new centres (trilinear error
+// bound), a move by whole voxels must copy voxels bit for bit, the shipped surface must lie on
+// the sphere outside the new volume and, with the new volume's surface, cover the old one
+// without a gap or an overlap; follow() must move exactly when its rule says; the brick flags
+// must let a raycast of the moved volume see what a freshly filled one shows.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "fusion/extract.h"
+#include "fusion/moving_volume.h"
+#include "fusion/raycaster.h"
+#include "fusion/resample_shared.h"
+#include "sdk/core/error.h"
+#include "tests/unit/fusion/moving_volume_scene.h"
+
+namespace sls::fusion {
+namespace {
+
+using test::kCount;
+using test::kDelta;
+using test::kVoxel;
+
+class MovingVolumeTest : public ::testing::TestWithParam<VoxelFormat> {};
+
+// Half of binary16's spacing just below 1 (2^-11): the rounding of one stored U.
+constexpr double kHalfRounding = 1.0 / 4096.0;
+
+double quantisation(VoxelFormat format) {
+  // Old U stored, new U stored (compact), plus float arithmetic on centimetre coordinates.
+  return (format == VoxelFormat::kCompact ? 2.0 * kHalfRounding : 0.0) + 2e-5;
+}
+
+// The move of the accuracy and shipping tests: 1.3 mm, -0.8 mm, 0.5 mm and 10° about a
+// skew axis (camera frame): part of the sphere leaves, part of the new volume is new space.
+Pose big_move_camera() {
+  return test::moved_camera(test::first_camera(), Eigen::Vector3d(1.3e-3, -0.8e-3, 0.5e-3), 10.0,
+                            Eigen::Vector3d(0.3, -1.0, 0.5));
+}
+
+MovingVolume make_filled(VoxelFormat format, bool band, int weight_cycle) {
+  MovingVolume moving(kCount, kCount, kCount, kVoxel, format, Device::cpu(), test::scene_options());
+  moving.place(test::first_camera());
+  test::fill_sphere(&moving.volume(), test::scene_sphere(), band, weight_cycle);
+  return moving;
+}
+
+// Every new voxel against the SDF at its centre. Bounds (U in units of δ):
+//  - all 8 old corners observed and unclamped (|d| < δ): the trilinear interpolation error of
+//    the sphere's SDF, h²/8 · Σ_axes max |∂²d/∂x_a²| / δ <= 3 h² / (8 ρ δ), ρ the distance to the
+//    sphere's centre less a cell diagonal (the Hessian of |p - c| has eigenvalues 0, 1/ρ, 1/ρ);
+//  - otherwise (clamped corners, or the rim of the old volume where unobserved corners drop
+//    out of the renormalised average): U is a weighted mean of corner values clamp(d_c / δ),
+//    clamp is 1-Lipschitz and every corner lies within √3 h of the centre, so |ΔU| <= √3 h / δ.
+TEST_P(MovingVolumeTest, ResampledVoxelsMatchTheAnalyticSdf) {
+  const VoxelFormat format = GetParam();
+  MovingVolume moving = make_filled(format, false, 1);
+  const test::Sphere sphere = test::scene_sphere();
+  const VolumeGeometry old_geometry = moving.volume().geometry();
+  const MoveStats stats = moving.move_to(moving.placement(big_move_camera()));
+  ASSERT_TRUE(stats.moved);
+  const VolumeGeometry& g = moving.volume().geometry();
+  const VolumeView v = moving.volume().view();
+  const double q = quantisation(format);
+  std::size_t inner = 0, rim = 0, unobserved = 0, outside = 0, tight = 0;
+  double worst_tight = 0.0, worst_tight_ratio = 0.0, worst_loose = 0.0;
+  for (int k = 0; k < g.nz; ++k) {
+    for (int j = 0; j < g.ny; ++j) {
+      for (int i = 0; i < g.nx; ++i) {
+        const std::size_t index = v.index(i, j, k);
+        const Eigen::Vector3d p = test::voxel_world(g, i, j, k);
+        const Eigen::Vector3d old_grid = test::grid_of(old_geometry, p);
+        const double d = sphere(p);
+        const double truth = std::clamp(d / kDelta, -1.0, 1.0);
+        if (!test::in_sample_box(old_geometry, old_grid, 0.5 + 1e-4)) {
+          ++outside;  // the old volume never reached here
+          ASSERT_EQ(v.w(index), 0.0f) << "voxel " << i << " " << j << " " << k << " outside the old volume";
+          continue;
+        }
+        if (!(v.w(index) > 0.0f)) {
+          ++unobserved;
+          // Only at the old volume's rim (the support rule drops corners beyond its box).
+          ASSERT_FALSE(test::in_sample_box(old_geometry, old_grid, -1e-4)) << i << " " << j << " " << k;
+          continue;
+        }
+        ASSERT_EQ(v.w(index), 1.0f);  // every old voxel had weight 1
+        const double error = std::fabs(static_cast<double>(v.u(index)) - truth);
+        const bool full = test::in_sample_box(old_geometry, old_grid, -1e-4);
+        const double rho = (p - sphere.centre).norm() - std::sqrt(3.0) * kVoxel;
+        const bool unclamped = std::fabs(d) + std::sqrt(3.0) * kVoxel < kDelta;
+        if (full) ++inner; else ++rim;
+        if (full && unclamped) {
+          ++tight;
+          const double bound = 3.0 * kVoxel * kVoxel / (8.0 * rho * kDelta) + q;
+          worst_tight = std::max(worst_tight, error);
+          worst_tight_ratio = std::max(worst_tight_ratio, error / bound);
+          ASSERT_LE(error, bound) << "voxel " << i << " " << j << " " << k;
+        } else {
+          worst_loose = std::max(worst_loose, error);
+          ASSERT_LE(error, std::sqrt(3.0) * kVoxel / kDelta + q) << "voxel " << i << " " << j << " " << k;
+        }
+      }
+    }
+  }
+  std::printf("[moving] %s resample: %.2f mm %.1f deg in %.1f ms; %zu full-support voxels (%zu unclamped: worst "
+              "|dU| %.2e = %.2f of the bound), %zu rim voxels, worst clamped/rim |dU| %.3f, %zu unobserved at the "
+              "rim, %zu new space\n",
+              voxel_format_name(format), stats.translation_m * 1e3, stats.rotation_deg, stats.resample_ms, inner,
+              tight, worst_tight, worst_tight_ratio, rim, worst_loose, unobserved, outside);
+  EXPECT_GT(tight, 10000u);
+  EXPECT_GT(outside, 10000u);
+  EXPECT_NEAR(stats.rotation_deg, 10.0, 1e-6);
+}
+
+// A move by whole voxels without rotation: every voxel is the old one shifted, bit for bit,
+// weights included; new space unobserved; brick flags exactly what the voxels call for.
+TEST_P(MovingVolumeTest, WholeVoxelTranslationCopiesVoxelsExactly) {
+  const VoxelFormat format = GetParam();
+  MovingVolume moving = make_filled(format, true, 9);
+  const Volume before = moving.volume().to_host();
+  const Pose T_old = before.geometry().T_world_volume;
+  const int shift[3] = {5, -3, 7};
+  moving.move_to(T_old * Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(shift[0], shift[1], shift[2]) * kVoxel));
+  const VolumeView a = before.view(), b = moving.volume().view();
+  std::size_t copied = 0, fresh = 0, mismatched = 0;
+  for (int k = 0; k < kCount; ++k) {
+    for (int j = 0; j < kCount; ++j) {
+      for (int i = 0; i < kCount; ++i) {
+        const std::size_t to = b.index(i, j, k);
+        const int oi = i + shift[0], oj = j + shift[1], ok = k + shift[2];
+        if (!a.contains(oi, oj, ok) || !(a.w(a.index(oi, oj, ok)) > 0.0f)) {
+          fresh += a.contains(oi, oj, ok) ? 0u : 1u;
+          mismatched += b.w(to) != 0.0f ? 1u : 0u;
+          continue;
+        }
+        ++copied;
+        const std::size_t from = a.index(oi, oj, ok);
+        const bool same = format == VoxelFormat::kFloat32
+                              ? std::memcmp(&a.u32[from], &b.u32[to], sizeof(float)) == 0 && a.w32[from] == b.w32[to]
+                              : a.u16[from] == b.u16[to] && a.w8[from] == b.w8[to];
+        mismatched += same ? 0u : 1u;
+      }
+    }
+  }
+  std::printf("[moving] %s whole-voxel move: %zu observed voxels copied, %zu new, %zu differ\n",
+              voxel_format_name(format), copied, fresh, mismatched);
+  EXPECT_GT(copied, 50000u);
+  EXPECT_GT(fresh, 100000u);
+  EXPECT_EQ(mismatched, 0u);
+  const std::vector<std::uint8_t> expected = test::expected_bricks(b);
+  EXPECT_TRUE(std::equal(expected.begin(), expected.end(), b.surface_bricks));
+}
+
+// A spatial hash of points in cells of one voxel, for "is there a point within r <= 1 voxel".
+class PointIndex {
+ public:
+  explicit PointIndex(double cell) : cell_(cell) {}
+  void add(const Eigen::Vector3d& p) {
+    points_.push_back(p);
+    cells_[key(p, 0, 0, 0)].push_back(points_.size() - 1);
+  }
+  double nearest(const Eigen::Vector3d& p) const {
+    double best = std::numeric_limits<double>::infinity();
+    for (int dz = -1; dz <= 1; ++dz) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          const auto found = cells_.find(key(p, dx, dy, dz));
+          if (found == cells_.end()) continue;
+          for (const std::size_t n : found->second) best = std::min(best, (points_[n] - p).norm());
+        }
+      }
+    }
+    return best;  // exact when below one cell
+  }
+
+ private:
+  std::int64_t key(const Eigen::Vector3d& p, int dx, int dy, int dz) const {
+    const auto x = static_cast<std::int64_t>(std::floor(p.x() / cell_)) + dx + (1 << 20);
+    const auto y = static_cast<std::int64_t>(std::floor(p.y() / cell_)) + dy + (1 << 20);
+    const auto z = static_cast<std::int64_t>(std::floor(p.z() / cell_)) + dz + (1 << 20);
+    return (x << 42) | (y << 21) | z;
+  }
+  double cell_;
+  std::vector<Eigen::Vector3d> points_;
+  std::unordered_map<std::int64_t, std::vector<std::size_t>> cells_;
+};
+
+TEST_P(MovingVolumeTest, ShippedSurfaceLeavesAndCoversTheOldOneWithoutGapOrOverlap) {
+  const VoxelFormat format = GetParam();
+  MovingVolume moving = make_filled(format, true, 1);
+  const test::Sphere sphere = test::scene_sphere();
+  const PointCloud old_cloud = extract_points(moving.volume());
+  const MoveStats stats = moving.move_to(moving.placement(big_move_camera()));
+  const VolumeGeometry& g = moving.volume().geometry();
+  const PointCloud& shipped = moving.shipped_cloud();
+  const PointCloud live = extract_points(moving.volume());
+  ASSERT_EQ(stats.shipped_points, shipped.size());
+  ASSERT_GT(shipped.size(), 500u);
+  ASSERT_EQ(shipped.normals.size(), shipped.size());
+  ASSERT_NE(shipped.find_property("weight"), nullptr);
+  double worst_distance = 0.0, worst_normal = 0.0;
+  for (std::size_t n = 0; n < shipped.size(); ++n) {
+    const Eigen::Vector3d p = shipped.positions[n].cast<double>();
+    worst_distance = std::max(worst_distance, std::fabs(sphere(p)));
+    worst_normal = std::max(worst_normal, 1.0 - shipped.normals[n].cast<double>().dot((p - sphere.centre).normalized()));
+    // Outside the new volume's sample box (a float decision: allow 1e-3 voxel).
+    ASSERT_FALSE(test::in_sample_box(g, test::grid_of(g, p), -1e-3)) << "shipped point " << n << " inside";
+  }
+  for (const Eigen::Vector3f& p : live.positions) {
+    ASSERT_TRUE(test::in_sample_box(g, test::grid_of(g, p.cast<double>()), 1e-3)) << "live point outside";
+  }
+  // Union covers the old surface: every old crossing has a union point within one voxel.
+  PointIndex index(kVoxel);
+  for (const Eigen::Vector3f& p : shipped.positions) index.add(p.cast<double>());
+  for (const Eigen::Vector3f& p : live.positions) index.add(p.cast<double>());
+  double worst_gap = 0.0;
+  std::size_t beyond_half = 0;
+  for (const Eigen::Vector3f& p : old_cloud.positions) {
+    const double gap = index.nearest(p.cast<double>());
+    worst_gap = std::max(worst_gap, gap);
+    beyond_half += gap > 0.5 * kVoxel ? 1u : 0u;
+  }
+  const double ratio = static_cast<double>(shipped.size() + live.size()) / static_cast<double>(old_cloud.size());
+  // The mesh of the leaving part: on the sphere, counter-clockwise from outside, its cells
+  // (centres) outside the new box, so its triangles lie at most a cell diagonal inside it.
+  const TriangleMesh& mesh = moving.shipped_mesh();
+  ASSERT_EQ(stats.shipped_triangles, mesh.faces.size());
+  ASSERT_GT(mesh.faces.size(), 500u);
+  mesh.validate();
+  double worst_vertex = 0.0;
+  std::size_t inward = 0;
+  for (const Eigen::Vector3f& p : mesh.vertices.positions) worst_vertex = std::max(worst_vertex, std::fabs(sphere(p.cast<double>())));
+  for (const auto& f : mesh.faces) {
+    const Eigen::Vector3d a = mesh.vertices.positions[static_cast<std::size_t>(f[0])].cast<double>();
+    const Eigen::Vector3d b = mesh.vertices.positions[static_cast<std::size_t>(f[1])].cast<double>();
+    const Eigen::Vector3d c = mesh.vertices.positions[static_cast<std::size_t>(f[2])].cast<double>();
+    const Eigen::Vector3d centroid = (a + b + c) / 3.0;
+    if ((b - a).cross(c - a).dot(centroid - sphere.centre) < 0.0) ++inward;
+    ASSERT_FALSE(test::in_sample_box(g, test::grid_of(g, centroid), -1.0)) << "a shipped triangle deep inside";
+  }
+  std::printf("[moving] %s ship: %zu points + %zu live vs %zu old crossings (ratio %.3f); shipped on the sphere "
+              "within %.4f voxel, normals within %.2e (1 - cos); worst gap %.3f voxel, %zu old crossings beyond "
+              "half a voxel; mesh %zu triangles, vertices within %.4f voxel; ship %.1f ms, resample %.1f ms\n",
+              voxel_format_name(format), shipped.size(), live.size(), old_cloud.size(), ratio,
+              worst_distance / kVoxel, worst_normal, worst_gap / kVoxel, beyond_half, mesh.faces.size(),
+              worst_vertex / kVoxel, stats.ship_ms, stats.resample_ms);
+  EXPECT_LE(worst_distance, 0.05 * kVoxel);
+  EXPECT_LE(worst_normal, 1e-3);
+  EXPECT_LE(worst_gap, 1.0 * kVoxel);
+  EXPECT_GT(ratio, 0.93);
+  EXPECT_LT(ratio, 1.07);
+  EXPECT_LE(worst_vertex, 0.05 * kVoxel);
+  EXPECT_EQ(inward, 0u);
+
+  // The model: shipped + live, meshes concatenated with offset indices.
+  const ExtractedSurface model = moving.final_surface();
+  const ExtractedSurface live_surface = extract_surface(moving.volume());
+  EXPECT_EQ(model.cloud.size(), shipped.size() + live.size());
+  EXPECT_EQ(model.mesh.faces.size(), mesh.faces.size() + live_surface.mesh.faces.size());
+  EXPECT_EQ(model.mesh.vertices.size(), mesh.vertices.size() + live_surface.mesh.vertices.size());
+  model.cloud.validate();
+  model.mesh.validate();
+  EXPECT_EQ(model.mesh.faces.back()[0],
+            live_surface.mesh.faces.back()[0] + static_cast<std::int32_t>(mesh.vertices.size()));
+}
+
+// Moving the volume clear of its old place ships the whole surface: the cloud and mesh a
+// full extraction gives (random field: every kind of cell; more crossings than the
+// shipping buffers start with on a GPU). The new volume is all new space, no brick flagged.
+TEST_P(MovingVolumeTest, MovingEverythingOutShipsTheWholeSurface) {
+  const VoxelFormat format = GetParam();
+  MovingVolume moving(48, 40, 32, kVoxel, format, Device::cpu(), test::scene_options());
+  moving.place(test::first_camera());
+  const VolumeView v = moving.volume().view();
+  std::uint32_t state = 777u;
+  for (std::size_t n = 0; n < v.voxel_count(); ++n) {
+    state = state * 1664525u + 1013904223u;
+    v.set_u(n, static_cast<float>(state >> 8) / 8388608.0f - 1.0f);
+    v.set_w(n, (state & 7u) == 0u ? 0.0f : static_cast<float>(1u + (state >> 28)));
+  }
+  const Volume before = moving.volume().to_host();
+  moving.move_to(before.geometry().T_world_volume * Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.01, 0.0, 0.0)));
+  const ExtractedSurface all = extract_surface(before);
+  ASSERT_GT(all.cloud.size(), 50000u);
+  EXPECT_EQ(moving.shipped_cloud().positions, all.cloud.positions);
+  EXPECT_EQ(moving.shipped_cloud().normals, all.cloud.normals);
+  EXPECT_EQ(moving.shipped_cloud().find_property("weight")->values, all.cloud.find_property("weight")->values);
+  EXPECT_EQ(moving.shipped_mesh().faces, all.mesh.faces);
+  EXPECT_EQ(moving.shipped_mesh().vertices.positions, all.mesh.vertices.positions);
+  const VolumeView after = moving.volume().view();
+  std::size_t observed = 0, flagged = 0;
+  for (std::size_t n = 0; n < after.voxel_count(); ++n) observed += after.w(n) > 0.0f ? 1u : 0u;
+  for (std::size_t n = 0; n < after.brick_count(); ++n) flagged += after.surface_bricks[n];
+  EXPECT_EQ(observed, 0u);
+  EXPECT_EQ(flagged, 0u);
+  EXPECT_TRUE(extract_points(moving.volume()).empty());
+  EXPECT_EQ(moving.final_surface().cloud.positions, all.cloud.positions);
+}
+
+// Two moves (the second buffer holds stale flags from before the first): the flags are
+// exactly what the voxels call for (float32; compact may flag a voxel whose U rounds to ±1 in
+// binary16), and a raycast of the moved volume sees what one of the sphere filled afresh at
+// the new pose shows.
+TEST_P(MovingVolumeTest, BrickFlagsAfterMovesLetRaycastsSeeTheSurface) {
+  const VoxelFormat format = GetParam();
+  MovingVolume moving = make_filled(format, true, 1);
+  const Pose first = test::moved_camera(test::first_camera(), Eigen::Vector3d(0.2e-3, -0.15e-3, 0.1e-3), 6.0,
+                                        Eigen::Vector3d(1.0, 0.2, -0.4));
+  const Pose second = test::moved_camera(first, Eigen::Vector3d(-0.1e-3, 0.2e-3, -0.1e-3), 5.0,
+                                         Eigen::Vector3d(-0.2, 1.0, 0.3));
+  moving.move_to(moving.placement(first));
+  moving.move_to(moving.placement(second));
+  ASSERT_EQ(moving.moves(), 2u);
+  EXPECT_EQ(moving.shipped_cloud().size(), 0u) << "the sphere stays inside";
+  const VolumeView v = moving.volume().view();
+  const std::vector<std::uint8_t> expected = test::expected_bricks(v);
+  std::size_t missing = 0, extra = 0, set = 0;
+  for (std::size_t n = 0; n < expected.size(); ++n) {
+    missing += expected[n] != 0u && v.surface_bricks[n] == 0u ? 1u : 0u;
+    extra += expected[n] == 0u && v.surface_bricks[n] != 0u ? 1u : 0u;
+    set += expected[n];
+  }
+  EXPECT_EQ(missing, 0u);
+  if (format == VoxelFormat::kFloat32) {
+    EXPECT_EQ(extra, 0u);
+  } else {
+    EXPECT_LE(extra, set / 50);
+  }
+  EXPECT_LT(set, expected.size() / 2) << "most bricks are empty";
+
+  Volume fresh(moving.volume().geometry(), format, Device::cpu());
+  test::fill_sphere(&fresh, test::scene_sphere(), true);
+  CameraIntrinsics camera;
+  camera.width = 160;
+  camera.height = 120;
+  camera.fx = camera.fy = 2000.0;  // 4 mm across at the focus: the sphere fills most of it
+  camera.cx = 79.5;
+  camera.cy = 59.5;
+  RaycastOptions options;
+  options.min_depth_m = 0.04;
+  options.max_depth_m = 0.06;
+  Raycaster raycaster(Device::cpu(), camera, options);
+  const RaycastResult a = raycaster.raycast(moving.volume(), second);
+  const RaycastResult b = raycaster.raycast(fresh, second);
+  // Hits against the sphere: the distance of each hit point from the analytic surface (depth
+  // differences would blow up at the grazing limb), for the moved and the fresh volume alike.
+  const test::Sphere sphere = test::scene_sphere();
+  std::vector<double> error_moved, error_fresh;
+  std::size_t differ = 0;
+  for (std::size_t n = 0; n < a.depth_m.pixel_count(); ++n) {
+    const bool ha = a.depth_m.data()[n] > 0.0f, hb = b.depth_m.data()[n] > 0.0f;
+    differ += ha != hb ? 1u : 0u;
+    auto distance = [&](const Vec3f& p) {
+      return std::fabs(sphere(second * Eigen::Vector3d(static_cast<double>(p.x), static_cast<double>(p.y),
+                                                       static_cast<double>(p.z)))) / kVoxel;
+    };
+    if (ha) error_moved.push_back(distance(a.points_camera[n]));
+    if (hb) error_fresh.push_back(distance(b.points_camera[n]));
+  }
+  ASSERT_GT(error_moved.size(), 5000u);
+  ASSERT_GT(error_fresh.size(), 5000u);
+  auto percentile = [](std::vector<double> values, double p) {
+    std::sort(values.begin(), values.end());
+    return values[static_cast<std::size_t>(p * static_cast<double>(values.size() - 1))];
+  };
+  const double p50_moved = percentile(error_moved, 0.5), p50_fresh = percentile(error_fresh, 0.5);
+  const double p99_moved = percentile(error_moved, 0.99), p99_fresh = percentile(error_fresh, 0.99);
+  const double max_moved = percentile(error_moved, 1.0), max_fresh = percentile(error_fresh, 1.0);
+  std::printf("[moving] %s flags: %zu of %zu bricks, %zu missing, %zu extra; raycast hits %zu moved / %zu fresh "
+              "(%zu pixels differ), distance to the sphere (voxels) median %.4f / %.4f, p99 %.4f / %.4f, max %.3f / "
+              "%.3f\n",
+              voxel_format_name(format), set, expected.size(), missing, extra, error_moved.size(), error_fresh.size(),
+              differ, p50_moved, p50_fresh, p99_moved, p99_fresh, max_moved, max_fresh);
+  // Each resampling is a trilinear interpolation of a convex field: it overestimates d by up to
+  // 3 h² / (8 ρ) (the bound of ResampledVoxelsMatchTheAnalyticSdf), moving the surface inwards
+  // by that much: two moves, at most 2 * 3 h / (8 (r - √3 h)) voxels more than the fresh volume.
+  const double bias = 2.0 * 3.0 * kVoxel / (8.0 * (sphere.radius - std::sqrt(3.0) * kVoxel));
+  EXPECT_LE(differ, error_fresh.size() / 200);
+  EXPECT_LE(p50_moved, p50_fresh + bias);
+  EXPECT_LE(p99_moved, p99_fresh + bias);
+  EXPECT_LE(max_moved, max_fresh + bias + 0.01);
+}
+
+INSTANTIATE_TEST_SUITE_P(Formats, MovingVolumeTest, ::testing::Values(VoxelFormat::kFloat32, VoxelFormat::kCompact),
+                         [](const ::testing::TestParamInfo<VoxelFormat>& format) {
+                           return std::string(voxel_format_name(format.param));
+                         });
+
+// follow(): the focus may wander within the central 1 - 2 margin of each extent and the
+// camera may turn up to max_rotation_deg; beyond either, the volume moves to the camera.
+TEST(MovingVolumeFollow, MovesOnlyWhenTheFocusLeavesTheMarginOrTheCameraTurns) {
+  // 32 voxels of 100 µm: 3.2 mm, margin 0.15: the focus may go 1.12 mm from the centre.
+  MovingVolumeOptions options = test::scene_options();
+  MovingVolume moving(32, 32, 32, 1e-4, VoxelFormat::kCompact, Device::cpu(), options);
+  const Pose start = test::first_camera();
+  moving.place(start);
+  EXPECT_TRUE(moving.volume().geometry().T_world_volume.is_approx(moving.placement(start), 1e-15));
+  const Eigen::Vector3d centre = moving.volume().geometry().T_world_volume * Eigen::Vector3d::Constant(1.6e-3);
+  EXPECT_LT((centre - start * Eigen::Vector3d(0.0, 0.0, test::kFocus)).norm(), 1e-12);
+  const Eigen::Vector3d y(0.0, 1.0, 0.0), z(0.0, 0.0, 1.0);
+
+  for (const Eigen::Vector3d& step : {Eigen::Vector3d(1.0e-3, 0.0, 0.0), Eigen::Vector3d(0.0, -1.1e-3, 0.0),
+                                      Eigen::Vector3d(0.0, 0.0, 1.1e-3), Eigen::Vector3d(0.7e-3, 0.7e-3, -0.7e-3)}) {
+    EXPECT_FALSE(moving.follow(test::moved_camera(start, step, 0.0, z)).moved) << step.transpose();
+  }
+  // Turning about the optical axis keeps the focus: only the rotation rule applies.
+  EXPECT_FALSE(moving.follow(test::moved_camera(start, Eigen::Vector3d::Zero(), 4.9, z)).moved);
+  EXPECT_EQ(moving.moves(), 0u);
+
+  const Pose out = test::moved_camera(start, Eigen::Vector3d(1.2e-3, 0.0, 0.0), 0.0, z);
+  MoveStats stats = moving.follow(out);
+  EXPECT_TRUE(stats.moved);
+  EXPECT_NEAR(stats.translation_m, 1.2e-3, 1e-12);
+  EXPECT_NEAR(stats.rotation_deg, 0.0, 1e-6);
+  EXPECT_TRUE(moving.volume().geometry().T_world_volume.is_approx(moving.placement(out), 1e-15));
+  EXPECT_EQ(moving.moves(), 1u);
+  EXPECT_FALSE(moving.follow(out).moved) << "centred again";
+
+  const Pose turned = test::moved_camera(out, Eigen::Vector3d::Zero(), 5.5, z);
+  stats = moving.follow(turned);
+  EXPECT_TRUE(stats.moved);
+  EXPECT_NEAR(stats.rotation_deg, 5.5, 1e-6);
+  EXPECT_NEAR(stats.translation_m, 0.0, 1e-12);
+  EXPECT_EQ(moving.moves(), 2u);
+
+  // Forward along the optical axis past the margin.
+  const Pose forward = test::moved_camera(turned, Eigen::Vector3d(0.0, 0.0, 1.2e-3), 0.0, z);
+  EXPECT_TRUE(moving.follow(forward).moved);
+  // A small turn about the focus is no move; the same turn about the camera centre swings the
+  // focus sideways (a 5 cm lever): 2 degrees take it 1.7 mm away.
+  EXPECT_FALSE(moving.follow(test::moved_camera(forward, Eigen::Vector3d::Zero(), 2.0, y)).moved);
+  stats = moving.follow(forward * Pose(Eigen::AngleAxisd(2.0 * 3.14159265358979323846 / 180.0, y).toRotationMatrix(),
+                                       Eigen::Vector3d::Zero()));
+  EXPECT_TRUE(stats.moved);
+  EXPECT_NEAR(stats.rotation_deg, 2.0, 1e-6);
+  EXPECT_NEAR(stats.translation_m, 2.0 * test::kFocus * std::sin(1.0 * 3.14159265358979323846 / 180.0), 1e-9);
+  EXPECT_EQ(moving.moves(), 4u);
+
+  moving.place(start);
+  EXPECT_EQ(moving.moves(), 0u);
+  EXPECT_TRUE(moving.shipped_cloud().empty());
+}
+
+TEST(MovingVolumeFollow, BadOptionsAreInvalidArguments) {
+  for (int bad = 0; bad < 4; ++bad) {
+    MovingVolumeOptions options;
+    if (bad == 0) options.margin_fraction = 0.5;
+    if (bad == 1) options.focus_distance_m = -1.0;
+    if (bad == 2) options.max_rotation_deg = std::numeric_limits<double>::quiet_NaN();
+    if (bad == 3) options.extract.full_confidence_weight = 0.0f;
+    try {
+      MovingVolume moving(8, 8, 8, 1e-4, VoxelFormat::kFloat32, Device::cpu(), options);
+      ADD_FAILURE() << "no error for case " << bad;
+    } catch (const Error& error) {
+      EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument) << error.what();
+    }
+  }
+}
+
+// The support rule on one voxel: half the trilinear weight observed keeps it, less drops it.
+TEST(MovingVolumeResample, SupportRuleAndWeightsOnOneVoxel) {
+  Volume from(VolumeGeometry::centred(Eigen::Vector3d::Zero(), 4, 4, 4, 1e-4), VoxelFormat::kFloat32, Device::cpu());
+  Volume to(from.geometry(), VoxelFormat::kFloat32, Device::cpu());
+  const VolumeView a = from.view(), b = to.view();
+  a.set_u(a.index(1, 1, 1), 0.5f);
+  a.set_w(a.index(1, 1, 1), 4.0f);
+  a.set_u(a.index(2, 1, 1), -0.5f);
+  a.set_w(a.index(2, 1, 1), 9.0f);
+  auto resample_at = [&](float gx) {
+    Rigid3f grid{};
+    grid.rotation = Mat3T<float>{{1, 0, 0, 0, 1, 0, 0, 0, 1}};
+    grid.translation = Vec3f{gx, 0.0f, 0.0f};  // voxel (0, 1, 1) of `to` reads grid (gx, 1, 1)
+    resample_voxel(a, b, grid, 0, 1, 1);
+    return std::pair<float, float>(b.u(b.index(0, 1, 1)), b.w(b.index(0, 1, 1)));
+  };
+  EXPECT_EQ(resample_at(1.0f), (std::pair<float, float>(0.5f, 4.0f)));
+  EXPECT_EQ(resample_at(1.25f), (std::pair<float, float>(0.25f, 5.0f)));   // 0.75*4 + 0.25*9 = 5.25 -> 5
+  EXPECT_EQ(resample_at(1.75f), (std::pair<float, float>(-0.25f, 8.0f)));  // 7.75 -> 8
+  EXPECT_EQ(resample_at(0.5f), (std::pair<float, float>(0.5f, 4.0f)));     // half from voxel 0 (unobserved): kept
+  EXPECT_EQ(resample_at(0.4f).second, 0.0f);                                // 0.4 of the weight: dropped
+  EXPECT_EQ(resample_at(0.4f).first, 1.0f);
+  EXPECT_EQ(resample_at(2.6f).second, 0.0f);
+  EXPECT_EQ(resample_at(-3.0f).second, 0.0f);
+  EXPECT_EQ(resample_at(std::numeric_limits<float>::quiet_NaN()).second, 0.0f);
+}
+
+}  // namespace
+}  // namespace sls::fusion
