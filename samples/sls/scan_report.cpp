@@ -158,18 +158,29 @@ std::array<std::uint8_t, 3> RgbImage::at(int x, int y) const {
 }
 
 std::vector<View> principal_views(const PointCloud& cloud) {
-  Eigen::Vector3d up = Eigen::Vector3d::UnitZ(), middle = Eigen::Vector3d::UnitX(), smallest = Eigen::Vector3d::UnitY();
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ(), across = Eigen::Vector3d::UnitX();
   if (!cloud.empty()) {
+    const std::vector<Eigen::Vector3d> points = sampled_positions(cloud, 200000);
     Eigen::Vector3d centre;
-    const Eigen::Matrix3d axes = principal_axes(sampled_positions(cloud, 200000), &centre);
-    up = axes.col(0);
-    middle = axes.col(1);
-    smallest = axes.col(2);
+    const Eigen::Matrix3d axes = principal_axes(points, &centre);
+    // Turned objects are near rotationally symmetric: two principal extents alike, the axis
+    // the odd one out, whether the longest (a screw) or the shortest (a ring, a cap).
+    Eigen::Vector3d spread;
+    for (int k = 0; k < 3; ++k) {
+      double sum = 0.0;
+      for (const Eigen::Vector3d& p : points) sum += std::pow((p - centre).dot(axes.col(k)), 2);
+      spread[k] = std::sqrt(sum / static_cast<double>(points.size())) + 1e-12;
+    }
+    const bool shortest_is_axis = spread[1] / spread[2] > spread[0] / spread[1];
+    axis = shortest_is_axis ? axes.col(2) : axes.col(0);
+    across = shortest_is_axis ? axes.col(0) : axes.col(1);
+    if (std::fabs(axis.z()) >= 0.5 && axis.z() < 0.0) axis = -axis;  // up is up on a turntable
   }
-  const Eigen::Vector3d oblique = (-smallest - middle - 0.8 * up).normalized();  // from above
-  return {{"front: along the smallest principal axis", -smallest, up},
-          {"side: along the middle principal axis", -middle, up},
-          {"oblique, from above", oblique, orthogonal_up(oblique, up)}};
+  const Eigen::Vector3d other = axis.cross(across);
+  const Eigen::Vector3d oblique = (-across - other - 0.8 * axis).normalized();  // from above
+  return {{"side: across the axis", -across, axis},
+          {"side: turned 90 degrees about the axis", -other, axis},
+          {"oblique, from above", oblique, orthogonal_up(oblique, axis)}};
 }
 
 double estimate_point_spacing(const PointCloud& cloud) {

@@ -72,8 +72,10 @@ struct View {
   Eigen::Vector3d up = Eigen::Vector3d::UnitY();
 };
 
-// Three views from the cloud's principal axes (largest extent up, as a turntable's axis
-// usually is): along the smallest axis, along the middle one, and obliquely from above.
+// Three views about the cloud's symmetry axis, which is up in each: two from the side, 90
+// degrees apart, and one obliquely from above. The axis is the principal axis whose extent
+// differs most from the other two (turned parts: the longest for a screw, the shortest for a
+// ring), pointing to +z when it is mostly vertical (a turntable's axis).
 std::vector<View> principal_views(const PointCloud& cloud);
 
 struct RgbImage {
