@@ -1,6 +1,7 @@
 // sls eval: the quality of a fused result against a simulated recording's ground truth
 // (DESIGN.md section 4; definitions in samples/sls/evaluate.h): C2C mean / RMS / 95th
-// percentile, edge-region C2C, and coverage of the surface the recording saw.
+// percentile, edge-region C2C, coverage of the surface the recording saw, and with a
+// trajectory.txt in the result, ATE and the loop-closure error against the true poses.
 //
 //   sls eval --result OUT --truth OUT/recording [--json]
 #include <cmath>
@@ -68,6 +69,19 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
                         {"alignment", report.alignment},
                         {"alignment_translation_um", report.T_object_world.translation().norm() * kUm},
                         {"alignment_angle_deg", report.T_object_world.angle_rad() * 180.0 / M_PI}};
+  if (report.trajectory) {
+    const eval::TrajectoryErrors& t = *report.trajectory;
+    out["ate_rmse_um"] = t.ate_rmse_m * kUm;
+    out["ate_max_um"] = t.ate_max_m * kUm;
+    out["ate_frames"] = t.matched_frames;
+    out["trajectory_frames_unmatched"] = t.unmatched_frames;
+    out["loop_closure_error_um"] = t.loop_closure_error_m * kUm;
+    out["loop_closure_error_deg"] = t.loop_closure_error_rad * 180.0 / M_PI;
+  } else {
+    // The keys are left out rather than null: there is no trajectory to measure, which is
+    // not a failed measurement.
+    out["trajectory_note"] = report.trajectory_note;
+  }
   out.update(errors_json(report.cloud));
   if (report.mesh) out["mesh"] = errors_json(*report.mesh);
 
@@ -96,6 +110,18 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
                              report.coverage.fraction(), report.coverage.covered, report.coverage.considered,
                              report.coverage_basis == "visible" ? "visible" : "in-region",
                              report.coverage_radius_m * kUm);
+    if (report.trajectory) {
+      const eval::TrajectoryErrors& t = *report.trajectory;
+      std::cout << fmt::format("trajectory: ATE rmse {:.2f} um, max {:.2f} um over {} frames{}\n", t.ate_rmse_m * kUm,
+                               t.ate_max_m * kUm, t.matched_frames,
+                               t.unmatched_frames > 0 ? fmt::format(" ({} without a true pose)", t.unmatched_frames)
+                                                      : std::string());
+      std::cout << fmt::format("loop closure (first to last frame, {:.3f} s to {:.3f} s): {:.2f} um, {:.4f} deg\n",
+                               t.first_timestamp_s, t.last_timestamp_s, t.loop_closure_error_m * kUm,
+                               t.loop_closure_error_rad * 180.0 / M_PI);
+    } else {
+      std::cout << fmt::format("trajectory: n/a ({})\n", report.trajectory_note);
+    }
     if (report.alignment != "none") {
       std::cout << fmt::format("aligned by the first pose: {:.2f} um, {:.4f} deg\n",
                                report.T_object_world.translation().norm() * kUm,
@@ -109,7 +135,8 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
 
 void add_eval_command(CLI::App& app, Context& context, int* exit_code) {
   CLI::App* command = app.add_subcommand(
-      "eval", "Measure a fused result against a simulated recording: C2C, edge-region C2C, coverage (in um)");
+      "eval", "Measure a fused result against a simulated recording: C2C, edge-region C2C, coverage, ATE, loop "
+      "closure (in um)");
   auto options = std::make_shared<EvalCommandOptions>();
   command->add_option("--result", options->result, "Result folder (cloud.ply; mesh.ply, report.json optional)")
       ->required();

@@ -7,6 +7,7 @@
 #include <numeric>
 #include <utility>
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -148,7 +149,7 @@ DistanceStats distance_stats(std::vector<double> distances_m) {
 }
 
 SurfaceErrors surface_errors(const std::vector<Eigen::Vector3d>& points_object, const sim::Scene& scene,
-                             double edge_band_m) {
+                             double edge_band_m, std::vector<float>* point_errors_m) {
   const std::size_t count = points_object.size();
   const bool has_creases = !scene.creases().empty();
   std::vector<double> distance(count);
@@ -166,9 +167,95 @@ SurfaceErrors surface_errors(const std::vector<Eigen::Vector3d>& points_object, 
   for (std::size_t i = 0; i < count; ++i) {
     if (near_crease[i] != 0) edge.push_back(distance[i]);
   }
+  if (point_errors_m != nullptr) {
+    point_errors_m->resize(count);
+    for (std::size_t i = 0; i < count; ++i) (*point_errors_m)[i] = static_cast<float>(distance[i]);
+  }
   errors.all = distance_stats(std::move(distance));
   errors.edge = distance_stats(std::move(edge));
   return errors;
+}
+
+// ---------------------------------------------------------------------------------------
+// Trajectory errors
+
+std::optional<TrajectoryErrors> trajectory_errors(const std::vector<StampedPose>& estimated,
+                                                  const std::vector<StampedPose>& truth, std::string* why,
+                                                  double timestamp_tolerance_s) {
+  auto by_time = [](const std::vector<StampedPose>& poses) {
+    std::vector<std::size_t> order(poses.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return poses[a].timestamp_s < poses[b].timestamp_s; });
+    return order;
+  };
+  const std::vector<std::size_t> truth_order = by_time(truth);
+  std::vector<std::pair<const Pose*, const Pose*>> matches;  // (estimated, true)
+  TrajectoryErrors errors;
+  for (const std::size_t e : by_time(estimated)) {
+    const double t = estimated[e].timestamp_s;
+    auto candidate = std::lower_bound(truth_order.begin(), truth_order.end(), t - timestamp_tolerance_s,
+                                      [&](std::size_t n, double value) { return truth[n].timestamp_s < value; });
+    // The nearest of the true poses within the tolerance (the first two after t - tolerance).
+    const StampedPose* best = nullptr;
+    for (int k = 0; k < 2 && candidate != truth_order.end(); ++k, ++candidate) {
+      const StampedPose& pose = truth[*candidate];
+      if (std::fabs(pose.timestamp_s - t) > timestamp_tolerance_s) continue;
+      if (best == nullptr || std::fabs(pose.timestamp_s - t) < std::fabs(best->timestamp_s - t)) best = &pose;
+    }
+    if (best == nullptr) {
+      ++errors.unmatched_frames;
+      continue;
+    }
+    matches.emplace_back(&estimated[e].T_world_camera, &best->T_world_camera);
+    if (matches.size() == 1) errors.first_timestamp_s = t;
+    errors.last_timestamp_s = t;
+  }
+  errors.matched_frames = matches.size();
+  if (matches.size() < 2) {
+    if (why != nullptr) {
+      *why = fmt::format("{} of the {} estimated poses match a true pose by timestamp (within {} s); at least 2 needed",
+                         matches.size(), estimated.size(), timestamp_tolerance_s);
+    }
+    return std::nullopt;
+  }
+
+  const auto count = static_cast<Eigen::Index>(matches.size());
+  Eigen::Matrix3Xd estimated_positions(3, count), true_positions(3, count);
+  for (Eigen::Index n = 0; n < count; ++n) {
+    estimated_positions.col(n) = matches[static_cast<std::size_t>(n)].first->translation();
+    true_positions.col(n) = matches[static_cast<std::size_t>(n)].second->translation();
+  }
+  // Umeyama's closed form (Horn's for the rigid case; no scale), the TUM benchmark's choice.
+  // It handles the reflection case; with collinear positions the rotation about the line is
+  // arbitrary, but the residuals (all ATE depends on) are the same for every choice.
+  const Eigen::Matrix4d T = Eigen::umeyama(estimated_positions, true_positions, false);
+  errors.T_truth_estimate = Pose(Eigen::Matrix3d(T.topLeftCorner<3, 3>()), Eigen::Vector3d(T.topRightCorner<3, 1>()));
+  double squares = 0.0;
+  for (Eigen::Index n = 0; n < count; ++n) {
+    const double residual =
+        (errors.T_truth_estimate * Eigen::Vector3d(estimated_positions.col(n)) - true_positions.col(n)).norm();
+    squares += residual * residual;
+    errors.ate_max_m = std::max(errors.ate_max_m, residual);
+  }
+  errors.ate_rmse_m = std::sqrt(squares / static_cast<double>(count));
+
+  const Pose& estimated_first = *matches.front().first;
+  const Pose& estimated_last = *matches.back().first;
+  const Pose& true_first = *matches.front().second;
+  const Pose& true_last = *matches.back().second;
+  const Pose E = (true_first.inverse() * true_last).inverse() * (estimated_first.inverse() * estimated_last);
+  errors.loop_closure_error_m = E.translation().norm();
+  errors.loop_closure_error_rad = E.angle_rad();
+  return errors;
+}
+
+std::vector<StampedPose> truth_in_estimate_frame(const std::vector<StampedPose>& truth,
+                                                 const TrajectoryErrors& errors) {
+  const Pose T_estimate_truth = errors.T_truth_estimate.inverse();
+  std::vector<StampedPose> out = truth;
+  for (StampedPose& pose : out) pose.T_world_camera = T_estimate_truth * pose.T_world_camera;
+  return out;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -333,6 +420,16 @@ EvalReport evaluate_result(const std::string& result_folder, const std::string& 
   if (options.align_first_pose && first_pose_alignment(result_folder, truth, &report.T_object_world)) {
     report.alignment = "first-pose";
   }
+  // Trajectory figures need no scene: ATE aligns on its own, loop closure needs no alignment.
+  const std::string estimated_trajectory = result_folder + "/trajectory.txt";
+  if (!exists(estimated_trajectory)) {
+    report.trajectory_note = "the result has no trajectory.txt";
+  } else if (!exists(truth + "/trajectory.txt")) {
+    report.trajectory_note = "the recording has no groundtruth/trajectory.txt";
+  } else {
+    report.trajectory = trajectory_errors(read_tum_trajectory(estimated_trajectory),
+                                          read_tum_trajectory(truth + "/trajectory.txt"), &report.trajectory_note);
+  }
   auto to_object = [&](const PointCloud& cloud) {
     std::vector<Eigen::Vector3d> points = positions_of(cloud);
     for (Eigen::Vector3d& p : points) p = report.T_object_world * p;
@@ -344,7 +441,8 @@ EvalReport evaluate_result(const std::string& result_folder, const std::string& 
   const std::vector<Eigen::Vector3d> points = to_object(cloud);
   report.cloud_points = points.size();
   report_progress(progress, {"c2c", 0, 1, ""});
-  report.cloud = surface_errors(points, scene, report.edge_band_m);
+  report.cloud = surface_errors(points, scene, report.edge_band_m,
+                                options.keep_point_errors ? &report.cloud_point_errors_m : nullptr);
   if (exists(result_folder + "/mesh.ply")) {
     const TriangleMesh mesh = read_ply_mesh(result_folder + "/mesh.ply");
     report.mesh_vertices = mesh.vertices.size();

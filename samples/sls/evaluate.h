@@ -16,6 +16,17 @@
 //                pixel footprints) of the point's depth (nothing in front of it). Without per-frame
 //                ground truth, over the reference points inside the output's bounding box
 //                grown by the radius (coverage_basis "bounding-box").
+//   ate          absolute trajectory error, the TUM RGB-D benchmark's definition: the result's
+//                camera positions (trajectory.txt) matched by timestamp to the true ones
+//                (groundtruth/trajectory.txt, T_object_camera), rigidly aligned onto them
+//                (Horn/Umeyama, rotation + translation, no scale: a metric scanner has no
+//                scale freedom), then the RMS and max of the remaining position differences.
+//   loop closure the error of the relative motion from the first to the last matched frame,
+//                E = (T_true_first^-1 T_true_last)^-1 (T_est_first^-1 T_est_last): its
+//                translation norm and rotation angle. Relative motions do not depend on either
+//                trajectory's world frame, so no alignment enters. After a full turntable
+//                revolution the last view is (nearly) the first again, so this is the drift
+//                accumulated around the loop: what loop closure must remove.
 // The output is taken to be in the recording's object frame (the frame of T_object_camera in
 // groundtruth/trajectory.txt; `sls scan --poses groundtruth` fuses there). When the result
 // holds trajectory.txt, its first pose is aligned to the true pose of the frame with the same
@@ -36,6 +47,7 @@
 #include "sdk/core/point_cloud.h"
 #include "sdk/core/pose.h"
 #include "sdk/core/progress.h"
+#include "sdk/core/trajectory.h"
 
 namespace sls::eval {
 
@@ -79,9 +91,40 @@ struct SurfaceErrors {
   DistanceStats edge;  // points within the edge band of a crease (count 0 without creases)
 };
 
-// c2c and edge c2c of object-frame points against the scene (OpenMP over points).
+// c2c and edge c2c of object-frame points against the scene (OpenMP over points). With
+// point_errors_m, also each point's |signed distance|, in the points' order (for heat maps).
 SurfaceErrors surface_errors(const std::vector<Eigen::Vector3d>& points_object, const sim::Scene& scene,
-                             double edge_band_m);
+                             double edge_band_m, std::vector<float>* point_errors_m = nullptr);
+
+// ATE and loop-closure error of an estimated trajectory against the truth (see above).
+struct TrajectoryErrors {
+  std::size_t matched_frames = 0;    // estimated poses with a true pose at the same timestamp
+  std::size_t unmatched_frames = 0;  // estimated poses without one (not counted)
+  double ate_rmse_m = 0.0;
+  double ate_max_m = 0.0;
+  // The rigid alignment found: p_truth ~ T_truth_estimate * p_estimate.
+  Pose T_truth_estimate;
+  double first_timestamp_s = 0.0;  // the matched frames the loop closure spans
+  double last_timestamp_s = 0.0;
+  double loop_closure_error_m = 0.0;
+  double loop_closure_error_rad = 0.0;
+};
+
+// Timestamps match within this (both trajectories come from the same recording's frame
+// list, printed in shortest exact form).
+constexpr double kTimestampTolerance_s = 1e-6;
+
+// nullopt (and *why set) when fewer than two estimated poses match a true one: neither figure
+// means anything then. Timestamps may come in any order and either side may lack frames (lost
+// frames in the estimate); matches are taken in the estimate's timestamp order.
+std::optional<TrajectoryErrors> trajectory_errors(const std::vector<StampedPose>& estimated,
+                                                  const std::vector<StampedPose>& truth, std::string* why = nullptr,
+                                                  double timestamp_tolerance_s = kTimestampTolerance_s);
+
+// The true trajectory moved into the estimate's world frame by the ATE alignment
+// (T_estimate_truth = T_truth_estimate^-1), for plotting the two together.
+std::vector<StampedPose> truth_in_estimate_frame(const std::vector<StampedPose>& truth,
+                                                 const TrajectoryErrors& errors);
 
 // Which reference points a recording's frames saw (see coverage above).
 class VisibilityMask {
@@ -119,6 +162,8 @@ struct EvalOptions {
   double coverage_radius_voxels = 2.0;
   int visibility_stride = 1;  // test every n-th frame's visibility (paper-size recordings)
   bool align_first_pose = true;
+  // Fill EvalReport::cloud_point_errors_m (one float per cloud point: 4 bytes a point).
+  bool keep_point_errors = false;
 };
 
 struct EvalReport {
@@ -139,6 +184,14 @@ struct EvalReport {
   std::size_t frames_checked = 0;  // frames whose visibility was tested
   std::string alignment;           // "none" or "first-pose"
   Pose T_object_world;             // applied to the output before comparing
+  // With EvalOptions::keep_point_errors: |sdf| of each cloud.ply point after T_object_world,
+  // in the file's point order (so the cloud as read, in its own world frame, can be coloured
+  // by it). Empty otherwise.
+  std::vector<float> cloud_point_errors_m;
+  // ATE and loop closure, when RESULT/trajectory.txt and groundtruth/trajectory.txt exist and
+  // at least two frames match; otherwise nullopt and trajectory_note says why.
+  std::optional<TrajectoryErrors> trajectory;
+  std::string trajectory_note;
 };
 
 // Evaluates RESULT (cloud.ply, optional mesh.ply, report.json, trajectory.txt) against the

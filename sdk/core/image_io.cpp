@@ -190,12 +190,13 @@ struct WriteJob {
   png_uint_32 width = 0;
   png_uint_32 height = 0;
   int bit_depth = 0;
+  int color_type = PNG_COLOR_TYPE_GRAY;
   int compression_level = 1;
   bool fast = true;
 };
 
 void write_image(png_structp png, png_infop info, const WriteJob& job) {
-  png_set_IHDR(png, info, job.width, job.height, job.bit_depth, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
+  png_set_IHDR(png, info, job.width, job.height, job.bit_depth, job.color_type, PNG_INTERLACE_NONE,
                PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   png_set_compression_level(png, job.compression_level);
   if (job.fast) {
@@ -216,34 +217,31 @@ void write_image(png_structp png, png_infop info, const WriteJob& job) {
   png_write_end(png, nullptr);
 }
 
-template <typename T>
-std::vector<std::uint8_t> encode_any(ImageView<const T> image, const PngWriteOptions& options) {
-  if (image.empty() || image.data == nullptr) {
-    throw_error(ErrorCode::kInvalidArgument, "encode_png: the image is empty ({}x{})", image.width, image.height);
+// `what` names the encoder in errors (encode_png, encode_png_rgb).
+std::vector<std::uint8_t> encode_job(WriteJob job, int width, int height, std::size_t bytes_per_pixel,
+                                     const PngWriteOptions& options, const char* what) {
+  if (width <= 0 || height <= 0 || job.first_row == nullptr) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: the image is empty ({}x{})", what, width, height);
   }
-  if (static_cast<png_uint_32>(image.width) > kMaxSide || static_cast<png_uint_32>(image.height) > kMaxSide) {
-    throw_error(ErrorCode::kInvalidArgument, "encode_png: image size {}x{} is too large", image.width, image.height);
+  if (static_cast<png_uint_32>(width) > kMaxSide || static_cast<png_uint_32>(height) > kMaxSide) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: image size {}x{} is too large", what, width, height);
   }
   if (options.compression_level < 0 || options.compression_level > 9) {
-    throw_error(ErrorCode::kInvalidArgument, "encode_png: compression level {} is outside 0..9",
+    throw_error(ErrorCode::kInvalidArgument, "{}: compression level {} is outside 0..9", what,
                 options.compression_level);
   }
   WriteContext context;
-  const std::size_t raw_bytes = image.pixel_count() * sizeof(T);
+  const std::size_t raw_bytes = static_cast<std::size_t>(width) * static_cast<std::size_t>(height) * bytes_per_pixel;
   // Camera images rarely compress below half; reserving avoids most regrowth copies.
   context.bytes.reserve(raw_bytes / 2 + 1024);
   context.png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &context.sink, on_png_error, on_png_warning);
-  if (context.png == nullptr) throw_error(ErrorCode::kOutOfMemory, "encode_png: cannot create the libpng writer");
+  if (context.png == nullptr) throw_error(ErrorCode::kOutOfMemory, "{}: cannot create the libpng writer", what);
   context.info = png_create_info_struct(context.png);
-  if (context.info == nullptr) throw_error(ErrorCode::kOutOfMemory, "encode_png: cannot create the libpng info");
+  if (context.info == nullptr) throw_error(ErrorCode::kOutOfMemory, "{}: cannot create the libpng info", what);
   png_set_write_fn(context.png, &context, write_to_memory, flush_nothing);
 
-  WriteJob job;
-  job.first_row = reinterpret_cast<const unsigned char*>(image.data);
-  job.stride_bytes = image.stride_bytes;
-  job.width = static_cast<png_uint_32>(image.width);
-  job.height = static_cast<png_uint_32>(image.height);
-  job.bit_depth = static_cast<int>(sizeof(T) * 8);
+  job.width = static_cast<png_uint_32>(width);
+  job.height = static_cast<png_uint_32>(height);
   job.compression_level = options.compression_level;
   job.fast = options.fast;
   png_structp png = context.png;
@@ -251,9 +249,28 @@ std::vector<std::uint8_t> encode_any(ImageView<const T> image, const PngWriteOpt
   const WriteJob* job_pointer = &job;
   if (!run_guarded(png, [png, info, job_pointer] { write_image(png, info, *job_pointer); })) {
     throw Error(code_for_libpng_message(context.sink.message),
-                fmt::format("encode_png: libpng failed: {}", context.sink.message));
+                fmt::format("{}: libpng failed: {}", what, context.sink.message));
   }
   return std::move(context.bytes);
+}
+
+template <typename T>
+std::vector<std::uint8_t> encode_any(ImageView<const T> image, const PngWriteOptions& options) {
+  WriteJob job;
+  job.first_row = image.empty() ? nullptr : reinterpret_cast<const unsigned char*>(image.data);
+  job.stride_bytes = image.stride_bytes;
+  job.bit_depth = static_cast<int>(sizeof(T) * 8);
+  job.color_type = PNG_COLOR_TYPE_GRAY;
+  return encode_job(job, image.width, image.height, sizeof(T), options, "encode_png");
+}
+
+std::vector<std::uint8_t> encode_rgb(const std::uint8_t* rgb, int width, int height, const PngWriteOptions& options) {
+  WriteJob job;
+  job.first_row = rgb;
+  job.stride_bytes = static_cast<std::size_t>(std::max(width, 0)) * 3;
+  job.bit_depth = 8;
+  job.color_type = PNG_COLOR_TYPE_RGB;
+  return encode_job(job, width, height, 3, options, "encode_png_rgb");
 }
 
 // Reads a whole file with one allocation (large scans: 24 MB per image).
@@ -454,6 +471,21 @@ void write_png(const std::string& path, ImageView<const std::uint8_t> image, con
 
 void write_png(const std::string& path, ImageView<const std::uint16_t> image, const PngWriteOptions& options) {
   write_any(path, image, options);
+}
+
+std::vector<std::uint8_t> encode_png_rgb(const std::uint8_t* rgb, int width, int height, const PngWriteOptions& options) {
+  return encode_rgb(rgb, width, height, options);
+}
+
+void write_png_rgb(const std::string& path, const std::uint8_t* rgb, int width, int height,
+                   const PngWriteOptions& options) {
+  std::vector<std::uint8_t> bytes;
+  try {
+    bytes = encode_rgb(rgb, width, height, options);
+  } catch (const Error& error) {
+    throw Error(error.code(), path + ": " + error.what());
+  }
+  write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
 // ---------------------------------------------------------------------------------------

@@ -1,9 +1,10 @@
 // PNG image I/O on libpng (no OpenCV: the GPU machine has none, DESIGN.md section 9), and
 // PFM for float images (at the end of this file).
 //
-// Images are grayscale, 8 or 16 bits per pixel. Pixel values are stored and read back as
-// they are: a 12-bit camera image goes into a 16-bit PNG unscaled (0..4095), and no sBIT or
-// gamma transform is applied, so a round trip is exact. 16-bit samples are big-endian on
+// Images are grayscale, 8 or 16 bits per pixel (8-bit RGB too, written only: figures).
+// Pixel values are stored and read back as they are: a 12-bit camera image goes into a
+// 16-bit PNG unscaled (0..4095), and no sBIT or gamma transform is applied, so a round trip
+// is exact. 16-bit samples are big-endian on
 // disk; the byte order is handled here, callers always see native uint16 values.
 //
 // Reading accepts any valid PNG: bit depths 1..16 are expanded to 8 or 16 bits, palette and
@@ -78,6 +79,15 @@ inline std::vector<std::uint8_t> encode_png(const Image8u& image, const PngWrite
 inline std::vector<std::uint8_t> encode_png(const Image16u& image, const PngWriteOptions& options = {}) {
   return encode_png(image.view(), options);
 }
+
+// 8-bit RGB, for figures (reports, heat maps) rather than camera data: `rgb` holds
+// width*height*3 bytes, rows top to bottom, R G B per pixel, no padding. Reading it back with
+// read_png gives luma (see above). Same errors as encode_png; write_png_rgb writes atomically
+// like write_png.
+std::vector<std::uint8_t> encode_png_rgb(const std::uint8_t* rgb, int width, int height,
+                                         const PngWriteOptions& options = {});
+void write_png_rgb(const std::string& path, const std::uint8_t* rgb, int width, int height,
+                   const PngWriteOptions& options = {});
 
 // PFM (Portable Float Map) for float images: depth maps, phase maps, ground truth.
 //

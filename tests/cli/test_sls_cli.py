@@ -155,6 +155,14 @@ class SlsCli(unittest.TestCase):
         # a fraction of a voxel of the exact surface, over everything the 4 views saw.
         self.assertLess(evaluation["c2c_mean_um"], 15.0)
         self.assertGreater(evaluation["coverage"], 0.95)
+        # Fused with the true poses, its trajectory is the true one: no ATE, no loop error.
+        self.assertEqual(evaluation["ate_frames"], 4)
+        for key in ("ate_rmse_um", "loop_closure_error_um", "loop_closure_error_deg"):
+            self.assertLess(evaluation[key], 1e-3, key)
+        self.assertNotIn("trajectory_note", evaluation)
+        human = run("eval", "--result", str(out), "--truth", str(out / "recording")).stdout
+        self.assertIn("trajectory: ATE rmse", human)
+        self.assertIn("loop closure", human)
         # A recording without ground truth cannot be fused with --poses groundtruth.
         (out / "recording" / "groundtruth" / "trajectory.txt").unlink()
         again = run("scan", "--input", str(out / "recording"), "--poses", "groundtruth", "--device", "cpu",
@@ -270,10 +278,15 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(metrics["coverage"], 1.0)
         self.assertEqual(metrics["coverage_basis"], "visible")
         self.assertEqual(metrics["scene"], "sphere")
+        # No trajectory.txt in the result: the trajectory keys are absent and a note says why.
+        for key in ("ate_rmse_um", "loop_closure_error_um", "loop_closure_error_deg"):
+            self.assertNotIn(key, metrics)
+        self.assertIn("trajectory.txt", metrics["trajectory_note"])
         human = run("eval", "--result", str(result), "--truth", str(rec))
         self.assertEqual(human.returncode, 0, human.stderr)
         self.assertIn("c2c: mean", human.stdout)
         self.assertIn("coverage: 1.0000", human.stdout)
+        self.assertIn("trajectory: n/a", human.stdout)
         # Without report.json the voxel size must be given.
         (result / "report.json").unlink()
         missing_voxel = run("eval", "--result", str(result), "--truth", str(rec))

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <png.h>
 
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
@@ -305,6 +306,44 @@ TEST(Png, CorruptDataNamesTheFile) {
   for (int i = 0; i < 4; ++i) garbage[idat + 4 + length + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(crc >> (24 - 8 * i));
   write_bytes(dir.file("zlib.png"), garbage);
   expect_error([&] { read_png(dir.file("zlib.png")); }, ErrorCode::kFormat, "zlib.png");
+}
+
+// Decoded with libpng's simplified API as RGB (our reader converts to luma), so the round
+// trip checks the very bytes written.
+TEST(Png, RgbRoundTripIsExact) {
+  test::TemporaryDirectory dir;
+  const int width = 29, height = 17;
+  std::mt19937 rng(4);
+  std::vector<std::uint8_t> rgb(static_cast<std::size_t>(width) * height * 3);
+  for (std::uint8_t& v : rgb) v = static_cast<std::uint8_t>(rng() & 0xffu);
+  write_png_rgb(dir.file("c.png"), rgb.data(), width, height);
+  const PngHeader header = read_png_header(dir.file("c.png"));
+  EXPECT_EQ(header.width, width);
+  EXPECT_EQ(header.height, height);
+  EXPECT_EQ(header.bit_depth, 8);
+  EXPECT_EQ(header.channels, 3);
+  EXPECT_FALSE(header.palette);
+
+  const std::vector<std::uint8_t> encoded = encode_png_rgb(rgb.data(), width, height);
+  png_image image;
+  std::memset(&image, 0, sizeof(image));
+  image.version = PNG_IMAGE_VERSION;
+  ASSERT_NE(png_image_begin_read_from_memory(&image, encoded.data(), encoded.size()), 0) << image.message;
+  image.format = PNG_FORMAT_RGB;
+  std::vector<std::uint8_t> decoded(PNG_IMAGE_SIZE(image));
+  ASSERT_NE(png_image_finish_read(&image, nullptr, decoded.data(), 0, nullptr), 0) << image.message;
+  EXPECT_EQ(decoded, rgb);
+
+  // Our reader gives grey for grey pixels exactly.
+  std::vector<std::uint8_t> grey_rgb(static_cast<std::size_t>(width) * height * 3);
+  for (std::size_t n = 0; n < grey_rgb.size(); ++n) grey_rgb[n] = static_cast<std::uint8_t>((n / 3) % 256);
+  write_png_rgb(dir.file("g.png"), grey_rgb.data(), width, height);
+  const Image8u grey = read_png_u8(dir.file("g.png"));
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) EXPECT_EQ(grey(x, y), static_cast<std::uint8_t>((y * width + x) % 256));
+  }
+  expect_error([&] { write_png_rgb(dir.file("e.png"), nullptr, 4, 4); }, ErrorCode::kInvalidArgument, "e.png");
+  expect_error([&] { write_png_rgb(dir.file("z.png"), rgb.data(), 0, 4); }, ErrorCode::kInvalidArgument, "z.png");
 }
 
 TEST(Png, RejectsUnwritableInput) {

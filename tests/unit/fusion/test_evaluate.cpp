@@ -193,6 +193,136 @@ TEST(VisibilityMask, PointsOnValidUnoccludedPixelsFacingTheCamera) {
 }
 
 // ---------------------------------------------------------------------------------------
+// Trajectory errors on synthetic turntable trajectories.
+
+// A camera 10 cm from the axis, 2 cm up, looking roughly at the object, turned about the
+// object's z axis: one revolution in `frames` steps (the last is one step short of the first).
+std::vector<StampedPose> turntable_truth(int frames) {
+  const Pose T_object_camera0(Eigen::Matrix3d(Eigen::AngleAxisd(-M_PI / 2.0, Eigen::Vector3d::UnitY()) *
+                                              Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX())),
+                              Eigen::Vector3d(0.1, 0.0, 0.02));
+  std::vector<StampedPose> poses;
+  for (int i = 0; i < frames; ++i) {
+    const double angle = 2.0 * M_PI * i / frames;
+    const Pose turn(Eigen::Matrix3d(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ())), Eigen::Vector3d::Zero());
+    poses.push_back({0.5 * i, turn * T_object_camera0});
+  }
+  return poses;
+}
+
+// Drift that grows linearly with the frame, in the camera frame (right-multiplied): the
+// relative motion first -> last is then off by exactly the last frame's drift.
+std::vector<StampedPose> with_drift(std::vector<StampedPose> poses, const Eigen::Vector3d& step_m,
+                                    double step_rad) {
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const double n = static_cast<double>(i);
+    const Pose drift(Eigen::Matrix3d(Eigen::AngleAxisd(n * step_rad, Eigen::Vector3d(1.0, 2.0, 2.0).normalized())),
+                     n * step_m);
+    poses[i].T_world_camera = poses[i].T_world_camera * drift;
+  }
+  return poses;
+}
+
+TEST(TrajectoryErrors, KnownDriftGivesTheLoopClosureError) {
+  const std::vector<StampedPose> truth = turntable_truth(36);
+  // Per frame 1 um, 4/3 um along x, y and 0.001 deg: after 35 steps 35 * 5/3 um and 0.035 deg.
+  const double step_rad = 0.001 * M_PI / 180.0;
+  const std::vector<StampedPose> estimated = with_drift(truth, Eigen::Vector3d(1e-6, 4e-6 / 3.0, 0.0), step_rad);
+  std::string why;
+  const std::optional<TrajectoryErrors> errors = trajectory_errors(estimated, truth, &why);
+  ASSERT_TRUE(errors) << why;
+  EXPECT_EQ(errors->matched_frames, 36u);
+  EXPECT_EQ(errors->unmatched_frames, 0u);
+  EXPECT_NEAR(errors->loop_closure_error_m, 35.0 * 5e-6 / 3.0, 1e-12);
+  EXPECT_NEAR(errors->loop_closure_error_rad, 35.0 * step_rad, 1e-12);
+  EXPECT_DOUBLE_EQ(errors->first_timestamp_s, 0.0);
+  EXPECT_DOUBLE_EQ(errors->last_timestamp_s, 17.5);
+  // The drift moves positions too (the rotation swings the camera about its own centre only,
+  // so just the translations count): ATE is positive but below the largest offset.
+  EXPECT_GT(errors->ate_rmse_m, 1e-6);
+  EXPECT_LE(errors->ate_max_m, 35.0 * 5e-6 / 3.0 + 1e-12);
+  // The exact trajectory has neither error.
+  const std::optional<TrajectoryErrors> exact = trajectory_errors(truth, truth);
+  ASSERT_TRUE(exact);
+  EXPECT_LT(exact->ate_rmse_m, 1e-12);
+  EXPECT_LT(exact->loop_closure_error_m, 1e-12);
+  EXPECT_LT(exact->loop_closure_error_rad, 1e-9);
+}
+
+TEST(TrajectoryErrors, AlignmentRemovesAGlobalRigidOffsetExactly) {
+  const std::vector<StampedPose> truth = turntable_truth(24);
+  // Positions off by +-10 um along the axis, alternating: the best alignment is the identity
+  // (the offsets cancel in the centroid and the cross-covariance), so ATE is exactly 10 um.
+  std::vector<StampedPose> estimated = truth;
+  for (std::size_t i = 0; i < estimated.size(); ++i) {
+    const Pose offset(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, i % 2 == 0 ? 10e-6 : -10e-6));
+    estimated[i].T_world_camera = offset * estimated[i].T_world_camera;
+  }
+  // The estimate in another world frame (a tracker's: the first camera's).
+  const Pose T_world_object(Eigen::Matrix3d(Eigen::AngleAxisd(2.0, Eigen::Vector3d(0.3, -0.5, 0.8).normalized())),
+                            Eigen::Vector3d(0.03, -0.2, 0.11));
+  for (const bool offsets : {false, true}) {
+    SCOPED_TRACE(offsets ? "with +-10 um offsets" : "exact");
+    std::vector<StampedPose> moved = offsets ? estimated : truth;
+    for (StampedPose& pose : moved) pose.T_world_camera = T_world_object * pose.T_world_camera;
+    const std::optional<TrajectoryErrors> errors = trajectory_errors(moved, truth);
+    ASSERT_TRUE(errors);
+    EXPECT_NEAR(errors->ate_rmse_m, offsets ? 10e-6 : 0.0, 1e-10);
+    EXPECT_NEAR(errors->ate_max_m, offsets ? 10e-6 : 0.0, 1e-10);
+    EXPECT_TRUE(errors->T_truth_estimate.is_approx(T_world_object.inverse(), 1e-8));
+    // The last frame has an odd index: its offset differs from the first's by 20 um.
+    EXPECT_NEAR(errors->loop_closure_error_m, offsets ? 20e-6 : 0.0, 1e-10);
+    // The truth moved by the alignment lies on the estimate.
+    const std::vector<StampedPose> aligned = truth_in_estimate_frame(truth, *errors);
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      EXPECT_LT((aligned[i].T_world_camera.translation() - moved[i].T_world_camera.translation()).norm(), 10e-6 + 1e-9);
+    }
+  }
+}
+
+TEST(TrajectoryErrors, FramesAreMatchedByTimestampWhateverTheOrderAndGaps) {
+  const std::vector<StampedPose> truth = turntable_truth(20);
+  const double step_rad = 0.002 * M_PI / 180.0;
+  const std::vector<StampedPose> drifted = with_drift(truth, Eigen::Vector3d(0.0, 0.0, 2e-6), step_rad);
+  // Lost frames 3, 7 and the last one (19); shuffled; timestamps off by a nanosecond; one
+  // pose at a time the recording never had.
+  std::vector<StampedPose> estimated;
+  for (std::size_t i = 0; i < drifted.size(); ++i) {
+    if (i == 3 || i == 7 || i == 19) continue;
+    StampedPose pose = drifted[i];
+    pose.timestamp_s += i % 2 == 0 ? 1e-9 : -1e-9;
+    estimated.push_back(pose);
+  }
+  estimated.push_back({1000.0, Pose::identity()});
+  std::mt19937 rng(3);
+  std::shuffle(estimated.begin(), estimated.end(), rng);
+  // The truth too may come unsorted and may hold frames the estimate lacks.
+  std::vector<StampedPose> truth_shuffled = truth;
+  std::shuffle(truth_shuffled.begin(), truth_shuffled.end(), rng);
+
+  const std::optional<TrajectoryErrors> errors = trajectory_errors(estimated, truth_shuffled);
+  ASSERT_TRUE(errors);
+  EXPECT_EQ(errors->matched_frames, 17u);
+  EXPECT_EQ(errors->unmatched_frames, 1u);
+  EXPECT_DOUBLE_EQ(errors->first_timestamp_s, 1e-9);
+  EXPECT_NEAR(errors->last_timestamp_s, 9.0, 1e-8);  // frame 18
+  EXPECT_NEAR(errors->loop_closure_error_m, 18.0 * 2e-6, 1e-12);
+  EXPECT_NEAR(errors->loop_closure_error_rad, 18.0 * step_rad, 1e-12);
+
+  // Against itself, whatever the order: no error.
+  const std::optional<TrajectoryErrors> same = trajectory_errors(estimated, estimated);
+  ASSERT_TRUE(same);
+  EXPECT_LT(same->ate_rmse_m, 1e-12);
+
+  // Fewer than two matches: no figures, and why.
+  std::string why;
+  EXPECT_FALSE(trajectory_errors({truth[0]}, truth, &why));
+  EXPECT_NE(why.find("1 of the 1"), std::string::npos) << why;
+  EXPECT_FALSE(trajectory_errors({{5000.0, Pose()}, {5001.0, Pose()}}, truth, &why));
+  EXPECT_NE(why.find("0 of the 2"), std::string::npos) << why;
+}
+
+// ---------------------------------------------------------------------------------------
 // A result folder against a small simulated recording (depth mode, four views of the sphere).
 
 class EvaluateResult : public ::testing::Test {
@@ -244,6 +374,9 @@ TEST_F(EvaluateResult, TheReferenceItselfIsExactAndCoversWhatWasSeen) {
   EXPECT_GT(report.coverage.considered, reference.size() / 4);
   EXPECT_LT(report.coverage.considered, reference.size());
   EXPECT_DOUBLE_EQ(report.coverage.fraction(), 1.0);
+  EXPECT_FALSE(report.trajectory);
+  EXPECT_NE(report.trajectory_note.find("trajectory.txt"), std::string::npos) << report.trajectory_note;
+  EXPECT_TRUE(report.cloud_point_errors_m.empty());
   std::printf("sphere recording: %zu reference points, %zu seen by 4 frames\n", reference.size(),
               report.coverage.considered);
 }
@@ -272,9 +405,30 @@ TEST_F(EvaluateResult, ATrackedResultIsAlignedByItsFirstPose) {
   const EvalReport aligned = evaluate_result(folder, recording(), {});
   EXPECT_EQ(aligned.alignment, "first-pose");
   EXPECT_LT(aligned.cloud.all.mean_m, 0.01 * kUm);
+  ASSERT_TRUE(aligned.trajectory) << aligned.trajectory_note;
+  EXPECT_EQ(aligned.trajectory->matched_frames, truth_poses.size());
+  EXPECT_LT(aligned.trajectory->ate_rmse_m, 1e-9);
+  EXPECT_LT(aligned.trajectory->loop_closure_error_m, 1e-9);
   EvalOptions no_align;
   no_align.align_first_pose = false;
   EXPECT_GT(evaluate_result(folder, recording(), no_align).cloud.all.mean_m, 1e-3);
+}
+
+TEST_F(EvaluateResult, PointErrorsAreKeptOnRequestInTheCloudsOrder) {
+  PointCloud cloud = read_ply_cloud(truth("reference.ply"));
+  // Every tenth point pushed 20 um outwards (the sphere is centred on the origin).
+  for (std::size_t n = 0; n < cloud.size(); n += 10) {
+    cloud.positions[n] += 20e-6f * cloud.positions[n].normalized();
+  }
+  EvalOptions options;
+  options.keep_point_errors = true;
+  const EvalReport report = evaluate_result(result("point-errors", cloud), recording(), options);
+  ASSERT_EQ(report.cloud_point_errors_m.size(), cloud.size());
+  for (std::size_t n = 0; n < cloud.size(); ++n) {
+    EXPECT_NEAR(report.cloud_point_errors_m[n], n % 10 == 0 ? 20e-6 : 0.0, 0.05 * kUm) << n;
+  }
+  EXPECT_NEAR(*std::max_element(report.cloud_point_errors_m.begin(), report.cloud_point_errors_m.end()),
+              report.cloud.all.max_m, 1e-9);
 }
 
 TEST_F(EvaluateResult, VoxelSizeFromTheOptionWhenTheReportHasNone) {
