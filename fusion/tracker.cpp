@@ -277,13 +277,17 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
     return lost(fmt::format("the point-to-plane residual RMS of the {} inliers is {:.1f} um, above the {:.1f} um allowed",
                             result.inliers, result.residual_rms_m * 1e6, options.max_residual_rms_m * 1e6));
   }
-  const Pose correction = guess.inverse() * estimate;
-  const double correction_m = correction.translation().norm();
-  const double correction_deg = correction.angle_rad() * 180.0 / M_PI;
+  // The correction as the scene sees it: how far the registration moves the model's centroid
+  // in the camera's view (turning about an object 0.1 m away moves the camera itself ~1.7 mm
+  // per degree, the surface in view far less).
+  const Eigen::Vector3d centre_world =
+      T_world_model * Eigen::Vector3d(frame.centre.x, frame.centre.y, frame.centre.z);
+  const double correction_m = ((guess.inverse() * centre_world) - (estimate.inverse() * centre_world)).norm();
+  const double correction_deg = (guess.inverse() * estimate).angle_rad() * 180.0 / M_PI;
   if (!std::isfinite(correction_m) || !std::isfinite(correction_deg) || correction_m > options.max_correction_m ||
       correction_deg > options.max_correction_deg) {
-    return lost(fmt::format("the registration moves the camera {:.3f} mm and {:.3f} deg from the guess, more than "
-                            "the {:.3f} mm / {:.3f} deg allowed",
+    return lost(fmt::format("the registration moves the view's centre {:.3f} mm and turns {:.3f} deg from the guess, "
+                            "more than the {:.3f} mm / {:.3f} deg allowed",
                             correction_m * 1e3, correction_deg, options.max_correction_m * 1e3,
                             options.max_correction_deg));
   }

@@ -50,7 +50,7 @@ struct TrackingOptions {
   // Lost-frame tests (after the finest level).
   double min_inlier_fraction = 0.25;    // of the live pixels with a depth
   double max_residual_rms_m = 60e-6;    // point-to-plane RMS of the inliers
-  double max_correction_m = 3e-3;       // |translation| of T_guess^-1 * T_result
+  double max_correction_m = 3e-3;       // how far the result moves the model's centroid in view from the guess
   double max_correction_deg = 10.0;
   // Throws sls::Error(kInvalidArgument) naming the bad value.
   void validate() const;

@@ -18,6 +18,7 @@ enum ExitCode : int {
   kExitError = 1,        // the work failed: the message says why
   kExitUsage = 2,        // bad command line
   kExitUnavailable = 3,  // the feature is not in this build / not implemented yet
+  kExitInterrupted = 4,  // stopped by a signal; what was done is written and valid (sls scan)
 };
 
 struct GlobalOptions {

@@ -43,32 +43,27 @@ nlohmann::json errors_json(const eval::SurfaceErrors& errors) {
           {"edge_points", errors.edge.count}};
 }
 
-int run_eval(const Context& context, const EvalCommandOptions& options) {
-  eval::EvalOptions eval_options = options.eval;
-  eval_options.voxel_size_m = options.voxel_um * 1e-6;
-  eval_options.align_first_pose = !options.no_align;
-  const eval::EvalReport report =
-      eval::evaluate_result(options.result, options.truth, eval_options, context.progress_callback("eval"));
+}  // namespace
 
-  nlohmann::json out = {{"ok", true},
-                        {"result", report.result_folder},
-                        {"truth", report.recording_folder},
-                        {"scene", report.scene_name},
-                        {"voxel_size_m", report.voxel_size_m},
-                        {"voxel_size_source", report.voxel_size_source},
-                        {"points", report.cloud_points},
-                        {"edge_band_um", report.edge_band_m * kUm},
-                        {"coverage", report.coverage.considered > 0 ? nlohmann::json(report.coverage.fraction())
-                                                                    : nlohmann::json(nullptr)},
-                        {"coverage_radius_um", report.coverage_radius_m * kUm},
-                        {"coverage_basis", report.coverage_basis},
-                        {"reference_points", report.reference_points},
-                        {"reference_points_counted", report.coverage.considered},
-                        {"reference_points_covered", report.coverage.covered},
-                        {"frames_checked", report.frames_checked},
-                        {"alignment", report.alignment},
-                        {"alignment_translation_um", report.T_object_world.translation().norm() * kUm},
-                        {"alignment_angle_deg", report.T_object_world.angle_rad() * 180.0 / M_PI}};
+nlohmann::json evaluation_json(const eval::EvalReport& report) {
+  nlohmann::json out = {{"result", report.result_folder},
+                         {"truth", report.recording_folder},
+                         {"scene", report.scene_name},
+                         {"voxel_size_m", report.voxel_size_m},
+                         {"voxel_size_source", report.voxel_size_source},
+                         {"points", report.cloud_points},
+                         {"edge_band_um", report.edge_band_m * kUm},
+                         {"coverage", report.coverage.considered > 0 ? nlohmann::json(report.coverage.fraction())
+                                                                     : nlohmann::json(nullptr)},
+                         {"coverage_radius_um", report.coverage_radius_m * kUm},
+                         {"coverage_basis", report.coverage_basis},
+                         {"reference_points", report.reference_points},
+                         {"reference_points_counted", report.coverage.considered},
+                         {"reference_points_covered", report.coverage.covered},
+                         {"frames_checked", report.frames_checked},
+                         {"alignment", report.alignment},
+                         {"alignment_translation_um", report.T_object_world.translation().norm() * kUm},
+                         {"alignment_angle_deg", report.T_object_world.angle_rad() * 180.0 / M_PI}};
   if (report.trajectory) {
     const eval::TrajectoryErrors& t = *report.trajectory;
     out["ate_rmse_um"] = t.ate_rmse_m * kUm;
@@ -84,6 +79,20 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
   }
   out.update(errors_json(report.cloud));
   if (report.mesh) out["mesh"] = errors_json(*report.mesh);
+  return out;
+}
+
+namespace {
+
+int run_eval(const Context& context, const EvalCommandOptions& options) {
+  eval::EvalOptions eval_options = options.eval;
+  eval_options.voxel_size_m = options.voxel_um * 1e-6;
+  eval_options.align_first_pose = !options.no_align;
+  const eval::EvalReport report =
+      eval::evaluate_result(options.result, options.truth, eval_options, context.progress_callback("eval"));
+
+  nlohmann::json out = {{"ok", true}};
+  out.update(evaluation_json(report));
 
   context.emit(out, [&] {
     auto um = [](const eval::DistanceStats& stats, double eval::DistanceStats::*field) {

@@ -1,12 +1,14 @@
-// sls scan: the scan pipeline, from a recording or the built-in simulator, to a model.
-// It runs the stages that exist in this build and names the first one that does not;
-// it never writes made-up output. Devices given by URI (--camera/--projector/--turntable,
-// hardware or sim://) are scanned through the capture sequencer first. With --poses
-// groundtruth (simulated recordings) every
-// frame is decoded (or its depth map read) and fused with its true pose into one volume
-// around the object; --poses track needs the tracker of issue #6.
+// sls scan: the scan pipeline, from a recording, the built-in simulator or devices by URI, to
+// a model. Devices given by URI (--camera/--projector/--turntable, hardware or sim://) are
+// scanned through the capture sequencer into OUT/recording first; the simulator writes its
+// capture there too. Then every frame goes through the scan session (sdk/session): decode,
+// track (--poses track: ICP against the model, a moving volume) or take the true pose
+// (--poses groundtruth: simulated recordings, one fixed volume around the object), integrate,
+// move, raycast; the model, trajectory and report are written to OUT.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <csignal>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -21,6 +23,8 @@
 #include "fusion/integrator.h"
 #include "fusion/raycaster.h"
 #include "samples/sls/commands.h"
+#include "samples/sls/evaluate.h"
+#include "samples/sls/scan_report.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
@@ -30,6 +34,7 @@
 #include "sdk/core/trajectory.h"
 #include "sdk/decode/decoder.h"
 #include "sdk/session/capture_sequencer.h"
+#include "sdk/session/scan_session.h"
 
 namespace sls::cli {
 namespace {
@@ -49,6 +54,7 @@ struct ScanOptions {
   std::string poses = "track";
   double voxel_um = 0.0;          // 0: twice the camera's pixel footprint, grown to fit max_voxels
   double max_voxels_million = 0;  // 0: 256 on a GPU, 48 on the CPU
+  bool turntable_prior = false;   // --poses track: the recording's turntable angles as the pose guess
   bool device_given = false;
 };
 
@@ -94,100 +100,118 @@ fusion::VolumeGeometry object_volume(const RecordingReader& recording, const Sca
   }
 }
 
-// Fuses every frame with its ground-truth pose and writes the model; returns the report.
-nlohmann::json fuse_with_groundtruth(const Context& context, const RecordingReader& recording,
-                                     const ScanOptions& options, const Device& device) {
-  const std::string trajectory_path = recording.groundtruth_folder() + "/trajectory.txt";
-  if (!std::filesystem::exists(trajectory_path)) {
-    throw_error(ErrorCode::kInvalidArgument,
-                "--poses groundtruth: {} has no ground-truth trajectory (only simulated recordings do)",
-                recording.folder());
-  }
-  const std::vector<StampedPose> truth = read_tum_trajectory(trajectory_path);
-  if (truth.size() != recording.frame_count()) {
-    throw_error(ErrorCode::kFormat, "{}: {} poses for {} frames", trajectory_path, truth.size(),
-                recording.frame_count());
-  }
-  const RecordingInfo& info = recording.info();
-  const CameraIntrinsics& camera = recording.calibration().camera;
-  const fusion::IntegrationOptions fusion_options = fusion::parse_fusion_method(options.fusion);
-  const fusion::VolumeGeometry geometry = object_volume(recording, options, device, fusion_options);
-  fusion::Volume volume(geometry, fusion::VoxelFormat::kCompact, device);
-  fusion::Integrator integrator(device, fusion_options);
-  if (!context.options.json) {
-    std::cerr << fmt::format("volume {} x {} x {} voxels of {:.1f} um ({:.0f} MiB, {}), {} fusion on {}\n",
-                             geometry.nx, geometry.ny, geometry.nz, geometry.voxel_size_m * 1e6,
-                             static_cast<double>(volume.bytes()) / 1048576.0,
-                             fusion::voxel_format_name(volume.format()), options.fusion, device.to_string());
-  }
+// Set by SIGINT / SIGTERM: the scan stops after the current frame and writes what it fused.
+std::atomic<bool> g_stop_requested{false};
+extern "C" void request_stop(int) { g_stop_requested.store(true); }
 
-  std::optional<Decoder> decoder;
-  if (info.images_per_frame > 0) {
-    DecodeOptions decode_options;
-    decode_options.bit_depth = info.camera.bit_depth;
-    decoder.emplace(pattern_set_from_json(info.pattern_set_json), recording.calibration(), device, decode_options);
-  }
-  double decode_ms = 0.0, integrate_ms = 0.0, read_ms = 0.0;
-  nlohmann::json skipped = nlohmann::json::array();
-  std::vector<StampedPose> used;
-  std::size_t active = 0;
-  const ProgressCallback progress = context.progress_callback("fuse");
-  for (std::size_t i = 0; i < recording.frame_count(); ++i) {
-    report_progress(progress, {"fuse", i, recording.frame_count(), ""});
-    Image32f depth;
-    try {
-      if (decoder) {
-        if (!recording.frame(i).complete) throw_error(ErrorCode::kFormat, "incomplete pattern stack");
-        auto start = Clock::now();
-        const std::vector<Image16u> images = recording.load_images(i);
-        read_ms += ms_since(start);
-        start = Clock::now();
-        depth = decoder->decode(images).depth_m;
-        decode_ms += ms_since(start);
-      } else {
-        const auto start = Clock::now();
-        std::optional<Image32f> map = recording.load_depth_m(i);
-        read_ms += ms_since(start);
-        if (!map) throw_error(ErrorCode::kFormat, "no depth map");
-        depth = std::move(*map);
-      }
-    } catch (const Error& error) {
-      // A bad frame is reported and skipped; the frames fused so far are kept.
-      skipped.push_back({{"frame", i}, {"reason", error.what()}});
-      continue;
+double median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+nlohmann::json stage_json(const session::StageTimes& times) {
+  return {{"read", times.read_ms},       {"decode", times.decode_ms}, {"track", times.track_ms},
+          {"integrate", times.integrate_ms}, {"move", times.move_ms},   {"raycast", times.raycast_ms}};
+}
+
+// Decodes, tracks (or takes the true poses) and fuses every frame of the recording through a
+// scan session, then writes the model, the trajectory and the report; returns the report.
+// A frame that cannot be read, decoded or registered is reported and skipped; a SIGINT stops
+// after the current frame, and what was fused is written as a valid partial model.
+nlohmann::json scan_recording(const Context& context, const RecordingReader& recording, const ScanOptions& options,
+                              const Device& device) {
+  const RecordingInfo& info = recording.info();
+  const bool groundtruth = options.poses == "groundtruth";
+  session::ScanSessionOptions session_options;
+  session_options.device = device;
+  session_options.integration = fusion::parse_fusion_method(options.fusion);
+  session_options.decode.bit_depth = info.camera.bit_depth;
+  std::vector<StampedPose> truth;
+  if (groundtruth) {
+    const std::string trajectory_path = recording.groundtruth_folder() + "/trajectory.txt";
+    if (!std::filesystem::exists(trajectory_path)) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "--poses groundtruth: {} has no ground-truth trajectory (only simulated recordings do)",
+                  recording.folder());
     }
-    const auto start = Clock::now();
-    active += integrator.integrate(volume, depth, camera, truth[i].T_world_camera).active_voxels;
-    integrate_ms += ms_since(start);
-    used.push_back(truth[i]);
+    truth = read_tum_trajectory(trajectory_path);
+    if (truth.size() != recording.frame_count()) {
+      throw_error(ErrorCode::kFormat, "{}: {} poses for {} frames", trajectory_path, truth.size(),
+                  recording.frame_count());
+    }
+    session_options.fixed_volume = object_volume(recording, options, device, session_options.integration);
+  } else {
+    session_options.voxel_size_m = options.voxel_um * 1e-6;
+    session_options.max_voxels =
+        (options.max_voxels_million > 0.0 ? options.max_voxels_million : (device.is_cuda() ? 256.0 : 48.0)) * 1e6;
+    session_options.turntable_prior = options.turntable_prior;
   }
-  report_progress(progress, {"fuse", recording.frame_count(), recording.frame_count(), ""});
+  std::optional<PatternSet> patterns;
+  if (info.images_per_frame > 0) patterns = pattern_set_from_json(info.pattern_set_json);
+  session::ScanSession session(recording.calibration(), patterns ? &*patterns : nullptr, session_options);
+
+  g_stop_requested.store(false);
+  const auto previous_int = std::signal(SIGINT, request_stop);
+  const auto previous_term = std::signal(SIGTERM, request_stop);
+  const ProgressCallback display = context.progress_callback("scan");
+  const ProgressCallback progress = [&display](const ProgressUpdate& update) {
+    if (g_stop_requested.load()) return false;
+    return !display || display(update);
+  };
+  bool printed_volume = false;
+  const auto on_frame = [&](const session::FrameReport& frame) {
+    if (context.options.json) return;
+    if (!printed_volume && frame.status == session::FrameStatus::kFused) {
+      const fusion::VolumeGeometry& geometry = session.volume_geometry();
+      std::cerr << fmt::format("\nvolume {} x {} x {} voxels of {:.1f} um ({:.0f} MiB, {}), {} fusion on {}, poses: {}\n",
+                               geometry.nx, geometry.ny, geometry.nz, geometry.voxel_size_m * 1e6,
+                               static_cast<double>(session.volume_bytes()) / 1048576.0,
+                               groundtruth ? "fixed" : "moving", options.fusion, device.to_string(), options.poses);
+      printed_volume = true;
+    }
+    if (frame.status != session::FrameStatus::kFused) {
+      std::cerr << fmt::format("\nframe {} {}: {}\n", frame.index, session::frame_status_name(frame.status),
+                               frame.reason);
+    }
+  };
+  session::ReplayOutcome outcome;
+  try {
+    outcome = session::run_recording(session, recording, groundtruth ? &truth : nullptr, on_frame, progress);
+  } catch (...) {
+    std::signal(SIGINT, previous_int);
+    std::signal(SIGTERM, previous_term);
+    throw;
+  }
+  std::signal(SIGINT, previous_int);
+  std::signal(SIGTERM, previous_term);
+  if (session.fused_count() == 0) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: no frame could be fused ({} frames{})", recording.folder(),
+                session.frames().size(), outcome.interrupted ? ", interrupted" : "");
+  }
 
   auto start = Clock::now();
-  const fusion::Volume on_host = volume.to_host();
-  const fusion::ExtractedSurface surface = fusion::extract_surface(on_host);
-  const PointCloud& cloud = surface.cloud;
-  const TriangleMesh& mesh = surface.mesh;
+  const fusion::ExtractedSurface surface = session.final_surface();
   const double extract_ms = ms_since(start);
+  const std::vector<StampedPose> trajectory = session.trajectory();
   std::filesystem::create_directories(options.out);
-  // A shaded picture of the model seen from the first fused view, with the camera's own
+  // A shaded picture of the current volume from the last fused view, with the camera's own
   // model (render.png): the fused surface at the scanner's resolution.
-  if (!used.empty()) {
-    fusion::RaycastOptions raycast_options;
-    raycast_options.truncation_voxels = fusion_options.truncation_voxels;
-    fusion::Raycaster raycaster(device, camera, raycast_options);
-    write_png(options.out + "/render.png", raycaster.raycast(volume, used.front().T_world_camera).shaded);
-  }
-  write_ply(options.out + "/cloud.ply", cloud);
-  write_ply(options.out + "/mesh.ply", mesh);
-  write_tum_trajectory(options.out + "/trajectory.txt", used);
+  write_png(options.out + "/render.png", session.render(trajectory.back().T_world_camera));
+  write_ply(options.out + "/cloud.ply", surface.cloud);
+  write_ply(options.out + "/mesh.ply", surface.mesh);
+  write_tum_trajectory(options.out + "/trajectory.txt", trajectory);
 
+  const fusion::IntegrationOptions& fusion_options = session_options.integration;
+  const fusion::VolumeGeometry& geometry = session.volume_geometry();
   nlohmann::json report;
   report["format"] = "slscan-scan-report";
-  report["format_version"] = 1;
+  report["format_version"] = 2;
   report["input"] = recording.folder();
   report["device"] = device.to_string();
-  report["poses"] = "groundtruth";
+  report["poses"] = options.poses;
+  report["turntable_prior"] = !groundtruth && options.turntable_prior;
   report["fusion"] = {{"method", options.fusion},
                       {"truncation_voxels", fusion_options.truncation_voxels},
                       {"eta_voxels", fusion_options.eta_voxels},
@@ -199,20 +223,84 @@ nlohmann::json fuse_with_groundtruth(const Context& context, const RecordingRead
                       {"iterations", fusion_options.iterations}};
   report["voxel_size_m"] = geometry.voxel_size_m;
   report["volume"] = {{"voxels", {geometry.nx, geometry.ny, geometry.nz}},
-                      {"format", fusion::voxel_format_name(volume.format())},
-                      {"bytes", volume.bytes()}};
+                      {"kind", groundtruth ? "fixed" : "moving"},
+                      {"format", fusion::voxel_format_name(session_options.voxel_format)},
+                      {"bytes", session.volume_bytes()},
+                      {"moves", session.moves()}};
   report["frames"] = recording.frame_count();
-  report["frames_fused"] = used.size();
-  report["lost_frames"] = skipped;
-  report["active_voxels_per_frame"] = used.empty() ? 0.0 : static_cast<double>(active) / static_cast<double>(used.size());
-  report["ms_per_stage"] = {{"read", read_ms}, {"decode", decode_ms}, {"integrate", integrate_ms},
-                            {"extract", extract_ms}};
-  report["points"] = cloud.size();
-  report["triangles"] = mesh.faces.size();
+  report["frames_processed"] = session.frames().size();
+  report["frames_fused"] = session.fused_count();
+  report["interrupted"] = outcome.interrupted;
+  if (outcome.interrupted) report["interruption"] = outcome.interruption;
+  nlohmann::json lost = nlohmann::json::array();
+  nlohmann::json per_frame = nlohmann::json::array();
+  std::vector<double> pipeline_ms;  // track + integrate + move + raycast of each fused frame
+  std::size_t active = 0;
+  for (const session::FrameReport& frame : session.frames()) {
+    nlohmann::json entry = {{"frame", frame.index}, {"status", session::frame_status_name(frame.status)},
+                            {"ms", stage_json(frame.times)}};
+    if (!frame.reason.empty()) entry["reason"] = frame.reason;
+    if (frame.tracking) {
+      entry["tracking"] = {{"inlier_fraction", frame.tracking->inlier_fraction},
+                           {"residual_rms_um", frame.tracking->residual_rms_m * 1e6},
+                           {"degenerate_directions", frame.tracking->degenerate_directions},
+                           {"iterations", frame.tracking->iterations}};
+    }
+    if (frame.move.moved) {
+      entry["move"] = {{"translation_mm", frame.move.translation_m * 1e3}, {"rotation_deg", frame.move.rotation_deg},
+                       {"shipped_points", frame.move.shipped_points}};
+    }
+    per_frame.push_back(entry);
+    if (frame.status != session::FrameStatus::kFused) {
+      lost.push_back({{"frame", frame.index}, {"status", session::frame_status_name(frame.status)},
+                      {"reason", frame.reason}});
+      continue;
+    }
+    active += frame.integration.active_voxels;
+    pipeline_ms.push_back(frame.times.track_ms + frame.times.integrate_ms + frame.times.move_ms +
+                          frame.times.raycast_ms);
+  }
+  report["lost_frames"] = lost;
+  report["active_voxels_per_frame"] =
+      static_cast<double>(active) / static_cast<double>(std::max<std::size_t>(session.fused_count(), 1));
+  session::StageTimes totals = session.totals();
+  report["ms_per_stage"] = stage_json(totals);
+  report["ms_per_stage"]["extract"] = extract_ms;
+  report["ms_total"] = totals.total_ms() + extract_ms;
+  report["ms_track_integrate_move_raycast_median"] = median(pipeline_ms);
+  report["points"] = surface.cloud.size();
+  report["triangles"] = surface.mesh.faces.size();
+  report["per_frame"] = per_frame;
   report["outputs"] = {{"cloud", options.out + "/cloud.ply"}, {"mesh", options.out + "/mesh.ply"},
-                       {"render", options.out + "/render.png"},
-                       {"trajectory", options.out + "/trajectory.txt"}, {"report", options.out + "/report.json"}};
+                       {"render", options.out + "/render.png"}, {"trajectory", options.out + "/trajectory.txt"},
+                       {"report", options.out + "/report.json"}, {"report_html", options.out + "/report.html"}};
   write_file_atomic(options.out + "/report.json", report.dump(2) + "\n");
+
+  // With ground truth (simulated recordings): sls eval's figures and per-point errors for the
+  // report's heat map; the report.json written above is complete without them.
+  sls::report::ScanReportInputs html;
+  std::optional<eval::EvalReport> evaluation;
+  if (recording.info().has_groundtruth) {
+    start = Clock::now();
+    eval::EvalOptions eval_options;
+    eval_options.keep_point_errors = true;
+    evaluation = eval::evaluate_result(options.out, recording.folder(), eval_options,
+                                       context.progress_callback("eval"));
+    report["evaluation"] = evaluation_json(*evaluation);
+    report["ms_per_stage"]["evaluate"] = ms_since(start);
+    html.evaluation = &*evaluation;
+    html.point_errors_m = evaluation->cloud_point_errors_m;
+    if (evaluation->trajectory) {
+      html.truth = eval::truth_in_estimate_frame(
+          read_tum_trajectory(recording.groundtruth_folder() + "/trajectory.txt"), *evaluation->trajectory);
+    }
+    write_file_atomic(options.out + "/report.json", report.dump(2) + "\n");
+  }
+  html.report = report;
+  html.cloud = &surface.cloud;
+  html.trajectory = trajectory;
+  html.title = fmt::format("Scan of {}", recording.folder());
+  sls::report::write_scan_report_html(options.out, html);
   return report;
 }
 
@@ -279,49 +367,21 @@ int run_scan(const Context& context, const ScanOptions& options) {
   if (!recording.has_calibration()) {
     throw_error(ErrorCode::kInvalidArgument, "{} has no calibration.yml: a scan needs a calibrated recording", input);
   }
-  if (options.poses == "groundtruth") {
-    const nlohmann::json report = fuse_with_groundtruth(context, recording, options, device);
-    if (context.options.json) {
-      std::cout << report.dump(2) << "\n";
-    } else {
-      std::cout << fmt::format("fused {} of {} frames: {} points, {} triangles\n  {}\n  {}\n  {}\n",
-                               report["frames_fused"].get<std::size_t>(), report["frames"].get<std::size_t>(),
-                               report["points"].get<std::size_t>(), report["triangles"].get<std::size_t>(),
-                               report["outputs"]["cloud"].get<std::string>(),
-                               report["outputs"]["mesh"].get<std::string>(),
-                               report["outputs"]["report"].get<std::string>());
-    }
-    return 0;
-  }
-  const RecordingInfo& info = recording.info();
-  std::size_t decoded_pixels = 0, frames_decoded = 0, frames_with_depth = 0;
-  if (info.images_per_frame > 0) {
-    DecodeOptions decode_options;
-    decode_options.bit_depth = info.camera.bit_depth;
-    Decoder decoder(pattern_set_from_json(info.pattern_set_json), recording.calibration(), device, decode_options);
-    const ProgressCallback progress = context.progress_callback("decode");
-    for (std::size_t i = 0; i < recording.frame_count(); ++i) {
-      if (!recording.frame(i).complete) continue;  // an incomplete stack cannot be decoded
-      decoded_pixels += decoder.decode(recording.load_images(i)).ok_count();
-      ++frames_decoded;
-      report_progress(progress, {"decode", i + 1, recording.frame_count(), ""});
-    }
+  const nlohmann::json report = scan_recording(context, recording, options, device);
+  if (context.options.json) {
+    std::cout << report.dump(2) << "\n";
   } else {
-    for (std::size_t i = 0; i < recording.frame_count(); ++i) frames_with_depth += recording.frame(i).has_depth();
+    std::cout << fmt::format("\n{} {} of {} frames ({} lost or skipped{}): {} points, {} triangles\n  {}\n  {}\n  {}\n  {}\n",
+                             report["interrupted"].get<bool>() ? "interrupted: fused" : "fused",
+                             report["frames_fused"].get<std::size_t>(), report["frames"].get<std::size_t>(),
+                             report["lost_frames"].size(),
+                             report["interrupted"].get<bool>() ? ", the partial model is valid" : "",
+                             report["points"].get<std::size_t>(), report["triangles"].get<std::size_t>(),
+                             report["outputs"]["cloud"].get<std::string>(), report["outputs"]["mesh"].get<std::string>(),
+                             report["outputs"]["trajectory"].get<std::string>(),
+                             report["outputs"]["report"].get<std::string>());
   }
-  const double pixels = static_cast<double>(info.camera.width) * static_cast<double>(info.camera.height);
-  const std::string done =
-      info.images_per_frame > 0
-          ? fmt::format("decoded {} of {} frame(s) of {} ({:.1f} % of pixels valid on average)", frames_decoded,
-                        recording.frame_count(), input,
-                        frames_decoded > 0 ? 100.0 * static_cast<double>(decoded_pixels) /
-                                                 (pixels * static_cast<double>(frames_decoded))
-                                           : 0.0)
-          : fmt::format("read {} depth map(s) from {}", frames_with_depth, input);
-  throw_error(ErrorCode::kUnsupported,
-              "{}; the tracker (--poses track) is not in this build yet, so no trajectory, cloud or mesh can be "
-              "made. Missing stage: tracking. A simulated recording can be fused with --poses groundtruth.",
-              done);
+  return report["interrupted"].get<bool>() ? kExitInterrupted : kExitOk;
 }
 
 }  // namespace
@@ -347,7 +407,8 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--frames", options->frames,
                       "Frames per revolution (--sim: 0 is the preset's; --camera: 0 is 36 with a turntable, else 1)")
       ->check(CLI::NonNegativeNumber);
-  command->add_option("--out", options->out, "Output folder for cloud.ply, mesh.ply, trajectory.txt, report.json")
+  command->add_option("--out", options->out,
+                      "Output folder for cloud.ply, mesh.ply, trajectory.txt, report.json, report.html")
       ->required();
   command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present, else cpu)");
   command->add_option("--fusion", options->fusion, "Fusion: tsdf or gtsdf")
@@ -356,12 +417,16 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--poses", options->poses, "Camera poses: track (ICP) or groundtruth (simulated recordings)")
       ->check(CLI::IsMember({"track", "groundtruth"}))
       ->capture_default_str();
+  command->add_flag("--turntable-prior", options->turntable_prior,
+                    "With --poses track: use the recording's turntable angles about the calibrated axis as the pose guess "
+                    "(default: depth alone, constant-velocity guess)");
   command->add_option("--voxel-um", options->voxel_um,
                       "Voxel size in um (0: twice the pixel footprint, grown to fit --max-voxels)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   command->add_option("--max-voxels", options->max_voxels_million,
-                      "Largest volume in millions of voxels for the automatic voxel size (0: 256 on a GPU, 48 on the CPU)")
+                      "Largest volume (one buffer of a moving volume) in millions of voxels for the automatic voxel "
+                      "size (0: 256 on a GPU, 48 on the CPU)")
       ->check(CLI::NonNegativeNumber);
   command->callback([&context, exit_code, options, command] {
     run_command(context, "scan", [&context, options, command] {

@@ -330,6 +330,10 @@ Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, c
   }
 }
 
+#if defined(SLS_HAVE_CUDA)
+const float* Decoder::depth_device() const { return impl_->cuda ? impl_->cuda->outputs().depth : nullptr; }
+#endif
+
 Decoder::~Decoder() = default;
 Decoder::Decoder(Decoder&&) noexcept = default;
 Decoder& Decoder::operator=(Decoder&&) noexcept = default;

@@ -104,6 +104,12 @@ class Decoder {
   const RayMap& rays() const;
   const DecodeParams& decode_params() const;
   const TriangulationParams& triangulation_params() const;
+#if defined(SLS_HAVE_CUDA)
+  // A CUDA decoder's last depth map, still on the GPU (width x height floats, 0 = invalid),
+  // valid until the next decode: the scan session integrates and tracks from it without a
+  // second upload. nullptr for a CPU decoder.
+  const float* depth_device() const;
+#endif
 
  private:
   struct Impl;

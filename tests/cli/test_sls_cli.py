@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """Drives the `sls` binary as a user would: help and version, JSON output, exit statuses,
-`inspect` on good and corrupt files, and `scan` saying what is missing without writing
-output. Usage: test_sls_cli.py PATH_TO_SLS (stdlib only)."""
+`inspect` on good and corrupt files, `scan` tracking a simulated turntable scan (a corrupt
+frame reported, an interrupt leaving a valid partial model), `eval`. Usage: test_sls_cli.py PATH_TO_SLS (stdlib only)."""
 import json
 import os
 import pathlib
+import signal
 import struct
 import subprocess
 import sys
@@ -122,18 +123,60 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(result.returncode, 1)
         self.assertIn("nope.ply", result.stderr)
 
-    def test_scan_sim_captures_then_says_what_is_missing(self):
-        out = self.dir / "out"
-        result = run("scan", "--sim", "ci", "--frames", "2", "--device", "cpu", "--out", str(out))
-        self.assertEqual(result.returncode, 3, result.stderr)
-        self.assertIn("decoded 2 of 2 frame(s)", result.stderr)
-        self.assertIn("Missing stage: tracking", result.stderr)
-        self.assertIn("not in this build", result.stderr)
-        # What exists ran: the capture is a valid recording; no model was made up.
-        inspect = json.loads(run("--json", "inspect", str(out / "recording")).stdout)
-        self.assertTrue(inspect["ok"])
-        self.assertEqual(inspect["results"][0]["frames"], 2)
-        self.assertFalse((out / "cloud.ply").exists())
+    def test_scan_tracks_a_turntable_scan_and_reports_it(self):
+        # A depth-mode recording of the knurled knob, 36 frames per revolution (10 degree steps:
+        # the turntable prior gives the guess), one frame's depth map corrupted.
+        rec = self.dir / "rec"
+        result = run("sim", "--preset", "ci", "--object", "knurled-knob", "--frames", "36", "--mode", "depth",
+                     "--device", "cpu", "--out", str(rec))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        depth = rec / "frames" / "000007" / "depth.png"
+        depth.write_bytes(depth.read_bytes()[:200])
+        out = self.dir / "tracked"
+        result = run("--json", "scan", "--input", str(rec), "--turntable-prior", "--device", "cpu", "--out", str(out))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        report = json.loads(result.stdout)
+        self.assertEqual(report["poses"], "track")
+        self.assertEqual(report["frames"], 36)
+        # The corrupt frame is reported, not fused, and the scan went on past it.
+        self.assertEqual([(f["frame"], f["status"]) for f in report["lost_frames"]], [(7, "skipped")])
+        self.assertIn("depth.png", report["lost_frames"][0]["reason"])
+        self.assertEqual(report["frames_fused"], 35)
+        self.assertGreater(report["volume"]["moves"], 0)
+        for stage in ("read", "decode", "track", "integrate", "move", "raycast", "extract"):
+            self.assertIn(stage, report["ms_per_stage"])
+        for name in ("cloud.ply", "mesh.ply", "trajectory.txt", "report.json", "report.html", "render.png"):
+            self.assertTrue((out / name).exists(), name)
+        evaluation = json.loads(run("--json", "eval", "--result", str(out), "--truth", str(rec)).stdout)
+        for key in ("ate_rmse_um", "loop_closure_error_um", "loop_closure_error_deg"):
+            self.assertIn(key, evaluation)
+        # 30 um pixels fused into ~60 um voxels: the model and the trajectory within a few voxels.
+        self.assertLess(evaluation["c2c_mean_um"], 60.0)
+        self.assertLess(evaluation["ate_rmse_um"], 300.0)
+        self.assertGreater(evaluation["coverage"], 0.9)
+
+    def test_scan_interrupted_leaves_a_valid_partial_model(self):
+        rec = self.dir / "rec"
+        self.assertEqual(run("sim", "--preset", "ci", "--object", "knurled-knob", "--frames", "36", "--mode", "depth",
+                             "--device", "cpu", "--out", str(rec)).returncode, 0)
+        out = self.dir / "partial"
+        scan = subprocess.Popen([SLS, "scan", "--input", str(rec), "--turntable-prior", "--device", "cpu",
+                                 "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        # Interrupt (SIGINT) once the progress display says a tenth of the frames are done.
+        for line in scan.stderr:
+            if line.startswith("scan: ") and not line.startswith("scan: 0/"):
+                break
+        scan.send_signal(signal.SIGINT)
+        stdout, stderr = scan.communicate(timeout=120)
+        self.assertEqual(scan.returncode, 4, stderr)
+        report = json.loads((out / "report.json").read_text())
+        self.assertTrue(report["interrupted"])
+        self.assertGreater(report["frames_fused"], 0)
+        self.assertLess(report["frames_processed"], 36)
+        inspect = json.loads(run("--json", "inspect", str(out / "cloud.ply"), str(out / "mesh.ply"),
+                                 str(out / "trajectory.txt")).stdout)
+        self.assertTrue(inspect["ok"], inspect)
+        self.assertIn("interrupted", stdout)
 
     def test_scan_fuses_with_ground_truth_poses_and_eval_measures_it(self):
         out = self.dir / "gt"
@@ -177,9 +220,9 @@ class SlsCli(unittest.TestCase):
         out = self.dir / "byuri"
         result = run("scan", "--camera", uri, "--projector", uri, "--turntable", uri, "--frames", "3",
                      "--calibration", str(rec / "calibration.yml"), "--device", "cpu", "--out", str(out))
-        # Captured and decoded through the devices; the tracker is the missing stage.
-        self.assertEqual(result.returncode, 3, result.stderr)
-        self.assertIn("decoded 3 of 3 frame(s)", result.stderr)
+        # Captured through the devices, then decoded, tracked and fused.
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertTrue((out / "cloud.ply").exists())
         inspect = json.loads(run("--json", "inspect", str(out / "recording")).stdout)["results"][0]
         self.assertTrue(inspect["calibrated"])
         self.assertEqual(inspect["frames"], 3)

@@ -1,0 +1,445 @@
+#include "sdk/session/scan_session.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include <fmt/format.h>
+
+#include "sdk/core/error.h"
+
+#if defined(SLS_HAVE_CUDA)
+#include "sdk/core/cuda/device_buffer.h"
+#endif
+
+namespace sls::session {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+constexpr double kDegree = M_PI / 180.0;
+
+// The median of the valid depths (the focus distance of a first frame).
+double median_depth(const Image32f& depth_m) {
+  std::vector<float> values;
+  values.reserve(depth_m.pixel_count() / 4);
+  for (int y = 0; y < depth_m.height(); ++y) {
+    for (int x = 0; x < depth_m.width(); ++x) {
+      const float z = depth_m(x, y);
+      if (z > 0.0f && std::isfinite(z)) values.push_back(z);
+    }
+  }
+  if (values.empty()) return 0.0;
+  auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+// Valid depths and their range: the integrator visits only the band they span.
+struct DepthRange {
+  std::size_t valid = 0;
+  double min_m = 0.0, max_m = 0.0;
+};
+DepthRange depth_range(const Image32f& depth_m) {
+  DepthRange range;
+  float lo = std::numeric_limits<float>::infinity(), hi = 0.0f;
+  const float* data = depth_m.data();
+  for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) {
+    const float z = data[i];
+    if (!(z > 0.0f) || !std::isfinite(z)) continue;
+    ++range.valid;
+    lo = std::min(lo, z);
+    hi = std::max(hi, z);
+  }
+  if (range.valid > 0) {
+    range.min_m = lo;
+    range.max_m = hi;
+  }
+  return range;
+}
+
+}  // namespace
+
+Pose turntable_camera_motion(const TurntableAxis& axis, double delta_deg) {
+  const Eigen::Matrix3d rotation =
+      Eigen::AngleAxisd(-delta_deg * kDegree, axis.direction_camera.normalized()).toRotationMatrix();
+  return Pose(rotation, axis.point_camera - rotation * axis.point_camera);
+}
+
+const char* frame_status_name(FrameStatus status) {
+  switch (status) {
+    case FrameStatus::kFused: return "fused";
+    case FrameStatus::kLost: return "lost";
+    case FrameStatus::kSkipped: return "skipped";
+  }
+  return "unknown";
+}
+
+StageTimes& StageTimes::operator+=(const StageTimes& other) {
+  read_ms += other.read_ms;
+  decode_ms += other.decode_ms;
+  track_ms += other.track_ms;
+  integrate_ms += other.integrate_ms;
+  move_ms += other.move_ms;
+  raycast_ms += other.raycast_ms;
+  return *this;
+}
+
+void ScanSessionOptions::validate() const {
+  if (!fixed_volume) {
+    if (!(volume_size_m.array() >= 0.0).all() || !volume_size_m.allFinite()) {
+      throw_error(ErrorCode::kInvalidArgument, "scan volume size {} x {} x {} m (0 or positive)", volume_size_m.x(),
+                  volume_size_m.y(), volume_size_m.z());
+    }
+    if (!(voxel_size_m >= 0.0) || !std::isfinite(voxel_size_m)) {
+      throw_error(ErrorCode::kInvalidArgument, "scan voxel size {} m (0 or positive)", voxel_size_m);
+    }
+    if (!(max_voxels >= 8.0)) throw_error(ErrorCode::kInvalidArgument, "max_voxels {} (at least 8)", max_voxels);
+    fusion::MovingVolumeOptions checked = moving;
+    if (!(checked.focus_distance_m > 0.0)) checked.focus_distance_m = 0.1;  // filled from the first frame
+    checked.validate();
+  } else {
+    fixed_volume->validate();
+  }
+  integration.validate(voxel_format);
+  tracking.validate();
+  decode.validate();
+}
+
+struct ScanSession::Impl {
+  ScannerCalibration calibration;
+  ScanSessionOptions options;
+  std::optional<Decoder> decoder;
+  fusion::Integrator integrator;
+  fusion::Tracker tracker;
+  fusion::Raycaster raycaster;
+  std::optional<fusion::MovingVolume> moving;
+  std::optional<fusion::Volume> fixed;
+
+  bool have_model = false;                 // a fused frame exists (and the model was raycast)
+  Pose T_world_model;                      // the pose the model was last raycast from
+  fusion::RaycastResult model;             // the CPU model (host path)
+  // The last two fused frames: the constant-velocity prior.
+  struct Fused {
+    int index = 0;
+    Pose T_world_camera;
+    std::optional<double> angle_deg;
+  };
+  std::optional<Fused> last, before_last;
+
+  std::vector<FrameReport> frames;
+  StageTimes totals;
+#if defined(SLS_HAVE_CUDA)
+  DeviceBuffer<float> depth_upload;  // a depth-map frame on the GPU (decoded frames stay there)
+#endif
+
+  Impl(const ScannerCalibration& calibration_in, const ScanSessionOptions& options_in)
+      : calibration(calibration_in),
+        options(options_in),
+        integrator(options_in.device, options_in.integration),
+        tracker(options_in.device, calibration_in.camera, options_in.tracking),
+        raycaster(options_in.device, calibration_in.camera, raycast_options(options_in)) {}
+
+  static fusion::RaycastOptions raycast_options(const ScanSessionOptions& options) {
+    fusion::RaycastOptions raycast;
+    raycast.truncation_voxels = options.integration.truncation_voxels;
+    raycast.min_depth_m = options.decode.min_depth_m;
+    raycast.max_depth_m = options.decode.max_depth_m;
+    return raycast;
+  }
+
+  fusion::Volume* volume() {
+    if (fixed) return &*fixed;
+    return moving ? &moving->volume() : nullptr;
+  }
+  const fusion::Volume* volume() const {
+    if (fixed) return &*fixed;
+    return moving ? &moving->volume() : nullptr;
+  }
+
+  // The pose guess for a frame: the turntable's angle about its calibrated axis when asked
+  // and known, else constant velocity from the last two fused frames.
+  Pose predict(const ScanFrame& frame) const {
+    const Pose& base = last->T_world_camera;
+    if (options.turntable_prior && calibration.turntable && frame.turntable_angle_deg && last->angle_deg) {
+      return base * turntable_camera_motion(*calibration.turntable, *frame.turntable_angle_deg - *last->angle_deg);
+    }
+    if (!before_last) return base;
+    const Pose step = before_last->T_world_camera.inverse() * base;
+    const double frames_between = static_cast<double>(last->index - before_last->index);
+    const double frames_ahead = static_cast<double>(frame.index - last->index);
+    if (!(frames_between > 0.0) || !(frames_ahead > 0.0)) return base;
+    return base * Pose::exp(step.log() * (frames_ahead / frames_between));
+  }
+
+  void place_volume(const Pose& T_world_camera, const Image32f& depth_m) {
+    if (options.fixed_volume) {
+      if (!fixed) fixed.emplace(*options.fixed_volume, options.voxel_format, options.device);
+      return;
+    }
+    if (moving) return;
+    fusion::MovingVolumeOptions moving_options = options.moving;
+    if (!(moving_options.focus_distance_m > 0.0)) moving_options.focus_distance_m = median_depth(depth_m);
+    const double focus = moving_options.focus_distance_m;
+    const CameraIntrinsics& camera = calibration.camera;
+    Eigen::Vector3d size = options.volume_size_m;
+    if (!(size.minCoeff() > 0.0)) {
+      const double width = camera.width / camera.fx * focus, height = camera.height / camera.fy * focus;
+      size = Eigen::Vector3d(width, height, 0.5 * width);
+    }
+    double voxel = options.voxel_size_m;
+    if (!(voxel > 0.0)) {
+      voxel = 2.0 * focus / camera.fx;
+      const double voxels = (size / voxel).prod();
+      if (voxels > options.max_voxels) voxel *= std::cbrt(voxels / options.max_voxels) * 1.001;
+    }
+    const Eigen::Vector3i counts = (size / voxel).array().ceil().cast<int>().cwiseMax(2);
+    moving.emplace(counts.x(), counts.y(), counts.z(), voxel, options.voxel_format, options.device, moving_options);
+    moving->place(T_world_camera);
+  }
+};
+
+ScanSession::ScanSession(const ScannerCalibration& calibration, const PatternSet* patterns,
+                         const ScanSessionOptions& options) {
+  options.validate();
+  calibration.validate();
+  require_device(options.device);
+  impl_ = std::make_unique<Impl>(calibration, options);
+  if (patterns != nullptr) impl_->decoder.emplace(*patterns, calibration, options.device, options.decode);
+}
+
+ScanSession::~ScanSession() = default;
+ScanSession::ScanSession(ScanSession&&) noexcept = default;
+ScanSession& ScanSession::operator=(ScanSession&&) noexcept = default;
+
+FrameReport ScanSession::add_frame(const ScanFrame& frame) {
+  Impl& s = *impl_;
+  FrameReport report;
+  report.index = frame.index;
+  report.timestamp_ns = frame.timestamp_ns;
+  report.times.read_ms = frame.read_ms;
+  const auto finish = [&](FrameStatus status, std::string reason) -> FrameReport {
+    report.status = status;
+    report.reason = std::move(reason);
+    s.totals += report.times;
+    s.frames.push_back(report);
+    return report;
+  };
+
+  // Decode (or take the frame's depth map). A frame that cannot be decoded is skipped.
+  if (!frame.problem.empty()) return finish(FrameStatus::kSkipped, frame.problem);
+  Image32f decoded;
+  const Image32f* depth = nullptr;
+  const float* depth_device = nullptr;
+  if (!frame.images.empty()) {
+    if (!s.decoder) return finish(FrameStatus::kSkipped, "a pattern stack, but the session has no pattern set");
+    const Clock::time_point start = Clock::now();
+    try {
+      decoded = s.decoder->decode(frame.images).depth_m;
+    } catch (const Error& error) {
+      if (error.code() != ErrorCode::kInvalidArgument && error.code() != ErrorCode::kFormat) throw;
+      report.times.decode_ms = ms_since(start);
+      return finish(FrameStatus::kSkipped, fmt::format("cannot decode: {}", error.what()));
+    }
+    report.times.decode_ms = ms_since(start);
+    depth = &decoded;
+#if defined(SLS_HAVE_CUDA)
+    depth_device = s.decoder->depth_device();
+#endif
+  } else if (frame.depth_m) {
+    if (frame.depth_m->width() != s.calibration.camera.width ||
+        frame.depth_m->height() != s.calibration.camera.height) {
+      return finish(FrameStatus::kSkipped,
+                    fmt::format("depth map of {}x{}, the camera has {}x{}", frame.depth_m->width(),
+                                frame.depth_m->height(), s.calibration.camera.width, s.calibration.camera.height));
+    }
+    depth = &*frame.depth_m;
+#if defined(SLS_HAVE_CUDA)
+    if (s.options.device.is_cuda()) {
+      // Uploaded once, then integrated and tracked on the GPU (counted with decoding).
+      const Clock::time_point start = Clock::now();
+      if (s.depth_upload.size() != depth->pixel_count()) s.depth_upload.allocate(depth->pixel_count());
+      s.depth_upload.upload(depth->data(), depth->pixel_count(), nullptr);
+      SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+      depth_device = s.depth_upload.data();
+      report.times.decode_ms = ms_since(start);
+    }
+#endif
+  } else {
+    return finish(FrameStatus::kSkipped, "neither a pattern stack nor a depth map");
+  }
+  const DepthRange range = depth_range(*depth);
+  report.depth_pixels = range.valid;
+  if (report.depth_pixels == 0) return finish(FrameStatus::kSkipped, "no valid depth in the frame");
+
+  // Track against the model, or take the known pose.
+  Pose T_world_camera;
+  if (frame.known_T_world_camera) {
+    T_world_camera = *frame.known_T_world_camera;
+  } else if (!s.have_model) {
+    T_world_camera = s.last ? s.last->T_world_camera : Pose::identity();
+  } else {
+    const Pose guess = s.predict(frame);
+    const Clock::time_point start = Clock::now();
+    fusion::TrackingResult tracked;
+#if defined(SLS_HAVE_CUDA)
+    if (s.options.device.is_cuda()) {
+      tracked = s.tracker.track_device(depth_device, s.raycaster, s.T_world_model, guess);
+    } else {
+      tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess);
+    }
+#else
+    tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess);
+#endif
+    report.times.track_ms = ms_since(start);
+    report.tracking = tracked;
+    if (tracked.lost) {
+      report.T_world_camera = guess;
+      return finish(FrameStatus::kLost, tracked.reason);
+    }
+    T_world_camera = tracked.T_world_camera;
+  }
+  report.T_world_camera = T_world_camera;
+
+  // Integrate, move the volume when the camera has left it, raycast the model for the next frame.
+  s.place_volume(T_world_camera, *depth);
+  fusion::Volume& volume = *s.volume();
+  Clock::time_point start = Clock::now();
+#if defined(SLS_HAVE_CUDA)
+  if (depth_device != nullptr) {
+    report.integration = s.integrator.integrate_device(volume, depth_device, s.calibration.camera, T_world_camera,
+                                                       range.min_m, range.max_m);
+  } else {
+    report.integration = s.integrator.integrate(volume, *depth, s.calibration.camera, T_world_camera);
+  }
+#else
+  report.integration = s.integrator.integrate(volume, *depth, s.calibration.camera, T_world_camera);
+#endif
+  report.times.integrate_ms = ms_since(start);
+  if (s.moving) {
+    start = Clock::now();
+    report.move = s.moving->follow(T_world_camera);
+    report.times.move_ms = ms_since(start);
+  }
+  if (!frame.known_T_world_camera) {
+    start = Clock::now();
+    fusion::Volume& model_volume = *s.volume();  // the moved volume, if it moved
+#if defined(SLS_HAVE_CUDA)
+    if (s.options.device.is_cuda()) {
+      s.raycaster.raycast_device(model_volume, T_world_camera);
+      s.raycaster.synchronize();
+    } else {
+      s.model = s.raycaster.raycast(model_volume, T_world_camera);
+    }
+#else
+    s.model = s.raycaster.raycast(model_volume, T_world_camera);
+#endif
+    report.times.raycast_ms = ms_since(start);
+    s.T_world_model = T_world_camera;
+    s.have_model = true;
+  }
+  s.before_last = s.last;
+  s.last = Impl::Fused{frame.index, T_world_camera, frame.turntable_angle_deg};
+  return finish(FrameStatus::kFused, "");
+}
+
+const std::vector<FrameReport>& ScanSession::frames() const { return impl_->frames; }
+
+std::vector<StampedPose> ScanSession::trajectory() const {
+  std::vector<StampedPose> poses;
+  for (const FrameReport& frame : impl_->frames) {
+    if (frame.status != FrameStatus::kFused) continue;
+    poses.push_back({static_cast<double>(frame.timestamp_ns) * 1e-9, frame.T_world_camera});
+  }
+  return poses;
+}
+
+StageTimes ScanSession::totals() const { return impl_->totals; }
+
+std::size_t ScanSession::fused_count() const {
+  return static_cast<std::size_t>(std::count_if(impl_->frames.begin(), impl_->frames.end(), [](const FrameReport& f) {
+    return f.status == FrameStatus::kFused;
+  }));
+}
+
+const fusion::VolumeGeometry& ScanSession::volume_geometry() const {
+  const fusion::Volume* volume = impl_->volume();
+  if (volume == nullptr) throw_error(ErrorCode::kInvalidArgument, "the scan has no volume yet: no frame was fused");
+  return volume->geometry();
+}
+
+std::size_t ScanSession::volume_bytes() const {
+  const fusion::Volume* volume = impl_->volume();
+  if (volume == nullptr) return 0;
+  return impl_->moving ? 2 * volume->bytes() : volume->bytes();
+}
+
+std::size_t ScanSession::moves() const { return impl_->moving ? impl_->moving->moves() : 0; }
+
+fusion::ExtractedSurface ScanSession::final_surface() const {
+  const Impl& s = *impl_;
+  if (s.moving) return s.moving->final_surface();
+  if (s.fixed) return fusion::extract_surface(s.fixed->to_host());
+  return {};
+}
+
+Image8u ScanSession::render(const Pose& T_world_camera) const {
+  const fusion::Volume* volume = impl_->volume();
+  if (volume == nullptr) throw_error(ErrorCode::kInvalidArgument, "nothing to render: no frame was fused");
+  // Its own raycaster: the session's holds the tracker's model on the GPU.
+  fusion::Raycaster raycaster(impl_->options.device, impl_->calibration.camera, Impl::raycast_options(impl_->options));
+  return raycaster.raycast(*volume, T_world_camera).shaded;
+}
+
+ReplayOutcome run_recording(ScanSession& session, const RecordingReader& recording,
+                            const std::vector<StampedPose>* known_poses,
+                            const std::function<void(const FrameReport&)>& on_frame,
+                            const ProgressCallback& progress) {
+  if (known_poses != nullptr && known_poses->size() != recording.frame_count()) {
+    throw_error(ErrorCode::kInvalidArgument, "{} known poses for the {} frames of {}", known_poses->size(),
+                recording.frame_count(), recording.folder());
+  }
+  ReplayOutcome outcome;
+  const std::size_t count = recording.frame_count();
+  try {
+    for (std::size_t i = 0; i < count; ++i) {
+      report_progress(progress, {"scan", i, count, ""});
+      const FrameInfo& info = recording.frame(i);
+      ScanFrame frame;
+      frame.index = info.index;
+      frame.timestamp_ns = info.timestamp_ns;
+      frame.turntable_angle_deg = info.turntable_angle_deg;
+      if (known_poses != nullptr) frame.known_T_world_camera = (*known_poses)[i].T_world_camera;
+      const Clock::time_point start = Clock::now();
+      try {
+        if (!info.complete) {
+          frame.problem = "incomplete pattern stack" + (info.note.empty() ? std::string() : ": " + info.note);
+        } else if (recording.info().images_per_frame > 0) {
+          frame.images = recording.load_images(i);
+        } else {
+          frame.depth_m = recording.load_depth_m(i);
+          if (!frame.depth_m) frame.problem = "no depth map";
+        }
+      } catch (const Error& error) {
+        if (error.code() == ErrorCode::kCancelled) throw;
+        frame.problem = fmt::format("cannot read: {}", error.what());
+      }
+      frame.read_ms = ms_since(start);
+      const FrameReport report = session.add_frame(frame);
+      if (on_frame) on_frame(report);
+    }
+    report_progress(progress, {"scan", count, count, ""});
+  } catch (const Error& error) {
+    if (error.code() != ErrorCode::kCancelled) throw;
+    outcome.interrupted = true;
+    outcome.interruption = error.what();
+  }
+  return outcome;
+}
+
+}  // namespace sls::session

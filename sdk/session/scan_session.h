@@ -1,0 +1,155 @@
+// The scan session (paper section II, DESIGN.md section 1): per frame
+//   decode (pattern stack -> depth) -> track (ICP against the model raycast from the last pose)
+//   -> integrate (TSDF / GTSDF) -> move the volume (resample, ship what leaves) -> raycast
+// for any source of frames: a recording (replay, or the simulator's capture), or frames pushed
+// live from the capture sequencer's per-frame callback. The CPU or one CUDA GPU, per stage
+// timings, a report per frame (the payload of the C API's per-frame callback).
+//
+//   ScanSession session(calibration, &patterns, options);
+//   for each frame: FrameReport r = session.add_frame(frame);   // never throws for a bad frame
+//   fusion::ExtractedSurface model = session.final_surface();
+//
+// Frames. World = the camera frame of the first fused frame (the tracker knows nothing else),
+// unless frames carry known poses (ground truth, a robot): then world is theirs.
+// A frame that cannot be read or decoded is `kSkipped`, one the tracker cannot register is
+// `kLost`; neither touches the model, and the scan goes on. The model fused so far is always
+// valid: final_surface() may be called at any time (after an interruption too).
+// Thread safety: one thread drives a session.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fusion/extract.h"
+#include "fusion/integrator.h"
+#include "fusion/moving_volume.h"
+#include "fusion/tracker.h"
+#include "fusion/volume.h"
+#include "sdk/core/calibration.h"
+#include "sdk/core/device.h"
+#include "sdk/core/image.h"
+#include "sdk/core/pose.h"
+#include "sdk/core/progress.h"
+#include "sdk/core/recording.h"
+#include "sdk/core/trajectory.h"
+#include "sdk/decode/decoder.h"
+#include "sdk/decode/pattern_set.h"
+
+namespace sls::session {
+
+struct ScanSessionOptions {
+  Device device = Device::cpu();
+  fusion::IntegrationOptions integration = fusion::IntegrationOptions::gtsdf();
+  fusion::TrackingOptions tracking;
+  DecodeOptions decode;
+  fusion::VoxelFormat voxel_format = fusion::VoxelFormat::kCompact;
+  // The moving volume, sized at the first fused frame: its extent (0: the camera's field of
+  // view at the focus distance across, half its width deep) and voxel size (0: two pixel
+  // footprints at the focus distance, grown until one buffer holds at most max_voxels).
+  Eigen::Vector3d volume_size_m = Eigen::Vector3d::Zero();
+  double voxel_size_m = 0.0;
+  double max_voxels = 64e6;
+  fusion::MovingVolumeOptions moving;  // focus_distance_m <= 0: the first frame's median depth
+  // Instead, one fixed volume (e.g. around a known object for ground-truth poses): no moves.
+  std::optional<fusion::VolumeGeometry> fixed_volume;
+  // Use the recording's turntable angles with the calibration's axis as the pose guess.
+  bool turntable_prior = false;
+  // Throws sls::Error(kInvalidArgument) naming the bad value.
+  void validate() const;
+};
+
+// One frame in: a pattern stack to decode, or a depth map; what the source knows about it.
+struct ScanFrame {
+  int index = 0;
+  std::int64_t timestamp_ns = 0;
+  std::optional<double> turntable_angle_deg;
+  std::vector<Image16u> images;            // a pattern stack (the session's pattern set), or
+  std::optional<Image32f> depth_m;         // a depth map (camera-frame z, 0 = none)
+  std::optional<Pose> known_T_world_camera;  // fuse here instead of tracking (ground truth)
+  std::string problem;                     // non-empty: the source could not deliver the frame
+  double read_ms = 0.0;                    // the source's time to deliver it (for the report)
+};
+
+enum class FrameStatus { kFused, kLost, kSkipped };
+const char* frame_status_name(FrameStatus status);
+
+// Milliseconds per stage (a frame's, or totals).
+struct StageTimes {
+  double read_ms = 0.0;  // the source's (ScanFrame::read_ms)
+  double decode_ms = 0.0;
+  double track_ms = 0.0;
+  double integrate_ms = 0.0;
+  double move_ms = 0.0;
+  double raycast_ms = 0.0;
+  double total_ms() const { return read_ms + decode_ms + track_ms + integrate_ms + move_ms + raycast_ms; }
+  StageTimes& operator+=(const StageTimes& other);
+};
+
+struct FrameReport {
+  int index = 0;
+  std::int64_t timestamp_ns = 0;
+  FrameStatus status = FrameStatus::kSkipped;
+  std::string reason;                  // why skipped or lost
+  Pose T_world_camera;                 // fused pose (the guess for a lost frame)
+  std::size_t depth_pixels = 0;        // valid depth pixels
+  std::optional<fusion::TrackingResult> tracking;  // absent for the first frame and known poses
+  fusion::IntegrationStats integration;
+  fusion::MoveStats move;
+  StageTimes times;
+};
+
+class ScanSession {
+ public:
+  // `patterns`: the set the frames' stacks use (null: frames carry depth maps). Validates and
+  // allocates (decoder, volume buffers, tracker, raycaster) on options.device; throws
+  // sls::Error naming the problem (kOutOfMemory when the volume does not fit).
+  ScanSession(const ScannerCalibration& calibration, const PatternSet* patterns, const ScanSessionOptions& options);
+  ~ScanSession();
+  ScanSession(ScanSession&&) noexcept;
+  ScanSession& operator=(ScanSession&&) noexcept;
+
+  // Decodes, tracks and fuses one frame. A bad frame is reported (kSkipped / kLost), not
+  // thrown; errors of the machine itself (GPU out of memory, a CUDA fault) still throw.
+  FrameReport add_frame(const ScanFrame& frame);
+
+  const std::vector<FrameReport>& frames() const;
+  std::vector<StampedPose> trajectory() const;  // fused frames, TUM stamps from timestamp_ns
+  StageTimes totals() const;
+  std::size_t fused_count() const;
+  const fusion::VolumeGeometry& volume_geometry() const;  // the current volume's
+  std::size_t volume_bytes() const;                       // both buffers of a moving volume
+  std::size_t moves() const;
+
+  // The model so far: the shipped parts plus the current volume's surface (world frame).
+  fusion::ExtractedSurface final_surface() const;
+  // A shaded raycast of the current volume from a pose (pictures).
+  Image8u render(const Pose& T_world_camera) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The camera's motion (T_camera_before_camera_after) when the turntable turns by delta_deg
+// about its calibrated axis: the object turns by delta, so in the object's frame the camera
+// turns by -delta about the axis. The turntable prior's guess.
+Pose turntable_camera_motion(const TurntableAxis& axis, double delta_deg);
+
+// Replays a recording through a session: every frame read (an unreadable or incomplete one
+// is passed on with `problem`), with known poses when given (one per recording frame), the
+// read time in each report, `on_frame` after each frame, and progress ("scan", frames). A
+// cancel from `progress` stops after the current frame: the result says so and the session
+// keeps everything fused.
+struct ReplayOutcome {
+  bool interrupted = false;
+  std::string interruption;  // what stopped it
+};
+ReplayOutcome run_recording(ScanSession& session, const RecordingReader& recording,
+                            const std::vector<StampedPose>* known_poses = nullptr,
+                            const std::function<void(const FrameReport&)>& on_frame = {},
+                            const ProgressCallback& progress = {});
+
+}  // namespace sls::session

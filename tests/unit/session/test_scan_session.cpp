@@ -1,0 +1,212 @@
+// The scan session against the simulated scanner's ground truth: tracked poses against the
+// true ones, the turntable prior's sign and axis, bad frames reported and skipped, an
+// interrupted replay keeping a valid model (CPU against CUDA: test_scan_session_cuda.cpp).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+
+#include "drivers/sim/sim_recording.h"
+#include "drivers/sim/sim_scanner.h"
+#include "sdk/core/recording.h"
+#include "sdk/session/scan_session.h"
+#include "tests/support/test_support.h"
+#include "tests/unit/session/sim_frames.h"
+
+namespace sls::session {
+namespace {
+
+TEST(TurntableMotion, MatchesTheSimulatorsTrueRelativePoses) {
+  sim::RigOptions rig_options;
+  rig_options.preset = "ci";
+  rig_options.frames = 36;
+  rig_options.mount_tilt_deg = 0.0;
+  rig_options.mount_offset_m = 0.0;
+  rig_options.angle_jitter_deg = 0.0;
+  const std::shared_ptr<sim::SimScanner> scanner = sim::SimScanner::create("knurled-screw", rig_options, Device::cpu());
+  const sim::SimRig& rig = scanner->rig();
+  const ScannerCalibration calibration = rig.calibration();
+  ASSERT_TRUE(calibration.turntable.has_value());
+  for (int k : {1, 5, 20}) {
+    const Pose truth = rig.T_object_camera(0).inverse() * rig.T_object_camera(k);
+    const Pose predicted = turntable_camera_motion(*calibration.turntable, rig.commanded_angle_deg(k) -
+                                                                              rig.commanded_angle_deg(0));
+    const Pose error = truth.inverse() * predicted;
+    EXPECT_LT(error.translation().norm(), 1e-9) << "frame " << k;
+    EXPECT_LT(error.angle_rad(), 1e-9) << "frame " << k;
+  }
+}
+
+// Depth alone, 1.5 degree steps (0.45 mm on the knurled knob's 1 mm tooth pitch: less than
+// half a tooth, so the first step, guessed with no velocity, cannot lock onto the wrong
+// tooth): every frame registers, and the tracked motion matches the true one.
+TEST(ScanSession, TracksATurntableScanFromDepthAlone) {
+  SimFrames sim("knurled-knob", 240);
+  ScanSession session(sim.calibration(), nullptr, small_options(Device::cpu()));
+  const int frames = 8;
+  for (int k = 0; k < frames; ++k) {
+    const FrameReport report = session.add_frame(sim.frame(k));
+    ASSERT_EQ(report.status, FrameStatus::kFused) << "frame " << k << ": " << report.reason;
+    if (k > 0) {
+      ASSERT_TRUE(report.tracking.has_value());
+      EXPECT_GT(report.tracking->inlier_fraction, 0.5) << "frame " << k;
+    }
+  }
+  const std::vector<StampedPose> trajectory = session.trajectory();
+  ASSERT_EQ(trajectory.size(), static_cast<std::size_t>(frames));
+  EXPECT_TRUE(trajectory[0].T_world_camera.is_approx(Pose::identity()));
+  double worst_surface = 0.0;
+  for (int k = 1; k < frames; ++k) {
+    const std::size_t i = static_cast<std::size_t>(k);
+    worst_surface = std::max(worst_surface, relative_error(trajectory[0].T_world_camera, trajectory[i].T_world_camera,
+                                                           sim.truth(0), sim.truth(i))
+                                                .surface_m);
+  }
+  std::printf("[ measured ] knob, 7 tracked steps of 1.5 deg: worst error of the surface in view %.2f um\n",
+              worst_surface * 1e6);
+  // A third of a 30 µm pixel.
+  EXPECT_LT(worst_surface, 10e-6);
+  const fusion::ExtractedSurface model = session.final_surface();
+  EXPECT_GT(model.cloud.size(), 5000u);
+  EXPECT_FALSE(model.mesh.faces.empty());
+}
+
+TEST(ScanSession, BadFramesAreReportedAndTheScanGoesOn) {
+  SimFrames sim("knurled-knob", 1440);  // quarter-degree steps
+  ScanSession session(sim.calibration(), nullptr, small_options(Device::cpu()));
+  EXPECT_EQ(session.add_frame(sim.frame(0)).status, FrameStatus::kFused);
+
+  ScanFrame unreadable = sim.frame(1);
+  unreadable.depth_m.reset();
+  unreadable.problem = "cannot read: frames/000001/depth.png: truncated";
+  FrameReport report = session.add_frame(unreadable);
+  EXPECT_EQ(report.status, FrameStatus::kSkipped);
+  EXPECT_NE(report.reason.find("truncated"), std::string::npos);
+
+  ScanFrame wrong_size = sim.frame(2);
+  wrong_size.depth_m = Image32f(10, 10);
+  report = session.add_frame(wrong_size);
+  EXPECT_EQ(report.status, FrameStatus::kSkipped);
+  EXPECT_NE(report.reason.find("10x10"), std::string::npos) << report.reason;
+
+  ScanFrame empty = sim.frame(3);
+  std::fill(empty.depth_m->data(), empty.depth_m->data() + empty.depth_m->pixel_count(), 0.0f);
+  report = session.add_frame(empty);
+  EXPECT_EQ(report.status, FrameStatus::kSkipped);
+
+  // A view of something else entirely (the surface 3 mm nearer, tilted): the tracker cannot
+  // register it, the frame is lost and the model is not touched.
+  ScanFrame alien = sim.frame(4);
+  for (int y = 0; y < alien.depth_m->height(); ++y) {
+    for (int x = 0; x < alien.depth_m->width(); ++x) {
+      float& z = (*alien.depth_m)(x, y);
+      if (z > 0.0f) z = 0.097f + 2e-5f * static_cast<float>(x);
+    }
+  }
+  report = session.add_frame(alien);
+  EXPECT_EQ(report.status, FrameStatus::kLost);
+  EXPECT_FALSE(report.reason.empty());
+
+  // The scan goes on: frame 5 registers (1.25 degrees past the last fused frame, guessed
+  // with no velocity yet: under half a tooth of the knurl).
+  report = session.add_frame(sim.frame(5));
+  EXPECT_EQ(report.status, FrameStatus::kFused) << report.reason;
+  EXPECT_EQ(session.fused_count(), 2u);
+  EXPECT_EQ(session.frames().size(), 6u);
+  const std::vector<StampedPose> trajectory = session.trajectory();
+  ASSERT_EQ(trajectory.size(), 2u);
+  EXPECT_LT(relative_error(trajectory[0].T_world_camera, trajectory[1].T_world_camera, sim.truth(0), sim.truth(5))
+                .surface_m,
+            10e-6);
+}
+
+TEST(ScanSession, TurntablePriorGuessesTheMotion) {
+  // 10 degree steps: 2.8 of the screw's 3.56 degree teeth, which depth alone cannot tell apart
+  // from -0.7 of one; the turntable's angle guesses the motion.
+  SimFrames sim("knurled-screw", 36);
+  ScanSessionOptions options = small_options(Device::cpu());
+  options.turntable_prior = true;
+  ScanSession session(sim.calibration(), nullptr, options);
+  for (int k = 0; k < 3; ++k) {
+    const FrameReport report = session.add_frame(sim.frame(k));
+    ASSERT_EQ(report.status, FrameStatus::kFused) << "frame " << k << ": " << report.reason;
+  }
+  const std::vector<StampedPose> trajectory = session.trajectory();
+  const RelativeError error =
+      relative_error(trajectory[0].T_world_camera, trajectory[2].T_world_camera, sim.truth(0), sim.truth(2));
+  std::printf("[ measured ] screw, 2 steps of 10 deg with the turntable prior: surface in view off by %.2f um\n",
+              error.surface_m * 1e6);
+  // One 30 µm pixel over two steps that each move the volume (a resampling each).
+  EXPECT_LT(error.surface_m, 30e-6);
+}
+
+TEST(ScanSession, KnownPosesFuseIntoAFixedVolume) {
+  SimFrames sim("knurled-screw", 36);
+  ScanSessionOptions options = small_options(Device::cpu());
+  options.fixed_volume = fusion::VolumeGeometry::centred(Eigen::Vector3d(16e-3, 0.0, 7.4e-3), 120, 300, 200, 50e-6);
+  ScanSession session(sim.calibration(), nullptr, options);
+  for (int k = 0; k < 2; ++k) {
+    ScanFrame frame = sim.frame(k);
+    frame.known_T_world_camera = sim.truth(static_cast<std::size_t>(k));
+    const FrameReport report = session.add_frame(frame);
+    ASSERT_EQ(report.status, FrameStatus::kFused) << report.reason;
+    EXPECT_FALSE(report.tracking.has_value());
+    EXPECT_TRUE(report.T_world_camera.is_approx(sim.truth(static_cast<std::size_t>(k))));
+  }
+  EXPECT_EQ(session.moves(), 0u);
+  const fusion::ExtractedSurface model = session.final_surface();
+  ASSERT_GT(model.cloud.size(), 1000u);
+  // The screw's ridges lie on a 16.1 mm radius about the object's z axis.
+  for (std::size_t i = 0; i < model.cloud.size(); i += 97) {
+    const Eigen::Vector3f& p = model.cloud.positions[i];
+    EXPECT_NEAR(std::hypot(p.x(), p.y()), 16.0e-3, 0.6e-3);
+  }
+}
+
+TEST(ScanSession, AnInterruptedReplayKeepsAValidModel) {
+  test::TemporaryDirectory dir;
+  sim::SimRecordingOptions sim_options;
+  sim_options.object = "knurled-knob";
+  sim_options.rig.preset = "ci";
+  sim_options.rig.frames = 180;
+  sim_options.depth_mode = true;
+  int captured = 0;
+  try {
+    sim::write_sim_recording(dir.file("rec"), sim_options, Device::cpu(), [&](const ProgressUpdate& update) {
+      captured = static_cast<int>(update.done);
+      return update.done < 4;
+    });
+  } catch (const Error& error) {
+    ASSERT_EQ(error.code(), ErrorCode::kCancelled) << error.what();
+  }
+  const RecordingReader recording = RecordingReader::open(dir.file("rec"));
+  ASSERT_EQ(recording.frame_count(), 4u);
+  ScanSession session(recording.calibration(), nullptr, small_options(Device::cpu()));
+  std::vector<FrameReport> seen;
+  const ReplayOutcome outcome = run_recording(
+      session, recording, nullptr, [&](const FrameReport& report) { seen.push_back(report); },
+      [&](const ProgressUpdate& update) { return update.done < 2; });
+  EXPECT_TRUE(outcome.interrupted);
+  EXPECT_NE(outcome.interruption.find("cancelled"), std::string::npos) << outcome.interruption;
+  ASSERT_EQ(seen.size(), 2u);
+  EXPECT_EQ(session.fused_count(), 2u);
+  EXPECT_GT(seen[1].times.read_ms, 0.0);
+  const fusion::ExtractedSurface model = session.final_surface();
+  EXPECT_GT(model.cloud.size(), 1000u);
+  model.mesh.validate();
+}
+
+TEST(ScanSession, OptionsAreChecked) {
+  SimFrames sim("knurled-knob", 36);
+  ScanSessionOptions options = small_options(Device::cpu());
+  options.voxel_size_m = -1.0;
+  EXPECT_THROW(ScanSession(sim.calibration(), nullptr, options), Error);
+  options = small_options(Device::cpu());
+  options.volume_size_m = Eigen::Vector3d(1e-3, -1.0, 1e-3);
+  EXPECT_THROW(ScanSession(sim.calibration(), nullptr, options), Error);
+}
+
+}  // namespace
+}  // namespace sls::session
