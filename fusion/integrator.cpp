@@ -151,20 +151,35 @@ VoxelBox frustum_voxel_box(const VolumeGeometry& geometry, const CameraIntrinsic
   return box;
 }
 
-namespace {
-
-// The measured depth range of a depth map (0 = none): [min, max], or {0, inf} when empty.
-std::pair<double, double> depth_range(const Image32f& depth_m) {
-  float lo = std::numeric_limits<float>::infinity(), hi = 0.0f;
-  for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) {
-    const float z = depth_m.data()[i];
-    if (!(z > 0.0f) || !std::isfinite(z)) continue;
-    lo = std::min(lo, z);
-    hi = std::max(hi, z);
+std::pair<double, double> integration_depth_band(const Image32f& depth_m) {
+  std::vector<float> sample;
+  sample.reserve(depth_m.pixel_count() / kDepthBandStride + 1);
+  const float* data = depth_m.data();
+  for (std::size_t i = 0; i < depth_m.pixel_count(); i += kDepthBandStride) {
+    if (data[i] > 0.0f && std::isfinite(data[i])) sample.push_back(data[i]);
   }
-  if (!(hi > 0.0f)) return {0.0, 0.0};  // nothing measured: nothing to integrate
-  return {static_cast<double>(lo), static_cast<double>(hi)};
+  if (sample.size() < 1000) {
+    // Too few samples for quantiles: the whole measured range.
+    float lo = std::numeric_limits<float>::infinity(), hi = 0.0f;
+    for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) {
+      if (!(data[i] > 0.0f) || !std::isfinite(data[i])) continue;
+      lo = std::min(lo, data[i]);
+      hi = std::max(hi, data[i]);
+    }
+    if (!(hi > 0.0f)) return {0.0, 0.0};  // nothing measured: nothing to integrate
+    return {static_cast<double>(lo), static_cast<double>(hi)};
+  }
+  const auto quantile = [&sample](double q) {
+    auto at = sample.begin() + static_cast<std::ptrdiff_t>(q * static_cast<double>(sample.size() - 1));
+    std::nth_element(sample.begin(), at, sample.end());
+    return static_cast<double>(*at);
+  };
+  const double q_lo = quantile(kDepthBandQuantile), q_hi = quantile(1.0 - kDepthBandQuantile);
+  const double half_span = 0.5 * (q_hi - q_lo);
+  return {std::max(1e-6, q_lo - half_span), q_hi + half_span};
 }
+
+namespace {
 
 // The box of voxels within η of the measured range.
 VoxelBox band_box(const VolumeGeometry& geometry, const CameraIntrinsics& camera, const Pose& T_world_camera,
@@ -312,7 +327,7 @@ IntegrationStats Integrator::integrate(Volume& volume, const Image32f& depth_m, 
   if (!s.device.is_cuda()) {
     const VolumeView view = volume.view();
     const DepthFrameView frame = make_depth_frame_view(depth_m.data(), camera, T_world_camera, volume.geometry());
-    const auto [near_m, far_m] = depth_range(depth_m);
+    const auto [near_m, far_m] = integration_depth_band(depth_m);
     const VoxelBox box = band_box(volume.geometry(), camera, T_world_camera, near_m, far_m, s.options);
     return integrate_cpu(view, s.options.params(volume.geometry().voxel_size_m), frame, box, s.options.iterations,
                          active_capacity(s.options, volume.geometry()), s.active);
@@ -322,7 +337,7 @@ IntegrationStats Integrator::integrate(Volume& volume, const Image32f& depth_m, 
   const std::size_t pixels = depth_m.pixel_count();
   if (s.depth.size() < pixels) s.depth.allocate(pixels);
   s.depth.upload(depth_m.data(), pixels, s.stream);
-  const auto [near_m, far_m] = depth_range(depth_m);
+  const auto [near_m, far_m] = integration_depth_band(depth_m);
   if (!(far_m > 0.0)) return IntegrationStats{};  // nothing measured
   return integrate_device(volume, s.depth.data(), camera, T_world_camera, near_m, far_m);
 #else

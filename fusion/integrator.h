@@ -9,6 +9,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <utility>
 
 #include "fusion/integrate_shared.h"
 #include "fusion/volume.h"
@@ -63,6 +64,15 @@ struct VoxelBox {
 };
 VoxelBox frustum_voxel_box(const VolumeGeometry& geometry, const CameraIntrinsics& camera, const Pose& T_world_camera,
                            double near_m, double far_m);
+
+// The depth band a frame is integrated over: its measured range less isolated outliers,
+// [q − s/2, Q + s/2] with q, Q the 0.1 % and 99.9 % quantiles of the valid depths sampled on
+// every kDepthBandStride-th pixel, and s = Q − q (under 1000 samples: [min, max]). A decoder
+// outlier metres off the surface would otherwise make the frame visit the whole frustum and,
+// lying behind the surface, carve free space through it. {0, 0} for a map with no valid depth.
+constexpr std::size_t kDepthBandStride = 31;
+constexpr double kDepthBandQuantile = 1e-3;
+std::pair<double, double> integration_depth_band(const Image32f& depth_m);
 
 struct IntegrationStats {
   std::size_t active_voxels = 0;  // observed this frame with |A| < 1 (the sweeps' voxels)

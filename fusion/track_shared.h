@@ -75,19 +75,27 @@ SLS_HOST_DEVICE inline float downsample_depth(const float* fine, int fine_width,
 }
 
 // The unit normal of the live vertex map at (x, y) (vertex = depth × ray), facing the camera,
-// from the cross product of the central differences (x+1, y) − (x−1, y) and (x, y+1) − (x, y−1)
-// (a two-pixel baseline halves the depth noise's effect on the angle against forward
-// differences); {0,0,0} when a depth is missing, the pixel is on the border, or a difference
-// crosses a discontinuity. fx: the level's focal length.
-SLS_HOST_DEVICE inline Vec3f live_normal(const float* depth, const Vec3f* rays, int width, int height, float fx, int x,
-                                         int y) {
+// from the cross product of the central differences (x+b, y) − (x−b, y) and (x, y+b) − (x, y−b),
+// where the half-baseline b (pixels, 1..kMaxNormalBaselinePx) spans about baseline_m on the
+// surface: at 3 µm pixels one-pixel differences turn µm depth noise into tens of degrees of
+// normal noise; a physical baseline keeps the normal test meaningful at every resolution.
+// {0,0,0} when a depth is missing, the baseline leaves the image, or a difference crosses a
+// discontinuity. fx: the level's focal length.
+constexpr int kMaxNormalBaselinePx = 16;
+SLS_HOST_DEVICE inline Vec3f live_normal(const float* depth, const Vec3f* rays, int width, int height, float fx,
+                                         float baseline_m, int x, int y) {
   const Vec3f none{0.0f, 0.0f, 0.0f};
-  if (x < 1 || y < 1 || x + 1 >= width || y + 1 >= height) return none;
+  if (x < 0 || y < 0 || x >= width || y >= height) return none;
   const long long i = static_cast<long long>(y) * width + x;
-  const long long neighbours[4] = {i - 1, i + 1, i - width, i + width};
   const float z = depth[i];
   if (!valid_depth(z) || !(rays[i].z > 0.0f)) return none;
-  const float step = kDiscontinuityFootprints * z / fx;
+  const float footprint = z / fx;
+  int b = static_cast<int>(baseline_m / footprint + 0.5f);
+  b = b < 1 ? 1 : (b > kMaxNormalBaselinePx ? kMaxNormalBaselinePx : b);
+  if (x < b || y < b || x + b >= width || y + b >= height) return none;
+  const long long neighbours[4] = {i - b, i + b, i - static_cast<long long>(b) * width,
+                                   i + static_cast<long long>(b) * width};
+  const float step = kDiscontinuityFootprints * footprint * static_cast<float>(b);
   Vec3f v[4];
   for (int k = 0; k < 4; ++k) {
     const float zk = depth[neighbours[k]];

@@ -44,6 +44,12 @@ void TrackingOptions::validate() const {
   if (!positive(max_distance_m)) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: max_distance_m {} is not positive", max_distance_m);
   }
+  if (max_model_width < 16) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: max_model_width {} (at least 16 pixels)", max_model_width);
+  }
+  if (!(normal_baseline_m > 0.0) || !std::isfinite(normal_baseline_m)) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: normal_baseline_m {} must be positive", normal_baseline_m);
+  }
   if (!(max_normal_angle_deg > 0.0 && max_normal_angle_deg <= 180.0)) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: max_normal_angle_deg {} outside (0, 180]",
                 max_normal_angle_deg);
@@ -161,12 +167,19 @@ std::string percent(double fraction) { return fmt::format("{:.1f} %", 100.0 * fr
 
 struct Tracker::Impl {
   Device device;
-  CameraIntrinsics camera;
+  CameraIntrinsics live_camera;  // the live depth maps' camera
+  CameraIntrinsics camera;       // ICP's finest level, the model maps' camera
   TrackingOptions options;
+  // The live camera halved down to `camera` (empty when they are the same), and the host
+  // buffers of those halvings (the last is ICP's finest live depth).
+  std::vector<CameraIntrinsics> input_cameras;
+  std::vector<std::vector<float>> input_depth;
   std::vector<Level> levels;
 #if defined(SLS_HAVE_CUDA)
   cudaStream_t stream = nullptr;
   std::vector<DeviceBuffer<float>> depth;  // level 0: uploads of host maps; the coarse levels
+  DeviceBuffer<float> live_upload;         // a host live map at the live camera's size
+  std::vector<DeviceBuffer<float>> input_device;  // the halvings down to level 0
   std::vector<DeviceBuffer<Vec3f>> rays, normals;
   DeviceBuffer<Vec3f> uploaded_points, uploaded_normals;  // host models, uploaded
   DeviceBuffer<double> partials, device_sums;
@@ -295,9 +308,20 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
   return result;
 }
 
-Tracker::Tracker(const Device& device, const CameraIntrinsics& camera, const TrackingOptions& options)
+Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, const TrackingOptions& options)
     : impl_(std::make_unique<Impl>()) {
   options.validate();
+  if (!(live_camera.fx > 0.0) || !(live_camera.fy > 0.0)) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: focal lengths {} {} are not positive", live_camera.fx,
+                live_camera.fy);
+  }
+  Impl& s = *impl_;
+  s.live_camera = live_camera;
+  CameraIntrinsics camera = live_camera;
+  while (camera.width > options.max_model_width) {
+    s.input_cameras.push_back(camera);
+    camera = half_camera(camera);
+  }
   const int level_count = static_cast<int>(options.iterations.size());
   if (camera.width <= 0 || camera.height <= 0 || (camera.width >> (level_count - 1)) < 8 ||
       (camera.height >> (level_count - 1)) < 8) {
@@ -305,10 +329,6 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& camera, const Tra
                 "tracking: a camera of {}x{} pixels is too small for {} pyramid levels (8x8 at the coarsest)",
                 camera.width, camera.height, level_count);
   }
-  if (!(camera.fx > 0.0) || !(camera.fy > 0.0)) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: focal lengths {} {} are not positive", camera.fx, camera.fy);
-  }
-  Impl& s = *impl_;
   s.device = device;
   s.camera = camera;
   s.options = options;
@@ -332,6 +352,13 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& camera, const Tra
       s.normals[l].allocate(pixels);
       s.rays[l].upload(s.levels[l].rays.rays.data(), pixels, s.stream);
     }
+    if (!s.input_cameras.empty()) {
+      s.live_upload.allocate(static_cast<std::size_t>(live_camera.width) * static_cast<std::size_t>(live_camera.height));
+      for (std::size_t k = 1; k < s.input_cameras.size(); ++k) {
+        s.input_device.emplace_back(static_cast<std::size_t>(s.input_cameras[k].width) *
+                                    static_cast<std::size_t>(s.input_cameras[k].height));
+      }
+    }
     s.uploaded_points.allocate(s.levels[0].pixels());
     s.uploaded_normals.allocate(s.levels[0].pixels());
     s.partials.allocate(static_cast<std::size_t>(detail::kTrackPartials));
@@ -344,6 +371,10 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& camera, const Tra
       level.normals.assign(level.pixels(), Vec3f{0.0f, 0.0f, 0.0f});
       level.depth.assign(level.pixels(), 0.0f);
     }
+    for (std::size_t k = 1; k <= s.input_cameras.size(); ++k) {
+      const CameraIntrinsics& c = k < s.input_cameras.size() ? s.input_cameras[k] : s.camera;
+      s.input_depth.emplace_back(static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height), 0.0f);
+    }
   }
 }
 
@@ -352,6 +383,7 @@ Tracker::Tracker(Tracker&&) noexcept = default;
 Tracker& Tracker::operator=(Tracker&&) noexcept = default;
 
 const TrackingOptions& Tracker::options() const { return impl_->options; }
+const CameraIntrinsics& Tracker::model_camera() const { return impl_->camera; }
 const Device& Tracker::device() const { return impl_->device; }
 
 namespace {
@@ -388,9 +420,9 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
   Impl& s = *impl_;
   const int width = s.camera.width, height = s.camera.height;
   const std::size_t pixels = s.levels[0].pixels();
-  if (depth_m.width() != width || depth_m.height() != height) {
+  if (depth_m.width() != s.live_camera.width || depth_m.height() != s.live_camera.height) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: the live depth map is {}x{}, the camera {}x{}",
-                depth_m.width(), depth_m.height(), width, height);
+                depth_m.width(), depth_m.height(), s.live_camera.width, s.live_camera.height);
   }
   if (model.depth_m.width() != width || model.depth_m.height() != height || model.points_camera.size() != pixels ||
       model.normals_camera.size() != pixels) {
@@ -402,19 +434,43 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
   if (s.device.is_cuda()) {
 #if defined(SLS_HAVE_CUDA)
     require_device(s.device);
-    s.depth[0].upload(depth_m.data(), pixels, s.stream);
+    const float* live = nullptr;
+    if (s.input_cameras.empty()) {
+      s.depth[0].upload(depth_m.data(), pixels, s.stream);
+      live = s.depth[0].data();
+    } else {
+      s.live_upload.upload(depth_m.data(), depth_m.pixel_count(), s.stream);
+      live = s.live_upload.data();
+    }
     s.uploaded_points.upload(model.points_camera.data(), pixels, s.stream);
     s.uploaded_normals.upload(model.normals_camera.data(), pixels, s.stream);
-    return s.track_on_device(s.depth[0].data(), s.uploaded_points.data(), s.uploaded_normals.data(), T_world_model,
-                           T_world_camera_guess);
+    return s.track_on_device(live, s.uploaded_points.data(), s.uploaded_normals.data(), T_world_model,
+                             T_world_camera_guess);
 #else
     throw_error(ErrorCode::kUnsupported, "tracking: CUDA asked of a build without CUDA");
 #endif
   }
 
-  // The live pyramid and normals.
+  // The live map halved down to ICP's finest level, then the pyramid and normals.
   const float* level_depth[8] = {};
   level_depth[0] = depth_m.data();
+  for (std::size_t k = 0; k < s.input_cameras.size(); ++k) {
+    const CameraIntrinsics& fine = s.input_cameras[k];
+    const CameraIntrinsics& coarse = k + 1 < s.input_cameras.size() ? s.input_cameras[k + 1] : s.camera;
+    const float* fine_depth = level_depth[0];
+    float* coarse_depth = s.input_depth[k].data();
+    const float fine_fx = static_cast<float>(fine.fx);
+#if defined(_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+    for (int y = 0; y < coarse.height; ++y) {
+      for (int x = 0; x < coarse.width; ++x) {
+        coarse_depth[static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse.width) +
+                     static_cast<std::size_t>(x)] = downsample_depth(fine_depth, fine.width, fine.height, fine_fx, x, y);
+      }
+    }
+    level_depth[0] = coarse_depth;
+  }
   for (std::size_t l = 0; l < s.levels.size(); ++l) {
     Level& level = s.levels[l];
     const int w = level.camera.width, h = level.camera.height;
@@ -434,12 +490,14 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
       level_depth[l] = level.depth.data();
     }
     const float fx = static_cast<float>(level.camera.fx);
+    const float baseline = static_cast<float>(s.options.normal_baseline_m);
 #if defined(_OPENMP)
 #pragma omp parallel for schedule(static)
 #endif
     for (int y = 0; y < h; ++y) {
       for (int x = 0; x < w; ++x) {
-        level.normals[level.rays.index(x, y)] = live_normal(level_depth[l], level.rays.rays.data(), w, h, fx, x, y);
+        level.normals[level.rays.index(x, y)] =
+            live_normal(level_depth[l], level.rays.rays.data(), w, h, fx, baseline, x, y);
       }
     }
   }
@@ -513,7 +571,16 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
   Impl& s = *this;
   const int width = s.camera.width, height = s.camera.height;
   const int pixels = width * height;
-  // The live pyramid and normals, on the device.
+  // The live map halved down to ICP's finest level (into level 0's buffer), then the pyramid
+  // and normals, on the device.
+  for (std::size_t k = 0; k < s.input_cameras.size(); ++k) {
+    const CameraIntrinsics& fine = s.input_cameras[k];
+    const CameraIntrinsics& coarse = k + 1 < s.input_cameras.size() ? s.input_cameras[k + 1] : s.camera;
+    float* coarse_depth = k + 1 < s.input_cameras.size() ? s.input_device[k].data() : s.depth[0].data();
+    detail::launch_downsample_depth_cuda(depth_device, fine.width, fine.height, static_cast<float>(fine.fx),
+                                         coarse_depth, coarse.width, coarse.height, s.stream);
+    depth_device = coarse_depth;
+  }
   const float* level_depth[8] = {};  // validate(): at most 8 levels
   level_depth[0] = depth_device;
   for (std::size_t l = 0; l < s.levels.size(); ++l) {
@@ -526,7 +593,8 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
       level_depth[l] = s.depth[l].data();
     }
     detail::launch_live_normals_cuda(level_depth[l], s.rays[l].data(), level.camera.width, level.camera.height,
-                                     static_cast<float>(level.camera.fx), s.normals[l].data(), s.stream);
+                                     static_cast<float>(level.camera.fx),
+                                     static_cast<float>(s.options.normal_baseline_m), s.normals[l].data(), s.stream);
   }
   auto download = [&](int count) {
     SLS_CUDA_CHECK(cudaMemcpyAsync(s.host_sums, s.device_sums.data(), static_cast<std::size_t>(count) * sizeof(double),

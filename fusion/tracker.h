@@ -41,12 +41,24 @@ struct TrackingOptions {
   // doubles per coarser level).
   double max_distance_m = 200e-6;
   double max_normal_angle_deg = 30.0;
+  // Live normals from differences over about this much surface (see track_shared.h's
+  // live_normal): 30 µm is one pixel of the ci preset, ten of the paper's 3 µm pixels.
+  double normal_baseline_m = 30e-6;
   // Stop a level early when the update is smaller than these.
   double min_translation_step_m = 0.05e-6;
   double min_rotation_step_rad = 1e-7;
-  // Directions whose eigenvalue of the normal matrix is below this fraction of the largest
-  // are degenerate: they keep the guess.
-  double degenerate_eigen_ratio = 1e-5;
+  // Directions whose eigenvalue of the normal matrix (in the scaled form below) is below this
+  // fraction of the largest are degenerate: they keep the guess. 1 %: a straight-knurled
+  // screw seen from its side (a cylinder with ridges along its axis) pins sliding along the
+  // axis only through noise and the view's rim (eigenvalue ratios of 1e-4 .. 2e-3 measured);
+  // left free, the noise walks the pose along the axis by tens of µm a frame and the
+  // constant-velocity guess carries the walk on. A ridged knob with a wave pattern: ~0.07.
+  double degenerate_eigen_ratio = 1e-2;
+  // ICP's finest level: the live camera halved until its width is at most this; the model
+  // maps are raycast at that size (model_camera()). At the paper's 3 µm pixels and ~10 µm
+  // voxels, 2000 x 1500 still samples the volume finer than its voxels, at a quarter of the
+  // raycast and association work.
+  int max_model_width = 2048;
   // Lost-frame tests (after the finest level).
   double min_inlier_fraction = 0.25;    // of the live pixels with a depth
   double max_residual_rms_m = 60e-6;    // point-to-plane RMS of the inliers
@@ -72,7 +84,7 @@ struct TrackingResult {
 
 class Tracker {
  public:
-  // camera: the live depth map's camera (its size is the finest level's).
+  // camera: the live depth map's camera (ICP's finest level is it, halved to max_model_width).
   Tracker(const Device& device, const CameraIntrinsics& camera, const TrackingOptions& options = {});
   ~Tracker();
   Tracker(Tracker&&) noexcept;
@@ -80,9 +92,11 @@ class Tracker {
 
   const TrackingOptions& options() const;
   const Device& device() const;
+  // The camera the model maps must be raycast with (the live camera at ICP's finest level).
+  const CameraIntrinsics& model_camera() const;
 
   // Registers a live depth map (camera-frame z in metres, 0 = none, the camera's size) to the
-  // model seen from T_world_model (a raycast from that pose with the same camera), starting
+  // model seen from T_world_model (a raycast from that pose with model_camera()), starting
   // from T_world_camera_guess. sls::Error(kInvalidArgument) for maps of another size.
   TrackingResult track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
                        const Pose& T_world_camera_guess);

@@ -181,6 +181,10 @@ void Volume::clear() {
   if (s.device_u16.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_u16.data(), 0, s.device_u16.size_bytes()));
   if (s.device_w8.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_w8.data(), 0, s.device_w8.size_bytes()));
   SLS_CUDA_CHECK(cudaMemset(s.device_bricks.data(), 0, s.device_bricks.size_bytes()));
+  // cudaMemset returns before device memory is set, on the legacy stream, which the
+  // integrator's and raycaster's non-blocking streams do not wait for: without this the next
+  // integration can race the clear (seen: a reused allocation's old voxels wiping a frame).
+  SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
 #endif
 }
 
@@ -216,8 +220,11 @@ VolumeView Volume::view() const {
 namespace {
 
 #if defined(SLS_HAVE_CUDA)
+// Returns once the bytes are there: a device-to-device cudaMemcpy may return before the copy
+// is done, and the kernels that read the volume next run on non-blocking streams.
 void copy_bytes(void* to, const void* from, std::size_t bytes) {
   if (bytes > 0) SLS_CUDA_CHECK(cudaMemcpy(to, from, bytes, cudaMemcpyDefault));
+  SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
 }
 #endif
 

@@ -65,12 +65,12 @@ __global__ void downsample_kernel(const float* __restrict__ fine, int fine_width
 }
 
 __global__ void live_normals_kernel(const float* __restrict__ depth, const Vec3f* __restrict__ rays, int width,
-                                    int height, float fx, Vec3f* __restrict__ normals) {
+                                    int height, float fx, float baseline_m, Vec3f* __restrict__ normals) {
   const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
   const int y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
   if (x >= width || y >= height) return;
   normals[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)] =
-      live_normal(depth, rays, width, height, fx, x, y);
+      live_normal(depth, rays, width, height, fx, baseline_m, x, y);
 }
 
 __global__ void frame_statistics_kernel(const Vec3f* __restrict__ model_points, const float* __restrict__ live_depth,
@@ -113,11 +113,11 @@ void launch_downsample_depth_cuda(const float* fine, int fine_width, int fine_he
   SLS_CUDA_CHECK_LAUNCH();
 }
 
-void launch_live_normals_cuda(const float* depth, const Vec3f* rays, int width, int height, float fx, Vec3f* normals,
-                              cudaStream_t stream) {
+void launch_live_normals_cuda(const float* depth, const Vec3f* rays, int width, int height, float fx,
+                              float baseline_m, Vec3f* normals, cudaStream_t stream) {
   const dim3 block(32, 8);
   live_normals_kernel<<<image_grid(width, height, block), block, 0, stream>>>(depth, rays, width, height, fx,
-                                                                              normals);
+                                                                              baseline_m, normals);
   SLS_CUDA_CHECK_LAUNCH();
 }
 

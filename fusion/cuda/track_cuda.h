@@ -23,8 +23,8 @@ constexpr int kTrackPartials = kTrackMaxBlocks * kTrackSums;
 void launch_downsample_depth_cuda(const float* fine, int fine_width, int fine_height, float fine_fx, float* coarse,
                                   int coarse_width, int coarse_height, cudaStream_t stream);
 // live_normal per pixel of a level.
-void launch_live_normals_cuda(const float* depth, const Vec3f* rays, int width, int height, float fx, Vec3f* normals,
-                              cudaStream_t stream);
+void launch_live_normals_cuda(const float* depth, const Vec3f* rays, int width, int height, float fx,
+                              float baseline_m, Vec3f* normals, cudaStream_t stream);
 // accumulate_frame_statistics over `pixels` pixels (model points and live depth of the finest
 // level) into out[kFrameSums].
 void launch_frame_statistics_cuda(const Vec3f* model_points, const float* live_depth, int pixels, Vec3f reference,

@@ -40,27 +40,11 @@ double median_depth(const Image32f& depth_m) {
   return *middle;
 }
 
-// Valid depths and their range: the integrator visits only the band they span.
-struct DepthRange {
-  std::size_t valid = 0;
-  double min_m = 0.0, max_m = 0.0;
-};
-DepthRange depth_range(const Image32f& depth_m) {
-  DepthRange range;
-  float lo = std::numeric_limits<float>::infinity(), hi = 0.0f;
+std::size_t count_valid(const Image32f& depth_m) {
+  std::size_t count = 0;
   const float* data = depth_m.data();
-  for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) {
-    const float z = data[i];
-    if (!(z > 0.0f) || !std::isfinite(z)) continue;
-    ++range.valid;
-    lo = std::min(lo, z);
-    hi = std::max(hi, z);
-  }
-  if (range.valid > 0) {
-    range.min_m = lo;
-    range.max_m = hi;
-  }
-  return range;
+  for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) count += data[i] > 0.0f && std::isfinite(data[i]);
+  return count;
 }
 
 }  // namespace
@@ -143,7 +127,7 @@ struct ScanSession::Impl {
         options(options_in),
         integrator(options_in.device, options_in.integration),
         tracker(options_in.device, calibration_in.camera, options_in.tracking),
-        raycaster(options_in.device, calibration_in.camera, raycast_options(options_in)) {}
+        raycaster(options_in.device, tracker.model_camera(), raycast_options(options_in)) {}
 
   static fusion::RaycastOptions raycast_options(const ScanSessionOptions& options) {
     fusion::RaycastOptions raycast;
@@ -273,8 +257,11 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   } else {
     return finish(FrameStatus::kSkipped, "neither a pattern stack nor a depth map");
   }
-  const DepthRange range = depth_range(*depth);
-  report.depth_pixels = range.valid;
+  {
+    const Clock::time_point start = Clock::now();  // part of preparing the depth map
+    report.depth_pixels = count_valid(*depth);
+    report.times.decode_ms += ms_since(start);
+  }
   if (report.depth_pixels == 0) return finish(FrameStatus::kSkipped, "no valid depth in the frame");
 
   // Track against the model, or take the known pose.
@@ -312,8 +299,9 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   Clock::time_point start = Clock::now();
 #if defined(SLS_HAVE_CUDA)
   if (depth_device != nullptr) {
-    report.integration = s.integrator.integrate_device(volume, depth_device, s.calibration.camera, T_world_camera,
-                                                       range.min_m, range.max_m);
+    const auto [near_m, far_m] = fusion::integration_depth_band(*depth);
+    report.integration =
+        s.integrator.integrate_device(volume, depth_device, s.calibration.camera, T_world_camera, near_m, far_m);
   } else {
     report.integration = s.integrator.integrate(volume, *depth, s.calibration.camera, T_world_camera);
   }

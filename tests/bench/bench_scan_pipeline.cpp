@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "drivers/sim/renderer.h"
@@ -50,6 +51,7 @@ void BM_ScanPipeline(benchmark::State& state) {
     session::ScanSession scan(rig.calibration(), nullptr, options);
     std::vector<double> pipeline, track, integrate, move, raycast;
     int lost = 0;
+    std::string first_lost;
     for (int k = 0; k < frames; ++k) {
       renderer.set_frame(k);
       session::ScanFrame frame;
@@ -58,6 +60,7 @@ void BM_ScanPipeline(benchmark::State& state) {
       frame.depth_m = renderer.render_depth();
       const session::FrameReport report = scan.add_frame(frame);
       if (report.status != session::FrameStatus::kFused) {
+        if (lost == 0) first_lost = "frame " + std::to_string(k) + ": " + report.reason;
         ++lost;
         continue;
       }
@@ -78,6 +81,7 @@ void BM_ScanPipeline(benchmark::State& state) {
     state.counters["raycast_ms"] = median(raycast);
     state.counters["lost"] = lost;
     state.counters["moves"] = static_cast<double>(scan.moves());
+    if (!first_lost.empty()) state.SetLabel("first lost " + first_lost);
     const std::vector<StampedPose> trajectory = scan.trajectory();
     if (trajectory.size() >= 2) {
       // Drift over the revolution: the first-to-last motion against the true one.

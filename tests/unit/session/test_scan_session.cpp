@@ -39,11 +39,11 @@ TEST(TurntableMotion, MatchesTheSimulatorsTrueRelativePoses) {
   }
 }
 
-// Depth alone, 1.5 degree steps (0.45 mm on the knurled knob's 1 mm tooth pitch: less than
-// half a tooth, so the first step, guessed with no velocity, cannot lock onto the wrong
+// Depth alone, 1 degree steps (0.3 mm on the knurled knob's 1 mm tooth pitch: well inside the
+// half tooth beyond which the first step, guessed with no velocity, locks onto the wrong
 // tooth): every frame registers, and the tracked motion matches the true one.
 TEST(ScanSession, TracksATurntableScanFromDepthAlone) {
-  SimFrames sim("knurled-knob", 240);
+  SimFrames sim("knurled-knob", 360);
   ScanSession session(sim.calibration(), nullptr, small_options(Device::cpu()));
   const int frames = 8;
   for (int k = 0; k < frames; ++k) {
@@ -64,7 +64,7 @@ TEST(ScanSession, TracksATurntableScanFromDepthAlone) {
                                                            sim.truth(0), sim.truth(i))
                                                 .surface_m);
   }
-  std::printf("[ measured ] knob, 7 tracked steps of 1.5 deg: worst error of the surface in view %.2f um\n",
+  std::printf("[ measured ] knob, 7 tracked steps of 1 deg: worst error of the surface in view %.2f um\n",
               worst_surface * 1e6);
   // A third of a 30 µm pixel.
   EXPECT_LT(worst_surface, 10e-6);

@@ -1,6 +1,13 @@
 // The scan session on a CUDA GPU equals the CPU session (poses, moves); skips with no GPU.
 #include <gtest/gtest.h>
 
+#include <cuda_runtime_api.h>
+
+#include "fusion/integrator.h"
+#include "fusion/moving_volume.h"
+#include "fusion/raycaster.h"
+#include "fusion/tracker.h"
+#include "sdk/core/cuda/device_buffer.h"
 #include "sdk/session/scan_session.h"
 #include "tests/support/test_support.h"
 #include "tests/unit/session/sim_frames.h"
@@ -8,9 +15,81 @@
 namespace sls::session {
 namespace {
 
+// The session's stages one by one on both backends (what EqualsTheCpuSession chains): the
+// model raycast after one frame, then the tracker on it, host maps and device maps.
+class ScanSessionStagesCuda : public ::testing::TestWithParam<Eigen::Vector3i> {};
+
+TEST_P(ScanSessionStagesCuda, EqualTheCpuOnes) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Eigen::Vector3i counts = GetParam();
+  SimFrames sim("knurled-knob", 360);
+  const ScannerCalibration calibration = sim.calibration();
+  const CameraIntrinsics& camera = calibration.camera;
+  const ScanFrame first = sim.frame(0), second = sim.frame(1);
+  fusion::MovingVolumeOptions moving;
+  moving.focus_distance_m = 0.1;
+  const double voxel = 12e-3 / counts.x();
+  fusion::MovingVolume cpu_volume(counts.x(), counts.y(), counts.z(), voxel, fusion::VoxelFormat::kCompact,
+                                  Device::cpu(), moving);
+  fusion::MovingVolume gpu_volume(counts.x(), counts.y(), counts.z(), voxel, fusion::VoxelFormat::kCompact,
+                                  Device::cuda(), moving);
+  cpu_volume.place(Pose());
+  gpu_volume.place(Pose());
+  fusion::Integrator cpu_integrator(Device::cpu(), fusion::IntegrationOptions::gtsdf());
+  fusion::Integrator gpu_integrator(Device::cuda(), fusion::IntegrationOptions::gtsdf());
+  cpu_integrator.integrate(cpu_volume.volume(), *first.depth_m, camera, Pose());
+  gpu_integrator.integrate(gpu_volume.volume(), *first.depth_m, camera, Pose());
+  fusion::RaycastOptions raycast_options;
+  raycast_options.min_depth_m = 1e-3;
+  fusion::Raycaster cpu_raycaster(Device::cpu(), camera, raycast_options);
+  fusion::Raycaster gpu_raycaster(Device::cuda(), camera, raycast_options);
+  const fusion::RaycastResult cpu_model = cpu_raycaster.raycast(cpu_volume.volume(), Pose());
+  const fusion::RaycastResult gpu_model = gpu_raycaster.raycast(gpu_volume.volume(), Pose());
+  std::size_t cpu_hits = 0, gpu_hits = 0, both = 0;
+  double worst = 0.0;
+  for (std::size_t i = 0; i < cpu_model.depth_m.pixel_count(); ++i) {
+    const float a = cpu_model.depth_m.data()[i], b = gpu_model.depth_m.data()[i];
+    cpu_hits += a > 0.0f;
+    gpu_hits += b > 0.0f;
+    if (a > 0.0f && b > 0.0f) {
+      ++both;
+      worst = std::max(worst, static_cast<double>(std::fabs(a - b)));
+    }
+  }
+  std::printf("[ measured ] model raycast: cpu %zu hits, cuda %zu, both %zu, worst |dz| %.3f um\n", cpu_hits,
+              gpu_hits, both, worst * 1e6);
+  EXPECT_NEAR(static_cast<double>(gpu_hits), static_cast<double>(cpu_hits), 1e-3 * static_cast<double>(cpu_hits));
+  EXPECT_LT(worst, 0.25 * voxel);  // GTSDF sweeps in float on both, in another order of work
+
+  fusion::Tracker cpu_tracker(Device::cpu(), camera);
+  fusion::Tracker gpu_tracker(Device::cuda(), camera);
+  const fusion::TrackingResult a = cpu_tracker.track(*second.depth_m, cpu_model, Pose(), Pose());
+  const fusion::TrackingResult b = gpu_tracker.track(*second.depth_m, gpu_model, Pose(), Pose());
+  gpu_raycaster.raycast_device(gpu_volume.volume(), Pose());
+  gpu_raycaster.synchronize();
+  DeviceBuffer<float> live(second.depth_m->pixel_count());
+  live.upload(second.depth_m->data(), second.depth_m->pixel_count(), nullptr);
+  ASSERT_EQ(cudaStreamSynchronize(nullptr), cudaSuccess);
+  const fusion::TrackingResult c = gpu_tracker.track_device(live.data(), gpu_raycaster, Pose(), Pose());
+  for (const auto* r : {&a, &b, &c}) {
+    std::printf("[ measured ] %s: lost %d (%s) inliers %zu rms %.2f um it %d\n",
+                r == &a ? "cpu" : (r == &b ? "cuda, host maps" : "cuda, device maps"), r->lost ? 1 : 0,
+                r->reason.c_str(), r->inliers, r->residual_rms_m * 1e6, r->iterations);
+  }
+  EXPECT_FALSE(a.lost);
+  EXPECT_EQ(a.lost, b.lost);
+  EXPECT_EQ(a.lost, c.lost);
+  EXPECT_LT((a.T_world_camera.inverse() * b.T_world_camera).translation().norm(), 2e-6);
+  EXPECT_LT((a.T_world_camera.inverse() * c.T_world_camera).translation().norm(), 2e-6);
+}
+
+// Whole bricks of 8 voxels, and partial ones at the far faces.
+INSTANTIATE_TEST_SUITE_P(Volumes, ScanSessionStagesCuda,
+                         ::testing::Values(Eigen::Vector3i(240, 180, 120), Eigen::Vector3i(200, 150, 100)));
+
 TEST(ScanSessionCuda, EqualsTheCpuSession) {
   SLS_REQUIRE_CUDA_DEVICE();
-  SimFrames sim("knurled-knob", 240);  // 1.5 degree steps: under half a knurl tooth
+  SimFrames sim("knurled-knob", 360);  // 1 degree steps: under a third of a knurl tooth
   ScanSession cpu(sim.calibration(), nullptr, small_options(Device::cpu()));
   ScanSession cuda(sim.calibration(), nullptr, small_options(Device::cuda()));
   for (int k = 0; k < 6; ++k) {
