@@ -70,7 +70,7 @@ VoxelBox frustum_voxel_box(const VolumeGeometry& geometry, const CameraIntrinsic
 // every kDepthBandStride-th pixel, and s = Q − q (under 1000 samples: [min, max]). A decoder
 // outlier metres off the surface would otherwise make the frame visit the whole frustum and,
 // lying behind the surface, carve free space through it. {0, 0} for a map with no valid depth.
-constexpr std::size_t kDepthBandStride = 31;
+constexpr std::size_t kDepthBandStride = 127;
 constexpr double kDepthBandQuantile = 1e-3;
 std::pair<double, double> integration_depth_band(const Image32f& depth_m);
 

@@ -6,7 +6,8 @@
 // are per-frame medians over it (the figure: track + integrate + move + raycast),
 // each stage's median, the frames lost, the moves and the loop-closure drift against the
 // simulator's true poses. Rendering the frames is not timed.
-// Arguments: frames (0: the preset's 440), object (0 knurled screw, 1 knurled knob).
+// Arguments: frames (0: the preset's 440), object (0 knurled screw, 1 knurled knob), the
+// tracker's max_model_width (0: its default, full resolution; 2048: ICP at 2000 x 1500).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -47,9 +48,11 @@ void BM_ScanPipeline(benchmark::State& state) {
   options.integration = fusion::IntegrationOptions::gtsdf();
   options.voxel_size_m = 10.4e-6;
   options.volume_size_m = Eigen::Vector3d::Constant(960 * options.voxel_size_m * (1.0 - 1e-9));
+  if (state.range(2) > 0) options.tracking.max_model_width = static_cast<int>(state.range(2));
   for (auto _ : state) {
     session::ScanSession scan(rig.calibration(), nullptr, options);
-    std::vector<double> pipeline, track, integrate, move, raycast;
+    std::vector<double> pipeline, track, integrate, move, raycast, condition, inliers;
+    double degenerate = 0.0;
     int lost = 0;
     std::string first_lost;
     for (int k = 0; k < frames; ++k) {
@@ -68,6 +71,11 @@ void BM_ScanPipeline(benchmark::State& state) {
       const session::StageTimes& t = report.times;
       pipeline.push_back(t.track_ms + t.integrate_ms + t.move_ms + t.raycast_ms);
       track.push_back(t.track_ms);
+      if (report.tracking) {
+        condition.push_back(report.tracking->condition);
+        inliers.push_back(report.tracking->inlier_fraction);
+        degenerate += report.tracking->degenerate_directions;
+      }
       integrate.push_back(t.integrate_ms);
       move.push_back(t.move_ms);
       raycast.push_back(t.raycast_ms);
@@ -80,6 +88,9 @@ void BM_ScanPipeline(benchmark::State& state) {
     state.counters["max_move_ms"] = move.empty() ? 0.0 : *std::max_element(move.begin(), move.end());
     state.counters["raycast_ms"] = median(raycast);
     state.counters["lost"] = lost;
+    state.counters["condition"] = median(condition);
+    state.counters["inliers"] = median(inliers);
+    state.counters["degenerate"] = degenerate / static_cast<double>(std::max<std::size_t>(condition.size(), 1));
     state.counters["moves"] = static_cast<double>(scan.moves());
     if (!first_lost.empty()) state.SetLabel("first lost " + first_lost);
     const std::vector<StampedPose> trajectory = scan.trajectory();
@@ -94,9 +105,11 @@ void BM_ScanPipeline(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ScanPipeline)
-    ->Args({0, 0})
-    ->Args({0, 1})
-    ->ArgNames({"frames", "object"})
+    ->Args({0, 0, 0})
+    ->Args({0, 1, 0})
+    ->Args({0, 0, 2048})
+    ->Args({0, 1, 2048})
+    ->ArgNames({"frames", "object", "model_width"})
     ->Iterations(1)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);
