@@ -163,6 +163,22 @@ Pose step_pose(const Vector6d& twist, const Frame& frame) {
 
 std::string percent(double fraction) { return fmt::format("{:.1f} %", 100.0 * fraction); }
 
+// A depth map at `fine`'s size halved into `coarse`'s (downsample_depth per coarse pixel; the
+// CPU side of launch_downsample_depth_cuda).
+void halve_depth(const float* fine_depth, const CameraIntrinsics& fine, float* coarse_depth,
+                 const CameraIntrinsics& coarse) {
+  const float fine_fx = static_cast<float>(fine.fx);
+#if defined(_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+  for (int y = 0; y < coarse.height; ++y) {
+    for (int x = 0; x < coarse.width; ++x) {
+      coarse_depth[static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse.width) + static_cast<std::size_t>(x)] =
+          downsample_depth(fine_depth, fine.width, fine.height, fine_fx, x, y);
+    }
+  }
+}
+
 }  // namespace
 
 struct Tracker::Impl {
@@ -457,36 +473,14 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
   for (std::size_t k = 0; k < s.input_cameras.size(); ++k) {
     const CameraIntrinsics& fine = s.input_cameras[k];
     const CameraIntrinsics& coarse = k + 1 < s.input_cameras.size() ? s.input_cameras[k + 1] : s.camera;
-    const float* fine_depth = level_depth[0];
-    float* coarse_depth = s.input_depth[k].data();
-    const float fine_fx = static_cast<float>(fine.fx);
-#if defined(_OPENMP)
-#pragma omp parallel for schedule(static)
-#endif
-    for (int y = 0; y < coarse.height; ++y) {
-      for (int x = 0; x < coarse.width; ++x) {
-        coarse_depth[static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse.width) +
-                     static_cast<std::size_t>(x)] = downsample_depth(fine_depth, fine.width, fine.height, fine_fx, x, y);
-      }
-    }
-    level_depth[0] = coarse_depth;
+    halve_depth(level_depth[0], fine, s.input_depth[k].data(), coarse);
+    level_depth[0] = s.input_depth[k].data();
   }
   for (std::size_t l = 0; l < s.levels.size(); ++l) {
     Level& level = s.levels[l];
     const int w = level.camera.width, h = level.camera.height;
     if (l > 0) {
-      const Level& fine = s.levels[l - 1];
-      const float* fine_depth = level_depth[l - 1];
-      const float fine_fx = static_cast<float>(fine.camera.fx);
-#if defined(_OPENMP)
-#pragma omp parallel for schedule(static)
-#endif
-      for (int y = 0; y < h; ++y) {
-        for (int x = 0; x < w; ++x) {
-          level.depth[level.rays.index(x, y)] =
-              downsample_depth(fine_depth, fine.camera.width, fine.camera.height, fine_fx, x, y);
-        }
-      }
+      halve_depth(level_depth[l - 1], s.levels[l - 1].camera, level.depth.data(), level.camera);
       level_depth[l] = level.depth.data();
     }
     const float fx = static_cast<float>(level.camera.fx);

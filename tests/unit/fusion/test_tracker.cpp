@@ -252,30 +252,20 @@ TEST(Tracker, ImplausibleCorrectionAndResidualAreLost) {
   }
 }
 
-void expect_invalid(const std::function<void()>& call, const std::string& fragment) {
-  try {
-    call();
-    ADD_FAILURE() << "no error; expected one mentioning '" << fragment << "'";
-  } catch (const Error& error) {
-    EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument) << error.what();
-    EXPECT_NE(std::string(error.what()).find(fragment), std::string::npos) << error.what();
-  }
-}
-
 TEST(Tracker, BadInputIsAClearError) {
   const Model& m = bumpy_model();
   Tracker tracker(Device::cpu(), m.camera);
-  expect_invalid([&] { tracker.track(Image32f(100, 80), m.raycast, m.T_world_model, m.T_world_model); },
+  test::expect_invalid([&] { tracker.track(Image32f(100, 80), m.raycast, m.T_world_model, m.T_world_model); },
                  "live depth map is 100x80");
   RaycastResult small = m.raycast;
   small.points_camera.resize(10);
-  expect_invalid([&] { tracker.track(m.raycast.depth_m, small, m.T_world_model, m.T_world_model); }, "model maps");
-  expect_invalid([&] { Tracker(Device::cpu(), test::tracker_camera(40, 30)); }, "too small");
+  test::expect_invalid([&] { tracker.track(m.raycast.depth_m, small, m.T_world_model, m.T_world_model); }, "model maps");
+  test::expect_invalid([&] { Tracker(Device::cpu(), test::tracker_camera(40, 30)); }, "too small");
   auto invalid_option = [&](auto change, const std::string& fragment) {
     TrackingOptions options;
     change(options);
-    expect_invalid([&] { options.validate(); }, fragment);
-    expect_invalid([&] { Tracker(Device::cpu(), m.camera, options); }, fragment);
+    test::expect_invalid([&] { options.validate(); }, fragment);
+    test::expect_invalid([&] { Tracker(Device::cpu(), m.camera, options); }, fragment);
   };
   TrackingOptions{}.validate();
   invalid_option([](TrackingOptions& o) { o.iterations.clear(); }, "pyramid levels");

@@ -214,33 +214,23 @@ TEST(TrackerCuda, TrackDeviceOnTheRaycastersMaps) {
   EXPECT_NE(raycaster.points_device(), raycaster.normals_device());
 }
 
-void expect_invalid(const std::function<void()>& call, const std::string& fragment) {
-  try {
-    call();
-    ADD_FAILURE() << "no error; expected one mentioning '" << fragment << "'";
-  } catch (const Error& error) {
-    EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument) << error.what();
-    EXPECT_NE(std::string(error.what()).find(fragment), std::string::npos) << error.what();
-  }
-}
-
 TEST(TrackerCuda, BadInputIsAClearError) {
   SLS_REQUIRE_CUDA_DEVICE();
   const Model& m = bumpy_model();
   Tracker gpu(Device::cuda(), m.camera);
-  expect_invalid([&] { gpu.track(Image32f(100, 80), m.raycast, m.T_world_model, m.T_world_model); },
+  test::expect_invalid([&] { gpu.track(Image32f(100, 80), m.raycast, m.T_world_model, m.T_world_model); },
                  "live depth map is 100x80");
   DeviceBuffer<float> live(m.raycast.depth_m.pixel_count());
   Raycaster cpu_raycaster(Device::cpu(), m.camera, Model::raycast_options());
-  expect_invalid([&] { gpu.track_device(live.data(), cpu_raycaster, m.T_world_model, m.T_world_model); },
+  test::expect_invalid([&] { gpu.track_device(live.data(), cpu_raycaster, m.T_world_model, m.T_world_model); },
                  "CUDA raycaster");
   Raycaster other(Device::cuda(), test::tracker_camera(160, 120), Model::raycast_options());
-  expect_invalid([&] { gpu.track_device(live.data(), other, m.T_world_model, m.T_world_model); },
+  test::expect_invalid([&] { gpu.track_device(live.data(), other, m.T_world_model, m.T_world_model); },
                  "raycaster's camera is 160x120");
   Raycaster same(Device::cuda(), m.camera, Model::raycast_options());
-  expect_invalid([&] { gpu.track_device(nullptr, same, m.T_world_model, m.T_world_model); }, "null device pointer");
+  test::expect_invalid([&] { gpu.track_device(nullptr, same, m.T_world_model, m.T_world_model); }, "null device pointer");
   Tracker cpu(Device::cpu(), m.camera);
-  expect_invalid([&] { cpu.track_device(live.data(), same, m.T_world_model, m.T_world_model); }, "make it for CUDA");
+  test::expect_invalid([&] { cpu.track_device(live.data(), same, m.T_world_model, m.T_world_model); }, "make it for CUDA");
 }
 
 }  // namespace

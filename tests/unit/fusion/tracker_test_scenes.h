@@ -7,17 +7,33 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
+#include <string>
 #include <vector>
+
+#include <gtest/gtest.h>
 
 #include "fusion/raycaster.h"
 #include "fusion/volume.h"
 #include "sdk/core/camera_model_shared.h"
+#include "sdk/core/error.h"
 #include "sdk/core/image.h"
 #include "sdk/core/pose.h"
 #include "sdk/core/ray_map.h"
 
 namespace sls::fusion::test {
+
+// `call` throws sls::Error(kInvalidArgument) whose message holds `fragment`.
+inline void expect_invalid(const std::function<void()>& call, const std::string& fragment) {
+  try {
+    call();
+    ADD_FAILURE() << "no error; expected one mentioning '" << fragment << "'";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument) << error.what();
+    EXPECT_NE(std::string(error.what()).find(fragment), std::string::npos) << error.what();
+  }
+}
 
 constexpr double kWorkingDistance = 0.1;  // m, the scanner's
 constexpr double kVoxel = 50e-6;          // m: 1.35 pixel footprints at 0.1 m with fx = 2700
