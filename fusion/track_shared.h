@@ -135,6 +135,7 @@ struct TrackParams {
   float min_normal_cos = 0.0f;
   Vec3f centre{0.0f, 0.0f, 0.0f};  // c (model frame)
   float inverse_scale = 1.0f;      // 1 / L
+  float huber_m = 0.0f;            // Huber scale of the residuals (0: plain least squares)
 };
 
 // One live pixel: associates it with the model and, for an inlier, returns the Jacobian
@@ -175,16 +176,22 @@ SLS_HOST_DEVICE inline bool track_pixel(const TrackLiveView& live, const TrackMo
   return true;
 }
 
-// Adds one inlier's row to the sums (float per GPU thread, double on the CPU).
+// Adds one inlier's row to the sums (float per GPU thread, double on the CPU), weighted by
+// Huber's function of its residual (weight 1 within huber_m, huber_m / |r| beyond): pixels a
+// decoder misplaces (knurl creases, where one pixel mixes two faces) pull with a bounded force
+// instead of a quadratic one. The residual sum and the count stay unweighted (the RMS test).
 template <typename T>
-SLS_HOST_DEVICE inline void accumulate_track_row(const float jacobian[6], float residual, T sums[kTrackSums]) {
+SLS_HOST_DEVICE inline void accumulate_track_row(const float jacobian[6], float residual, float huber_m,
+                                                 T sums[kTrackSums]) {
+  const float magnitude = std::fabs(residual);
+  const float weight = huber_m > 0.0f && magnitude > huber_m ? huber_m / magnitude : 1.0f;
   int k = 0;
   for (int r = 0; r < 6; ++r) {
     for (int c = r; c < 6; ++c) {
-      sums[k++] += static_cast<T>(jacobian[r]) * static_cast<T>(jacobian[c]);
+      sums[k++] += static_cast<T>(weight * jacobian[r]) * static_cast<T>(jacobian[c]);
     }
   }
-  for (int r = 0; r < 6; ++r) sums[kTrackJtr + r] += static_cast<T>(jacobian[r]) * static_cast<T>(residual);
+  for (int r = 0; r < 6; ++r) sums[kTrackJtr + r] += static_cast<T>(weight * jacobian[r]) * static_cast<T>(residual);
   sums[kTrackResidual2] += static_cast<T>(residual) * static_cast<T>(residual);
   sums[kTrackCount] += T(1);
 }

@@ -44,6 +44,9 @@ void TrackingOptions::validate() const {
   if (!positive(max_distance_m)) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: max_distance_m {} is not positive", max_distance_m);
   }
+  if (!(huber_rms_factor >= 0.0) || !std::isfinite(huber_rms_factor)) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: huber_rms_factor {} must be 0 or positive", huber_rms_factor);
+  }
   if (max_model_width < 16) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: max_model_width {} (at least 16 pixels)", max_model_width);
   }
@@ -272,6 +275,11 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
       if (level == 0) {
         finest_reduced = true;
         last = sums;
+      }
+      // The next reduction's Huber scale from this one's residual RMS.
+      if (options.huber_rms_factor > 0.0 && sums[kTrackCount] > 0.0) {
+        params.huber_m =
+            static_cast<float>(options.huber_rms_factor * std::sqrt(sums[kTrackResidual2] / sums[kTrackCount]));
       }
       const double count = sums[kTrackCount];
       if (count < 6.0) break;  // nothing to solve at this level: go finer (the tests below judge)
@@ -527,7 +535,7 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
         float jacobian[6];
         float residual = 0.0f;
         if (track_pixel(live, model_view, params, x, y, jacobian, &residual)) {
-          accumulate_track_row(jacobian, residual, sums);
+          accumulate_track_row(jacobian, residual, params.huber_m, sums);
         }
       }
     });

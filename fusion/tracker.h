@@ -60,6 +60,9 @@ struct TrackingOptions {
   // knurled knob, multiplies the loop-closure drift by 25 (10 µm -> 263 µm): full resolution
   // by default.
   int max_model_width = 4096;
+  // Robust weights: Huber's, at this many times the previous reduction's residual RMS (the
+  // first reduction of a frame is plain least squares); 0 turns them off.
+  double huber_rms_factor = 2.0;
   // Lost-frame tests (after the finest level).
   double min_inlier_fraction = 0.25;    // of the live pixels with a depth
   double max_residual_rms_m = 60e-6;    // point-to-plane RMS of the inliers

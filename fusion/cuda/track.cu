@@ -93,7 +93,9 @@ __global__ void track_kernel(TrackLiveView live, TrackModelView model, TrackPara
     const int x = n - y * live.width;
     float jacobian[6];
     float residual = 0.0f;
-    if (track_pixel(live, model, params, x, y, jacobian, &residual)) accumulate_track_row(jacobian, residual, sums);
+    if (track_pixel(live, model, params, x, y, jacobian, &residual)) {
+      accumulate_track_row(jacobian, residual, params.huber_m, sums);
+    }
   }
   block_sums_to_partials<kTrackSums>(sums, partials);
 }
