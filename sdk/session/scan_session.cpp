@@ -219,7 +219,7 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   if (!frame.problem.empty()) return finish(FrameStatus::kSkipped, frame.problem);
   Image32f decoded;
   const Image32f* depth = nullptr;
-  const float* depth_device = nullptr;
+  [[maybe_unused]] const float* depth_device = nullptr;  // the GPU copy (CUDA builds)
   if (!frame.images.empty()) {
     if (!s.decoder) return finish(FrameStatus::kSkipped, "a pattern stack, but the session has no pattern set");
     const Clock::time_point start = Clock::now();
