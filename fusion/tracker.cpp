@@ -218,6 +218,17 @@ struct Tracker::Impl {
   template <typename Reduce>
   TrackingResult run(const Frame& frame, const Pose& T_world_model, const Pose& guess, Reduce&& reduce) const;
   Frame frame_from_sums(const FrameSums& first, const FrameSums& second, Vec3f reference) const;
+  // Two passes of `statistics(reference)`: about the origin for the centroid, then about it.
+  template <typename Statistics>
+  Frame frame_from_statistics(Statistics&& statistics) const {
+    const FrameSums first = statistics(Vec3f{0.0f, 0.0f, 0.0f});
+    Vec3f centre{0.0f, 0.0f, 0.0f};
+    if (first[0] > 0.0) {
+      centre = Vec3f{static_cast<float>(first[1] / first[0]), static_cast<float>(first[2] / first[0]),
+                     static_cast<float>(first[3] / first[0])};
+    }
+    return frame_from_sums(first, statistics(centre), centre);
+  }
   TrackModelView model_view(const Vec3f* points, const Vec3f* point_normals) const {
     TrackModelView view;
     view.points = points;
@@ -509,17 +520,11 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
     return parallel_sum<kFrameSums>(height, [&](int y, double* sums) {
       for (int x = 0; x < width; ++x) {
         const std::size_t i = s.levels[0].rays.index(x, y);
-        accumulate_frame_statistics(model.points_camera[i], depth_m.data()[i], reference, sums);
+        accumulate_frame_statistics(model.points_camera[i], level_depth[0][i], reference, sums);
       }
     });
   };
-  const FrameSums first = statistics(Vec3f{0.0f, 0.0f, 0.0f});
-  Vec3f centre{0.0f, 0.0f, 0.0f};
-  if (first[0] > 0.0) {
-    centre = Vec3f{static_cast<float>(first[1] / first[0]), static_cast<float>(first[2] / first[0]),
-                   static_cast<float>(first[3] / first[0])};
-  }
-  const Frame frame = s.frame_from_sums(first, statistics(centre), centre);
+  const Frame frame = s.frame_from_statistics(statistics);
 
   const TrackModelView model_view = s.model_view(model.points_camera.data(), model.normals_camera.data());
   return s.run(frame, T_world_model, T_world_camera_guess, [&](int l, const TrackParams& params) {
@@ -611,13 +616,7 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
     std::copy(s.host_sums, s.host_sums + kFrameSums, sums.begin());
     return sums;
   };
-  const FrameSums first = statistics(Vec3f{0.0f, 0.0f, 0.0f});
-  Vec3f centre{0.0f, 0.0f, 0.0f};
-  if (first[0] > 0.0) {
-    centre = Vec3f{static_cast<float>(first[1] / first[0]), static_cast<float>(first[2] / first[0]),
-                   static_cast<float>(first[3] / first[0])};
-  }
-  const Frame frame = s.frame_from_sums(first, statistics(centre), centre);
+  const Frame frame = s.frame_from_statistics(statistics);
 
   const TrackModelView model_view = s.model_view(model_points, model_normals);
   return s.run(frame, T_world_model, T_world_camera_guess, [&](int l, const TrackParams& params) {

@@ -140,6 +140,7 @@ TEST(TrackerCuda, HalvedLiveMapEqualsCpu) {
   EXPECT_LT((a.T_world_camera.inverse() * b.T_world_camera).translation().norm(), 1e-6);
   EXPECT_LT((a.T_world_camera.inverse() * b.T_world_camera).angle_rad(), 1e-5);
   EXPECT_NEAR(static_cast<double>(a.inliers), static_cast<double>(b.inliers), 5.0);
+  EXPECT_EQ(a.live_pixels, b.live_pixels);
 }
 
 TEST(TrackerCuda, PlaneIsDegenerateAsOnTheCpu) {
