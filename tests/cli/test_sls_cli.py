@@ -123,13 +123,18 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(result.returncode, 1)
         self.assertIn("nope.ply", result.stderr)
 
-    def test_scan_tracks_a_turntable_scan_and_reports_it(self):
-        # A depth-mode recording of the knurled knob, 36 frames per revolution (10 degree steps:
-        # the turntable prior gives the guess), one frame's depth map corrupted.
+    def knob_depth_recording(self):
+        """A depth-mode recording of the knurled knob, 36 frames per revolution (ci preset)."""
         rec = self.dir / "rec"
         result = run("sim", "--preset", "ci", "--object", "knurled-knob", "--frames", "36", "--mode", "depth",
                      "--device", "cpu", "--out", str(rec))
         self.assertEqual(result.returncode, 0, result.stderr)
+        return rec
+
+    def test_scan_tracks_a_turntable_scan_and_reports_it(self):
+        # A depth-mode recording of the knurled knob, 36 frames per revolution (10 degree steps:
+        # the turntable prior gives the guess), one frame's depth map corrupted.
+        rec = self.knob_depth_recording()
         depth = rec / "frames" / "000007" / "depth.png"
         depth.write_bytes(depth.read_bytes()[:200])
         out = self.dir / "tracked"
@@ -156,9 +161,7 @@ class SlsCli(unittest.TestCase):
         self.assertGreater(evaluation["coverage"], 0.9)
 
     def test_scan_interrupted_leaves_a_valid_partial_model(self):
-        rec = self.dir / "rec"
-        self.assertEqual(run("sim", "--preset", "ci", "--object", "knurled-knob", "--frames", "36", "--mode", "depth",
-                             "--device", "cpu", "--out", str(rec)).returncode, 0)
+        rec = self.knob_depth_recording()
         out = self.dir / "partial"
         scan = subprocess.Popen([SLS, "scan", "--input", str(rec), "--turntable-prior", "--device", "cpu",
                                  "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -112,4 +112,15 @@ inline std::vector<std::uint8_t> expected_bricks(const VolumeView& v) {
   return flags;
 }
 
+// Fills every voxel with a deterministic pseudo-random U in [-1, 1) and W (1 in 8 unobserved):
+// a field dense with crossings, for the "move everything out" tests.
+inline void fill_random_field(const VolumeView& v, std::uint32_t seed) {
+  std::uint32_t state = seed;
+  for (std::size_t n = 0; n < v.voxel_count(); ++n) {
+    state = state * 1664525u + 1013904223u;
+    v.set_u(n, static_cast<float>(state >> 8) / 8388608.0f - 1.0f);
+    v.set_w(n, (state & 7u) == 0u ? 0.0f : static_cast<float>(1u + (state >> 28)));
+  }
+}
+
 }  // namespace sls::fusion::test

@@ -281,13 +281,7 @@ TEST_P(MovingVolumeTest, MovingEverythingOutShipsTheWholeSurface) {
   const VoxelFormat format = GetParam();
   MovingVolume moving(48, 40, 32, kVoxel, format, Device::cpu(), test::scene_options());
   moving.place(test::first_camera());
-  const VolumeView v = moving.volume().view();
-  std::uint32_t state = 777u;
-  for (std::size_t n = 0; n < v.voxel_count(); ++n) {
-    state = state * 1664525u + 1013904223u;
-    v.set_u(n, static_cast<float>(state >> 8) / 8388608.0f - 1.0f);
-    v.set_w(n, (state & 7u) == 0u ? 0.0f : static_cast<float>(1u + (state >> 28)));
-  }
+  test::fill_random_field(moving.volume().view(), 777u);
   const Volume before = moving.volume().to_host();
   moving.move_to(before.geometry().T_world_volume * Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.01, 0.0, 0.0)));
   const ExtractedSurface all = extract_surface(before);

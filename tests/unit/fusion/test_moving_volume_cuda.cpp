@@ -208,13 +208,7 @@ TEST_P(MovingVolumeCuda, MovingEverythingOutShipsTheSameWholeSurface) {
   MovingVolume gpu(64, 56, 48, kVoxel, format, Device::cuda(), test::scene_options());
   cpu.place(test::first_camera());
   gpu.place(test::first_camera());
-  const VolumeView v = cpu.volume().view();
-  std::uint32_t state = 4242u;
-  for (std::size_t n = 0; n < v.voxel_count(); ++n) {
-    state = state * 1664525u + 1013904223u;
-    v.set_u(n, static_cast<float>(state >> 8) / 8388608.0f - 1.0f);
-    v.set_w(n, (state & 7u) == 0u ? 0.0f : static_cast<float>(1u + (state >> 28)));
-  }
+  test::fill_random_field(cpu.volume().view(), 4242u);
   gpu.volume().copy_from(cpu.volume());
   const ExtractedSurface all = extract_surface(cpu.volume());
   ASSERT_GT(all.cloud.size(), std::size_t{1} << 16);
@@ -235,13 +229,7 @@ TEST_P(MovingVolumeCuda, MovingEverythingOutShipsTheSameWholeSurface) {
   MovingVolume gpu2(64, 56, 48, kVoxel, format, Device::cuda(), test::scene_options());
   cpu2.place(test::first_camera());
   gpu2.place(test::first_camera());
-  const VolumeView w = cpu2.volume().view();
-  state = 4242u;
-  for (std::size_t n = 0; n < w.voxel_count(); ++n) {
-    state = state * 1664525u + 1013904223u;
-    w.set_u(n, static_cast<float>(state >> 8) / 8388608.0f - 1.0f);
-    w.set_w(n, (state & 7u) == 0u ? 0.0f : static_cast<float>(1u + (state >> 28)));
-  }
+  test::fill_random_field(cpu2.volume().view(), 4242u);
   gpu2.volume().copy_from(cpu2.volume());
   const Pose partial = test::moved_camera(test::first_camera(), Eigen::Vector3d(0.6e-3, 0.4e-3, -0.3e-3), 7.0,
                                           Eigen::Vector3d(1.0, -0.5, 2.0));
