@@ -71,6 +71,68 @@ SLS_HOST_DEVICE inline float brick_exit(const VolumeView& v, Vec3f origin, Vec3f
   return std::fmax(exit, t);
 }
 
+// Guided search (the scan session's raycast for tracking): the surface seen from a pose lies
+// near the depth map just integrated from that pose (the guide). A ray searches only the
+// guide's depths under its pixel widened by a margin; where the guide has none there (a
+// shadow, a rejected pixel), the range of the depths in its 3 × 3 tiles of
+// kRaycastGuideTile² pixels; with none there either (the rim, a large hole), the full range.
+// Most of an unguided 960³ raycast is the march up to the surface.
+constexpr int kRaycastGuideTile = 16;
+
+struct RaycastGuideView {
+  const float* depth_m = nullptr;     // the guide, guide_width x guide_height, row-major
+  int guide_width = 0;                // >= the raycast's size (e.g. the full live map of a halved raycast)
+  int guide_height = 0;
+  int width = 0;                      // the raycast's size
+  int height = 0;
+  const float* tile_min_m = nullptr;  // tiles_x * tiles_y, row-major; +inf where a tile has no depth
+  const float* tile_max_m = nullptr;  // 0 where a tile has no depth
+  int tiles_x = 0;
+  int tiles_y = 0;
+  float margin_m = 0.0f;
+};
+
+// The guide pixels [*begin, *end) under raycast pixels [first, first + count) along one axis
+// (raycast size `size`, guide size `guide_size`).
+SLS_HOST_DEVICE inline void guide_span(int first, int count, int size, int guide_size, int* begin, int* end) {
+  const long long a = first;
+  const long long b = first + count < size ? first + count : size;
+  *begin = static_cast<int>(a * guide_size / size);
+  *end = static_cast<int>((b * guide_size + size - 1) / size);
+  if (*end > guide_size) *end = guide_size;
+}
+
+SLS_HOST_DEVICE inline bool is_measured_depth(float depth_m) { return depth_m > 0.0f && depth_m < 3.0e38f; }
+
+// Narrows p's depth range for pixel (x, y) as described above; unchanged without a guide.
+SLS_HOST_DEVICE inline void guided_depth_range(const RaycastGuideView& g, int x, int y, RaycastParams* p) {
+  if (g.depth_m == nullptr) return;
+  float lo = 3.0e38f, hi = 0.0f;
+  int x0 = 0, x1 = 0, y0 = 0, y1 = 0;
+  guide_span(x, 1, g.width, g.guide_width, &x0, &x1);
+  guide_span(y, 1, g.height, g.guide_height, &y0, &y1);
+  for (int gy = y0; gy < y1; ++gy) {
+    for (int gx = x0; gx < x1; ++gx) {
+      const float depth = g.depth_m[static_cast<long long>(gy) * g.guide_width + gx];
+      if (!is_measured_depth(depth)) continue;
+      lo = std::fmin(lo, depth);
+      hi = std::fmax(hi, depth);
+    }
+  }
+  if (!(hi > 0.0f)) {
+    const int tx = x / kRaycastGuideTile, ty = y / kRaycastGuideTile;
+    for (int j = (ty > 0 ? ty - 1 : 0); j <= (ty + 1 < g.tiles_y ? ty + 1 : g.tiles_y - 1); ++j) {
+      for (int i = (tx > 0 ? tx - 1 : 0); i <= (tx + 1 < g.tiles_x ? tx + 1 : g.tiles_x - 1); ++i) {
+        lo = std::fmin(lo, g.tile_min_m[j * g.tiles_x + i]);
+        hi = std::fmax(hi, g.tile_max_m[j * g.tiles_x + i]);
+      }
+    }
+    if (!(hi > 0.0f)) return;
+  }
+  p->min_depth_m = std::fmax(p->min_depth_m, lo - g.margin_m);
+  p->max_depth_m = std::fmin(p->max_depth_m, hi + g.margin_m);
+}
+
 // One pixel: `ray_camera` is the ray map's direction (z = 1), T_volume_camera the camera in
 // the volume. Returns the hit (depth 0 when none).
 SLS_HOST_DEVICE inline RaycastHit raycast_pixel(const VolumeView& v, const RaycastParams& p,

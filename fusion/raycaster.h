@@ -26,6 +26,10 @@ struct RaycastOptions {
   double min_depth_m = 0.0;
   double max_depth_m = 10.0;
   double truncation_voxels = 4.0;   // the integration's δ (IntegrationOptions::truncation_voxels)
+  // Guided raycasts search the guide's depth range under a ray (or around it) widened by this
+  // many δ on either side: the model's surface is within δ of a depth just integrated where
+  // the two agreed, and 3 δ leaves room where an earlier, drifted view still holds it.
+  double guide_margin_truncations = 3.0;
 };
 
 class Raycaster {
@@ -40,10 +44,19 @@ class Raycaster {
 
   // The volume from T_world_camera. The volume must live on the raycaster's device.
   RaycastResult raycast(const Volume& volume, const Pose& T_world_camera);
+  // Guided (raycast_shared.h, RaycastGuideView): `guide_depth_m` is a depth map measured from
+  // the same pose, at least the raycaster's size (e.g. the full live map for a halved
+  // raycaster); each ray searches only near the guide's depths under it (raycast_shared.h).
+  // Equal to the unguided raycast wherever the first surface lies within that range; about
+  // twice as fast on a 960³ volume.
+  RaycastResult raycast(const Volume& volume, const Pose& T_world_camera, const Image32f& guide_depth_m);
 #if defined(SLS_HAVE_CUDA)
   // Leaves the result on the GPU (depth, points, normals: width x height each), for the
   // tracker and for timing; asynchronous on the raycaster's stream until synchronize().
   void raycast_device(const Volume& volume, const Pose& T_world_camera);
+  // Guided, with the guide on the GPU (guide_width x guide_height floats, complete when called).
+  void raycast_device(const Volume& volume, const Pose& T_world_camera, const float* guide_depth_device,
+                      int guide_width, int guide_height);
   void synchronize();
   // The maps of the last raycast_device (width x height each, row-major; what RaycastResult
   // holds, on the GPU): for the tracker. Read them after synchronize().
@@ -53,6 +66,9 @@ class Raycaster {
 #endif
 
  private:
+#if defined(SLS_HAVE_CUDA)
+  void download(RaycastResult* result);  // the last raycast_device's maps (synchronizes)
+#endif
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -16,8 +16,13 @@ struct RaycastOutputsDevice {
   std::uint8_t* shaded = nullptr;
 };
 
-void launch_raycast_cuda(const VolumeView& volume, const RaycastParams& params, const Rigid3f& T_volume_camera,
-                         const Vec3f* rays, int width, int height, const RaycastOutputsDevice& out,
-                         cudaStream_t stream);
+// guide: RaycastGuideView{} for an unguided raycast.
+void launch_raycast_cuda(const VolumeView& volume, const RaycastParams& params, const RaycastGuideView& guide,
+                         const Rigid3f& T_volume_camera, const Vec3f* rays, int width, int height,
+                         const RaycastOutputsDevice& out, cudaStream_t stream);
+
+// The guide's measured depth range per raycast tile (RaycastGuideView's tile_min_m/tile_max_m).
+void launch_raycast_guide_tiles_cuda(const float* guide_depth, int guide_width, int guide_height, int width,
+                                     int height, float* tile_min, float* tile_max, cudaStream_t stream);
 
 }  // namespace sls::fusion::detail

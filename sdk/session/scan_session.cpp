@@ -317,15 +317,16 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   if (!frame.known_T_world_camera) {
     start = Clock::now();
     fusion::Volume& model_volume = *s.volume();  // the moved volume, if it moved
+    // Guided by the depth just integrated from this pose: rays search only near it.
 #if defined(SLS_HAVE_CUDA)
     if (s.options.device.is_cuda()) {
-      s.raycaster.raycast_device(model_volume, T_world_camera);
+      s.raycaster.raycast_device(model_volume, T_world_camera, depth_device, depth->width(), depth->height());
       s.raycaster.synchronize();
     } else {
-      s.model = s.raycaster.raycast(model_volume, T_world_camera);
+      s.model = s.raycaster.raycast(model_volume, T_world_camera, *depth);
     }
 #else
-    s.model = s.raycaster.raycast(model_volume, T_world_camera);
+    s.model = s.raycaster.raycast(model_volume, T_world_camera, *depth);
 #endif
     report.times.raycast_ms = ms_since(start);
     s.T_world_model = T_world_camera;

@@ -173,13 +173,24 @@ void BM_Raycast(benchmark::State& state) {
   options.min_depth_m = 0.05;
   options.max_depth_m = 0.15;
   fusion::Raycaster raycaster(Device::cuda(), f.rig.camera, options);
-  const fusion::RaycastResult check = raycaster.raycast(volume, f.T_object_camera[1]);
+  // guided: the session's tracking raycast, searching near the depth integrated from that pose.
+  const bool guided = state.range(1) != 0;
+  const Image32f& guide = f.depth[1];
+  const fusion::RaycastResult check =
+      guided ? raycaster.raycast(volume, f.T_object_camera[1], guide) : raycaster.raycast(volume, f.T_object_camera[1]);
   std::size_t hits = 0;
   for (std::size_t i = 0; i < check.depth_m.pixel_count(); ++i) hits += check.depth_m.data()[i] > 0.0f ? 1u : 0u;
+  DeviceBuffer<float> guide_device(guide.pixel_count());
+  guide_device.upload(guide.data(), guide.pixel_count(), nullptr);
+  SLS_CUDA_CHECK(cudaDeviceSynchronize());
   Events events;
   for (auto _ : state) {
     events.start();
-    raycaster.raycast_device(volume, f.T_object_camera[1]);
+    if (guided) {
+      raycaster.raycast_device(volume, f.T_object_camera[1], guide_device.data(), guide.width(), guide.height());
+    } else {
+      raycaster.raycast_device(volume, f.T_object_camera[1]);
+    }
     raycaster.synchronize();
     state.SetIterationTime(events.stop_s());
   }
@@ -190,7 +201,7 @@ void BM_Raycast(benchmark::State& state) {
 BENCHMARK(BM_DeviceCopy)->ArgName("compact")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseManualTime();
 BENCHMARK(BM_IntegrateTsdf)->ArgNames({"compact", "band"})->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMillisecond)->UseManualTime();
 BENCHMARK(BM_IntegrateGtsdf)->ArgNames({"compact", "band"})->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMillisecond)->UseManualTime();
-BENCHMARK(BM_Raycast)->ArgName("compact")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseManualTime();
+BENCHMARK(BM_Raycast)->ArgNames({"compact", "guided"})->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMillisecond)->UseManualTime();
 #endif
 
 }  // namespace

@@ -81,6 +81,58 @@ TEST(FusionCuda, IntegrationAndRaycastEqualCpu) {
   }
 }
 
+// The guided raycast (the session's tracking raycast) on the GPU equals the CPU's: the same
+// volume (fused on the CPU, copied over), a guide with a hole, full and half size.
+TEST(FusionCuda, GuidedRaycastEqualsCpu) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  CameraIntrinsics camera = test::small_camera(320, 240);
+  camera.fx = camera.fy = 6400.0;
+  const VolumeGeometry geometry = VolumeGeometry::centred(Eigen::Vector3d(0.0, 0.0, 0.102), 96, 80, 96, 62.5e-6);
+  Volume cpu_volume(geometry, VoxelFormat::kCompact, Device::cpu());
+  Integrator integrator(Device::cpu(), IntegrationOptions::gtsdf());
+  Image32f guide;
+  for (std::uint32_t n = 0; n < 3; ++n) {
+    guide = test::ridge_depth(camera, 0.1, 20e-6, 11 + n);
+    integrator.integrate(cpu_volume, guide, camera, Pose());
+  }
+  for (int y = 100; y < 140; ++y) {
+    for (int x = 40; x < 90; ++x) guide(x, y) = 0.0f;
+  }
+  Volume gpu_volume(geometry, VoxelFormat::kCompact, Device::cuda());
+  gpu_volume.copy_from(cpu_volume);
+  CameraIntrinsics half = camera;
+  half.width /= 2;
+  half.height /= 2;
+  half.fx /= 2.0;
+  half.fy /= 2.0;
+  half.cx = 0.5 * (half.width - 1);
+  half.cy = 0.5 * (half.height - 1);
+  const Pose T_world_camera = Pose::exp((Eigen::Matrix<double, 6, 1>() << 2e-5, 0, 0, 0, 0.002, 0).finished());
+  for (const CameraIntrinsics& raycast_camera : {camera, half}) {
+    Raycaster cpu_raycaster(Device::cpu(), raycast_camera, RaycastOptions{});
+    Raycaster gpu_raycaster(Device::cuda(), raycast_camera, RaycastOptions{});
+    const RaycastResult p = cpu_raycaster.raycast(cpu_volume, T_world_camera, guide);
+    const RaycastResult q = gpu_raycaster.raycast(gpu_volume, T_world_camera, guide);
+    std::size_t hits = 0, differ = 0, beyond = 0;
+    double worst = 0.0;
+    for (std::size_t i = 0; i < p.depth_m.pixel_count(); ++i) {
+      const bool hp = p.depth_m.data()[i] > 0.0f, hq = q.depth_m.data()[i] > 0.0f;
+      if (hp != hq) ++differ;
+      if (!hp || !hq) continue;
+      ++hits;
+      const double difference = std::fabs(static_cast<double>(p.depth_m.data()[i] - q.depth_m.data()[i]));
+      worst = std::max(worst, difference);
+      beyond += difference > 1e-3 * geometry.voxel_size_m ? 1u : 0u;
+    }
+    std::printf("[fusion-cuda] guided raycast %dx%d: %zu hits, %zu differ, %zu beyond 1e-3 voxel (max %.2e voxels)\n",
+                raycast_camera.width, raycast_camera.height, hits, differ, beyond, worst / geometry.voxel_size_m);
+    EXPECT_GT(hits, p.depth_m.pixel_count() / 2);
+    EXPECT_LE(differ, hits / 1000);
+    EXPECT_LE(beyond, hits / 100);
+    EXPECT_LT(worst, 0.1 * geometry.voxel_size_m);
+  }
+}
+
 TEST(FusionCuda, VolumeThatDoesNotFitIsAClearError) {
   SLS_REQUIRE_CUDA_DEVICE();
   // 4 billion float32 voxels (32 GB) twice over: more than any one GPU's memory left free.
