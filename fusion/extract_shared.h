@@ -85,11 +85,19 @@ SLS_HOST_DEVICE inline Vec3f crossing_normal(const VolumeView& v, Vec3f point_vo
   return Vec3f{sign * static_cast<float>(dx), sign * static_cast<float>(dy), sign * static_cast<float>(dz)};
 }
 
-// The zero crossing on grid edge (i, j, k, axis), if any: both voxels inside the volume and
+// Where grid edge (i, j, k, axis) crosses zero, if it does: both voxels inside the volume and
 // usable, and U changes sign (U < 0 against U >= 0, as the marching-cubes case bits). The
-// point is linearly interpolated between the voxel centres.
-SLS_HOST_DEVICE inline bool edge_crossing(const VolumeView& v, int i, int j, int k, int axis, float min_weight,
-                                          SurfaceCrossing* out) {
+// point is linearly interpolated between the voxel centres. Without the normal, so a caller
+// that keeps few crossings (a region) tests the place before paying for the gradient.
+struct EdgeZero {
+  Vec3f point_volume;
+  float t;       // along the edge, in [0, 1]
+  float u_step;  // U(b) - U(a)
+  float weight;  // the smaller of the two voxels' weights
+};
+
+SLS_HOST_DEVICE inline bool edge_zero(const VolumeView& v, int i, int j, int k, int axis, float min_weight,
+                                      EdgeZero* out) {
   const int dx = axis == 0 ? 1 : 0, dy = axis == 1 ? 1 : 0, dz = axis == 2 ? 1 : 0;
   if (!v.contains(i + dx, j + dy, k + dz)) return false;
   const std::size_t a = v.index(i, j, k);
@@ -104,9 +112,29 @@ SLS_HOST_DEVICE inline bool edge_crossing(const VolumeView& v, int i, int j, int
   if (axis == 1) point.y += step;
   if (axis == 2) point.z += step;
   out->point_volume = point;
-  out->normal_volume = crossing_normal(v, point, i, j, k, axis, t, ub - ua);
+  out->t = t;
+  out->u_step = ub - ua;
   const float wa = v.w(a), wb = v.w(b);
   out->weight = wa < wb ? wa : wb;
+  return true;
+}
+
+// The crossing of edge_zero with its normal (the gradient of U there).
+SLS_HOST_DEVICE inline SurfaceCrossing edge_zero_crossing(const VolumeView& v, int i, int j, int k, int axis,
+                                                          const EdgeZero& zero) {
+  SurfaceCrossing crossing;
+  crossing.point_volume = zero.point_volume;
+  crossing.normal_volume = crossing_normal(v, zero.point_volume, i, j, k, axis, zero.t, zero.u_step);
+  crossing.weight = zero.weight;
+  return crossing;
+}
+
+// edge_zero and its normal in one.
+SLS_HOST_DEVICE inline bool edge_crossing(const VolumeView& v, int i, int j, int k, int axis, float min_weight,
+                                          SurfaceCrossing* out) {
+  EdgeZero zero;
+  if (!edge_zero(v, i, j, k, axis, min_weight, &zero)) return false;
+  *out = edge_zero_crossing(v, i, j, k, axis, zero);
   return true;
 }
 

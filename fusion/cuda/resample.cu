@@ -26,11 +26,13 @@ __global__ void region_crossings_kernel(VolumeView volume, RegionFilter region, 
   if (i >= volume.nx || j >= volume.ny) return;
   if (!voxel_usable(volume, volume.index(i, j, k), min_weight)) return;
   for (int axis = 0; axis < 3; ++axis) {
+    // Place first: the normal's gradient only for the crossings the region keeps (most of the
+    // volume's surface stays in it; computing every normal first took 24 ms at 960³).
+    EdgeZero zero;
+    if (!edge_zero(volume, i, j, k, axis, min_weight, &zero)) continue;
+    if (!region_keeps(region, zero.point_volume) && !edge_has_region_cell(volume, region, i, j, k, axis)) continue;
     EdgeCrossing found;
-    if (!edge_crossing(volume, i, j, k, axis, min_weight, &found.crossing)) continue;
-    if (!region_keeps(region, found.crossing.point_volume) && !edge_has_region_cell(volume, region, i, j, k, axis)) {
-      continue;
-    }
+    found.crossing = edge_zero_crossing(volume, i, j, k, axis, zero);
     found.edge_id = grid_edge_id(volume, i, j, k, axis);
     const std::uint32_t slot = atomicAdd(count, 1u);
     if (slot < capacity) out[slot] = found;

@@ -52,6 +52,7 @@ void BM_ScanPipeline(benchmark::State& state) {
   for (auto _ : state) {
     session::ScanSession scan(rig.calibration(), nullptr, options);
     std::vector<double> pipeline, track, integrate, move, raycast, condition, inliers;
+    std::vector<double> move_resample, move_ship, move_assemble, move_points;  // frames that moved
     double degenerate = 0.0;
     int lost = 0;
     std::string first_lost;
@@ -79,6 +80,12 @@ void BM_ScanPipeline(benchmark::State& state) {
       integrate.push_back(t.integrate_ms);
       move.push_back(t.move_ms);
       raycast.push_back(t.raycast_ms);
+      if (report.move.moved) {
+        move_resample.push_back(report.move.resample_ms);
+        move_ship.push_back(report.move.ship_ms);
+        move_assemble.push_back(report.move.ship_assemble_ms);
+        move_points.push_back(static_cast<double>(report.move.shipped_points));
+      }
     }
     state.SetIterationTime(0.0);
     state.counters["median_ms"] = median(pipeline);
@@ -87,6 +94,11 @@ void BM_ScanPipeline(benchmark::State& state) {
     state.counters["move_ms"] = median(move);
     state.counters["max_move_ms"] = move.empty() ? 0.0 : *std::max_element(move.begin(), move.end());
     state.counters["raycast_ms"] = median(raycast);
+    // A move's parts (medians over the frames that moved).
+    state.counters["move_resample_ms"] = median(move_resample);
+    state.counters["move_ship_ms"] = median(move_ship);
+    state.counters["move_ship_assemble_ms"] = median(move_assemble);
+    state.counters["move_shipped_points"] = median(move_points);
     state.counters["lost"] = lost;
     state.counters["condition"] = median(condition);
     state.counters["inliers"] = median(inliers);
