@@ -5,9 +5,13 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
+#include <optional>
+#include <string>
 #include <utility>
 
+#include "fusion/photometric_shared.h"
 #include "fusion/track_shared.h"
 #include "sdk/core/error.h"
 #include "sdk/core/ray_map.h"
@@ -76,12 +80,22 @@ void TrackingOptions::validate() const {
     throw_error(ErrorCode::kInvalidArgument, "tracking: max_correction {} m / {} deg must be positive",
                 max_correction_m, max_correction_deg);
   }
+  if (!(photometric_weight >= 0.0 && photometric_weight <= 1e6)) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: photometric_weight {} outside [0, 1e6] (0 = off)",
+                photometric_weight);
+  }
+  if (!(photometric_min_gradient >= 0.0) || !std::isfinite(photometric_min_gradient)) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: photometric_min_gradient {} must be 0 or positive",
+                photometric_min_gradient);
+  }
 }
 
 namespace {
 
 using Sums = std::array<double, kTrackSums>;
 using FrameSums = std::array<double, kFrameSums>;
+using PhotometricSums = std::array<double, kPhotometricSums>;
+using TextureSums = std::array<double, kTextureSums>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
 // One level of the live pyramid: its camera and ray map (host), and on the CPU its depth and
@@ -123,18 +137,24 @@ struct Step {
   double condition = 0.0;
 };
 
-Step solve(const Sums& sums, double degenerate_ratio) {
+// JᵀJ from the first 21 sums (the upper triangle, row-major).
+Matrix6d normal_matrix(const double* sums) {
   Matrix6d a;
-  Vector6d b;
   int k = 0;
   for (int r = 0; r < 6; ++r) {
     for (int c = r; c < 6; ++c) {
-      a(r, c) = sums[static_cast<std::size_t>(k)];
-      a(c, r) = sums[static_cast<std::size_t>(k)];
+      a(r, c) = sums[k];
+      a(c, r) = sums[k];
       ++k;
     }
-    b(r) = sums[static_cast<std::size_t>(kTrackJtr + r)];
   }
+  return a;
+}
+
+Step solve(const Sums& sums, double degenerate_ratio) {
+  const Matrix6d a = normal_matrix(sums.data());
+  Vector6d b;
+  for (int r = 0; r < 6; ++r) b(r) = sums[static_cast<std::size_t>(kTrackJtr + r)];
   Step step;
   const Eigen::SelfAdjointEigenSolver<Matrix6d> eigen(a);
   const Vector6d& values = eigen.eigenvalues();  // ascending
@@ -166,6 +186,22 @@ Pose step_pose(const Vector6d& twist, const Frame& frame) {
 
 std::string percent(double fraction) { return fmt::format("{:.1f} %", 100.0 * fraction); }
 
+// Adds the photometric normal equations (JᵀJ and Jᵀr) to the ICP's in `system`, scaled so that
+// their largest eigenvalue is `weight` times the ICP one's (TrackingOptions::photometric_weight:
+// the two terms' units, metres and intensity, drop out). False when either is empty.
+bool add_photometric(Sums& system, const PhotometricSums& photometric, double weight) {
+  if (photometric[kTrackCount] < 6.0) return false;
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> icp(normal_matrix(system.data()), Eigen::EigenvaluesOnly);
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> rgb(normal_matrix(photometric.data()), Eigen::EigenvaluesOnly);
+  const double icp_largest = icp.eigenvalues()(5), rgb_largest = rgb.eigenvalues()(5);
+  if (!(icp_largest > 0.0) || !(rgb_largest > 0.0) || !std::isfinite(rgb_largest)) return false;
+  const double scale = weight * icp_largest / rgb_largest;
+  for (int k = 0; k < kTrackJtr + 6; ++k) {
+    system[static_cast<std::size_t>(k)] += scale * photometric[static_cast<std::size_t>(k)];
+  }
+  return true;
+}
+
 // A depth map at `fine`'s size halved into `coarse`'s (downsample_depth per coarse pixel; the
 // CPU side of launch_downsample_depth_cuda).
 void halve_depth(const float* fine_depth, const CameraIntrinsics& fine, float* coarse_depth,
@@ -182,6 +218,27 @@ void halve_depth(const float* fine_depth, const CameraIntrinsics& fine, float* c
   }
 }
 
+// A texture at `fine`'s size halved into `coarse`'s (downsample_texture per coarse pixel).
+void halve_texture(const float* fine_texture, const CameraIntrinsics& fine, float* coarse_texture,
+                   const CameraIntrinsics& coarse) {
+#if defined(_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+  for (int y = 0; y < coarse.height; ++y) {
+    for (int x = 0; x < coarse.width; ++x) {
+      coarse_texture[static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse.width) +
+                     static_cast<std::size_t>(x)] = downsample_texture(fine_texture, fine.width, fine.height, x, y);
+    }
+  }
+}
+
+// What the photometric term needs for a frame beyond the per-level maps.
+struct PhotometricSetup {
+  Pose T_model_ref;        // T_world_model⁻¹ · T_world_ref
+  double live_mean = 0.0;  // the frames' mean texture over their depth pixels (level 0)
+  double ref_mean = 0.0;
+};
+
 }  // namespace
 
 struct Tracker::Impl {
@@ -194,6 +251,19 @@ struct Tracker::Impl {
   std::vector<CameraIntrinsics> input_cameras;
   std::vector<std::vector<float>> input_depth;
   std::vector<Level> levels;
+  // The photometric term (options.photometric_weight > 0): on the CPU the live texture's
+  // halvings down to level 0 and its pyramid (level 0 is the input or its last halving).
+  bool photometric_on = false;
+  std::vector<std::vector<float>> input_texture;
+  std::vector<std::vector<float>> texture;
+  // The reference frame: the last frame tracked with a texture, or set_reference_frame's.
+  struct Reference {
+    bool valid = false;
+    Pose T_world_camera;
+    double mean = 0.0;                               // its texture's mean over its depth pixels
+    std::vector<std::vector<float>> depth, texture;  // per level (CPU)
+  } reference_frame;
+  using ReducePhotometric = std::function<PhotometricSums(int, const PhotometricParams&)>;
 #if defined(SLS_HAVE_CUDA)
   cudaStream_t stream = nullptr;
   std::vector<DeviceBuffer<float>> depth;  // level 0: uploads of host maps; the coarse levels
@@ -203,20 +273,40 @@ struct Tracker::Impl {
   DeviceBuffer<Vec3f> uploaded_points, uploaded_normals;  // host models, uploaded
   DeviceBuffer<double> partials, device_sums;
   double* host_sums = nullptr;  // pinned, kTrackSums
+  // The photometric term's: the texture pyramid (level 0 when the input is halved or
+  // uploaded), a host texture's upload, the halvings, the reference's pyramids, and the
+  // reductions' buffers (kPhotometricSums).
+  std::vector<DeviceBuffer<float>> texture_device, input_texture_device;
+  DeviceBuffer<float> texture_upload;
+  std::vector<DeviceBuffer<float>> reference_depth, reference_texture;
+  DeviceBuffer<double> photometric_partials, photometric_sums;
+  double* photometric_host_sums = nullptr;  // pinned, kPhotometricSums
   // The pyramid, normals, frame statistics and Gauss–Newton steps on the device: one
   // device-to-host copy of the sums per step, no allocation.
   TrackingResult track_on_device(const float* depth_device, const Vec3f* model_points, const Vec3f* model_normals,
-                                 const Pose& T_world_model, const Pose& T_world_camera_guess);
+                                 const Pose& T_world_model, const Pose& T_world_camera_guess,
+                                 const float* texture_device);
+  // The live depth pyramid from a map at the live camera's size (normals too when asked).
+  void depth_pyramid_device(const float* depth_device, const float* level_depth[8], bool with_normals);
+  void texture_pyramid_device(const float* texture_in, const float* level_texture[8]);
+  double texture_mean_device(const float* texture0, const float* depth0);
+  void keep_reference_device(const float* const level_depth[8], const float* const level_texture[8], double mean,
+                             const Pose& T_world_camera);
+  void set_reference_on_device(const float* depth_device, const float* texture_in, const Pose& T_world_camera);
   ~Impl() {
     if (host_sums != nullptr) (void)cudaFreeHost(host_sums);
+    if (photometric_host_sums != nullptr) (void)cudaFreeHost(photometric_host_sums);
     if (stream != nullptr) (void)cudaStreamDestroy(stream);
   }
 #endif
 
   // The Gauss–Newton loop over the levels, coarse to fine, and the lost-frame tests; `reduce`
-  // (level, params) returns the level's sums for one estimate.
+  // (level, params) returns the level's sums for one estimate; with `photometric`,
+  // `reduce_photometric` the photometric term's, added to the same system.
   template <typename Reduce>
-  TrackingResult run(const Frame& frame, const Pose& T_world_model, const Pose& guess, Reduce&& reduce) const;
+  TrackingResult run(const Frame& frame, const Pose& T_world_model, const Pose& guess, Reduce&& reduce,
+                     const PhotometricSetup* photometric = nullptr,
+                     const ReducePhotometric& reduce_photometric = {}) const;
   Frame frame_from_sums(const FrameSums& first, const FrameSums& second, Vec3f reference) const;
   // Two passes of `statistics(reference)`: about the origin for the centroid, then about it.
   template <typename Statistics>
@@ -235,6 +325,23 @@ struct Tracker::Impl {
     view.normals = point_normals;
     view.camera = camera.cast<float>();
     return view;
+  }
+  // The CPU's pyramids: level_depth[l] / level_texture[l] point at the input (level 0 when the
+  // live camera is ICP's finest) or at the tracker's buffers.
+  void depth_pyramid(const float* depth_in, const float* level_depth[8], bool with_normals);
+  void texture_pyramid(const float* texture_in, const float* level_texture[8]);
+  double texture_mean(const float* texture0, const float* depth0) const;
+  void keep_reference(const float* const level_depth[8], const float* const level_texture[8], double mean,
+                      const Pose& T_world_camera);
+  // The photometric term for a frame with (or without) a live texture whose mean over the
+  // depth pixels is live_mean: on when there is a reference, else off with the reason.
+  std::optional<PhotometricSetup> photometric_setup(bool have_texture, double live_mean, const Pose& T_world_model,
+                                                    std::string* skipped) const;
+  void check_size(const Image32f& image, const char* what) const {
+    if (image.width() != live_camera.width || image.height() != live_camera.height) {
+      throw_error(ErrorCode::kInvalidArgument, "tracking: the {} is {}x{}, the camera {}x{}", what, image.width(),
+                  image.height(), live_camera.width, live_camera.height);
+    }
   }
 };
 
@@ -257,8 +364,9 @@ Frame Tracker::Impl::frame_from_sums(const FrameSums& first, const FrameSums& se
 }
 
 template <typename Reduce>
-TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model, const Pose& guess,
-                                  Reduce&& reduce) const {
+TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model, const Pose& guess, Reduce&& reduce,
+                                  const PhotometricSetup* photometric,
+                                  const ReducePhotometric& reduce_photometric) const {
   TrackingResult result;
   result.T_world_camera = guess;
   result.live_pixels = frame.live_pixels;
@@ -278,6 +386,15 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
   params.min_normal_cos = static_cast<float>(std::cos(options.max_normal_angle_deg * M_PI / 180.0));
   bool finest_reduced = false;
   Sums last{};
+  PhotometricParams photo;
+  if (photometric != nullptr) {
+    photo.T_model_ref = photometric->T_model_ref.to_rigid3f();
+    photo.centre = frame.centre;
+    photo.inverse_scale = params.inverse_scale;
+    photo.gain = static_cast<float>(photometric->ref_mean / photometric->live_mean);  // until measured
+    photo.inverse_mean = static_cast<float>(1.0 / photometric->ref_mean);
+    photo.min_gradient = static_cast<float>(options.photometric_min_gradient);
+  }
   for (int level = static_cast<int>(levels.size()) - 1; level >= 0; --level) {
     params.max_distance_m = static_cast<float>(std::ldexp(options.max_distance_m, level));
     for (int iteration = 0; iteration < options.iterations[static_cast<std::size_t>(level)]; ++iteration) {
@@ -294,7 +411,30 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
       }
       const double count = sums[kTrackCount];
       if (count < 6.0) break;  // nothing to solve at this level: go finer (the tests below judge)
-      const Step step = solve(sums, options.degenerate_eigen_ratio);
+      Sums system = sums;
+      if (photometric != nullptr) {
+        // The photometric term at the same estimate, on the level's texture pyramid.
+        photo.camera = levels[static_cast<std::size_t>(level)].camera.cast<float>();
+        photo.max_depth_difference_m = params.max_distance_m;
+        photo.R_model_live = params.T_model_live.rotation;
+        photo.T_live_ref = (T_model_live.inverse() * photometric->T_model_ref).to_rigid3f();
+        const PhotometricSums p = reduce_photometric(level, photo);
+        const double rows = p[kTrackCount];
+        // The next reduction's brightness ratio and Huber scale from this one.
+        if (p[kPhotometricLiveSum] > 0.0 && p[kPhotometricReferenceSum] > 0.0) {
+          photo.gain = static_cast<float>(p[kPhotometricReferenceSum] / p[kPhotometricLiveSum]);
+        }
+        if (options.huber_rms_factor > 0.0 && rows > 0.0) {
+          photo.huber = static_cast<float>(options.huber_rms_factor * std::sqrt(p[kTrackResidual2] / rows));
+        }
+        if (level == 0) {
+          result.photometric_pixels = static_cast<std::size_t>(std::llround(rows));
+          result.photometric_rms = rows > 0.0 ? std::sqrt(p[kTrackResidual2] / rows) : 0.0;
+          result.photometric_gain = photo.gain;
+        }
+        if (add_photometric(system, p, options.photometric_weight)) result.photometric = true;
+      }
+      const Step step = solve(system, options.degenerate_eigen_ratio);
       if (level == 0) {
         result.condition = step.condition;
         result.degenerate_directions = step.degenerate;
@@ -309,6 +449,9 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
     }
   }
   const Pose estimate = T_world_model * T_model_live;
+  if (photometric != nullptr && !result.photometric) {
+    result.photometric_skipped = "too few reference pixels with a texture gradient matched the live frame";
+  }
   if (finest_reduced) {
     result.inliers = static_cast<std::size_t>(std::llround(last[kTrackCount]));
     result.residual_rms_m = result.inliers > 0 ? std::sqrt(last[kTrackResidual2] / last[kTrackCount]) : 0.0;
@@ -367,6 +510,7 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, cons
   s.device = device;
   s.camera = camera;
   s.options = options;
+  s.photometric_on = options.photometric_weight > 0.0;
   s.levels.resize(static_cast<std::size_t>(level_count));
   for (int l = 0; l < level_count; ++l) {
     Level& level = s.levels[static_cast<std::size_t>(l)];
@@ -399,6 +543,23 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, cons
     s.partials.allocate(static_cast<std::size_t>(detail::kTrackPartials));
     s.device_sums.allocate(kTrackSums);
     SLS_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&s.host_sums), kTrackSums * sizeof(double)));
+    if (s.photometric_on) {
+      for (std::size_t l = 0; l < s.levels.size(); ++l) {
+        s.texture_device.emplace_back(s.levels[l].pixels());
+        s.reference_depth.emplace_back(s.levels[l].pixels());
+        s.reference_texture.emplace_back(s.levels[l].pixels());
+      }
+      s.texture_upload.allocate(static_cast<std::size_t>(live_camera.width) *
+                                static_cast<std::size_t>(live_camera.height));
+      for (std::size_t k = 1; k < s.input_cameras.size(); ++k) {
+        s.input_texture_device.emplace_back(static_cast<std::size_t>(s.input_cameras[k].width) *
+                                            static_cast<std::size_t>(s.input_cameras[k].height));
+      }
+      s.photometric_partials.allocate(static_cast<std::size_t>(detail::kTrackMaxBlocks) * kPhotometricSums);
+      s.photometric_sums.allocate(kPhotometricSums);
+      SLS_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&s.photometric_host_sums),
+                                    kPhotometricSums * sizeof(double)));
+    }
     SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
 #endif
   } else {
@@ -409,6 +570,12 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, cons
     for (std::size_t k = 1; k <= s.input_cameras.size(); ++k) {
       const CameraIntrinsics& c = k < s.input_cameras.size() ? s.input_cameras[k] : s.camera;
       s.input_depth.emplace_back(static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height), 0.0f);
+      if (s.photometric_on) {
+        s.input_texture.emplace_back(static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height), 0.0f);
+      }
+    }
+    if (s.photometric_on) {
+      for (const Level& level : s.levels) s.texture.emplace_back(level.pixels(), 0.0f);
     }
   }
 }
@@ -450,8 +617,101 @@ std::array<double, N> parallel_sum(int rows, Body&& body) {
 
 }  // namespace
 
+std::optional<PhotometricSetup> Tracker::Impl::photometric_setup(bool have_texture, double live_mean,
+                                                                 const Pose& T_world_model,
+                                                                 std::string* skipped) const {
+  if (!photometric_on) return std::nullopt;
+  if (!have_texture) {
+    *skipped = "no live texture";
+    return std::nullopt;
+  }
+  if (!(live_mean > 0.0) || !std::isfinite(live_mean)) {
+    *skipped = "the live texture is not positive over the depth pixels";
+    return std::nullopt;
+  }
+  if (!reference_frame.valid) {
+    *skipped = "no reference frame yet (this frame becomes it)";
+    return std::nullopt;
+  }
+  PhotometricSetup setup;
+  setup.T_model_ref = T_world_model.inverse() * reference_frame.T_world_camera;
+  setup.live_mean = live_mean;
+  setup.ref_mean = reference_frame.mean;
+  return setup;
+}
+
+void Tracker::Impl::depth_pyramid(const float* depth_in, const float* level_depth[8], bool with_normals) {
+  // The live map halved down to ICP's finest level, then the pyramid and normals.
+  level_depth[0] = depth_in;
+  for (std::size_t k = 0; k < input_cameras.size(); ++k) {
+    const CameraIntrinsics& fine = input_cameras[k];
+    const CameraIntrinsics& coarse = k + 1 < input_cameras.size() ? input_cameras[k + 1] : camera;
+    halve_depth(level_depth[0], fine, input_depth[k].data(), coarse);
+    level_depth[0] = input_depth[k].data();
+  }
+  for (std::size_t l = 0; l < levels.size(); ++l) {
+    Level& level = levels[l];
+    const int w = level.camera.width, h = level.camera.height;
+    if (l > 0) {
+      halve_depth(level_depth[l - 1], levels[l - 1].camera, level.depth.data(), level.camera);
+      level_depth[l] = level.depth.data();
+    }
+    if (!with_normals) continue;
+    const float fx = static_cast<float>(level.camera.fx);
+    const float baseline = static_cast<float>(options.normal_baseline_m);
+    const float* depth_l = level_depth[l];
+#if defined(_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        level.normals[level.rays.index(x, y)] = live_normal(depth_l, level.rays.rays.data(), w, h, fx, baseline, x, y);
+      }
+    }
+  }
+}
+
+void Tracker::Impl::texture_pyramid(const float* texture_in, const float* level_texture[8]) {
+  level_texture[0] = texture_in;
+  for (std::size_t k = 0; k < input_cameras.size(); ++k) {
+    const CameraIntrinsics& fine = input_cameras[k];
+    const CameraIntrinsics& coarse = k + 1 < input_cameras.size() ? input_cameras[k + 1] : camera;
+    halve_texture(level_texture[0], fine, input_texture[k].data(), coarse);
+    level_texture[0] = input_texture[k].data();
+  }
+  for (std::size_t l = 1; l < levels.size(); ++l) {
+    halve_texture(level_texture[l - 1], levels[l - 1].camera, texture[l].data(), levels[l].camera);
+    level_texture[l] = texture[l].data();
+  }
+}
+
+double Tracker::Impl::texture_mean(const float* texture0, const float* depth0) const {
+  const int width = camera.width;
+  const TextureSums sums = parallel_sum<kTextureSums>(camera.height, [&](int y, double* out) {
+    for (int x = 0; x < width; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
+      accumulate_texture_statistics(texture0[i], depth0[i], out);
+    }
+  });
+  return sums[1] > 0.0 ? sums[0] / sums[1] : 0.0;
+}
+
+void Tracker::Impl::keep_reference(const float* const level_depth[8], const float* const level_texture[8],
+                                   double mean, const Pose& T_world_camera) {
+  reference_frame.depth.resize(levels.size());
+  reference_frame.texture.resize(levels.size());
+  for (std::size_t l = 0; l < levels.size(); ++l) {
+    const std::size_t pixels = levels[l].pixels();
+    reference_frame.depth[l].assign(level_depth[l], level_depth[l] + pixels);
+    reference_frame.texture[l].assign(level_texture[l], level_texture[l] + pixels);
+  }
+  reference_frame.mean = mean;
+  reference_frame.T_world_camera = T_world_camera;
+  reference_frame.valid = true;
+}
+
 TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
-                              const Pose& T_world_camera_guess) {
+                              const Pose& T_world_camera_guess, const Image32f* texture) {
   Impl& s = *impl_;
   const int width = s.camera.width, height = s.camera.height;
   const std::size_t pixels = s.levels[0].pixels();
@@ -466,6 +726,9 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
                 model.depth_m.width(), model.depth_m.height(), model.points_camera.size(),
                 model.normals_camera.size(), width, height, pixels);
   }
+  if (texture != nullptr) s.check_size(*texture, "live texture");
+  // With photometric_weight 0 the texture is not used at all.
+  const Image32f* live_texture = s.photometric_on ? texture : nullptr;
   if (s.device.is_cuda()) {
 #if defined(SLS_HAVE_CUDA)
     require_device(s.device);
@@ -479,41 +742,20 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
     }
     s.uploaded_points.upload(model.points_camera.data(), pixels, s.stream);
     s.uploaded_normals.upload(model.normals_camera.data(), pixels, s.stream);
+    const float* texture_device = nullptr;
+    if (live_texture != nullptr) {
+      s.texture_upload.upload(live_texture->data(), live_texture->pixel_count(), s.stream);
+      texture_device = s.texture_upload.data();
+    }
     return s.track_on_device(live, s.uploaded_points.data(), s.uploaded_normals.data(), T_world_model,
-                             T_world_camera_guess);
+                             T_world_camera_guess, texture_device);
 #else
     throw_error(ErrorCode::kUnsupported, "tracking: CUDA asked of a build without CUDA");
 #endif
   }
 
-  // The live map halved down to ICP's finest level, then the pyramid and normals.
-  const float* level_depth[8] = {};
-  level_depth[0] = depth_m.data();
-  for (std::size_t k = 0; k < s.input_cameras.size(); ++k) {
-    const CameraIntrinsics& fine = s.input_cameras[k];
-    const CameraIntrinsics& coarse = k + 1 < s.input_cameras.size() ? s.input_cameras[k + 1] : s.camera;
-    halve_depth(level_depth[0], fine, s.input_depth[k].data(), coarse);
-    level_depth[0] = s.input_depth[k].data();
-  }
-  for (std::size_t l = 0; l < s.levels.size(); ++l) {
-    Level& level = s.levels[l];
-    const int w = level.camera.width, h = level.camera.height;
-    if (l > 0) {
-      halve_depth(level_depth[l - 1], s.levels[l - 1].camera, level.depth.data(), level.camera);
-      level_depth[l] = level.depth.data();
-    }
-    const float fx = static_cast<float>(level.camera.fx);
-    const float baseline = static_cast<float>(s.options.normal_baseline_m);
-#if defined(_OPENMP)
-#pragma omp parallel for schedule(static)
-#endif
-    for (int y = 0; y < h; ++y) {
-      for (int x = 0; x < w; ++x) {
-        level.normals[level.rays.index(x, y)] =
-            live_normal(level_depth[l], level.rays.rays.data(), w, h, fx, baseline, x, y);
-      }
-    }
-  }
+  const float* level_depth[8] = {};  // validate(): at most 8 levels
+  s.depth_pyramid(depth_m.data(), level_depth, true);
 
   // The frame: live pixels, the model's centre and scale (two passes).
   auto statistics = [&](Vec3f reference) {
@@ -527,7 +769,7 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
   const Frame frame = s.frame_from_statistics(statistics);
 
   const TrackModelView model_view = s.model_view(model.points_camera.data(), model.normals_camera.data());
-  return s.run(frame, T_world_model, T_world_camera_guess, [&](int l, const TrackParams& params) {
+  auto reduce = [&](int l, const TrackParams& params) {
     const Level& level = s.levels[static_cast<std::size_t>(l)];
     TrackLiveView live;
     live.depth = level_depth[l];
@@ -544,12 +786,92 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
         }
       }
     });
-  });
+  };
+
+  // The photometric term: the live texture's pyramid against the reference frame's.
+  const float* level_texture[8] = {};
+  double live_mean = 0.0;
+  if (live_texture != nullptr) {
+    s.texture_pyramid(live_texture->data(), level_texture);
+    live_mean = s.texture_mean(level_texture[0], level_depth[0]);
+  }
+  std::string skipped;
+  const std::optional<PhotometricSetup> setup =
+      s.photometric_setup(live_texture != nullptr, live_mean, T_world_model, &skipped);
+  Impl::ReducePhotometric reduce_photometric;
+  if (setup) {
+    reduce_photometric = [&](int l, const PhotometricParams& params) {
+      const Level& level = s.levels[static_cast<std::size_t>(l)];
+      PhotometricLevelView ref, live;
+      ref.texture = s.reference_frame.texture[static_cast<std::size_t>(l)].data();
+      ref.depth = s.reference_frame.depth[static_cast<std::size_t>(l)].data();
+      ref.rays = level.rays.rays.data();
+      ref.width = live.width = level.camera.width;
+      ref.height = live.height = level.camera.height;
+      live.texture = level_texture[l];
+      live.depth = level_depth[l];
+      live.rays = ref.rays;
+      return parallel_sum<kPhotometricSums>(ref.height, [&](int y, double* sums) {
+        for (int x = 0; x < ref.width; ++x) {
+          float jacobian[6];
+          float residual = 0.0f, live_value = 0.0f, ref_value = 0.0f;
+          const int outcome = photometric_pixel(ref, live, params, x, y, jacobian, &residual, &live_value, &ref_value);
+          accumulate_photometric(outcome, jacobian, residual, live_value, ref_value, params.huber, sums);
+        }
+      });
+    };
+  }
+  TrackingResult result = s.run(frame, T_world_model, T_world_camera_guess, reduce, setup ? &*setup : nullptr,
+                                reduce_photometric);
+  if (!skipped.empty()) result.photometric_skipped = skipped;
+  // A frame registered with a texture is the next frame's reference.
+  if (live_texture != nullptr && live_mean > 0.0 && std::isfinite(live_mean) && !result.lost) {
+    s.keep_reference(level_depth, level_texture, live_mean, result.T_world_camera);
+  }
+  return result;
 }
+
+void Tracker::set_reference_frame(const Image32f& depth_m, const Image32f& texture, const Pose& T_world_camera) {
+  Impl& s = *impl_;
+  s.check_size(depth_m, "reference depth map");
+  s.check_size(texture, "reference texture");
+  if (!s.photometric_on) return;
+  if (s.device.is_cuda()) {
+#if defined(SLS_HAVE_CUDA)
+    require_device(s.device);
+    const float* depth = nullptr;
+    if (s.input_cameras.empty()) {
+      s.depth[0].upload(depth_m.data(), depth_m.pixel_count(), s.stream);
+      depth = s.depth[0].data();
+    } else {
+      s.live_upload.upload(depth_m.data(), depth_m.pixel_count(), s.stream);
+      depth = s.live_upload.data();
+    }
+    s.texture_upload.upload(texture.data(), texture.pixel_count(), s.stream);
+    s.set_reference_on_device(depth, s.texture_upload.data(), T_world_camera);
+    return;
+#else
+    throw_error(ErrorCode::kUnsupported, "tracking: CUDA asked of a build without CUDA");
+#endif
+  }
+  const float* level_depth[8] = {};
+  const float* level_texture[8] = {};
+  s.depth_pyramid(depth_m.data(), level_depth, false);
+  s.texture_pyramid(texture.data(), level_texture);
+  const double mean = s.texture_mean(level_texture[0], level_depth[0]);
+  if (!(mean > 0.0) || !std::isfinite(mean)) {
+    s.reference_frame.valid = false;  // nothing to compare against: the term waits for the next one
+    return;
+  }
+  s.keep_reference(level_depth, level_texture, mean, T_world_camera);
+}
+
+void Tracker::clear_reference_frame() { impl_->reference_frame.valid = false; }
+bool Tracker::has_reference_frame() const { return impl_->reference_frame.valid; }
 
 #if defined(SLS_HAVE_CUDA)
 TrackingResult Tracker::track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
-                                     const Pose& T_world_camera_guess) {
+                                     const Pose& T_world_camera_guess, const float* texture_device) {
   Impl& s = *impl_;
   if (!s.device.is_cuda()) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: track_device on a tracker for {}; make it for CUDA",
@@ -569,15 +891,27 @@ TrackingResult Tracker::track_device(const float* depth_device, Raycaster& rayca
   }
   raycaster.synchronize();
   return s.track_on_device(depth_device, raycaster.points_device(), raycaster.normals_device(), T_world_model,
-                         T_world_camera_guess);
+                           T_world_camera_guess, s.photometric_on ? texture_device : nullptr);
 }
 
-TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const Vec3f* model_points,
-                                              const Vec3f* model_normals, const Pose& T_world_model,
-                                              const Pose& T_world_camera_guess) {
+void Tracker::set_reference_frame_device(const float* depth_device, const float* texture_device,
+                                         const Pose& T_world_camera) {
+  Impl& s = *impl_;
+  if (!s.device.is_cuda()) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "tracking: set_reference_frame_device on a tracker for {}; make it for CUDA", s.device.to_string());
+  }
+  if (depth_device == nullptr || texture_device == nullptr) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: no reference {} (null device pointer)",
+                depth_device == nullptr ? "depth map" : "texture");
+  }
+  if (!s.photometric_on) return;
+  require_device(s.device);
+  s.set_reference_on_device(depth_device, texture_device, T_world_camera);
+}
+
+void Tracker::Impl::depth_pyramid_device(const float* depth_device, const float* level_depth[8], bool with_normals) {
   Impl& s = *this;
-  const int width = s.camera.width, height = s.camera.height;
-  const int pixels = width * height;
   // The live map halved down to ICP's finest level (into level 0's buffer), then the pyramid
   // and normals, on the device.
   for (std::size_t k = 0; k < s.input_cameras.size(); ++k) {
@@ -588,7 +922,6 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
                                          coarse_depth, coarse.width, coarse.height, s.stream);
     depth_device = coarse_depth;
   }
-  const float* level_depth[8] = {};  // validate(): at most 8 levels
   level_depth[0] = depth_device;
   for (std::size_t l = 0; l < s.levels.size(); ++l) {
     const Level& level = s.levels[l];
@@ -599,10 +932,78 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
                                            level.camera.height, s.stream);
       level_depth[l] = s.depth[l].data();
     }
+    if (!with_normals) continue;
     detail::launch_live_normals_cuda(level_depth[l], s.rays[l].data(), level.camera.width, level.camera.height,
                                      static_cast<float>(level.camera.fx),
                                      static_cast<float>(s.options.normal_baseline_m), s.normals[l].data(), s.stream);
   }
+}
+
+void Tracker::Impl::texture_pyramid_device(const float* texture_in, const float* level_texture[8]) {
+  for (std::size_t k = 0; k < input_cameras.size(); ++k) {
+    const CameraIntrinsics& fine = input_cameras[k];
+    const CameraIntrinsics& coarse = k + 1 < input_cameras.size() ? input_cameras[k + 1] : camera;
+    float* out = k + 1 < input_cameras.size() ? input_texture_device[k].data() : texture_device[0].data();
+    detail::launch_downsample_texture_cuda(texture_in, fine.width, fine.height, out, coarse.width, coarse.height,
+                                           stream);
+    texture_in = out;
+  }
+  level_texture[0] = texture_in;
+  for (std::size_t l = 1; l < levels.size(); ++l) {
+    const CameraIntrinsics& fine = levels[l - 1].camera;
+    detail::launch_downsample_texture_cuda(level_texture[l - 1], fine.width, fine.height, texture_device[l].data(),
+                                           levels[l].camera.width, levels[l].camera.height, stream);
+    level_texture[l] = texture_device[l].data();
+  }
+}
+
+double Tracker::Impl::texture_mean_device(const float* texture0, const float* depth0) {
+  detail::launch_texture_statistics_cuda(texture0, depth0, camera.width * camera.height, photometric_partials.data(),
+                                         photometric_sums.data(), stream);
+  SLS_CUDA_CHECK(cudaMemcpyAsync(photometric_host_sums, photometric_sums.data(), kTextureSums * sizeof(double),
+                                 cudaMemcpyDeviceToHost, stream));
+  SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
+  return photometric_host_sums[1] > 0.0 ? photometric_host_sums[0] / photometric_host_sums[1] : 0.0;
+}
+
+void Tracker::Impl::keep_reference_device(const float* const level_depth[8], const float* const level_texture[8],
+                                          double mean, const Pose& T_world_camera) {
+  for (std::size_t l = 0; l < levels.size(); ++l) {
+    const std::size_t bytes = levels[l].pixels() * sizeof(float);
+    SLS_CUDA_CHECK(cudaMemcpyAsync(reference_depth[l].data(), level_depth[l], bytes, cudaMemcpyDeviceToDevice, stream));
+    SLS_CUDA_CHECK(
+        cudaMemcpyAsync(reference_texture[l].data(), level_texture[l], bytes, cudaMemcpyDeviceToDevice, stream));
+  }
+  // The inputs are the caller's (the decoder's next frame may overwrite them): copied now.
+  SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
+  reference_frame.mean = mean;
+  reference_frame.T_world_camera = T_world_camera;
+  reference_frame.valid = true;
+}
+
+void Tracker::Impl::set_reference_on_device(const float* depth_device, const float* texture_in,
+                                            const Pose& T_world_camera) {
+  const float* level_depth[8] = {};
+  const float* level_texture[8] = {};
+  depth_pyramid_device(depth_device, level_depth, false);
+  texture_pyramid_device(texture_in, level_texture);
+  const double mean = texture_mean_device(level_texture[0], level_depth[0]);
+  if (!(mean > 0.0) || !std::isfinite(mean)) {
+    reference_frame.valid = false;
+    return;
+  }
+  keep_reference_device(level_depth, level_texture, mean, T_world_camera);
+}
+
+TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const Vec3f* model_points,
+                                              const Vec3f* model_normals, const Pose& T_world_model,
+                                              const Pose& T_world_camera_guess, const float* texture_in) {
+  Impl& s = *this;
+  const int width = s.camera.width, height = s.camera.height;
+  const int pixels = width * height;
+  const float* level_depth[8] = {};  // validate(): at most 8 levels
+  s.depth_pyramid_device(depth_device, level_depth, true);
+  depth_device = level_depth[0];
   auto download = [&](int count) {
     SLS_CUDA_CHECK(cudaMemcpyAsync(s.host_sums, s.device_sums.data(), static_cast<std::size_t>(count) * sizeof(double),
                                    cudaMemcpyDeviceToHost, s.stream));
@@ -619,7 +1020,7 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
   const Frame frame = s.frame_from_statistics(statistics);
 
   const TrackModelView model_view = s.model_view(model_points, model_normals);
-  return s.run(frame, T_world_model, T_world_camera_guess, [&](int l, const TrackParams& params) {
+  auto reduce = [&](int l, const TrackParams& params) {
     const Level& level = s.levels[static_cast<std::size_t>(l)];
     TrackLiveView live;
     live.depth = level_depth[l];
@@ -632,7 +1033,47 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
     Sums sums{};
     std::copy(s.host_sums, s.host_sums + kTrackSums, sums.begin());
     return sums;
-  });
+  };
+
+  const float* level_texture[8] = {};
+  double live_mean = 0.0;
+  if (texture_in != nullptr) {
+    s.texture_pyramid_device(texture_in, level_texture);
+    live_mean = s.texture_mean_device(level_texture[0], level_depth[0]);
+  }
+  std::string skipped;
+  const std::optional<PhotometricSetup> setup =
+      s.photometric_setup(texture_in != nullptr, live_mean, T_world_model, &skipped);
+  Impl::ReducePhotometric reduce_photometric;
+  if (setup) {
+    reduce_photometric = [&](int l, const PhotometricParams& params) {
+      const std::size_t level = static_cast<std::size_t>(l);
+      PhotometricLevelView ref, live;
+      ref.texture = s.reference_texture[level].data();
+      ref.depth = s.reference_depth[level].data();
+      ref.rays = s.rays[level].data();
+      ref.width = live.width = s.levels[level].camera.width;
+      ref.height = live.height = s.levels[level].camera.height;
+      live.texture = level_texture[l];
+      live.depth = level_depth[l];
+      live.rays = ref.rays;
+      detail::launch_photometric_cuda(ref, live, params, s.photometric_partials.data(), s.photometric_sums.data(),
+                                      s.stream);
+      SLS_CUDA_CHECK(cudaMemcpyAsync(s.photometric_host_sums, s.photometric_sums.data(),
+                                     kPhotometricSums * sizeof(double), cudaMemcpyDeviceToHost, s.stream));
+      SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
+      PhotometricSums sums{};
+      std::copy(s.photometric_host_sums, s.photometric_host_sums + kPhotometricSums, sums.begin());
+      return sums;
+    };
+  }
+  TrackingResult result = s.run(frame, T_world_model, T_world_camera_guess, reduce, setup ? &*setup : nullptr,
+                                reduce_photometric);
+  if (!skipped.empty()) result.photometric_skipped = skipped;
+  if (texture_in != nullptr && live_mean > 0.0 && std::isfinite(live_mean) && !result.lost) {
+    s.keep_reference_device(level_depth, level_texture, live_mean, result.T_world_camera);
+  }
+  return result;
 }
 #endif
 

@@ -19,6 +19,19 @@
 // are counted in TrackingResult::degenerate_directions; they do not make a frame lost.
 // A frame is lost when too few pixels match, the residual stays large, or the motion the ICP
 // wants is implausibly large: the result then carries the guess and `reason`.
+//
+// Optional photometric term (TrackingOptions::photometric_weight > 0, Kintinuous-style,
+// photometric_shared.h): the live frame's grey texture (white − black of the pattern stack)
+// against the reference frame's, warped through the reference's depth, added to the same
+// 6x6 system at every level (a texture pyramid beside the depth pyramid). It pins what the
+// geometry leaves free (a textured plane sliding in itself) and tells periodic geometry apart
+// when the texture is not periodic too. The reference frame is the last one tracked (not
+// lost) with a texture, kept by the tracker with its pose, or one given by
+// set_reference_frame (a frame fused without tracking: the first one, a known pose).
+// Brightness constancy holds for albedo, not for shading: the projector moves with the
+// camera, so the shading of relief moves with the view. On a straight knurl turned by one
+// tooth the flanks' shading repeats with the teeth and the term keeps the alias as depth
+// does (tests/unit/fusion/test_tracker.cpp: KnurledScrewTurnedByOneTooth has the figures).
 #pragma once
 
 #include <memory>
@@ -68,6 +81,20 @@ struct TrackingOptions {
   double max_residual_rms_m = 60e-6;    // point-to-plane RMS of the inliers
   double max_correction_m = 3e-3;       // how far the result moves the model's centroid in view from the guess
   double max_correction_deg = 10.0;
+  // The photometric term's weight w in E = E_icp + w·E_rgb; 0 = off (the default: then the
+  // texture is ignored and results are those of depth alone). Unit-free: both terms are
+  // Huber-weighted at their own residual scale, and the photometric normal matrix is scaled
+  // so that its largest eigenvalue is w times the ICP one's; w = 1 makes the stiffest
+  // direction of each term count the same, Kintinuous' w_rgb = 0.1 a tenth. In directions the
+  // geometry leaves free the photometric term alone decides, whatever w; but they stay
+  // degenerate (keep the guess) unless their eigenvalue reaches degenerate_eigen_ratio of the
+  // largest: with w near degenerate_eigen_ratio or below, the texture has no say there (a
+  // chessboard sliding in itself is still recovered at w = 0.03).
+  double photometric_weight = 0.0;
+  // Reference pixels whose texture gradient (central differences, in fractions of the
+  // reference's mean intensity per pixel of the level) is below this are not used: flat
+  // texture pins nothing and only adds noise (Kintinuous selects by gradient too).
+  double photometric_min_gradient = 0.02;
   // Throws sls::Error(kInvalidArgument) naming the bad value.
   void validate() const;
 };
@@ -84,6 +111,15 @@ struct TrackingResult {
                                 //  level, scaled parameterisation; infinity when singular)
   int degenerate_directions = 0;
   int iterations = 0;           // Gauss–Newton steps taken over all levels
+  // The photometric term: whether it was used; when photometric_weight > 0 but it was not,
+  // why (no live texture, no reference frame). Its finest-level figures at the last
+  // iteration: the selected pixels, their residual RMS (fractions of the mean intensity), and
+  // the live/reference brightness ratio (`gain`) it measured over the matched pixels.
+  bool photometric = false;
+  std::string photometric_skipped;
+  std::size_t photometric_pixels = 0;
+  double photometric_rms = 0.0;
+  double photometric_gain = 1.0;
 };
 
 class Tracker {
@@ -102,15 +138,30 @@ class Tracker {
   // Registers a live depth map (camera-frame z in metres, 0 = none, the camera's size) to the
   // model seen from T_world_model (a raycast from that pose with model_camera()), starting
   // from T_world_camera_guess. sls::Error(kInvalidArgument) for maps of another size.
+  // `texture`: the live frame's grey texture (linear intensity, any scale, the camera's size;
+  // sls::Error(kInvalidArgument) naming it otherwise), for the photometric term. With
+  // photometric_weight > 0 and no texture the term is off for this frame and the result says
+  // so (photometric_skipped); a frame tracked with a texture becomes the next reference.
   TrackingResult track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
-                       const Pose& T_world_camera_guess);
+                       const Pose& T_world_camera_guess, const Image32f* texture = nullptr);
+  // The photometric term's reference for the next track(): a frame fused without tracking
+  // (its depth map and texture, the camera's size, and the pose it was fused at). Ignored when
+  // photometric_weight is 0. sls::Error(kInvalidArgument) for images of another size.
+  void set_reference_frame(const Image32f& depth_m, const Image32f& texture, const Pose& T_world_camera);
+  void clear_reference_frame();
+  bool has_reference_frame() const;
 #if defined(SLS_HAVE_CUDA)
   // Both on the GPU: the live depth map (the decoder's output, width x height floats, complete
   // when called: synchronize its stream first) and the model in `raycaster` (a CUDA raycaster
   // with the tracker's camera) after raycast_device(volume, T_world_model); the raycaster's
   // stream is synchronized here. No allocation: the pyramid lives in buffers made once.
+  // `texture_device`: as track()'s texture, on the GPU (complete when called), or null; the
+  // reference frame stays on the GPU.
   TrackingResult track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
-                              const Pose& T_world_camera_guess);
+                              const Pose& T_world_camera_guess, const float* texture_device = nullptr);
+  // set_reference_frame with both maps on the GPU (width x height floats, complete when called).
+  void set_reference_frame_device(const float* depth_device, const float* texture_device,
+                                  const Pose& T_world_camera);
 #endif
 
  private:

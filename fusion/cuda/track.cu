@@ -1,6 +1,8 @@
 // CUDA launchers of the ICP tracker: one thread per pixel around downsample_depth,
-// live_normal, accumulate_frame_statistics and track_pixel (track_shared.h, the code the CPU
-// loops run), with the two-stage reductions described in track_cuda.h.
+// live_normal, accumulate_frame_statistics and track_pixel (track_shared.h), and for the
+// photometric term downsample_texture, accumulate_texture_statistics and photometric_pixel
+// (photometric_shared.h): the code the CPU loops run, with the two-stage reductions described
+// in track_cuda.h.
 #include "fusion/cuda/track_cuda.h"
 
 #include "sdk/core/cuda/cuda_check.h"
@@ -100,6 +102,41 @@ __global__ void track_kernel(TrackLiveView live, TrackModelView model, TrackPara
   block_sums_to_partials<kTrackSums>(sums, partials);
 }
 
+__global__ void downsample_texture_kernel(const float* __restrict__ fine, int fine_width, int fine_height,
+                                          float* __restrict__ coarse, int coarse_width, int coarse_height) {
+  const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  if (x >= coarse_width || y >= coarse_height) return;
+  coarse[static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse_width) + static_cast<std::size_t>(x)] =
+      downsample_texture(fine, fine_width, fine_height, x, y);
+}
+
+__global__ void texture_statistics_kernel(const float* __restrict__ texture, const float* __restrict__ depth,
+                                          int pixels, double* __restrict__ partials) {
+  float sums[kTextureSums] = {};
+  for (int n = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x); n < pixels;
+       n += static_cast<int>(gridDim.x * blockDim.x)) {
+    accumulate_texture_statistics(texture[n], depth[n], sums);
+  }
+  block_sums_to_partials<kTextureSums>(sums, partials);
+}
+
+__global__ void photometric_kernel(PhotometricLevelView reference, PhotometricLevelView live, PhotometricParams params,
+                                   double* __restrict__ partials) {
+  float sums[kPhotometricSums] = {};
+  const int pixels = reference.width * reference.height;
+  for (int n = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x); n < pixels;
+       n += static_cast<int>(gridDim.x * blockDim.x)) {
+    const int y = n / reference.width;
+    const int x = n - y * reference.width;
+    float jacobian[6];
+    float residual = 0.0f, live_value = 0.0f, ref_value = 0.0f;
+    const int outcome = photometric_pixel(reference, live, params, x, y, jacobian, &residual, &live_value, &ref_value);
+    accumulate_photometric(outcome, jacobian, residual, live_value, ref_value, params.huber, sums);
+  }
+  block_sums_to_partials<kPhotometricSums>(sums, partials);
+}
+
 dim3 image_grid(int width, int height, dim3 block) {
   return dim3((static_cast<unsigned>(width) + block.x - 1) / block.x,
               (static_cast<unsigned>(height) + block.y - 1) / block.y);
@@ -139,6 +176,32 @@ void launch_track_cuda(const TrackLiveView& live, const TrackModelView& model, c
   track_kernel<<<blocks, kTrackThreads, 0, stream>>>(live, model, params, partials);
   SLS_CUDA_CHECK_LAUNCH();
   finish_sums_kernel<kTrackSums><<<kTrackSums, kTrackThreads, 0, stream>>>(partials, blocks, out);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+void launch_downsample_texture_cuda(const float* fine, int fine_width, int fine_height, float* coarse,
+                                    int coarse_width, int coarse_height, cudaStream_t stream) {
+  const dim3 block(32, 8);
+  downsample_texture_kernel<<<image_grid(coarse_width, coarse_height, block), block, 0, stream>>>(
+      fine, fine_width, fine_height, coarse, coarse_width, coarse_height);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+void launch_texture_statistics_cuda(const float* texture, const float* depth, int pixels, double* partials,
+                                    double* out, cudaStream_t stream) {
+  const int blocks = reduction_blocks(pixels);
+  texture_statistics_kernel<<<blocks, kTrackThreads, 0, stream>>>(texture, depth, pixels, partials);
+  SLS_CUDA_CHECK_LAUNCH();
+  finish_sums_kernel<kTextureSums><<<kTextureSums, kTrackThreads, 0, stream>>>(partials, blocks, out);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+void launch_photometric_cuda(const PhotometricLevelView& reference, const PhotometricLevelView& live,
+                             const PhotometricParams& params, double* partials, double* out, cudaStream_t stream) {
+  const int blocks = reduction_blocks(reference.width * reference.height);
+  photometric_kernel<<<blocks, kTrackThreads, 0, stream>>>(reference, live, params, partials);
+  SLS_CUDA_CHECK_LAUNCH();
+  finish_sums_kernel<kPhotometricSums><<<kPhotometricSums, kTrackThreads, 0, stream>>>(partials, blocks, out);
   SLS_CUDA_CHECK_LAUNCH();
 }
 

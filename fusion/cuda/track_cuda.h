@@ -10,6 +10,7 @@
 
 #include <cuda_runtime_api.h>
 
+#include "fusion/photometric_shared.h"
 #include "fusion/track_shared.h"
 
 namespace sls::fusion::detail {
@@ -33,5 +34,18 @@ void launch_frame_statistics_cuda(const Vec3f* model_points, const float* live_d
 // out[kTrackSums].
 void launch_track_cuda(const TrackLiveView& live, const TrackModelView& model, const TrackParams& params,
                        double* partials, double* out, cudaStream_t stream);
+
+// The photometric term (photometric_shared.h). `partials` holds kTrackMaxBlocks *
+// kPhotometricSums doubles.
+// Level l + 1 of a texture pyramid from level l (downsample_texture per coarse pixel).
+void launch_downsample_texture_cuda(const float* fine, int fine_width, int fine_height, float* coarse,
+                                    int coarse_width, int coarse_height, cudaStream_t stream);
+// accumulate_texture_statistics over `pixels` pixels into out[kTextureSums].
+void launch_texture_statistics_cuda(const float* texture, const float* depth, int pixels, double* partials,
+                                    double* out, cudaStream_t stream);
+// One Gauss–Newton step's photometric sums (photometric_pixel + accumulate_photometric over
+// the reference level) into out[kPhotometricSums].
+void launch_photometric_cuda(const PhotometricLevelView& reference, const PhotometricLevelView& live,
+                             const PhotometricParams& params, double* partials, double* out, cudaStream_t stream);
 
 }  // namespace sls::fusion::detail

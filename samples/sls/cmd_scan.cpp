@@ -55,6 +55,7 @@ struct ScanOptions {
   double voxel_um = 0.0;          // 0: twice the camera's pixel footprint, grown to fit max_voxels
   double max_voxels_million = 0;  // 0: 256 on a GPU, 48 on the CPU
   bool turntable_prior = false;   // --poses track: the recording's turntable angles as the pose guess
+  double photometric_weight = 0;  // --poses track: the tracker's photometric term (0: off)
   bool device_given = false;
 };
 
@@ -147,6 +148,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
     session_options.max_voxels =
         (options.max_voxels_million > 0.0 ? options.max_voxels_million : (device.is_cuda() ? 256.0 : 48.0)) * 1e6;
     session_options.turntable_prior = options.turntable_prior;
+    session_options.tracking.photometric_weight = options.photometric_weight;
   }
   std::optional<PatternSet> patterns;
   if (info.images_per_frame > 0) patterns = pattern_set_from_json(info.pattern_set_json);
@@ -212,6 +214,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   report["device"] = device.to_string();
   report["poses"] = options.poses;
   report["turntable_prior"] = !groundtruth && options.turntable_prior;
+  report["photometric_weight"] = groundtruth ? 0.0 : options.photometric_weight;
   report["fusion"] = {{"method", options.fusion},
                       {"truncation_voxels", fusion_options.truncation_voxels},
                       {"eta_voxels", fusion_options.eta_voxels},
@@ -420,6 +423,11 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_flag("--turntable-prior", options->turntable_prior,
                     "With --poses track: use the recording's turntable angles about the calibrated axis as the pose guess "
                     "(default: depth alone, constant-velocity guess)");
+  command->add_option("--photometric-weight", options->photometric_weight,
+                      "With --poses track: weight of the tracker's photometric term on each pattern stack's white - "
+                      "black texture, relative to ICP's (0: off; frames given as depth maps have no texture)")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
   command->add_option("--voxel-um", options->voxel_um,
                       "Voxel size in um (0: twice the pixel footprint, grown to fit --max-voxels)")
       ->check(CLI::NonNegativeNumber)

@@ -40,6 +40,26 @@ double median_depth(const Image32f& depth_m) {
   return *middle;
 }
 
+// The texture of a pattern stack for the tracker's photometric term: white − black (the
+// projector's light alone: no ambient, no camera black level, i.e. albedo × irradiance), or
+// white − the black level when the set projects no black; false when it has no white.
+bool stack_texture(const std::vector<Image16u>& images, const DecodeLayout& layout, double black_level_dn,
+                   Image32f* texture) {
+  if (layout.white_index < 0 || static_cast<std::size_t>(layout.white_index) >= images.size()) return false;
+  const Image16u& white = images[static_cast<std::size_t>(layout.white_index)];
+  const Image16u* black = layout.black_index >= 0 && static_cast<std::size_t>(layout.black_index) < images.size()
+                              ? &images[static_cast<std::size_t>(layout.black_index)]
+                              : nullptr;
+  if (black != nullptr && (black->width() != white.width() || black->height() != white.height())) return false;
+  *texture = Image32f(white.width(), white.height(), 0.0f);
+  const float level = static_cast<float>(black_level_dn);
+  for (std::size_t i = 0; i < white.pixel_count(); ++i) {
+    texture->data()[i] =
+        static_cast<float>(white.data()[i]) - (black != nullptr ? static_cast<float>(black->data()[i]) : level);
+  }
+  return true;
+}
+
 std::size_t count_valid(const Image32f& depth_m) {
   std::size_t count = 0;
   const float* data = depth_m.data();
@@ -120,6 +140,7 @@ struct ScanSession::Impl {
   StageTimes totals;
 #if defined(SLS_HAVE_CUDA)
   DeviceBuffer<float> depth_upload;  // a depth-map frame on the GPU (decoded frames stay there)
+  DeviceBuffer<float> texture_upload;  // the frame's texture (photometric term), kept on the GPU
 #endif
 
   Impl(const ScannerCalibration& calibration_in, const ScanSessionOptions& options_in)
@@ -217,6 +238,14 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
 
   // Decode (or take the frame's depth map). A frame that cannot be decoded is skipped.
   if (!frame.problem.empty()) return finish(FrameStatus::kSkipped, frame.problem);
+  const bool photometric = s.options.tracking.photometric_weight > 0.0;
+  const CameraIntrinsics& camera = s.calibration.camera;
+  if (photometric && frame.texture &&
+      (frame.texture->width() != camera.width || frame.texture->height() != camera.height)) {
+    return finish(FrameStatus::kSkipped,
+                  fmt::format("texture of {}x{}, the camera has {}x{}", frame.texture->width(), frame.texture->height(),
+                              camera.width, camera.height));
+  }
   Image32f decoded;
   const Image32f* depth = nullptr;
   [[maybe_unused]] const float* depth_device = nullptr;  // the GPU copy (CUDA builds)
@@ -264,6 +293,30 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   }
   if (report.depth_pixels == 0) return finish(FrameStatus::kSkipped, "no valid depth in the frame");
 
+  // The texture for the tracker's photometric term (with the depth map on the GPU, it is too).
+  Image32f derived_texture;
+  const Image32f* texture = nullptr;
+  [[maybe_unused]] const float* texture_device = nullptr;
+  if (photometric) {
+    const Clock::time_point start = Clock::now();  // part of preparing the frame
+    if (frame.texture) {
+      texture = &*frame.texture;
+    } else if (!frame.images.empty() &&
+               stack_texture(frame.images, s.decoder->decode_params().layout, s.options.decode.black_level_dn,
+                             &derived_texture)) {
+      texture = &derived_texture;
+    }
+#if defined(SLS_HAVE_CUDA)
+    if (texture != nullptr && depth_device != nullptr) {
+      if (s.texture_upload.size() != texture->pixel_count()) s.texture_upload.allocate(texture->pixel_count());
+      s.texture_upload.upload(texture->data(), texture->pixel_count(), nullptr);
+      SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+      texture_device = s.texture_upload.data();
+    }
+#endif
+    report.times.decode_ms += ms_since(start);
+  }
+
   // Track against the model, or take the known pose.
   Pose T_world_camera;
   if (frame.known_T_world_camera) {
@@ -276,12 +329,12 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     fusion::TrackingResult tracked;
 #if defined(SLS_HAVE_CUDA)
     if (s.options.device.is_cuda()) {
-      tracked = s.tracker.track_device(depth_device, s.raycaster, s.T_world_model, guess);
+      tracked = s.tracker.track_device(depth_device, s.raycaster, s.T_world_model, guess, texture_device);
     } else {
-      tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess);
+      tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture);
     }
 #else
-    tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess);
+    tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture);
 #endif
     report.times.track_ms = ms_since(start);
     report.tracking = tracked;
@@ -292,6 +345,21 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     T_world_camera = tracked.T_world_camera;
   }
   report.T_world_camera = T_world_camera;
+  // A frame fused without tracking is the photometric term's next reference (the tracker
+  // keeps a tracked one itself).
+  if (texture != nullptr && !report.tracking) {
+    const Clock::time_point start = Clock::now();  // the reference's pyramid: tracking work
+#if defined(SLS_HAVE_CUDA)
+    if (texture_device != nullptr) {
+      s.tracker.set_reference_frame_device(depth_device, texture_device, T_world_camera);
+    } else {
+      s.tracker.set_reference_frame(*depth, *texture, T_world_camera);
+    }
+#else
+    s.tracker.set_reference_frame(*depth, *texture, T_world_camera);
+#endif
+    report.times.track_ms += ms_since(start);
+  }
 
   // Integrate, move the volume when the camera has left it, raycast the model for the next frame.
   s.place_volume(T_world_camera, *depth);

@@ -43,7 +43,7 @@ namespace sls::session {
 struct ScanSessionOptions {
   Device device = Device::cpu();
   fusion::IntegrationOptions integration = fusion::IntegrationOptions::gtsdf();
-  fusion::TrackingOptions tracking;
+  fusion::TrackingOptions tracking;  // photometric_weight > 0: with the frames' textures (ScanFrame::texture)
   DecodeOptions decode;
   fusion::VoxelFormat voxel_format = fusion::VoxelFormat::kCompact;
   // The moving volume, sized at the first fused frame: its extent (0: the camera's field of
@@ -68,6 +68,11 @@ struct ScanFrame {
   std::optional<double> turntable_angle_deg;
   std::vector<Image16u> images;            // a pattern stack (the session's pattern set), or
   std::optional<Image32f> depth_m;         // a depth map (camera-frame z, 0 = none)
+  // The grey texture for the tracker's photometric term (options.tracking.photometric_weight
+  // > 0, else unused): linear intensity at the camera's size. Empty: a pattern stack's white −
+  // black (white − the black level without a black pattern; none without a white one), and
+  // none for a depth map (the term is then off for the frame).
+  std::optional<Image32f> texture;
   std::optional<Pose> known_T_world_camera;  // fuse here instead of tracking (ground truth)
   std::string problem;                     // non-empty: the source could not deliver the frame
   double read_ms = 0.0;                    // the source's time to deliver it (for the report)

@@ -353,6 +353,25 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(no_truth.returncode, 1)
         self.assertIn("groundtruth", no_truth.stderr)
 
+    def test_scan_photometric_weight_is_passed_and_recorded(self):
+        # The tracker's photometric term: off by default, a weight relative to ICP's otherwise.
+        self.assertIn("--photometric-weight", run("scan", "--help").stdout)
+        bad = run("scan", "--sim", "ci", "--photometric-weight", "-1", "--out", str(self.dir / "bad"))
+        self.assertEqual(bad.returncode, 2, bad.stderr)
+        self.assertIn("--photometric-weight", bad.stderr)
+        # Pattern stacks of the knurled screw, 4 frames a revolution (90 degree steps alias onto
+        # the knurl: this says nothing of the term's accuracy, which the unit tests measure): the
+        # scan runs the term end to end (textures from white - black, reference frames) and
+        # records the option.
+        out = self.dir / "photometric"
+        result = run("--json", "scan", "--sim", "ci", "--frames", "4", "--device", "cpu",
+                     "--photometric-weight", "0.1", "--out", str(out))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        report = json.loads(result.stdout)
+        self.assertEqual(report["photometric_weight"], 0.1)
+        self.assertGreaterEqual(report["frames_fused"], 1)
+        self.assertEqual(json.loads((out / "report.json").read_text())["photometric_weight"], 0.1)
+
     def test_scan_cuda_without_gpu_or_cuda_is_clear(self):
         info = json.loads(run("--json", "info").stdout)
         if info["cuda_devices"]:

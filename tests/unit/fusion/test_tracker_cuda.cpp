@@ -2,7 +2,10 @@
 // each block in float and the blocks in double, the CPU in double): poses within 1e-6 m and
 // 1e-5 rad, inliers within a few pixels, the same lost verdicts and degenerate directions.
 // track_device registers on the CUDA raycaster's maps with the live depth map on the GPU,
-// deterministically (two-stage reductions in a fixed order). Skipped without a GPU.
+// deterministically (two-stage reductions in a fixed order). The photometric term too
+// (photometric_shared.h): the same poses with it on, textures and reference frames from the
+// host or on the GPU. Skipped without a GPU.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -10,10 +13,12 @@
 
 #include <gtest/gtest.h>
 
+#include "drivers/sim/scene.h"
 #include "fusion/tracker.h"
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/error.h"
 #include "tests/support/test_support.h"
+#include "tests/unit/fusion/photometric_test_scenes.h"
 #include "tests/unit/fusion/tracker_test_scenes.h"
 
 namespace sls::fusion {
@@ -232,6 +237,113 @@ TEST(TrackerCuda, BadInputIsAClearError) {
   test::expect_invalid([&] { gpu.track_device(nullptr, same, m.T_world_model, m.T_world_model); }, "null device pointer");
   Tracker cpu(Device::cpu(), m.camera);
   test::expect_invalid([&] { cpu.track_device(live.data(), same, m.T_world_model, m.T_world_model); }, "make it for CUDA");
+}
+
+// The chessboard sliding in its plane (test_tracker.cpp's TexturedPlaneSlidingInItselfIsRecovered),
+// with the photometric term on both backends: host images through track(), and the whole
+// frame on the GPU through track_device and set_reference_frame_device; also with ICP on the
+// live map halved (the texture pyramid's halvings on the device).
+TEST(TrackerCuda, PhotometricEqualsCpu) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const sim::Scene scene = sim::make_chessboard_scene();
+  const sim::SimRig rig = test::textured_rig(scene);
+  const test::TexturedFrame reference = test::render_textured_frame(rig, scene, 0);
+  const test::TexturedFrame live =
+      test::render_textured_frame(test::moved_rig(rig, test::chessboard_slide(), rig.noise_seed + 1), scene, 0);
+  const CameraIntrinsics& camera = rig.camera;
+  const Pose& model_pose = reference.T_world_camera;
+  for (const int max_model_width : {camera.width, camera.width / 2}) {
+    TrackingOptions options;
+    options.photometric_weight = 0.1;
+    options.max_model_width = max_model_width;
+    Tracker cpu(Device::cpu(), camera, options), gpu(Device::cuda(), camera, options);
+    const test::TexturedModel model(test::chessboard_volume(), reference, camera, cpu.model_camera());
+    cpu.set_reference_frame(reference.depth_m, reference.texture, model_pose);
+    gpu.set_reference_frame(reference.depth_m, reference.texture, model_pose);
+    EXPECT_TRUE(gpu.has_reference_frame());
+    const TrackingResult a = cpu.track(live.depth_m, model.raycast, model_pose, model_pose, &live.texture);
+    const TrackingResult b = gpu.track(live.depth_m, model.raycast, model_pose, model_pose, &live.texture);
+    print(max_model_width == camera.width ? "photometric" : "photometric, halved", a, b);
+    std::printf("[tracker-cuda] photometric: cpu %zu px rms %.5f gain %.5f | cuda %zu px rms %.5f gain %.5f\n",
+                a.photometric_pixels, a.photometric_rms, a.photometric_gain, b.photometric_pixels, b.photometric_rms,
+                b.photometric_gain);
+    EXPECT_FALSE(b.lost) << b.reason;
+    EXPECT_TRUE(a.photometric) << a.photometric_skipped;
+    EXPECT_TRUE(b.photometric) << b.photometric_skipped;
+    expect_equal(a, b);
+    EXPECT_NEAR(static_cast<double>(a.photometric_pixels), static_cast<double>(b.photometric_pixels),
+                std::max(5.0, 1e-3 * static_cast<double>(a.photometric_pixels)));
+    EXPECT_NEAR(a.photometric_rms, b.photometric_rms, 0.01 * a.photometric_rms);
+    EXPECT_NEAR(a.photometric_gain, b.photometric_gain, 1e-4);
+    const double pixel_m = 0.1 / camera.fx;
+    EXPECT_LT(test::surface_error(live.depth_m, camera, b.T_world_camera, live.T_world_camera).rms_m, 0.1 * pixel_m);
+  }
+
+  // Everything on the GPU: the model raycast there, depth maps and textures uploaded once.
+  TrackingOptions options;
+  options.photometric_weight = 0.1;
+  Tracker cpu(Device::cpu(), camera, options), gpu(Device::cuda(), camera, options);
+  const test::TexturedModel model(test::chessboard_volume(), reference, camera, camera);
+  Volume volume(model.volume.geometry(), VoxelFormat::kFloat32, Device::cuda());
+  volume.copy_from(model.volume);
+  RaycastOptions raycast_options;
+  raycast_options.truncation_voxels = IntegrationOptions::tsdf().truncation_voxels;
+  raycast_options.min_depth_m = 1e-3;
+  Raycaster raycaster(Device::cuda(), camera, raycast_options);
+  raycaster.raycast_device(volume, model_pose);
+  auto upload = [](const Image32f& image) {
+    DeviceBuffer<float> buffer(image.pixel_count());
+    buffer.upload(image.data(), image.pixel_count(), nullptr);
+    return buffer;
+  };
+  const DeviceBuffer<float> ref_depth = upload(reference.depth_m), ref_texture = upload(reference.texture);
+  const DeviceBuffer<float> live_depth = upload(live.depth_m), live_texture = upload(live.texture);
+  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+  cpu.set_reference_frame(reference.depth_m, reference.texture, model_pose);
+  const TrackingResult a = cpu.track(live.depth_m, model.raycast, model_pose, model_pose, &live.texture);
+  TrackingResult first;
+  for (int n = 0; n < 3; ++n) {
+    gpu.set_reference_frame_device(ref_depth.data(), ref_texture.data(), model_pose);
+    const TrackingResult b =
+        gpu.track_device(live_depth.data(), raycaster, model_pose, model_pose, live_texture.data());
+    if (n == 0) {
+      print("photometric, track_device", a, b);
+      EXPECT_TRUE(b.photometric) << b.photometric_skipped;
+      // The GPU raycast differs from the CPU one by float rounding (TrackDeviceOnTheRaycastersMaps).
+      expect_equal(a, b, 1e-3, 0.1);
+      first = b;
+    } else {
+      // Deterministic: the same bits again.
+      EXPECT_TRUE(b.T_world_camera.is_approx(first.T_world_camera, 0.0)) << n;
+      EXPECT_EQ(b.photometric_pixels, first.photometric_pixels);
+      EXPECT_EQ(b.photometric_rms, first.photometric_rms);
+    }
+  }
+  // Without a texture the term is off, as on the CPU.
+  const TrackingResult c = gpu.track_device(live_depth.data(), raycaster, model_pose, model_pose);
+  EXPECT_FALSE(c.photometric);
+  EXPECT_EQ(c.photometric_skipped, "no live texture");
+}
+
+TEST(TrackerCuda, PhotometricBadInputIsAClearError) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Model& m = bumpy_model();
+  TrackingOptions options;
+  options.photometric_weight = 0.1;
+  Tracker gpu(Device::cuda(), m.camera, options);
+  const Image32f live = test::exact_depth(m.scene, m.camera, m.T_world_model);
+  const Image32f small(100, 80, 1.0f);
+  test::expect_invalid([&] { gpu.track(live, m.raycast, m.T_world_model, m.T_world_model, &small); },
+                       "live texture is 100x80");
+  test::expect_invalid([&] { gpu.set_reference_frame(live, small, m.T_world_model); }, "reference texture");
+  DeviceBuffer<float> buffer(live.pixel_count());
+  test::expect_invalid([&] { gpu.set_reference_frame_device(buffer.data(), nullptr, m.T_world_model); },
+                       "no reference texture");
+  test::expect_invalid([&] { gpu.set_reference_frame_device(nullptr, buffer.data(), m.T_world_model); },
+                       "no reference depth map");
+  Tracker cpu(Device::cpu(), m.camera, options);
+  test::expect_invalid([&] { cpu.set_reference_frame_device(buffer.data(), buffer.data(), m.T_world_model); },
+                       "make it for CUDA");
 }
 
 }  // namespace

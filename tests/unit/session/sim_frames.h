@@ -1,13 +1,15 @@
 // Frames of the simulated scanner for scan-session tests: depth maps, turntable angles and
-// true poses, frame by frame (no recording on disk).
+// true poses, frame by frame (no recording on disk); a chessboard sliding in its plane.
 #pragma once
 
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "drivers/sim/renderer.h"
 #include "drivers/sim/sim_scanner.h"
 #include "sdk/session/scan_session.h"
 
@@ -47,6 +49,44 @@ class SimFrames {
   std::shared_ptr<sim::SimScanner> scanner_;
   std::unique_ptr<drivers::Turntable> turntable_;
   std::vector<Pose> truth_;
+};
+
+// A chessboard sliding in its own plane, 0.1 mm, -0.05 mm and 0.3° a frame (the ci camera at
+// 320x240, a perfect turntable standing still): depth alone sees the same plane in every
+// frame, the texture sees the slide. Frames as pattern stacks, true poses in the board's frame.
+struct SlidingChessboard {
+  sim::Scene scene = sim::make_chessboard_scene();
+  sim::SimRig rig;
+  SlidingChessboard() {
+    sim::RigOptions options;
+    options.preset = "ci";
+    options.camera_width = 320;
+    options.angle_jitter_deg = 0.0;
+    options.mount_tilt_deg = 0.0;
+    options.mount_offset_m = 0.0;
+    rig = sim::make_rig(options, scene);
+  }
+  sim::SimRig rig_at(int k) const {
+    const Pose step(Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * kDegree, Eigen::Vector3d::UnitZ())),
+                    Eigen::Vector3d(0.1e-3, -0.05e-3, 0.0));
+    sim::SimRig moved = rig;
+    moved.T_table_object = rig.T_table_object * Pose::exp(step.log() * static_cast<double>(k));
+    moved.noise_seed = rig.noise_seed + static_cast<std::uint64_t>(k);
+    return moved;
+  }
+  Pose truth(int k) const { return rig_at(k).T_object_camera(0); }
+  // Frame k as the pattern stack the camera captures.
+  ScanFrame stack(int k) const {
+    sim::Renderer renderer(rig_at(k), scene, Device::cpu());
+    renderer.set_frame(0);
+    ScanFrame frame;
+    frame.index = k;
+    frame.timestamp_ns = static_cast<std::int64_t>(k) * 333'333'333;
+    for (std::size_t j = 0; j < rig.patterns.size(); ++j) {
+      frame.images.push_back(renderer.render_pattern(static_cast<int>(j)));
+    }
+    return frame;
+  }
 };
 
 inline ScanSessionOptions small_options(const Device& device) {

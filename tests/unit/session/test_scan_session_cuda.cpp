@@ -104,5 +104,31 @@ TEST(ScanSessionCuda, EqualsTheCpuSession) {
   EXPECT_EQ(cpu.moves(), cuda.moves());
 }
 
+// The photometric term in a CUDA session (the texture uploaded once, the reference frames on
+// the GPU) equals the CPU session's: the sliding chessboard from pattern stacks.
+TEST(ScanSessionCuda, PhotometricEqualsTheCpuSession) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const SlidingChessboard board;
+  ScanSessionOptions options = small_options(Device::cpu());
+  options.tracking.photometric_weight = 0.1;
+  ScanSession cpu(board.rig.calibration(), &board.rig.patterns, options);
+  options.device = Device::cuda();
+  ScanSession cuda(board.rig.calibration(), &board.rig.patterns, options);
+  for (int k = 0; k < 3; ++k) {
+    const ScanFrame frame = board.stack(k);
+    const FrameReport a = cpu.add_frame(frame);
+    const FrameReport b = cuda.add_frame(frame);
+    ASSERT_EQ(a.status, b.status) << "frame " << k << ": " << a.reason << " / " << b.reason;
+    ASSERT_EQ(b.status, FrameStatus::kFused) << b.reason;
+    if (k > 0) {
+      EXPECT_TRUE(b.tracking->photometric) << b.tracking->photometric_skipped;
+      EXPECT_EQ(a.tracking->photometric, b.tracking->photometric);
+    }
+    const Pose difference = a.T_world_camera.inverse() * b.T_world_camera;
+    EXPECT_LT(difference.translation().norm(), 2e-6) << "frame " << k;
+    EXPECT_LT(difference.angle_rad(), 2e-5) << "frame " << k;
+  }
+}
+
 }  // namespace
 }  // namespace sls::session
