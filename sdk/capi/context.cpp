@@ -6,6 +6,7 @@
 
 #include "sdk/capi/capi_guard.h"
 #include "sdk/capi/context_internal.h"
+#include "sdk/capi/versioned_struct.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sls/sls_context.h"
@@ -25,21 +26,14 @@ spdlog::level::level_enum to_spdlog(sls_log_level level) {
   sls::throw_error(sls::ErrorCode::kInvalidArgument, "log_level {} is not an sls_log_level", static_cast<int>(level));
 }
 
-// Copies the caller's config, which may come from older headers (smaller struct_size):
-// fields it lacks keep their defaults.
+// The caller's config, which may come from older headers (smaller struct_size): fields it
+// lacks keep their defaults.
 sls_context_config read_config(const sls_context_config* user) {
-  sls_context_config config;
-  sls_context_config_init(&config);
-  if (user == nullptr) return config;
+  sls_context_config defaults;
+  sls_context_config_init(&defaults);
+  if (user == nullptr) return defaults;
   constexpr std::size_t kFirstVersionSize = offsetof(sls_context_config, cuda_device_id) + sizeof(int);
-  if (user->struct_size < kFirstVersionSize || user->struct_size > 65536) {
-    sls::throw_error(sls::ErrorCode::kInvalidArgument,
-                     "config.struct_size is {} (initialise the config with sls_context_config_init)",
-                     user->struct_size);
-  }
-  std::memcpy(&config, user, std::min(user->struct_size, sizeof(config)));
-  config.struct_size = sizeof(config);
-  return config;
+  return sls::capi::read_versioned(user, defaults, kFirstVersionSize, "sls_context_config");
 }
 
 sls::Device resolve_device(const sls_context_config& config) {
