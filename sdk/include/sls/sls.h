@@ -24,5 +24,6 @@
 #include "sls/sls_camera.h"
 #include "sls/sls_projector.h"
 #include "sls/sls_turntable.h"
+#include "sls/sls_scan.h"
 
 #endif /* SLS_SLS_H */
