@@ -7,11 +7,16 @@
  *    one callback per frame in order, sane reports, poses against the ground truth, the run
  *    returns SLS_ERROR_CANCELLED and keeps the model, whose cloud, mesh and trajectory files
  *    are valid; a cancel is final;
+ *  - the same scan cancelled from another thread while it runs;
  *  - sim:// devices captured into a recording and scanned (sls_scan_run_devices), to SLS_OK;
  *  - the mistakes: NULL handles, bad configs, a missing or corrupt recording, a recording of
  *    which no frame can be fused, a run or a query on a running scan (from the callback).
  * Exit status 0 when every check holds; each failed check prints its line. */
+/* POSIX threads for the cancel from another thread (C99 has none of its own). */
+#define _POSIX_C_SOURCE 200809L
+
 #include <math.h>
+#include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -376,6 +381,76 @@ static int overwrite(const char* path, const char* content) {
   return fclose(file) == 0;
 }
 
+/* A run on a worker thread, cancelled from this one after its second frame: the worker's
+ * callback waits there until the cancel is sent, so the frame it stops after is known. */
+typedef struct threaded_run {
+  pthread_mutex_t mutex;
+  pthread_cond_t changed;
+  int frames;      /* reported so far */
+  int cancel_sent; /* by the main thread */
+  sls_scan* scan;
+  const char* recording;
+  sls_status status;
+} threaded_run;
+
+static void count_frame(const sls_frame_report* report, void* user) {
+  threaded_run* run = (threaded_run*)user;
+  (void)report;
+  pthread_mutex_lock(&run->mutex);
+  ++run->frames;
+  pthread_cond_broadcast(&run->changed);
+  while (run->frames == 2 && !run->cancel_sent) pthread_cond_wait(&run->changed, &run->mutex);
+  pthread_mutex_unlock(&run->mutex);
+}
+
+static void* run_scan(void* user) {
+  threaded_run* run = (threaded_run*)user;
+  run->status = sls_scan_run_recording(run->scan, run->recording, NULL);
+  return NULL;
+}
+
+static void check_cancel_from_another_thread(sls_context* context, const char* recording, const char* scratch) {
+  threaded_run run;
+  pthread_t worker;
+  sls_scan_summary summary;
+  char* cloud = path_join(scratch, "thread_cancelled_cloud.ply");
+  sls_scan* scan = make_scan(context, 1);
+  if (scan == NULL) return;
+  memset(&run, 0, sizeof(run));
+  pthread_mutex_init(&run.mutex, NULL);
+  pthread_cond_init(&run.changed, NULL);
+  run.scan = scan;
+  run.recording = recording;
+  run.status = SLS_OK;
+  CHECK_OK(sls_scan_set_frame_callback(scan, count_frame, &run, &error_));
+  CHECK(pthread_create(&worker, NULL, run_scan, &run) == 0);
+  pthread_mutex_lock(&run.mutex);
+  while (run.frames < 2) pthread_cond_wait(&run.changed, &run.mutex);
+  pthread_mutex_unlock(&run.mutex);
+  /* Running: queries from this thread are refused, a cancel is taken. */
+  sls_scan_summary_init(&summary);
+  CHECK_ERROR(sls_scan_get_summary(scan, &summary, &error_), SLS_ERROR_BUSY, "running");
+  CHECK_ERROR(sls_scan_write_cloud(scan, cloud, &error_), SLS_ERROR_BUSY, "running");
+  CHECK_ERROR(sls_scan_set_frame_callback(scan, NULL, NULL, &error_), SLS_ERROR_BUSY, "running");
+  CHECK_OK(sls_scan_cancel(scan, &error_));
+  pthread_mutex_lock(&run.mutex);
+  run.cancel_sent = 1;
+  pthread_cond_broadcast(&run.changed);
+  pthread_mutex_unlock(&run.mutex);
+  pthread_join(worker, NULL);
+  /* Stopped after the frame in progress (the second), the model kept. */
+  CHECK(run.status == SLS_ERROR_CANCELLED);
+  CHECK(run.frames == 2);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.frames == 2 && summary.fused == 2 && summary.cancelled == 1);
+  CHECK_OK(sls_scan_write_cloud(scan, cloud, &error_));
+  check_cloud_file(cloud);
+  sls_scan_destroy(scan);
+  pthread_cond_destroy(&run.changed);
+  pthread_mutex_destroy(&run.mutex);
+  free(cloud);
+}
+
 /* Keeps the first `bytes` bytes of a file; 1 when done. */
 static int truncate_file(const char* path, size_t bytes) {
   char buffer[4096];
@@ -560,6 +635,7 @@ int main(int argc, char** argv) {
   }
   check_mistakes(context, argv[2]);
   check_cancelled_turntable_scan(context, argv[1], argv[2]);
+  check_cancel_from_another_thread(context, argv[1], argv[2]);
   check_devices_scan(context, argv[1], argv[2]);
   sls_context_destroy(context);
   if (failures != 0) fprintf(stderr, "%d check(s) failed\n", failures);
