@@ -14,7 +14,8 @@
 
 namespace {
 
-spdlog::level::level_enum to_spdlog(sls_log_level level) {
+spdlog::level::level_enum to_spdlog(const sls_log_level& field) {
+  const long long level = sls::capi::c_enum_value(field);
   switch (level) {
     case SLS_LOG_TRACE: return spdlog::level::trace;
     case SLS_LOG_DEBUG: return spdlog::level::debug;
@@ -22,8 +23,9 @@ spdlog::level::level_enum to_spdlog(sls_log_level level) {
     case SLS_LOG_WARNING: return spdlog::level::warn;
     case SLS_LOG_ERROR: return spdlog::level::err;
     case SLS_LOG_OFF: return spdlog::level::off;
+    default: break;
   }
-  sls::throw_error(sls::ErrorCode::kInvalidArgument, "log_level {} is not an sls_log_level", static_cast<int>(level));
+  sls::throw_error(sls::ErrorCode::kInvalidArgument, "log_level {} is not an sls_log_level", level);
 }
 
 // The caller's config, which may come from older headers (smaller struct_size): fields it
@@ -40,7 +42,8 @@ sls::Device resolve_device(const sls_context_config& config) {
   if (config.cuda_device_id < 0) {
     sls::throw_error(sls::ErrorCode::kInvalidArgument, "cuda_device_id {} is negative", config.cuda_device_id);
   }
-  switch (config.device) {
+  const long long preference = sls::capi::c_enum_value(config.device);
+  switch (preference) {
     case SLS_DEVICE_CPU: return sls::Device::cpu();
     case SLS_DEVICE_CUDA: {
       const sls::Device device = sls::Device::cuda(config.cuda_device_id);
@@ -50,9 +53,9 @@ sls::Device resolve_device(const sls_context_config& config) {
     case SLS_DEVICE_AUTO:
       return config.cuda_device_id < sls::cuda_device_count() ? sls::Device::cuda(config.cuda_device_id)
                                                                 : sls::Device::cpu();
+    default: break;
   }
-  sls::throw_error(sls::ErrorCode::kInvalidArgument, "device {} is not an sls_device_preference",
-                   static_cast<int>(config.device));
+  sls::throw_error(sls::ErrorCode::kInvalidArgument, "device {} is not an sls_device_preference", preference);
 }
 
 }  // namespace

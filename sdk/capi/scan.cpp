@@ -70,12 +70,13 @@ sls_status report_busy(const char* function, sls_error** error) {
 sls::session::ScanSessionOptions session_options(const sls_scan_config& config, const sls::Device& device) {
   sls::session::ScanSessionOptions options;
   options.device = device;
-  switch (config.fusion) {
-    case SLS_FUSION_GTSDF: options.integration = sls::fusion::IntegrationOptions::gtsdf(); break;
-    case SLS_FUSION_TSDF: options.integration = sls::fusion::IntegrationOptions::tsdf(); break;
-    default:
-      sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.fusion {} is not an sls_fusion_method",
-                       static_cast<int>(config.fusion));
+  const long long fusion = sls::capi::c_enum_value(config.fusion);
+  if (fusion == SLS_FUSION_GTSDF) {
+    options.integration = sls::fusion::IntegrationOptions::gtsdf();
+  } else if (fusion == SLS_FUSION_TSDF) {
+    options.integration = sls::fusion::IntegrationOptions::tsdf();
+  } else {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.fusion {} is not an sls_fusion_method", fusion);
   }
   options.turntable_prior = config.use_turntable_prior != 0;
   if (!(config.voxel_size_m >= 0.0) || !std::isfinite(config.voxel_size_m)) {

@@ -50,4 +50,15 @@ T read_versioned(const T* in, T defaults, std::size_t first_version_size, const 
   return defaults;
 }
 
+// The integer a C caller stored in an enum field of one of its structs. C may store any int
+// there, while loading a C++ enum outside the range of its values is undefined behaviour: read
+// the bytes, then compare with the enumerators.
+template <typename Enum>
+long long c_enum_value(const Enum& field) {
+  static_assert(std::is_enum<Enum>::value, "an enum field");
+  std::underlying_type_t<Enum> value;
+  std::memcpy(&value, &field, sizeof(value));
+  return static_cast<long long>(value);
+}
+
 }  // namespace sls::capi
