@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "fusion/extract.h"
 #include "sdk/capi/capi_guard.h"
