@@ -17,7 +17,6 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "drivers/device_registry.h"
 #include "drivers/sim/sim_recording.h"
 #include "fusion/extract.h"
 #include "fusion/integrator.h"
@@ -32,9 +31,9 @@
 #include "sdk/core/ply.h"
 #include "sdk/core/recording.h"
 #include "sdk/core/trajectory.h"
-#include "sdk/decode/decoder.h"
 #include "sdk/session/capture_sequencer.h"
 #include "sdk/session/scan_session.h"
+#include "sdk/session/scan_setup.h"
 
 namespace sls::cli {
 namespace {
@@ -87,8 +86,8 @@ fusion::VolumeGeometry object_volume(const RecordingReader& recording, const Sca
     const double working_distance = 0.1;
     voxel = 2.0 * working_distance / camera.fx;
   }
-  const double budget = (options.max_voxels_million > 0.0 ? options.max_voxels_million
-                                                          : (device.is_cuda() ? 256.0 : 48.0)) * 1e6;
+  const double budget =
+      options.max_voxels_million > 0.0 ? options.max_voxels_million * 1e6 : session::automatic_max_voxels(device);
   for (;;) {
     const double margin = (fusion_options.eta_voxels + 2.0) * voxel;
     const Eigen::Vector3d size = (hi - lo).array() + 2.0 * margin;
@@ -123,12 +122,10 @@ nlohmann::json stage_json(const session::StageTimes& times) {
 // after the current frame, and what was fused is written as a valid partial model.
 nlohmann::json scan_recording(const Context& context, const RecordingReader& recording, const ScanOptions& options,
                               const Device& device) {
-  const RecordingInfo& info = recording.info();
   const bool groundtruth = options.poses == "groundtruth";
   session::ScanSessionOptions session_options;
   session_options.device = device;
   session_options.integration = fusion::parse_fusion_method(options.fusion);
-  session_options.decode.bit_depth = info.camera.bit_depth;
   std::vector<StampedPose> truth;
   if (groundtruth) {
     const std::string trajectory_path = recording.groundtruth_folder() + "/trajectory.txt";
@@ -146,13 +143,11 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   } else {
     session_options.voxel_size_m = options.voxel_um * 1e-6;
     session_options.max_voxels =
-        (options.max_voxels_million > 0.0 ? options.max_voxels_million : (device.is_cuda() ? 256.0 : 48.0)) * 1e6;
+        options.max_voxels_million > 0.0 ? options.max_voxels_million * 1e6 : session::automatic_max_voxels(device);
     session_options.turntable_prior = options.turntable_prior;
     session_options.tracking.photometric_weight = options.photometric_weight;
   }
-  std::optional<PatternSet> patterns;
-  if (info.images_per_frame > 0) patterns = pattern_set_from_json(info.pattern_set_json);
-  session::ScanSession session(recording.calibration(), patterns ? &*patterns : nullptr, session_options);
+  session::ScanSession session = session::make_recording_session(recording, session_options);
 
   g_stop_requested.store(false);
   const auto previous_int = std::signal(SIGINT, request_stop);
@@ -319,32 +314,23 @@ int run_scan(const Context& context, const ScanOptions& options) {
     if (options.projector_uri.empty()) {
       throw_error(ErrorCode::kInvalidArgument, "--camera needs --projector (the device that shows the patterns)");
     }
-    drivers::OpenOptions open_options;
-    open_options.sim_device = device;
-    const std::unique_ptr<drivers::Projector> projector = drivers::open_projector(options.projector_uri, open_options);
-    const std::unique_ptr<drivers::Camera> camera = drivers::open_camera(options.camera_uri, open_options);
-    const std::unique_ptr<drivers::Turntable> turntable =
-        options.turntable_uri.empty() ? nullptr : drivers::open_turntable(options.turntable_uri, open_options);
-    GrayPhaseOptions pattern_options;
-    pattern_options.projector_width = projector->info().width;
-    pattern_options.projector_height = projector->info().height;
-    const PatternSet patterns = make_gray_phase_pattern_set(pattern_options);
-    std::optional<ScannerCalibration> calibration;
-    if (!options.calibration.empty()) calibration = read_calibration(options.calibration);
-    session::CaptureOptions capture;
-    capture.frames_per_revolution = options.frames > 0 ? options.frames : (turntable ? 36 : 1);
-    capture.frames = capture.frames_per_revolution;
-    session::CaptureSequencer sequencer(*projector, {camera.get()}, turntable.get(), patterns, capture);
+    session::DeviceCaptureRequest request;
+    request.camera_uri = options.camera_uri;
+    request.projector_uri = options.projector_uri;
+    request.turntable_uri = options.turntable_uri;
+    request.calibration_path = options.calibration;
+    request.frames = options.frames;
+    request.sim_device = device;
     input = options.out + "/recording";
-    RecordingWriter writer =
-        RecordingWriter::create(input, session::make_recording_info(*projector, *camera, patterns), calibration);
-    const session::CaptureStatistics stats = sequencer.run({&writer}, {}, context.progress_callback("capture"));
+    const session::DeviceCapture captured =
+        session::capture_from_devices(input, request, context.progress_callback("capture"));
+    const session::CaptureStatistics& stats = captured.statistics;
     if (!context.options.json) {
       std::cerr << fmt::format("captured {} frame(s) ({} incomplete, {} re-captured stacks) x {} images from {} into {}\n",
-                               stats.frames, stats.incomplete_frames, stats.retries, patterns.size(),
+                               stats.frames, stats.incomplete_frames, stats.retries, captured.images_per_frame,
                                options.camera_uri, input);
     }
-    if (!calibration) {
+    if (!captured.calibrated) {
       throw_error(ErrorCode::kInvalidArgument,
                   "captured {} frame(s) into {}; without --calibration they cannot be decoded (the recording is kept)",
                   stats.frames, input);
@@ -365,11 +351,7 @@ int run_scan(const Context& context, const ScanOptions& options) {
   }
 
   // The recording is read and checked (manifest, calibration), then every frame decoded.
-  const RecordingReader recording = RecordingReader::open(input);
-  recording.verify(false);
-  if (!recording.has_calibration()) {
-    throw_error(ErrorCode::kInvalidArgument, "{} has no calibration.yml: a scan needs a calibrated recording", input);
-  }
+  const RecordingReader recording = session::open_recording_for_scan(input);
   const nlohmann::json report = scan_recording(context, recording, options, device);
   if (context.options.json) {
     std::cout << report.dump(2) << "\n";

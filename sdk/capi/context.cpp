@@ -6,6 +6,7 @@
 
 #include "sdk/capi/capi_guard.h"
 #include "sdk/capi/context_internal.h"
+#include "sdk/capi/versioned_struct.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sls/sls_context.h"
@@ -13,7 +14,8 @@
 
 namespace {
 
-spdlog::level::level_enum to_spdlog(sls_log_level level) {
+spdlog::level::level_enum to_spdlog(const sls_log_level& field) {
+  const long long level = sls::capi::c_enum_value(field);
   switch (level) {
     case SLS_LOG_TRACE: return spdlog::level::trace;
     case SLS_LOG_DEBUG: return spdlog::level::debug;
@@ -21,32 +23,27 @@ spdlog::level::level_enum to_spdlog(sls_log_level level) {
     case SLS_LOG_WARNING: return spdlog::level::warn;
     case SLS_LOG_ERROR: return spdlog::level::err;
     case SLS_LOG_OFF: return spdlog::level::off;
+    default: break;
   }
-  sls::throw_error(sls::ErrorCode::kInvalidArgument, "log_level {} is not an sls_log_level", static_cast<int>(level));
+  sls::throw_error(sls::ErrorCode::kInvalidArgument, "log_level {} is not an sls_log_level", level);
 }
 
-// Copies the caller's config, which may come from older headers (smaller struct_size):
-// fields it lacks keep their defaults.
+// The caller's config, which may come from older headers (smaller struct_size): fields it
+// lacks keep their defaults.
 sls_context_config read_config(const sls_context_config* user) {
-  sls_context_config config;
-  sls_context_config_init(&config);
-  if (user == nullptr) return config;
+  sls_context_config defaults;
+  sls_context_config_init(&defaults);
+  if (user == nullptr) return defaults;
   constexpr std::size_t kFirstVersionSize = offsetof(sls_context_config, cuda_device_id) + sizeof(int);
-  if (user->struct_size < kFirstVersionSize || user->struct_size > 65536) {
-    sls::throw_error(sls::ErrorCode::kInvalidArgument,
-                     "config.struct_size is {} (initialise the config with sls_context_config_init)",
-                     user->struct_size);
-  }
-  std::memcpy(&config, user, std::min(user->struct_size, sizeof(config)));
-  config.struct_size = sizeof(config);
-  return config;
+  return sls::capi::read_versioned(user, defaults, kFirstVersionSize, "sls_context_config");
 }
 
 sls::Device resolve_device(const sls_context_config& config) {
   if (config.cuda_device_id < 0) {
     sls::throw_error(sls::ErrorCode::kInvalidArgument, "cuda_device_id {} is negative", config.cuda_device_id);
   }
-  switch (config.device) {
+  const long long preference = sls::capi::c_enum_value(config.device);
+  switch (preference) {
     case SLS_DEVICE_CPU: return sls::Device::cpu();
     case SLS_DEVICE_CUDA: {
       const sls::Device device = sls::Device::cuda(config.cuda_device_id);
@@ -56,9 +53,9 @@ sls::Device resolve_device(const sls_context_config& config) {
     case SLS_DEVICE_AUTO:
       return config.cuda_device_id < sls::cuda_device_count() ? sls::Device::cuda(config.cuda_device_id)
                                                                 : sls::Device::cpu();
+    default: break;
   }
-  sls::throw_error(sls::ErrorCode::kInvalidArgument, "device {} is not an sls_device_preference",
-                   static_cast<int>(config.device));
+  sls::throw_error(sls::ErrorCode::kInvalidArgument, "device {} is not an sls_device_preference", preference);
 }
 
 }  // namespace

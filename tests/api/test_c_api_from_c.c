@@ -26,5 +26,13 @@ int sls_test_use_api_from_c(void) {
   if (strcmp(sls_error_function(error), "sls_context_create") != 0) return 6;
   sls_error_free(error);
   sls_error_free(NULL);
+  /* C may store any int in an enum field: one past the C++ enum's range is refused cleanly
+   * (the library must not load it as the enum: undefined behaviour in C++). */
+  sls_context_config_init(&config);
+  config.device = (sls_device_preference)9;
+  if (sls_context_create(SLS_API_VERSION, &config, &context, NULL) != SLS_ERROR_INVALID_ARGUMENT) return 7;
+  sls_context_config_init(&config);
+  config.log_level = (sls_log_level)-3;
+  if (sls_context_create(SLS_API_VERSION, &config, &context, NULL) != SLS_ERROR_INVALID_ARGUMENT) return 8;
   return 0;
 }

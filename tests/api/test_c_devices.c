@@ -1,8 +1,11 @@
-/* Device enumeration and cameras through the C API, from a C99 program, as an OEM would use
- * them: list the devices, open every camera the list names, grab images into our own buffers,
- * and get clear status codes for the mistakes. With no hardware connected the list holds the
- * simulator only (sim://); with hardware, each listed camera is opened and grabbed from too.
+/* Device enumeration, cameras, projectors and turntables through the C API, from a C99 program,
+ * as an OEM would use them: list the devices, open every camera the list names, grab images
+ * into our own buffers, drive the simulator's projector and turntable, and get clear status
+ * codes for the mistakes. With no hardware connected the list holds the simulator only
+ * (sim://); with hardware, each listed camera is opened and grabbed from too (projectors and
+ * turntables are driven on the simulator only: a test must not turn a real table).
  * Exit status 0 when every check holds; each failed check prints its line. */
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -167,6 +170,119 @@ static void check_camera_mistakes(sls_context* context) {
   sls_camera_close(NULL);
 }
 
+/* The mean of one grabbed image (-1 when the grab fails). */
+static double mean_of_grab(sls_camera* camera, uint16_t* pixels, size_t count) {
+  size_t i;
+  double sum = 0.0;
+  if (sls_camera_grab(camera, 5000, pixels, count, NULL, NULL) != SLS_OK) return -1.0;
+  for (i = 0; i < count; ++i) sum += pixels[i];
+  return sum / (double)count;
+}
+
+/* A sim:// projector: its info, the scan's pattern set, patterns shown and dark; and, opened
+ * with the same URI as a camera, one simulated scanner: the camera sees the white pattern
+ * brighter than the black one. */
+static void check_sim_projector(sls_context* context, const char* uri) {
+  sls_projector* projector = NULL;
+  sls_camera* camera = NULL;
+  sls_projector_info info;
+  sls_camera_info camera_info;
+  int count = 0, current = -2;
+  uint16_t* pixels = NULL;
+  size_t pixel_count;
+  double white, black;
+  CHECK(sls_projector_open(context, uri, &projector, NULL) == SLS_OK);
+  if (projector == NULL) return;
+  sls_projector_info_init(&info);
+  CHECK(sls_projector_get_info(projector, &info, NULL) == SLS_OK);
+  CHECK(strncmp(info.uri, "sim://", 6) == 0);
+  CHECK(strlen(info.model) > 0 && info.firmware != NULL);
+  CHECK(info.width > 0 && info.height > 0);
+  info.struct_size = 2;
+  CHECK_ERROR(sls_projector_get_info(projector, &info, &error_), SLS_ERROR_INVALID_ARGUMENT, "sls_projector_info_init");
+
+  CHECK(sls_projector_load_scan_patterns(projector, &count, NULL) == SLS_OK);
+  CHECK(count > 2); /* white, black, then the Gray code and phase patterns */
+  CHECK(sls_projector_load_scan_patterns(projector, NULL, NULL) == SLS_OK); /* the count is optional */
+  CHECK(sls_projector_show_pattern(projector, count - 1, NULL) == SLS_OK);
+  CHECK(sls_projector_get_current_pattern(projector, &current, NULL) == SLS_OK && current == count - 1);
+  CHECK_ERROR(sls_projector_show_pattern(projector, count, &error_), SLS_ERROR_INVALID_ARGUMENT, "pattern");
+  CHECK_ERROR(sls_projector_show_pattern(projector, -1, &error_), SLS_ERROR_INVALID_ARGUMENT, "pattern");
+  CHECK(sls_projector_go_dark(projector, NULL) == SLS_OK);
+  CHECK(sls_projector_get_current_pattern(projector, &current, NULL) == SLS_OK && current == -1);
+
+  CHECK(sls_camera_open(context, uri, &camera, NULL) == SLS_OK);
+  sls_camera_info_init(&camera_info);
+  if (camera != NULL && sls_camera_get_info(camera, &camera_info, NULL) == SLS_OK) {
+    pixel_count = (size_t)camera_info.width * (size_t)camera_info.height;
+    pixels = (uint16_t*)malloc(pixel_count * sizeof(uint16_t));
+    CHECK(pixels != NULL);
+    if (pixels != NULL) {
+      CHECK(sls_projector_show_pattern(projector, 0, NULL) == SLS_OK);
+      white = mean_of_grab(camera, pixels, pixel_count);
+      CHECK(sls_projector_show_pattern(projector, 1, NULL) == SLS_OK);
+      black = mean_of_grab(camera, pixels, pixel_count);
+      CHECK(white >= 0.0 && black >= 0.0);
+      CHECK(white > 1.5 * black);
+      free(pixels);
+    }
+  }
+  sls_camera_close(camera);
+  sls_projector_close(projector);
+  sls_projector_close(NULL);
+
+  CHECK_ERROR(sls_projector_open(context, "gige://192.0.2.1", &projector, &error_), SLS_ERROR_INVALID_ARGUMENT,
+              "gige://192.0.2.1");
+  CHECK(projector == NULL);
+  CHECK_ERROR(sls_projector_open(context, "firewire://0", &projector, &error_), SLS_ERROR_UNSUPPORTED, "firewire://0");
+  CHECK_ERROR(sls_projector_open(NULL, uri, &projector, &error_), SLS_ERROR_INVALID_ARGUMENT, "context");
+  CHECK_ERROR(sls_projector_open(context, NULL, &projector, &error_), SLS_ERROR_INVALID_ARGUMENT, "uri");
+  CHECK_ERROR(sls_projector_open(context, uri, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "projector");
+  CHECK_ERROR(sls_projector_show_pattern(NULL, 0, &error_), SLS_ERROR_INVALID_ARGUMENT, "projector");
+  CHECK_ERROR(sls_projector_get_current_pattern(NULL, &current, &error_), SLS_ERROR_INVALID_ARGUMENT, "projector");
+  CHECK_ERROR(sls_projector_go_dark(NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "projector");
+  CHECK_ERROR(sls_projector_load_scan_patterns(NULL, &count, &error_), SLS_ERROR_INVALID_ARGUMENT, "projector");
+}
+
+/* A sim:// turntable: homed, moved, its position read back to within a step. */
+static void check_sim_turntable(sls_context* context, const char* uri) {
+  sls_turntable* table = NULL;
+  int steps = 0;
+  double angle = -1.0, step_deg;
+  CHECK(sls_turntable_open(context, uri, &table, NULL) == SLS_OK);
+  if (table == NULL) return;
+  CHECK(sls_turntable_get_steps_per_revolution(table, &steps, NULL) == SLS_OK);
+  CHECK(steps > 0);
+  step_deg = 360.0 / (double)(steps > 0 ? steps : 1);
+  /* The simulated table, like the head controller's, refuses to move before it is homed. */
+  CHECK_ERROR(sls_turntable_move_to_deg(table, 90.0, 1000, &error_), SLS_ERROR_INVALID_ARGUMENT, "homed");
+  CHECK(sls_turntable_home(table, 1000, NULL) == SLS_OK);
+  CHECK(sls_turntable_get_position_deg(table, &angle, NULL) == SLS_OK);
+  CHECK(angle == 0.0);
+  CHECK(sls_turntable_move_to_deg(table, 90.0, 1000, NULL) == SLS_OK);
+  CHECK(sls_turntable_get_position_deg(table, &angle, NULL) == SLS_OK);
+  CHECK(fabs(angle - 90.0) <= 0.5 * step_deg + 1e-9);
+  CHECK(sls_turntable_move_to_deg(table, 359.0, 1000, NULL) == SLS_OK);
+  CHECK(sls_turntable_get_position_deg(table, &angle, NULL) == SLS_OK);
+  CHECK(fabs(angle - 359.0) <= 0.5 * step_deg + 1e-9);
+  CHECK_ERROR(sls_turntable_move_to_deg(table, 360.0, 1000, &error_), SLS_ERROR_INVALID_ARGUMENT, "angle_deg");
+  CHECK_ERROR(sls_turntable_move_to_deg(table, -1.0, 1000, &error_), SLS_ERROR_INVALID_ARGUMENT, "angle_deg");
+  CHECK_ERROR(sls_turntable_move_to_deg(table, 10.0, 0, &error_), SLS_ERROR_INVALID_ARGUMENT, "timeout_ms");
+  CHECK_ERROR(sls_turntable_home(table, 0, &error_), SLS_ERROR_INVALID_ARGUMENT, "timeout_ms");
+  sls_turntable_close(table);
+  sls_turntable_close(NULL);
+
+  CHECK_ERROR(sls_turntable_open(context, "dlpc350://", &table, &error_), SLS_ERROR_INVALID_ARGUMENT, "dlpc350://");
+  CHECK(table == NULL);
+  CHECK_ERROR(sls_turntable_open(NULL, uri, &table, &error_), SLS_ERROR_INVALID_ARGUMENT, "context");
+  CHECK_ERROR(sls_turntable_open(context, NULL, &table, &error_), SLS_ERROR_INVALID_ARGUMENT, "uri");
+  CHECK_ERROR(sls_turntable_open(context, uri, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "turntable");
+  CHECK_ERROR(sls_turntable_home(NULL, 1000, &error_), SLS_ERROR_INVALID_ARGUMENT, "turntable");
+  CHECK_ERROR(sls_turntable_move_to_deg(NULL, 1.0, 1000, &error_), SLS_ERROR_INVALID_ARGUMENT, "turntable");
+  CHECK_ERROR(sls_turntable_get_position_deg(NULL, &angle, &error_), SLS_ERROR_INVALID_ARGUMENT, "turntable");
+  CHECK_ERROR(sls_turntable_get_steps_per_revolution(NULL, &steps, &error_), SLS_ERROR_INVALID_ARGUMENT, "turntable");
+}
+
 int main(void) {
   sls_context* context = NULL;
   sls_context_config config;
@@ -199,6 +315,8 @@ int main(void) {
   CHECK(list == NULL);
   CHECK_ERROR(sls_device_list_count(NULL, &count, &error_), SLS_ERROR_INVALID_ARGUMENT, "list");
   check_camera_mistakes(context);
+  check_sim_projector(context, "sim://knurled-screw?preset=ci");
+  check_sim_turntable(context, "sim://knurled-screw?preset=ci");
   sls_context_destroy(context);
   if (failures != 0) fprintf(stderr, "%d check(s) failed\n", failures);
   else printf("all checks passed\n");

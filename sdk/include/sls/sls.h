@@ -22,5 +22,8 @@
 #include "sls/sls_context.h"
 #include "sls/sls_device.h"
 #include "sls/sls_camera.h"
+#include "sls/sls_projector.h"
+#include "sls/sls_turntable.h"
+#include "sls/sls_scan.h"
 
 #endif /* SLS_SLS_H */

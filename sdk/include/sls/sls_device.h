@@ -6,8 +6,9 @@
  *   gige://ADDRESS  usb3://SERIAL        GenICam cameras through Aravis
  *   dlpc350://BUS:ADDRESS                the DLPC350 projector over USB
  *   headctl://BUS:ADDRESS                the head controller (trigger outputs, turntable)
- * A URI a list reports opens with the functions its `roles` name (sls_camera_open for
- * SLS_DEVICE_ROLE_CAMERA); `sls devices` prints the same list.
+ * A URI a list reports opens with the functions its `roles` name (sls_camera_open,
+ * sls_projector_open, sls_turntable_open), and a camera, projector and turntable together scan
+ * with sls_scan_run_devices() (sls_scan.h); `sls devices` prints the same list.
  *
  * Threads: a list is immutable once created; the functions reading it may run concurrently.
  *
@@ -50,8 +51,8 @@ typedef enum sls_device_kind {
 /* What a device's URI can be opened as: bits of sls_device_info.roles. */
 typedef enum sls_device_role {
   SLS_DEVICE_ROLE_CAMERA = 1,    /* sls_camera_open */
-  SLS_DEVICE_ROLE_PROJECTOR = 2, /* a projector (opened from C++ for now: drivers::open_projector) */
-  SLS_DEVICE_ROLE_TURNTABLE = 4  /* a turntable (opened from C++ for now: drivers::open_turntable) */
+  SLS_DEVICE_ROLE_PROJECTOR = 2, /* sls_projector_open */
+  SLS_DEVICE_ROLE_TURNTABLE = 4  /* sls_turntable_open */
 } sls_device_role;
 
 /* One listed device. Versioned by its size: initialise with sls_device_info_init() before

@@ -1,0 +1,374 @@
+// sls_scan: the scan session (sdk/session/scan_session.h) behind the C API. A recording, or
+// devices by URI captured into one (sdk/session/scan_setup.h, as `sls scan` does), replayed
+// through a ScanSession; each FrameReport goes to the caller's callback as an sls_frame_report,
+// and a cancel reaches the replay (and the capture) through their progress callbacks.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstddef>
+#include <cstring>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fusion/extract.h"
+#include "sdk/capi/capi_guard.h"
+#include "sdk/capi/context_internal.h"
+#include "sdk/capi/versioned_struct.h"
+#include "sdk/core/error.h"
+#include "sdk/core/ply.h"
+#include "sdk/core/progress.h"
+#include "sdk/core/recording.h"
+#include "sdk/core/trajectory.h"
+#include "sdk/session/scan_session.h"
+#include "sdk/session/scan_setup.h"
+#include "sls/sls_scan.h"
+
+struct sls_scan {
+  sls::session::ScanSessionOptions options;  // from the config and the context's device
+  sls_frame_callback callback = nullptr;
+  void* user = nullptr;
+  std::atomic<bool> cancel_requested{false};  // final once set (sls_scan_cancel)
+  // Taken by a run for its whole length and by the other calls for theirs: a second taker
+  // answers SLS_ERROR_BUSY. An atomic flag rather than a mutex, because the frame callback
+  // calls in on the thread that holds it.
+  mutable std::atomic<bool> in_use{false};
+
+  // The last run's results.
+  std::optional<sls::session::ScanSession> session;
+  bool cancelled = false;
+  mutable std::optional<sls::fusion::ExtractedSurface> surface;  // extracted once, for the writes
+};
+
+namespace {
+
+constexpr std::size_t kScanConfigFirstVersionSize = offsetof(sls_scan_config, max_voxels) + sizeof(double);
+constexpr std::size_t kCaptureConfigFirstVersionSize = offsetof(sls_capture_config, frames) + sizeof(int);
+constexpr std::size_t kSummaryFirstVersionSize = offsetof(sls_scan_summary, volume_moves) + sizeof(std::size_t);
+
+// Holds a scan for one call, or finds it held (a run in progress).
+class ScanHold {
+ public:
+  explicit ScanHold(const sls_scan& scan) : flag_(scan.in_use), held_(!flag_.exchange(true)) {}
+  ~ScanHold() {
+    if (held_) flag_.store(false);
+  }
+  ScanHold(const ScanHold&) = delete;
+  ScanHold& operator=(const ScanHold&) = delete;
+  bool held() const { return held_; }
+
+ private:
+  std::atomic<bool>& flag_;
+  bool held_;
+};
+
+sls_status report_busy(const char* function, sls_error** error) {
+  return sls::capi::report(SLS_ERROR_BUSY, function,
+                           "the scan is running (during a run only sls_scan_cancel may be called on it)", error);
+}
+
+sls::session::ScanSessionOptions session_options(const sls_scan_config& config, const sls::Device& device) {
+  sls::session::ScanSessionOptions options;
+  options.device = device;
+  const long long fusion = sls::capi::c_enum_value(config.fusion);
+  if (fusion == SLS_FUSION_GTSDF) {
+    options.integration = sls::fusion::IntegrationOptions::gtsdf();
+  } else if (fusion == SLS_FUSION_TSDF) {
+    options.integration = sls::fusion::IntegrationOptions::tsdf();
+  } else {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.fusion {} is not an sls_fusion_method", fusion);
+  }
+  options.turntable_prior = config.use_turntable_prior != 0;
+  if (!(config.voxel_size_m >= 0.0) || !std::isfinite(config.voxel_size_m)) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.voxel_size_m {} (0: automatic, or positive)",
+                     config.voxel_size_m);
+  }
+  options.voxel_size_m = config.voxel_size_m;
+  const double* size = config.volume_size_m;
+  const bool automatic = size[0] == 0.0 && size[1] == 0.0 && size[2] == 0.0;
+  const bool given = std::all_of(size, size + 3, [](double s) { return s > 0.0 && std::isfinite(s); });
+  if (!automatic && !given) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "config.volume_size_m {} x {} x {} (all three 0: automatic, or all three positive)", size[0],
+                     size[1], size[2]);
+  }
+  options.volume_size_m = Eigen::Vector3d(size[0], size[1], size[2]);
+  if (!(config.max_voxels >= 0.0) || !std::isfinite(config.max_voxels)) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.max_voxels {} (0: automatic, or positive)",
+                     config.max_voxels);
+  }
+  options.max_voxels = config.max_voxels > 0.0 ? config.max_voxels : sls::session::automatic_max_voxels(device);
+  options.validate();
+  return options;
+}
+
+sls_frame_status to_c(sls::session::FrameStatus status) {
+  switch (status) {
+    case sls::session::FrameStatus::kFused: return SLS_FRAME_FUSED;
+    case sls::session::FrameStatus::kLost: return SLS_FRAME_LOST;
+    case sls::session::FrameStatus::kSkipped: return SLS_FRAME_SKIPPED;
+  }
+  sls::throw_error(sls::ErrorCode::kInternal, "frame status {} has no C value", static_cast<int>(status));
+}
+
+// The report's strings point into `frame`: valid while it lives (the callback's duration).
+sls_frame_report to_c(const sls::session::FrameReport& frame, std::size_t recording_frames) {
+  sls_frame_report report;
+  std::memset(&report, 0, sizeof(report));
+  report.struct_size = sizeof(report);
+  report.index = frame.index;
+  report.recording_frames = recording_frames;
+  report.timestamp_ns = frame.timestamp_ns;
+  report.status = to_c(frame.status);
+  report.reason = frame.reason.c_str();
+  const Eigen::Matrix4d T_world_camera = frame.T_world_camera.matrix();
+  for (int row = 0; row < 4; ++row) {
+    for (int column = 0; column < 4; ++column) report.T_world_camera[4 * row + column] = T_world_camera(row, column);
+  }
+  report.depth_pixels = frame.depth_pixels;
+  if (frame.tracking) {
+    report.tracked = 1;
+    report.inlier_fraction = frame.tracking->inlier_fraction;
+    report.residual_rms_m = frame.tracking->residual_rms_m;
+  }
+  report.read_ms = frame.times.read_ms;
+  report.decode_ms = frame.times.decode_ms;
+  report.track_ms = frame.times.track_ms;
+  report.integrate_ms = frame.times.integrate_ms;
+  report.move_ms = frame.times.move_ms;
+  report.raycast_ms = frame.times.raycast_ms;
+  report.total_ms = frame.times.total_ms();
+  return report;
+}
+
+bool cancel_requested(const sls_scan& scan) { return scan.cancel_requested.load(); }
+
+void refuse_if_cancelled(const sls_scan& scan) {
+  if (cancel_requested(scan)) {
+    sls::throw_error(sls::ErrorCode::kCancelled, "the scan was cancelled (sls_scan_cancel); create a new one");
+  }
+}
+
+// Forgets the previous run's model (its volume's memory first: the next run allocates its own).
+void discard_results(sls_scan& scan) {
+  scan.surface.reset();
+  scan.session.reset();
+  scan.cancelled = false;
+}
+
+// Replays the recording at `folder` into a new session (scan.session), the frame callback after
+// each frame; throws kCancelled after a cancel, kInvalidArgument when nothing was fused.
+void scan_recording(sls_scan& scan, const std::string& folder) {
+  const sls::RecordingReader recording = sls::session::open_recording_for_scan(folder);
+  scan.session.emplace(sls::session::make_recording_session(recording, scan.options));
+  sls::session::ScanSession& session = *scan.session;
+  const std::size_t recording_frames = recording.frame_count();
+  const auto on_frame = [&scan, recording_frames](const sls::session::FrameReport& frame) {
+    if (scan.callback == nullptr) return;
+    const sls_frame_report report = to_c(frame, recording_frames);
+    scan.callback(&report, scan.user);
+  };
+  // Asked before every frame: a cancel stops the replay after the frame in progress.
+  const sls::ProgressCallback progress = [&scan](const sls::ProgressUpdate&) { return !cancel_requested(scan); };
+  const sls::session::ReplayOutcome outcome = sls::session::run_recording(session, recording, nullptr, on_frame, progress);
+  if (outcome.interrupted) {
+    scan.cancelled = true;
+    sls::throw_error(sls::ErrorCode::kCancelled, "{}: {}; the model keeps the {} frame(s) fused", folder,
+                     outcome.interruption, session.fused_count());
+  }
+  if (session.fused_count() == 0) {
+    const std::vector<sls::session::FrameReport>& frames = session.frames();
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "{}: no frame could be fused ({} frame(s){})", folder,
+                     frames.size(),
+                     frames.empty() ? std::string()
+                                    : "; frame " + std::to_string(frames.front().index) + " " +
+                                          sls::session::frame_status_name(frames.front().status) + ": " +
+                                          frames.front().reason);
+  }
+}
+
+void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
+  const auto required = [](const char* value, const char* name) {
+    if (value == nullptr || value[0] == '\0') {
+      sls::throw_error(sls::ErrorCode::kInvalidArgument, "capture.{} is missing", name);
+    }
+    return std::string(value);
+  };
+  sls::session::DeviceCaptureRequest request;
+  request.camera_uri = required(capture.camera_uri, "camera_uri");
+  request.projector_uri = required(capture.projector_uri, "projector_uri");
+  request.calibration_path = required(capture.calibration_path, "calibration_path");
+  const std::string folder = required(capture.recording_path, "recording_path");
+  if (capture.turntable_uri != nullptr) request.turntable_uri = capture.turntable_uri;
+  if (capture.frames < 0) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "capture.frames {} (0: automatic, or positive)",
+                     capture.frames);
+  }
+  request.frames = capture.frames;
+  request.sim_device = scan.options.device;
+  // Asked after every stack: a cancel stops the capture after the stack in progress.
+  const sls::ProgressCallback progress = [&scan](const sls::ProgressUpdate&) { return !cancel_requested(scan); };
+  try {
+    sls::session::capture_from_devices(folder, request, progress);
+  } catch (const sls::Error& error) {
+    if (error.code() == sls::ErrorCode::kCancelled) scan.cancelled = true;
+    throw;
+  }
+  scan_recording(scan, folder);
+}
+
+const sls::session::ScanSession& fused_session(const sls_scan& scan) {
+  if (!scan.session || scan.session->fused_count() == 0) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "no frame has been fused: nothing to write (run the scan first)");
+  }
+  return *scan.session;
+}
+
+const sls::fusion::ExtractedSurface& model(const sls_scan& scan) {
+  const sls::session::ScanSession& session = fused_session(scan);
+  if (!scan.surface) scan.surface = session.final_surface();
+  return *scan.surface;
+}
+
+}  // namespace
+
+extern "C" {
+
+SLS_API void sls_scan_config_init(sls_scan_config* config) {
+  if (config == nullptr) return;
+  std::memset(config, 0, sizeof(*config));
+  config->struct_size = sizeof(*config);
+  config->fusion = SLS_FUSION_GTSDF;
+  config->use_turntable_prior = 0;
+  config->voxel_size_m = 0.0;
+  config->max_voxels = 0.0;
+}
+
+SLS_API void sls_capture_config_init(sls_capture_config* config) {
+  if (config == nullptr) return;
+  std::memset(config, 0, sizeof(*config));
+  config->struct_size = sizeof(*config);
+}
+
+SLS_API void sls_scan_summary_init(sls_scan_summary* summary) {
+  if (summary == nullptr) return;
+  std::memset(summary, 0, sizeof(*summary));
+  summary->struct_size = sizeof(*summary);
+}
+
+SLS_API sls_status sls_scan_create(sls_context* context, const sls_scan_config* config, sls_scan** scan,
+                                   sls_error** error) {
+  SLS_CAPI_REQUIRE(scan != nullptr, error, "scan (the output pointer) is NULL");
+  *scan = nullptr;
+  SLS_CAPI_REQUIRE(context != nullptr, error, "context is NULL");
+  return sls::capi::guarded(__func__, error, [&] {
+    sls_scan_config defaults;
+    sls_scan_config_init(&defaults);
+    const sls_scan_config resolved =
+        config == nullptr ? defaults
+                          : sls::capi::read_versioned(config, defaults, kScanConfigFirstVersionSize, "sls_scan_config");
+    auto created = std::make_unique<sls_scan>();
+    created->options = session_options(resolved, context->device);
+    *scan = created.release();
+  });
+}
+
+SLS_API void sls_scan_destroy(sls_scan* scan) { delete scan; }
+
+SLS_API sls_status sls_scan_set_frame_callback(sls_scan* scan, sls_frame_callback callback, void* user,
+                                               sls_error** error) {
+  SLS_CAPI_REQUIRE(scan != nullptr, error, "scan is NULL");
+  const ScanHold hold(*scan);
+  if (!hold.held()) return report_busy(__func__, error);
+  scan->callback = callback;
+  scan->user = user;
+  return SLS_OK;
+}
+
+SLS_API sls_status sls_scan_run_recording(sls_scan* scan, const char* recording_path, sls_error** error) {
+  SLS_CAPI_REQUIRE(scan != nullptr, error, "scan is NULL");
+  SLS_CAPI_REQUIRE(recording_path != nullptr, error, "recording_path is NULL");
+  const ScanHold hold(*scan);
+  if (!hold.held()) return report_busy(__func__, error);
+  return sls::capi::guarded(__func__, error, [&] {
+    refuse_if_cancelled(*scan);
+    discard_results(*scan);
+    scan_recording(*scan, recording_path);
+  });
+}
+
+SLS_API sls_status sls_scan_run_devices(sls_scan* scan, const sls_capture_config* capture, sls_error** error) {
+  SLS_CAPI_REQUIRE(scan != nullptr, error, "scan is NULL");
+  SLS_CAPI_REQUIRE(capture != nullptr, error, "capture is NULL");
+  const ScanHold hold(*scan);
+  if (!hold.held()) return report_busy(__func__, error);
+  return sls::capi::guarded(__func__, error, [&] {
+    sls_capture_config defaults;
+    sls_capture_config_init(&defaults);
+    const sls_capture_config resolved =
+        sls::capi::read_versioned(capture, defaults, kCaptureConfigFirstVersionSize, "sls_capture_config");
+    refuse_if_cancelled(*scan);
+    discard_results(*scan);
+    scan_devices(*scan, resolved);
+  });
+}
+
+SLS_API sls_status sls_scan_cancel(sls_scan* scan, sls_error** error) {
+  SLS_CAPI_REQUIRE(scan != nullptr, error, "scan is NULL");
+  scan->cancel_requested.store(true);
+  return SLS_OK;
+}
+
+SLS_API sls_status sls_scan_get_summary(const sls_scan* scan, sls_scan_summary* summary, sls_error** error) {
+  SLS_CAPI_REQUIRE(scan != nullptr, error, "scan is NULL");
+  SLS_CAPI_REQUIRE(summary != nullptr, error, "summary (the output pointer) is NULL");
+  const ScanHold hold(*scan);
+  if (!hold.held()) return report_busy(__func__, error);
+  return sls::capi::guarded(__func__, error, [&] {
+    sls_scan_summary filled;
+    sls_scan_summary_init(&filled);
+    if (scan->session) {
+      const sls::session::ScanSession& session = *scan->session;
+      for (const sls::session::FrameReport& frame : session.frames()) {
+        ++filled.frames;
+        switch (frame.status) {
+          case sls::session::FrameStatus::kFused: ++filled.fused; break;
+          case sls::session::FrameStatus::kLost: ++filled.lost; break;
+          case sls::session::FrameStatus::kSkipped: ++filled.skipped; break;
+        }
+      }
+      if (filled.fused > 0) filled.voxel_size_m = session.volume_geometry().voxel_size_m;
+      filled.volume_moves = session.moves();
+    }
+    filled.cancelled = scan->cancelled ? 1 : 0;
+    sls::capi::write_versioned(filled, summary, kSummaryFirstVersionSize, "sls_scan_summary");
+  });
+}
+
+SLS_API sls_status sls_scan_write_cloud(const sls_scan* scan, const char* path, sls_error** error) {
+  SLS_CAPI_REQUIRE(scan != nullptr, error, "scan is NULL");
+  SLS_CAPI_REQUIRE(path != nullptr, error, "path is NULL");
+  const ScanHold hold(*scan);
+  if (!hold.held()) return report_busy(__func__, error);
+  return sls::capi::guarded(__func__, error, [&] { sls::write_ply(path, model(*scan).cloud); });
+}
+
+SLS_API sls_status sls_scan_write_mesh(const sls_scan* scan, const char* path, sls_error** error) {
+  SLS_CAPI_REQUIRE(scan != nullptr, error, "scan is NULL");
+  SLS_CAPI_REQUIRE(path != nullptr, error, "path is NULL");
+  const ScanHold hold(*scan);
+  if (!hold.held()) return report_busy(__func__, error);
+  return sls::capi::guarded(__func__, error, [&] { sls::write_ply(path, model(*scan).mesh); });
+}
+
+SLS_API sls_status sls_scan_write_trajectory(const sls_scan* scan, const char* path, sls_error** error) {
+  SLS_CAPI_REQUIRE(scan != nullptr, error, "scan is NULL");
+  SLS_CAPI_REQUIRE(path != nullptr, error, "path is NULL");
+  const ScanHold hold(*scan);
+  if (!hold.held()) return report_busy(__func__, error);
+  return sls::capi::guarded(__func__, error,
+                            [&] { sls::write_tum_trajectory(path, fused_session(*scan).trajectory()); });
+}
+
+}  // extern "C"

@@ -1,0 +1,237 @@
+/* Scans: frames decoded, tracked and fused into a model, with a report per frame.
+ *
+ * A scan is made from a context (which says CPU or CUDA) and a config, then run on a source:
+ *   sls_scan_run_recording()  a recording folder (written by `sls sim`, `sls scan` or
+ *                             sls_scan_run_devices()); it carries its calibration
+ *   sls_scan_run_devices()    a camera, a projector and optionally a turntable by URI
+ *                             (sls_device.h: hardware or sim://), captured into a new recording
+ *                             first (one pattern stack per turntable position), then scanned
+ * Per frame: decode the pattern stack (or take the recording's depth map), track it against the
+ * model (ICP from a constant-velocity guess, or with use_turntable_prior from the recorded
+ * turntable angle about the calibrated axis), integrate it (GTSDF or TSDF), move the volume
+ * when the camera leaves it, raycast the model for the next frame. A frame that cannot be read
+ * or decoded is skipped, one the tracker cannot register is lost: neither touches the model,
+ * and the scan goes on. After a run the model (cloud, mesh) and the trajectory of the fused
+ * frames can be written. The world frame is the camera frame of the first fused frame.
+ *
+ * Threads: a run blocks the thread that calls it; the frame callback runs on that thread.
+ * sls_scan_cancel() may be called from any thread, the frame callback included. Every other
+ * function on a scan returns SLS_ERROR_BUSY while a run is in progress (from the callback too);
+ * different scans are independent. Destroying a scan while it runs is the caller's bug.
+ *
+ * Typical use:
+ *   static void on_frame(const sls_frame_report* report, void* user) {
+ *     printf("frame %d %s\n", report->index, report->status == SLS_FRAME_FUSED ? "fused" : report->reason);
+ *   }
+ *   ...
+ *   sls_scan_config config;
+ *   sls_scan* scan = NULL;
+ *   sls_scan_config_init(&config);
+ *   config.use_turntable_prior = 1;
+ *   if (sls_scan_create(context, &config, &scan, NULL) == SLS_OK &&
+ *       sls_scan_set_frame_callback(scan, on_frame, NULL, NULL) == SLS_OK) {
+ *     sls_error* error = NULL;
+ *     sls_status status = sls_scan_run_recording(scan, "scans/knob", &error);
+ *     if (status == SLS_OK || status == SLS_ERROR_CANCELLED) sls_scan_write_mesh(scan, "knob.ply", NULL);
+ *     if (status != SLS_OK) fprintf(stderr, "%s
+", sls_error_message(error));
+ *     sls_error_free(error);
+ *   }
+ *   sls_scan_destroy(scan);
+ */
+#ifndef SLS_SCAN_H
+#define SLS_SCAN_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "sls/sls_context.h"
+#include "sls/sls_export.h"
+#include "sls/sls_status.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* A scan: its configuration, its frame callback, and after a run its model. Opaque. */
+typedef struct sls_scan sls_scan;
+
+typedef enum sls_fusion_method {
+  SLS_FUSION_GTSDF = 0, /* the detail-preserving anisotropic TSDF (Sekkati et al.) */
+  SLS_FUSION_TSDF = 1   /* the plain weighted TSDF */
+} sls_fusion_method;
+
+/* Scan configuration. Versioned by its size: initialise with sls_scan_config_init(), which sets
+ * struct_size and the defaults, then change fields. Later library versions only append fields.
+ * The volume moves with the camera; it is sized at the first fused frame. */
+typedef struct sls_scan_config {
+  size_t struct_size;
+  sls_fusion_method fusion; /* default SLS_FUSION_GTSDF */
+  int use_turntable_prior;  /* 1: the recorded turntable angles about the calibrated axis guess
+                             * each pose (needs a recording with angles and a calibrated axis);
+                             * default 0: depth alone, from a constant-velocity guess */
+  double voxel_size_m;      /* default 0: two pixel footprints at the focus distance, grown until
+                             * the volume fits max_voxels */
+  double volume_size_m[3];  /* extent along the camera's x, y, z; default {0, 0, 0}: the camera's
+                             * field of view at the focus distance across, half as deep. All
+                             * three 0 or all three positive */
+  double max_voxels;        /* the largest volume (one of the moving volume's two buffers) the
+                             * automatic voxel size is grown to fit; default 0: 256e6 with CUDA,
+                             * 48e6 on the CPU */
+} sls_scan_config;
+
+/* Fills *config with the defaults. */
+SLS_API void sls_scan_config_init(sls_scan_config* config);
+
+/* Creates a scan.
+ *   context: where it runs (sls_context_uses_cuda: the CUDA GPU or the CPU); sim:// devices of
+ *            sls_scan_run_devices() render there too. Not kept: it may be destroyed first.
+ *   config:  NULL for the defaults, or a config from sls_scan_config_init().
+ *   scan:    receives the scan; the caller owns it and frees it with sls_scan_destroy(). Left
+ *            NULL on failure.
+ * Fails with SLS_ERROR_INVALID_ARGUMENT naming the bad config field. Memory for the volume is
+ * taken at the first fused frame of a run, not here. */
+SLS_API sls_status sls_scan_create(sls_context* context, const sls_scan_config* config, sls_scan** scan,
+                                   sls_error** error);
+
+/* Frees a scan and its model. sls_scan_destroy(NULL) is a no-op. */
+SLS_API void sls_scan_destroy(sls_scan* scan);
+
+typedef enum sls_frame_status {
+  SLS_FRAME_FUSED = 0,  /* tracked (or the first frame) and integrated into the model */
+  SLS_FRAME_LOST = 1,   /* decoded, but the tracker could not register it: not fused */
+  SLS_FRAME_SKIPPED = 2 /* could not be read or decoded (corrupt, incomplete): not fused */
+} sls_frame_status;
+
+/* One frame's outcome, handed to the frame callback. The library fills its own version of the
+ * struct and sets struct_size to its size: a field added in a later version is there only when
+ * struct_size covers it. */
+typedef struct sls_frame_report {
+  size_t struct_size;
+  int index;                 /* the frame's index in the recording (frames come in order) */
+  size_t recording_frames;   /* frames in the recording: index + 1 of recording_frames done */
+  int64_t timestamp_ns;      /* the recording's timestamp of the frame */
+  sls_frame_status status;
+  const char* reason;        /* why lost or skipped, "" when fused; valid during the callback only */
+  double T_world_camera[16]; /* 4x4 row-major, metres: the fused pose (a lost frame: the guess it
+                              * was tracked from; a skipped frame: identity) */
+  size_t depth_pixels;       /* valid depth pixels of the decoded frame */
+  int tracked;               /* 1: registered by ICP, the next two fields are its; 0: the first
+                              * fused frame, or not decoded */
+  double inlier_fraction;    /* of the frame's depth pixels, matched to the model */
+  double residual_rms_m;     /* point-to-plane residual of the inliers */
+  double read_ms;            /* milliseconds per stage */
+  double decode_ms;
+  double track_ms;
+  double integrate_ms;
+  double move_ms;
+  double raycast_ms;
+  double total_ms;           /* the sum of the stages above */
+} sls_frame_report;
+
+/* Called after each frame of a run, in frame order, on the thread running sls_scan_run_*().
+ * `report` and its strings are valid during the call only. It must return normally and must
+ * not call functions on the same scan except sls_scan_cancel() (the others return
+ * SLS_ERROR_BUSY). The run waits for it: a slow callback slows the scan. */
+typedef void (*sls_frame_callback)(const sls_frame_report* report, void* user);
+
+/* Sets the callback later runs call after each frame (NULL: none), and the `user` pointer
+ * handed to it. Replaces the previous one. SLS_ERROR_BUSY while a run is in progress. */
+SLS_API sls_status sls_scan_set_frame_callback(sls_scan* scan, sls_frame_callback callback, void* user,
+                                               sls_error** error);
+
+/* Scans a recording: opens `recording_path` (its manifest and calibration are checked first),
+ * then decodes, tracks and fuses every frame, calling the frame callback after each. A run
+ * starts by discarding the model and summary of the scan's previous run (one that fails early
+ * leaves none).
+ * Returns SLS_OK when every frame was processed and at least one fused;
+ * SLS_ERROR_CANCELLED when sls_scan_cancel() stopped it: after the frame in progress, the model
+ * keeps every frame fused before;
+ * SLS_ERROR_NOT_FOUND for a missing folder, manifest or frame file, SLS_ERROR_FORMAT (or
+ * SLS_ERROR_VERSION_MISMATCH) for a corrupt (or newer) manifest or a frame file that is no PNG
+ * at all: the recording's check finds these before any frame;
+ * SLS_ERROR_INVALID_ARGUMENT for a recording without calibration, or when no frame could be
+ * fused (the summary and the callback's reasons say why);
+ * SLS_ERROR_OUT_OF_MEMORY when the volume does not fit; SLS_ERROR_BUSY when the scan is already
+ * running. A frame that passes the check but cannot be read (an image cut short), an incomplete
+ * stack and a frame that cannot be decoded do not fail the run: they are reported as skipped. */
+SLS_API sls_status sls_scan_run_recording(sls_scan* scan, const char* recording_path, sls_error** error);
+
+/* What sls_scan_run_devices() captures. Versioned like sls_scan_config
+ * (sls_capture_config_init()). The strings are read during the call only. */
+typedef struct sls_capture_config {
+  size_t struct_size;
+  const char* camera_uri;       /* required, e.g. "gige://192.168.1.20", "sim://knurled-knob?preset=ci" */
+  const char* projector_uri;    /* required, e.g. "dlpc350://" */
+  const char* turntable_uri;    /* NULL or "": none, every stack at one position; e.g. "headctl://" */
+  const char* calibration_path; /* required: calibration.yml of these devices, stored in the
+                                 * recording (without one the stacks cannot be decoded) */
+  const char* recording_path;   /* required: the recording folder to create; it must not exist
+                                 * or be empty. It is kept: scan it again with sls_scan_run_recording */
+  int frames;                   /* frames per revolution, one revolution captured; default 0:
+                                 * 36 with a turntable, else 1 */
+} sls_capture_config;
+
+/* Sets struct_size and the defaults (NULL strings, frames 0). */
+SLS_API void sls_capture_config_init(sls_capture_config* config);
+
+/* Captures from devices by URI, then scans the recording: opens the projector, camera and
+ * turntable (sls_device.h's URIs; sim:// devices render on the context's device), homes the
+ * turntable, and per turntable position projects the scan's Gray code + phase-shift patterns
+ * and captures one stack (a spoiled stack is captured again, up to twice), appending each to
+ * the recording at capture->recording_path as it arrives; then runs as sls_scan_run_recording()
+ * on that recording, with the same results and codes. The frame callback reports the scan's
+ * frames, after the capture.
+ * Also fails with SLS_ERROR_INVALID_ARGUMENT for a missing URI or path, the device registry's
+ * codes for a URI that opens nothing (SLS_ERROR_UNSUPPORTED, SLS_ERROR_NOT_FOUND, ... naming
+ * the URI), SLS_ERROR_DEVICE or SLS_ERROR_TIMEOUT for a device that stops answering, and
+ * SLS_ERROR_CANCELLED for a cancel during the capture (the recording keeps the stacks captured;
+ * the scan has no model then). */
+SLS_API sls_status sls_scan_run_devices(sls_scan* scan, const sls_capture_config* capture, sls_error** error);
+
+/* Asks the run in progress to stop after its current frame (or its current stack, while
+ * capturing); the run then returns SLS_ERROR_CANCELLED and the model keeps what was fused. Safe
+ * from any thread and from the frame callback; returns at once. A cancel is final: a run started
+ * on a cancelled scan returns SLS_ERROR_CANCELLED before reading anything, and the results of
+ * the cancelled run stay. */
+SLS_API sls_status sls_scan_cancel(sls_scan* scan, sls_error** error);
+
+/* What the last run did. Versioned like sls_frame_report: initialise with
+ * sls_scan_summary_init(); the library fills only the fields the caller's struct_size covers. */
+typedef struct sls_scan_summary {
+  size_t struct_size;
+  size_t frames;        /* frames processed (reported to the callback) */
+  size_t fused;
+  size_t lost;
+  size_t skipped;
+  int cancelled;        /* 1: the run was cancelled before its end */
+  double voxel_size_m;  /* the volume's voxel size; 0 before the first fused frame */
+  size_t volume_moves;  /* times the volume moved with the camera */
+} sls_scan_summary;
+
+/* Sets struct_size and clears the other fields. */
+SLS_API void sls_scan_summary_init(sls_scan_summary* summary);
+
+/* The last run's summary; all zero before the first run. */
+SLS_API sls_status sls_scan_get_summary(const sls_scan* scan, sls_scan_summary* summary, sls_error** error);
+
+/* The model as a point cloud (zero crossings of the volume with normals and confidence), in the
+ * world frame, written as binary PLY to `path` (atomically: a temporary file renamed). The parts
+ * the moving volume shipped and the current volume's surface, so a cancelled or interrupted
+ * run writes what it fused. SLS_ERROR_INVALID_ARGUMENT when no frame has been fused,
+ * SLS_ERROR_IO when the file cannot be written. */
+SLS_API sls_status sls_scan_write_cloud(const sls_scan* scan, const char* path, sls_error** error);
+
+/* The model as a triangle mesh (marching cubes), binary PLY, as sls_scan_write_cloud(). */
+SLS_API sls_status sls_scan_write_mesh(const sls_scan* scan, const char* path, sls_error** error);
+
+/* The poses of the fused frames, T_world_camera, as a TUM trajectory
+ * (`timestamp tx ty tz qx qy qz qw`, seconds from the recording's timestamps). Errors as
+ * sls_scan_write_cloud(). */
+SLS_API sls_status sls_scan_write_trajectory(const sls_scan* scan, const char* path, sls_error** error);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* SLS_SCAN_H */

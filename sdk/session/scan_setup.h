@@ -1,0 +1,69 @@
+// Setting a scan up, the same way for every front end (`sls scan`, the C API's sls_scan_run_*):
+// devices given by URI captured into a recording through the capture sequencer, a recording
+// opened and checked for a scan, and a scan session made for a recording.
+//
+//   DeviceCapture captured = capture_from_devices(folder, request, progress);
+//   RecordingReader recording = open_recording_for_scan(folder);
+//   ScanSession session = make_recording_session(recording, options);
+//   ReplayOutcome outcome = run_recording(session, recording, ...);
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include "drivers/interfaces/projector.h"
+#include "sdk/core/device.h"
+#include "sdk/core/progress.h"
+#include "sdk/core/recording.h"
+#include "sdk/decode/pattern_set.h"
+#include "sdk/session/capture_sequencer.h"
+#include "sdk/session/scan_session.h"
+
+namespace sls::session {
+
+// Devices by URI (drivers/device_registry.h: hardware or sim://) and what to capture.
+struct DeviceCaptureRequest {
+  std::string camera_uri;
+  std::string projector_uri;
+  std::string turntable_uri;     // empty: no turntable, every stack at one position
+  std::string calibration_path;  // calibration.yml of these devices, stored in the recording; empty: none
+  // Frames per revolution; one revolution is captured. 0: 36 with a turntable, else 1.
+  int frames = 0;
+  Device sim_device = Device::cpu();  // where sim:// devices render (unless their URI says device=)
+};
+
+struct DeviceCapture {
+  std::string recording_folder;
+  CaptureStatistics statistics;
+  std::size_t images_per_frame = 0;
+  bool calibrated = false;  // the recording holds a calibration (a scan can decode it)
+};
+
+// The pattern set a scan projects with `projector`: the Gray code + phase-shift set at the
+// projector's size.
+PatternSet scan_pattern_set(const drivers::Projector& projector);
+
+// Opens the devices, loads scan_pattern_set() and captures one revolution through the capture
+// sequencer into a new recording at `folder` (RecordingWriter::create: it must not exist or be
+// empty), with the calibration when the request names one. Every stack is appended as it
+// arrives, so an error or a cancel keeps a valid recording of the stacks captured. Throws
+// sls::Error: the device registry's codes for a URI that opens nothing (the message names it),
+// kInvalidArgument without a camera or projector URI, the sequencer's codes for a device that
+// stops answering, kCancelled when `progress` asks to stop.
+DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptureRequest& request,
+                                   const ProgressCallback& progress = {});
+
+// Opens a recording for a scan: reads and checks its manifest (RecordingReader::verify without
+// decoding images) and requires a calibration. Throws sls::Error: kNotFound for a missing
+// folder or manifest, kFormat for a corrupt one, kInvalidArgument without calibration.yml.
+RecordingReader open_recording_for_scan(const std::string& folder);
+
+// A scan session for the frames of `recording`: its calibration, its pattern set (none for a
+// depth-map recording) and its camera's bit depth for the decoder; the rest from `options`.
+ScanSession make_recording_session(const RecordingReader& recording, ScanSessionOptions options);
+
+// The largest volume (one buffer of a moving volume) an automatic voxel size is grown to fit:
+// 256 million voxels on a GPU, 48 million on the CPU.
+double automatic_max_voxels(const Device& device);
+
+}  // namespace sls::session

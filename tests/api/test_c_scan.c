@@ -1,0 +1,644 @@
+/* Scans through the C API, from a C99 program, as an OEM would run them.
+ *   test_c_scan RECORDING SCRATCH
+ * RECORDING: a depth-mode recording of the simulated knurled knob (ci preset, 36 frames per
+ * revolution) with its ground truth; SCRATCH: an empty folder for what the test writes.
+ * Checks:
+ *  - a tracked turntable scan of RECORDING, cancelled from the frame callback after frame k:
+ *    one callback per frame in order, sane reports, poses against the ground truth, the run
+ *    returns SLS_ERROR_CANCELLED and keeps the model, whose cloud, mesh and trajectory files
+ *    are valid; a cancel is final;
+ *  - the same scan cancelled from another thread while it runs;
+ *  - sim:// devices captured into a recording and scanned (sls_scan_run_devices), to SLS_OK;
+ *  - the mistakes: NULL handles, bad configs, a missing or corrupt recording, a recording of
+ *    which no frame can be fused, a run or a query on a running scan (from the callback).
+ * Exit status 0 when every check holds; each failed check prints its line. */
+/* POSIX threads for the cancel from another thread (C99 has none of its own). */
+#define _POSIX_C_SOURCE 200809L
+
+#include <math.h>
+#include <pthread.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <sls/sls.h>
+
+static int failures = 0;
+
+#define CHECK(condition)                                                              \
+  do {                                                                                \
+    if (!(condition)) {                                                               \
+      fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #condition); \
+      ++failures;                                                                     \
+    }                                                                                 \
+  } while (0)
+
+/* The status of a call, and its error's message containing `part` (when part is not NULL). */
+static void check_error(sls_status got, sls_status expected, sls_error* error, const char* part, int line) {
+  if (got != expected) {
+    fprintf(stderr, "%s:%d: status %s (%d), expected %s: %s\n", __FILE__, line, sls_status_str(got), (int)got,
+            sls_status_str(expected), sls_error_message(error));
+    ++failures;
+  } else if (error == NULL || sls_error_status(error) != expected) {
+    fprintf(stderr, "%s:%d: no sls_error with status %s\n", __FILE__, line, sls_status_str(expected));
+    ++failures;
+  } else if (part != NULL && strstr(sls_error_message(error), part) == NULL) {
+    fprintf(stderr, "%s:%d: message \"%s\" does not mention \"%s\"\n", __FILE__, line, sls_error_message(error),
+            part);
+    ++failures;
+  }
+  sls_error_free(error);
+}
+/* `call` must use `&error_` as its sls_error** argument. */
+#define CHECK_ERROR(call, expected, part)                         \
+  do {                                                            \
+    sls_error* error_ = NULL;                                     \
+    sls_status status_ = (call);                                  \
+    check_error(status_, (expected), error_, (part), __LINE__);  \
+  } while (0)
+
+/* A call that must succeed; prints its error otherwise. */
+static int succeeded(sls_status status, sls_error* error, int line) {
+  if (status == SLS_OK) return 1;
+  fprintf(stderr, "%s:%d: %s: %s\n", __FILE__, line, sls_status_str(status), sls_error_message(error));
+  sls_error_free(error);
+  ++failures;
+  return 0;
+}
+#define CHECK_OK(call)                         \
+  do {                                         \
+    sls_error* error_ = NULL;                  \
+    sls_status status_ = (call);               \
+    succeeded(status_, error_, __LINE__);      \
+  } while (0)
+
+static char* path_join(const char* folder, const char* name) {
+  size_t length = strlen(folder) + strlen(name) + 2;
+  char* path = (char*)malloc(length);
+  if (path == NULL) exit(2);
+  sprintf(path, "%s/%s", folder, name);
+  return path;
+}
+
+/* ---- Poses: 4x4 row-major doubles. ---- */
+
+static void pose_from_tum(const double t[3], const double q[4] /* x y z w */, double pose[16]) {
+  double x = q[0], y = q[1], z = q[2], w = q[3];
+  double norm = sqrt(x * x + y * y + z * z + w * w);
+  x /= norm, y /= norm, z /= norm, w /= norm;
+  pose[0] = 1 - 2 * (y * y + z * z), pose[1] = 2 * (x * y - z * w), pose[2] = 2 * (x * z + y * w), pose[3] = t[0];
+  pose[4] = 2 * (x * y + z * w), pose[5] = 1 - 2 * (x * x + z * z), pose[6] = 2 * (y * z - x * w), pose[7] = t[1];
+  pose[8] = 2 * (x * z - y * w), pose[9] = 2 * (y * z + x * w), pose[10] = 1 - 2 * (x * x + y * y), pose[11] = t[2];
+  pose[12] = 0, pose[13] = 0, pose[14] = 0, pose[15] = 1;
+}
+
+/* a^-1 b for rigid poses. */
+static void relative_pose(const double a[16], const double b[16], double out[16]) {
+  int i, j, k;
+  double inverse[16];
+  for (i = 0; i < 3; ++i) {
+    for (j = 0; j < 3; ++j) inverse[4 * i + j] = a[4 * j + i];
+    inverse[4 * i + 3] = -(a[i] * a[3] + a[4 + i] * a[7] + a[8 + i] * a[11]);
+  }
+  inverse[12] = inverse[13] = inverse[14] = 0, inverse[15] = 1;
+  for (i = 0; i < 4; ++i) {
+    for (j = 0; j < 4; ++j) {
+      out[4 * i + j] = 0;
+      for (k = 0; k < 4; ++k) out[4 * i + j] += inverse[4 * i + k] * b[4 * k + j];
+    }
+  }
+}
+
+/* How far apart two poses are: the translation (m) and the rotation angle (degrees). */
+static void pose_difference(const double a[16], const double b[16], double* translation_m, double* rotation_deg) {
+  double d[16], cosine;
+  relative_pose(a, b, d);
+  *translation_m = sqrt(d[3] * d[3] + d[7] * d[7] + d[11] * d[11]);
+  cosine = 0.5 * (d[0] + d[5] + d[10] - 1.0);
+  if (cosine > 1.0) cosine = 1.0;
+  if (cosine < -1.0) cosine = -1.0;
+  *rotation_deg = acos(cosine) * 180.0 / 3.14159265358979323846;
+}
+
+/* A rotation block that is one, and a last row 0 0 0 1. */
+static int is_rigid(const double pose[16]) {
+  int i, j, k;
+  for (i = 0; i < 3; ++i) {
+    for (j = 0; j < 3; ++j) {
+      double dot = 0;
+      for (k = 0; k < 3; ++k) dot += pose[4 * k + i] * pose[4 * k + j];
+      if (fabs(dot - (i == j ? 1.0 : 0.0)) > 1e-6) return 0;
+    }
+  }
+  return pose[12] == 0 && pose[13] == 0 && pose[14] == 0 && pose[15] == 1;
+}
+
+/* Reads up to `capacity` poses of a TUM trajectory; returns how many, -1 when unreadable. */
+static int read_tum(const char* path, double (*poses)[16], int capacity) {
+  char line[512];
+  int count = 0;
+  FILE* file = fopen(path, "r");
+  if (file == NULL) return -1;
+  while (count < capacity && fgets(line, sizeof(line), file) != NULL) {
+    double stamp, t[3], q[4];
+    if (line[0] == '#' || line[0] == '\n') continue;
+    if (sscanf(line, "%lf %lf %lf %lf %lf %lf %lf %lf", &stamp, &t[0], &t[1], &t[2], &q[0], &q[1], &q[2], &q[3]) != 8) {
+      fclose(file);
+      return -1;
+    }
+    pose_from_tum(t, q, poses[count++]);
+  }
+  fclose(file);
+  return count;
+}
+
+static int count_tum_poses(const char* path) {
+  static double poses[1000][16];
+  return read_tum(path, poses, 1000);
+}
+
+/* ---- PLY files as sls_scan_write_* writes them (binary little endian). ---- */
+
+typedef struct ply_summary {
+  long vertices;
+  long faces;
+  long vertex_bytes; /* per vertex */
+  long header_bytes;
+  long file_bytes;
+} ply_summary;
+
+static int property_bytes(const char* type) {
+  if (strcmp(type, "float") == 0 || strcmp(type, "int") == 0 || strcmp(type, "uint") == 0) return 4;
+  if (strcmp(type, "double") == 0) return 8;
+  if (strcmp(type, "uchar") == 0 || strcmp(type, "char") == 0) return 1;
+  if (strcmp(type, "ushort") == 0 || strcmp(type, "short") == 0) return 2;
+  return -1;
+}
+
+/* Reads a PLY header; 1 when it is a binary little-endian PLY whose header parses. */
+static int read_ply_summary(const char* path, ply_summary* summary) {
+  char line[256], type[64], name[64];
+  int in_vertex = 0, ok = 0;
+  FILE* file = fopen(path, "rb");
+  memset(summary, 0, sizeof(*summary));
+  if (file == NULL) return 0;
+  if (fgets(line, sizeof(line), file) == NULL || strcmp(line, "ply\n") != 0) goto done;
+  if (fgets(line, sizeof(line), file) == NULL || strcmp(line, "format binary_little_endian 1.0\n") != 0) goto done;
+  while (fgets(line, sizeof(line), file) != NULL) {
+    if (strcmp(line, "end_header\n") == 0) {
+      ok = 1;
+      break;
+    }
+    if (sscanf(line, "element vertex %ld", &summary->vertices) == 1) {
+      in_vertex = 1;
+    } else if (sscanf(line, "element face %ld", &summary->faces) == 1) {
+      in_vertex = 0;
+    } else if (in_vertex && sscanf(line, "property %63s %63s", type, name) == 2) {
+      if (property_bytes(type) < 0) goto done;
+      summary->vertex_bytes += property_bytes(type);
+    }
+  }
+  summary->header_bytes = ftell(file);
+  fseek(file, 0, SEEK_END);
+  summary->file_bytes = ftell(file);
+done:
+  fclose(file);
+  return ok;
+}
+
+/* A cloud: vertices with positions, exactly as many as the header says, nothing more. */
+static void check_cloud_file(const char* path) {
+  ply_summary ply;
+  CHECK(read_ply_summary(path, &ply));
+  CHECK(ply.vertices > 1000);
+  CHECK(ply.faces == 0);
+  CHECK(ply.vertex_bytes >= 12);
+  CHECK(ply.file_bytes == ply.header_bytes + ply.vertices * ply.vertex_bytes);
+}
+
+/* A mesh: vertices and triangles (each a count byte and three int indices). */
+static void check_mesh_file(const char* path) {
+  ply_summary ply;
+  CHECK(read_ply_summary(path, &ply));
+  CHECK(ply.vertices > 1000 && ply.faces > 1000);
+  CHECK(ply.file_bytes == ply.header_bytes + ply.vertices * ply.vertex_bytes + ply.faces * 13);
+}
+
+/* ---- The frame callback's record. ---- */
+
+#define MAX_FRAMES 64
+
+typedef struct frame_log {
+  sls_scan* scan;
+  int cancel_after; /* cancel from the callback after this frame index; -1: never */
+  int count;
+  int out_of_order;
+  int index[MAX_FRAMES];
+  sls_frame_status status[MAX_FRAMES];
+  double T_world_camera[MAX_FRAMES][16];
+  int tracked[MAX_FRAMES];
+  int sane[MAX_FRAMES]; /* struct size, strings, counts, times */
+  char first_reason[256];
+  sls_status busy_summary, busy_run, busy_callback, busy_write; /* calls on the running scan */
+} frame_log;
+
+static void frame_log_init(frame_log* log, sls_scan* scan, int cancel_after) {
+  memset(log, 0, sizeof(*log));
+  log->scan = scan;
+  log->cancel_after = cancel_after;
+  log->busy_summary = log->busy_run = log->busy_callback = log->busy_write = SLS_OK;
+}
+
+static void on_frame(const sls_frame_report* report, void* user) {
+  frame_log* log = (frame_log*)user;
+  int n = log->count;
+  int times_ok;
+  if (n >= MAX_FRAMES) return;
+  if (n > 0 && report->index != log->index[n - 1] + 1) log->out_of_order = 1;
+  log->index[n] = report->index;
+  log->status[n] = report->status;
+  memcpy(log->T_world_camera[n], report->T_world_camera, sizeof(report->T_world_camera));
+  log->tracked[n] = report->tracked;
+  times_ok = report->read_ms >= 0 && report->decode_ms >= 0 && report->track_ms >= 0 && report->integrate_ms >= 0 &&
+             report->move_ms >= 0 && report->raycast_ms >= 0 &&
+             fabs(report->total_ms - (report->read_ms + report->decode_ms + report->track_ms + report->integrate_ms +
+                                      report->move_ms + report->raycast_ms)) < 1e-6;
+  log->sane[n] = report->struct_size == sizeof(sls_frame_report) && report->reason != NULL &&
+                 (report->status == SLS_FRAME_FUSED) == (report->reason[0] == '\0') &&
+                 report->recording_frames > (size_t)report->index && times_ok &&
+                 (report->status == SLS_FRAME_SKIPPED || report->depth_pixels > 0) &&
+                 (!report->tracked || (report->inlier_fraction > 0 && report->inlier_fraction <= 1 &&
+                                       report->residual_rms_m >= 0));
+  if (n == 0) {
+    sls_scan_summary summary;
+    strncpy(log->first_reason, report->reason, sizeof(log->first_reason) - 1);
+    /* The scan is running: everything but a cancel is refused, and nothing deadlocks. */
+    sls_scan_summary_init(&summary);
+    log->busy_summary = sls_scan_get_summary(log->scan, &summary, NULL);
+    log->busy_run = sls_scan_run_recording(log->scan, "elsewhere", NULL);
+    log->busy_callback = sls_scan_set_frame_callback(log->scan, NULL, NULL, NULL);
+    log->busy_write = sls_scan_write_cloud(log->scan, "never.ply", NULL);
+  }
+  log->count = n + 1;
+  if (report->index == log->cancel_after) sls_scan_cancel(log->scan, NULL);
+}
+
+static sls_scan* make_scan(sls_context* context, int turntable_prior) {
+  sls_scan_config config;
+  sls_scan* scan = NULL;
+  sls_error* error = NULL;
+  sls_scan_config_init(&config);
+  config.use_turntable_prior = turntable_prior;
+  config.max_voxels = 2e6; /* a ~70 um volume of the 12 x 9 mm view: fast on two cores */
+  if (!succeeded(sls_scan_create(context, &config, &scan, &error), error, __LINE__)) return NULL;
+  return scan;
+}
+
+/* A turntable scan of the recording (10 degree steps, the turntable prior), cancelled from the
+ * callback after frame `cancel_after`. */
+static void check_cancelled_turntable_scan(sls_context* context, const char* recording, const char* scratch) {
+  enum { kCancelAfter = 4 };
+  static frame_log log;
+  double truth[kCancelAfter + 1][16];
+  char* truth_path = path_join(recording, "groundtruth/trajectory.txt");
+  char* cloud = path_join(scratch, "cancelled_cloud.ply");
+  char* mesh = path_join(scratch, "cancelled_mesh.ply");
+  char* trajectory = path_join(scratch, "cancelled_trajectory.txt");
+  sls_scan_summary summary;
+  sls_error* error = NULL;
+  sls_status status;
+  int i;
+  sls_scan* scan = make_scan(context, 1);
+  if (scan == NULL) return;
+  frame_log_init(&log, scan, kCancelAfter);
+  CHECK_OK(sls_scan_set_frame_callback(scan, on_frame, &log, &error_));
+
+  status = sls_scan_run_recording(scan, recording, &error);
+  check_error(status, SLS_ERROR_CANCELLED, error, "cancelled", __LINE__);
+  /* One callback per frame, in order, the last the frame the cancel came from. */
+  CHECK(log.count == kCancelAfter + 1);
+  CHECK(!log.out_of_order);
+  CHECK(log.index[0] == 0 && log.index[log.count - 1] == kCancelAfter);
+  for (i = 0; i < log.count; ++i) {
+    CHECK(log.sane[i]);
+    CHECK(log.status[i] == SLS_FRAME_FUSED);
+    CHECK(is_rigid(log.T_world_camera[i]));
+    CHECK(log.tracked[i] == (i > 0)); /* the first frame places the world */
+  }
+  CHECK(log.first_reason[0] == '\0');
+  CHECK(log.busy_summary == SLS_ERROR_BUSY && log.busy_run == SLS_ERROR_BUSY);
+  CHECK(log.busy_callback == SLS_ERROR_BUSY && log.busy_write == SLS_ERROR_BUSY);
+
+  /* Poses: world is the first camera, so frame i's pose is the camera's motion since frame 0;
+   * the truth's is T_object_camera(0)^-1 T_object_camera(i). The camera turns 10 degrees a
+   * frame about the axis ~0.12 m away (~20 mm); tracked, it is within 0.25 mm and 0.1 degree
+   * (about 50 um and 0.04 degree after 4 frames when this test was written). */
+  CHECK(read_tum(truth_path, truth, kCancelAfter + 1) == kCancelAfter + 1);
+  for (i = 1; i < log.count; ++i) {
+    double true_motion[16], translation_m, rotation_deg, moved_m, turned_deg;
+    relative_pose(truth[0], truth[i], true_motion);
+    pose_difference(truth[0], truth[i], &moved_m, &turned_deg);
+    pose_difference(true_motion, log.T_world_camera[i], &translation_m, &rotation_deg);
+    printf("frame %d: moved %.2f mm, %.2f deg; pose error %.1f um, %.4f deg\n", i, moved_m * 1e3, turned_deg,
+           translation_m * 1e6, rotation_deg);
+    CHECK(turned_deg > 9.0 * i && turned_deg < 11.0 * i); /* the truth is what the test thinks */
+    CHECK(translation_m < 0.25e-3);
+    CHECK(rotation_deg < 0.1);
+  }
+
+  /* The model keeps the fused frames: summary and files. */
+  sls_scan_summary_init(&summary);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.frames == kCancelAfter + 1 && summary.fused == kCancelAfter + 1);
+  CHECK(summary.lost == 0 && summary.skipped == 0);
+  CHECK(summary.cancelled == 1);
+  CHECK(summary.voxel_size_m > 20e-6 && summary.voxel_size_m < 200e-6);
+  CHECK_OK(sls_scan_write_cloud(scan, cloud, &error_));
+  CHECK_OK(sls_scan_write_mesh(scan, mesh, &error_));
+  CHECK_OK(sls_scan_write_trajectory(scan, trajectory, &error_));
+  check_cloud_file(cloud);
+  check_mesh_file(mesh);
+  CHECK(count_tum_poses(trajectory) == kCancelAfter + 1);
+
+  /* A cancel is final: a new run stops before reading anything and the results stay. */
+  log.count = 0;
+  CHECK_ERROR(sls_scan_run_recording(scan, recording, &error_), SLS_ERROR_CANCELLED, "cancelled");
+  CHECK(log.count == 0);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.fused == kCancelAfter + 1);
+  CHECK_ERROR(sls_scan_write_cloud(scan, "/nonexistent-folder/cloud.ply", &error_), SLS_ERROR_IO,
+              "/nonexistent-folder/cloud.ply");
+  sls_scan_destroy(scan);
+  free(truth_path), free(cloud), free(mesh), free(trajectory);
+}
+
+/* Replaces a file's content; 1 when written. */
+static int overwrite(const char* path, const char* content) {
+  FILE* file = fopen(path, "wb");
+  if (file == NULL) return 0;
+  fputs(content, file);
+  return fclose(file) == 0;
+}
+
+/* A run on a worker thread, cancelled from this one after its second frame: the worker's
+ * callback waits there until the cancel is sent, so the frame it stops after is known. */
+typedef struct threaded_run {
+  pthread_mutex_t mutex;
+  pthread_cond_t changed;
+  int frames;      /* reported so far */
+  int cancel_sent; /* by the main thread */
+  sls_scan* scan;
+  const char* recording;
+  sls_status status;
+} threaded_run;
+
+static void count_frame(const sls_frame_report* report, void* user) {
+  threaded_run* run = (threaded_run*)user;
+  (void)report;
+  pthread_mutex_lock(&run->mutex);
+  ++run->frames;
+  pthread_cond_broadcast(&run->changed);
+  while (run->frames == 2 && !run->cancel_sent) pthread_cond_wait(&run->changed, &run->mutex);
+  pthread_mutex_unlock(&run->mutex);
+}
+
+static void* run_scan(void* user) {
+  threaded_run* run = (threaded_run*)user;
+  run->status = sls_scan_run_recording(run->scan, run->recording, NULL);
+  return NULL;
+}
+
+static void check_cancel_from_another_thread(sls_context* context, const char* recording, const char* scratch) {
+  threaded_run run;
+  pthread_t worker;
+  sls_scan_summary summary;
+  char* cloud = path_join(scratch, "thread_cancelled_cloud.ply");
+  sls_scan* scan = make_scan(context, 1);
+  if (scan == NULL) return;
+  memset(&run, 0, sizeof(run));
+  pthread_mutex_init(&run.mutex, NULL);
+  pthread_cond_init(&run.changed, NULL);
+  run.scan = scan;
+  run.recording = recording;
+  run.status = SLS_OK;
+  CHECK_OK(sls_scan_set_frame_callback(scan, count_frame, &run, &error_));
+  CHECK(pthread_create(&worker, NULL, run_scan, &run) == 0);
+  pthread_mutex_lock(&run.mutex);
+  while (run.frames < 2) pthread_cond_wait(&run.changed, &run.mutex);
+  pthread_mutex_unlock(&run.mutex);
+  /* Running: queries from this thread are refused, a cancel is taken. */
+  sls_scan_summary_init(&summary);
+  CHECK_ERROR(sls_scan_get_summary(scan, &summary, &error_), SLS_ERROR_BUSY, "running");
+  CHECK_ERROR(sls_scan_write_cloud(scan, cloud, &error_), SLS_ERROR_BUSY, "running");
+  CHECK_ERROR(sls_scan_set_frame_callback(scan, NULL, NULL, &error_), SLS_ERROR_BUSY, "running");
+  CHECK_OK(sls_scan_cancel(scan, &error_));
+  pthread_mutex_lock(&run.mutex);
+  run.cancel_sent = 1;
+  pthread_cond_broadcast(&run.changed);
+  pthread_mutex_unlock(&run.mutex);
+  pthread_join(worker, NULL);
+  /* Stopped after the frame in progress (the second), the model kept. */
+  CHECK(run.status == SLS_ERROR_CANCELLED);
+  CHECK(run.frames == 2);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.frames == 2 && summary.fused == 2 && summary.cancelled == 1);
+  CHECK_OK(sls_scan_write_cloud(scan, cloud, &error_));
+  check_cloud_file(cloud);
+  sls_scan_destroy(scan);
+  pthread_cond_destroy(&run.changed);
+  pthread_mutex_destroy(&run.mutex);
+  free(cloud);
+}
+
+/* Keeps the first `bytes` bytes of a file; 1 when done. */
+static int truncate_file(const char* path, size_t bytes) {
+  char buffer[4096];
+  size_t got;
+  FILE* file = fopen(path, "rb");
+  if (file == NULL || bytes > sizeof(buffer)) return 0;
+  got = fread(buffer, 1, bytes, file);
+  fclose(file);
+  if (got != bytes) return 0;
+  file = fopen(path, "wb");
+  if (file == NULL) return 0;
+  got = fwrite(buffer, 1, bytes, file);
+  return fclose(file) == 0 && got == bytes;
+}
+
+/* sim:// devices: two stacks at one position (no turntable) captured into a recording, decoded
+ * and fused: the run completes with SLS_OK; the camera did not move, so neither do the poses.
+ * Then the same recording's stacks made unreadable, one and then both, and its manifest
+ * corrupt: skipped frames, a run that fuses nothing, a corrupt recording, each clearly told. */
+static void check_devices_scan(sls_context* context, const char* recording, const char* scratch) {
+  static frame_log log;
+  const char* uri = "sim://knurled-knob?preset=ci";
+  char* calibration = path_join(recording, "calibration.yml");
+  char* captured = path_join(scratch, "captured");
+  char* trajectory = path_join(scratch, "captured_trajectory.txt");
+  char* pattern0 = path_join(scratch, "captured/frames/000000/pattern_000.png");
+  char* pattern1 = path_join(scratch, "captured/frames/000001/pattern_000.png");
+  char* manifest = path_join(scratch, "captured/manifest.json");
+  double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  sls_capture_config capture;
+  sls_scan_summary summary;
+  int i;
+  sls_scan* scan = make_scan(context, 0);
+  if (scan == NULL) return;
+  frame_log_init(&log, scan, -1);
+  CHECK_OK(sls_scan_set_frame_callback(scan, on_frame, &log, &error_));
+  sls_capture_config_init(&capture);
+  capture.camera_uri = uri;
+  capture.projector_uri = uri;
+  capture.calibration_path = calibration;
+  capture.recording_path = captured;
+  capture.frames = 2;
+  CHECK_OK(sls_scan_run_devices(scan, &capture, &error_));
+  CHECK(log.count == 2 && !log.out_of_order && log.index[0] == 0);
+  for (i = 0; i < log.count; ++i) {
+    double translation_m, rotation_deg;
+    CHECK(log.sane[i] && log.status[i] == SLS_FRAME_FUSED);
+    pose_difference(identity, log.T_world_camera[i], &translation_m, &rotation_deg);
+    CHECK(translation_m < 20e-6 && rotation_deg < 0.01);
+  }
+  sls_scan_summary_init(&summary);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.frames == 2 && summary.fused == 2 && summary.cancelled == 0);
+  CHECK_OK(sls_scan_write_trajectory(scan, trajectory, &error_));
+  CHECK(count_tum_poses(trajectory) == 2);
+
+  /* The recording exists now: capturing into it again is refused, naming it. */
+  CHECK_ERROR(sls_scan_run_devices(scan, &capture, &error_), SLS_ERROR_INVALID_ARGUMENT, "captured");
+  /* A capture needs its devices, a calibration and a folder; a URI nothing opens is named. */
+  capture.recording_path = NULL;
+  CHECK_ERROR(sls_scan_run_devices(scan, &capture, &error_), SLS_ERROR_INVALID_ARGUMENT, "recording_path");
+  capture.recording_path = captured;
+  capture.calibration_path = "";
+  CHECK_ERROR(sls_scan_run_devices(scan, &capture, &error_), SLS_ERROR_INVALID_ARGUMENT, "calibration_path");
+  capture.calibration_path = calibration;
+  capture.camera_uri = "firewire://0";
+  CHECK_ERROR(sls_scan_run_devices(scan, &capture, &error_), SLS_ERROR_UNSUPPORTED, "firewire://0");
+  capture.camera_uri = uri;
+  capture.frames = -1;
+  CHECK_ERROR(sls_scan_run_devices(scan, &capture, &error_), SLS_ERROR_INVALID_ARGUMENT, "frames");
+  capture.frames = 2;
+  capture.struct_size = 1;
+  CHECK_ERROR(sls_scan_run_devices(scan, &capture, &error_), SLS_ERROR_INVALID_ARGUMENT, "sls_capture_config_init");
+  CHECK_ERROR(sls_scan_run_devices(scan, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "capture");
+
+  /* One stack unreadable (an image cut short: its header is whole, so the recording checks
+   * out, but its pixels cannot be read): that frame is skipped with the reason, the other fused. */
+  CHECK(truncate_file(pattern1, 100));
+  frame_log_init(&log, scan, -1);
+  CHECK_OK(sls_scan_run_recording(scan, captured, &error_));
+  CHECK(log.count == 2 && log.status[0] == SLS_FRAME_FUSED && log.status[1] == SLS_FRAME_SKIPPED && log.sane[1]);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.frames == 2 && summary.fused == 1 && summary.skipped == 1);
+
+  /* Both unreadable: no frame fused is an error naming the recording and the first frame's
+   * problem; every frame was still reported. */
+  CHECK(truncate_file(pattern0, 100));
+  frame_log_init(&log, scan, -1);
+  CHECK_ERROR(sls_scan_run_recording(scan, captured, &error_), SLS_ERROR_INVALID_ARGUMENT, "no frame could be fused");
+  CHECK(log.count == 2 && log.status[0] == SLS_FRAME_SKIPPED && log.status[1] == SLS_FRAME_SKIPPED);
+  CHECK(strstr(log.first_reason, "pattern_000.png") != NULL);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.frames == 2 && summary.skipped == 2 && summary.fused == 0);
+  CHECK_ERROR(sls_scan_write_mesh(scan, "mesh.ply", &error_), SLS_ERROR_INVALID_ARGUMENT, "no frame");
+
+  /* An image that is no PNG at all, or a corrupt manifest: the recording fails its check
+   * before any frame, with FORMAT naming the file. */
+  CHECK(overwrite(pattern0, "not a png"));
+  frame_log_init(&log, scan, -1);
+  CHECK_ERROR(sls_scan_run_recording(scan, captured, &error_), SLS_ERROR_FORMAT, "000000/pattern_000.png");
+  CHECK(log.count == 0);
+  CHECK(overwrite(manifest, "{\"format\": \"slscan-rec"));
+  CHECK_ERROR(sls_scan_run_recording(scan, captured, &error_), SLS_ERROR_FORMAT, "manifest.json");
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.frames == 0);
+  CHECK_ERROR(sls_scan_write_cloud(scan, "cloud.ply", &error_), SLS_ERROR_INVALID_ARGUMENT, "no frame");
+  sls_scan_destroy(scan);
+  free(calibration), free(captured), free(trajectory), free(pattern0), free(pattern1), free(manifest);
+}
+
+static void check_mistakes(sls_context* context, const char* scratch) {
+  sls_scan_config config;
+  sls_scan_summary summary;
+  sls_scan* scan = NULL;
+  char* missing = path_join(scratch, "no-such-recording");
+  sls_scan_config_init(&config);
+  CHECK(config.struct_size == sizeof(config) && config.fusion == SLS_FUSION_GTSDF && config.max_voxels == 0.0);
+  sls_scan_config_init(NULL);
+  sls_capture_config_init(NULL);
+  sls_scan_summary_init(NULL);
+
+  CHECK_ERROR(sls_scan_create(NULL, NULL, &scan, &error_), SLS_ERROR_INVALID_ARGUMENT, "context");
+  CHECK_ERROR(sls_scan_create(context, NULL, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");
+  config.voxel_size_m = -1.0;
+  CHECK_ERROR(sls_scan_create(context, &config, &scan, &error_), SLS_ERROR_INVALID_ARGUMENT, "voxel_size_m");
+  sls_scan_config_init(&config);
+  config.volume_size_m[0] = 0.01;
+  CHECK_ERROR(sls_scan_create(context, &config, &scan, &error_), SLS_ERROR_INVALID_ARGUMENT, "volume_size_m");
+  sls_scan_config_init(&config);
+  config.fusion = (sls_fusion_method)7;
+  CHECK_ERROR(sls_scan_create(context, &config, &scan, &error_), SLS_ERROR_INVALID_ARGUMENT, "fusion");
+  sls_scan_config_init(&config);
+  config.struct_size = 3;
+  CHECK_ERROR(sls_scan_create(context, &config, &scan, &error_), SLS_ERROR_INVALID_ARGUMENT, "sls_scan_config_init");
+  CHECK(scan == NULL);
+
+  /* NULL handles: an error, never a crash. */
+  sls_scan_destroy(NULL);
+  sls_scan_summary_init(&summary);
+  CHECK_ERROR(sls_scan_run_recording(NULL, missing, &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");
+  CHECK_ERROR(sls_scan_run_devices(NULL, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");
+  CHECK_ERROR(sls_scan_set_frame_callback(NULL, on_frame, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");
+  CHECK_ERROR(sls_scan_cancel(NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");
+  CHECK_ERROR(sls_scan_get_summary(NULL, &summary, &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");
+  CHECK_ERROR(sls_scan_write_cloud(NULL, "a.ply", &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");
+  CHECK_ERROR(sls_scan_write_mesh(NULL, "a.ply", &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");
+  CHECK_ERROR(sls_scan_write_trajectory(NULL, "a.txt", &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");
+
+  /* A scan with the defaults: nothing to write before a run; a missing recording is named. */
+  CHECK_OK(sls_scan_create(context, NULL, &scan, &error_));
+  if (scan == NULL) return;
+  CHECK_ERROR(sls_scan_get_summary(scan, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "summary");
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.frames == 0 && summary.fused == 0 && summary.voxel_size_m == 0.0);
+  summary.struct_size = 2;
+  CHECK_ERROR(sls_scan_get_summary(scan, &summary, &error_), SLS_ERROR_INVALID_ARGUMENT, "sls_scan_summary_init");
+  CHECK_ERROR(sls_scan_write_cloud(scan, "a.ply", &error_), SLS_ERROR_INVALID_ARGUMENT, "no frame");
+  CHECK_ERROR(sls_scan_write_mesh(scan, "a.ply", &error_), SLS_ERROR_INVALID_ARGUMENT, "no frame");
+  CHECK_ERROR(sls_scan_write_trajectory(scan, "a.txt", &error_), SLS_ERROR_INVALID_ARGUMENT, "no frame");
+  CHECK_ERROR(sls_scan_write_cloud(scan, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "path");
+  CHECK_ERROR(sls_scan_run_recording(scan, missing, &error_), SLS_ERROR_NOT_FOUND, "no-such-recording");
+  CHECK_ERROR(sls_scan_run_recording(scan, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "recording_path");
+  /* Cancelled before it runs: the run stops before reading anything, and creates nothing. */
+  CHECK_OK(sls_scan_cancel(scan, &error_));
+  CHECK_ERROR(sls_scan_run_recording(scan, missing, &error_), SLS_ERROR_CANCELLED, "cancelled");
+  sls_scan_destroy(scan);
+  free(missing);
+}
+
+int main(int argc, char** argv) {
+  sls_context* context = NULL;
+  sls_context_config config;
+  if (argc != 3) {
+    fprintf(stderr, "usage: test_c_scan RECORDING SCRATCH\n");
+    return 2;
+  }
+  sls_context_config_init(&config);
+  config.device = SLS_DEVICE_CPU;
+  if (sls_context_create(SLS_API_VERSION, &config, &context, NULL) != SLS_OK) {
+    fprintf(stderr, "no context\n");
+    return 1;
+  }
+  check_mistakes(context, argv[2]);
+  check_cancelled_turntable_scan(context, argv[1], argv[2]);
+  check_cancel_from_another_thread(context, argv[1], argv[2]);
+  check_devices_scan(context, argv[1], argv[2]);
+  sls_context_destroy(context);
+  if (failures != 0) fprintf(stderr, "%d check(s) failed\n", failures);
+  else printf("all checks passed\n");
+  return failures == 0 ? 0 : 1;
+}
