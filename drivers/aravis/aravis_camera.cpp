@@ -461,9 +461,18 @@ struct AravisCamera::Impl {
     CapturedImage captured;
     captured.frame_id = arv_buffer_get_frame_id(buffer);
     captured.timestamp_ns = static_cast<std::int64_t>(arv_buffer_get_timestamp(buffer));
-    if (have_last_frame_id) captured.frames_missed = frames_missed_between(last_frame_id, captured.frame_id);
-    have_last_frame_id = true;
-    last_frame_id = captured.frame_id;
+    const ArvBufferStatus status = arv_buffer_get_status(buffer);
+    if (status != ARV_BUFFER_STATUS_SUCCESS && have_last_frame_id) {
+      // A buffer the transport could not complete may carry an id that is not its own (seen
+      // under load with packet loss: 65433 between 65440 and 65442). Taken at face value it
+      // invents lost frames and shifts the sequencer's trigger count; count it as the frame
+      // after the last one instead (a real gap shows at the next whole frame).
+      last_frame_id = next_frame_id(last_frame_id);
+    } else {
+      if (have_last_frame_id) captured.frames_missed = frames_missed_between(last_frame_id, captured.frame_id);
+      have_last_frame_id = true;
+      last_frame_id = captured.frame_id;
+    }
     statistics.images++;
     statistics.frames_missed += captured.frames_missed;
 
@@ -476,7 +485,6 @@ struct AravisCamera::Impl {
     };
     // Read nothing of the image before the status says it is whole: a failed buffer's data
     // holds whatever packets arrived over the previous frame's pixels.
-    const ArvBufferStatus status = arv_buffer_get_status(buffer);
     if (status != ARV_BUFFER_STATUS_SUCCESS) return incomplete("transport status " + describe_buffer_status(status));
     const ArvBufferPayloadType payload_type = arv_buffer_get_payload_type(buffer);
     if (payload_type != ARV_BUFFER_PAYLOAD_TYPE_IMAGE && payload_type != ARV_BUFFER_PAYLOAD_TYPE_EXTENDED_CHUNK_DATA) {

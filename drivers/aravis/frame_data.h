@@ -27,6 +27,13 @@ inline std::uint64_t frames_missed_between(std::uint64_t previous, std::uint64_t
   return 0;
 }
 
+// The id the camera gives the frame after `previous` (16-bit ids wrap 65535 → 1; a camera with
+// 64-bit ids that sits exactly at 65535 is taken for a 16-bit one).
+inline std::uint64_t next_frame_id(std::uint64_t previous) {
+  constexpr std::uint64_t kLastShortId = 0xFFFF;
+  return previous == kLastShortId ? 1u : previous + 1u;
+}
+
 // An unpacked mono pixel layout: one byte per pixel (Mono8) or a 16-bit little-endian container
 // per pixel (Mono10, Mono12, Mono16), as GenICam's PFNC defines them.
 struct MonoLayout {

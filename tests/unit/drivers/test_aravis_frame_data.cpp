@@ -30,6 +30,13 @@ TEST(AravisFrameIds, RestartedCounterIsNoGap) {
   EXPECT_EQ(frames_missed_between(42, 42), 0u);         // the same frame again
 }
 
+TEST(AravisFrameIds, NextIdWrapsLikeTheCamera) {
+  EXPECT_EQ(next_frame_id(7), 8u);
+  EXPECT_EQ(next_frame_id(65534), 65535u);
+  EXPECT_EQ(next_frame_id(65535), 1u);  // GigE Vision 1.x skips 0
+  EXPECT_EQ(frames_missed_between(next_frame_id(65535), 2), 0u);
+}
+
 TEST(AravisMonoLayouts, KnownAndRefused) {
   ASSERT_NE(find_mono_layout("Mono8"), nullptr);
   EXPECT_EQ(find_mono_layout("Mono8")->bytes_per_pixel, 1);
