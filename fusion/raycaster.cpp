@@ -69,6 +69,19 @@ struct Raycaster::Impl {
 
   void raycast_cpu(const Volume& volume, const Pose& T_world_camera, const RaycastGuideView& guide,
                    RaycastResult* result) const;
+#if defined(SLS_HAVE_CUDA)
+  // The kernel into this raycaster's device maps, on its stream.
+  void launch(const Volume& volume, const Pose& T_world_camera, const RaycastGuideView& guide) {
+    const Rigid3f T_volume_camera = (volume.geometry().T_world_volume.inverse() * T_world_camera).to_rigid3f();
+    detail::RaycastOutputsDevice out;
+    out.depth = depth.data();
+    out.points = points.data();
+    out.normals = normals.data();
+    out.shaded = shaded.data();
+    detail::launch_raycast_cuda(volume.view(), params(volume), guide, T_volume_camera, device_rays.data(),
+                                camera.width, camera.height, out, stream);
+  }
+#endif
 };
 
 void Raycaster::Impl::raycast_cpu(const Volume& volume, const Pose& T_world_camera, const RaycastGuideView& guide,
@@ -212,16 +225,8 @@ RaycastResult Raycaster::raycast(const Volume& volume, const Pose& T_world_camer
 
 #if defined(SLS_HAVE_CUDA)
 void Raycaster::raycast_device(const Volume& volume, const Pose& T_world_camera) {
-  Impl& s = *impl_;
-  require_device(s.device);
-  const Rigid3f T_volume_camera = (volume.geometry().T_world_volume.inverse() * T_world_camera).to_rigid3f();
-  detail::RaycastOutputsDevice out;
-  out.depth = s.depth.data();
-  out.points = s.points.data();
-  out.normals = s.normals.data();
-  out.shaded = s.shaded.data();
-  detail::launch_raycast_cuda(volume.view(), s.params(volume), RaycastGuideView{}, T_volume_camera, s.device_rays.data(),
-                              s.camera.width, s.camera.height, out, s.stream);
+  require_device(impl_->device);
+  impl_->launch(volume, T_world_camera, RaycastGuideView{});
 }
 
 void Raycaster::raycast_device(const Volume& volume, const Pose& T_world_camera, const float* guide_depth_device,
@@ -236,17 +241,9 @@ void Raycaster::raycast_device(const Volume& volume, const Pose& T_world_camera,
   }
   detail::launch_raycast_guide_tiles_cuda(guide_depth_device, guide_width, guide_height, s.camera.width,
                                           s.camera.height, s.guide_tile_min.data(), s.guide_tile_max.data(), s.stream);
-  const Rigid3f T_volume_camera = (volume.geometry().T_world_volume.inverse() * T_world_camera).to_rigid3f();
-  detail::RaycastOutputsDevice out;
-  out.depth = s.depth.data();
-  out.points = s.points.data();
-  out.normals = s.normals.data();
-  out.shaded = s.shaded.data();
-  detail::launch_raycast_cuda(volume.view(), s.params(volume),
-                              s.guide_view(volume, guide_depth_device, guide_width, guide_height,
-                                           s.guide_tile_min.data(), s.guide_tile_max.data()),
-                              T_volume_camera,
-                              s.device_rays.data(), s.camera.width, s.camera.height, out, s.stream);
+  s.launch(volume, T_world_camera,
+           s.guide_view(volume, guide_depth_device, guide_width, guide_height, s.guide_tile_min.data(),
+                        s.guide_tile_max.data()));
 }
 
 void Raycaster::download(RaycastResult* result) {

@@ -13,39 +13,7 @@
 
 #include <sls/sls.h>
 
-static int failures = 0;
-
-#define CHECK(condition)                                              \
-  do {                                                                \
-    if (!(condition)) {                                               \
-      fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #condition); \
-      ++failures;                                                     \
-    }                                                                 \
-  } while (0)
-
-/* The status of `call`, and its error's message containing `part` (when part is not NULL). */
-static void check_error(sls_status got, sls_status expected, sls_error* error, const char* part, int line) {
-  if (got != expected) {
-    fprintf(stderr, "%s:%d: status %s (%d), expected %s: %s\n", __FILE__, line, sls_status_str(got), (int)got,
-            sls_status_str(expected), sls_error_message(error));
-    ++failures;
-  } else if (error == NULL || sls_error_status(error) != expected) {
-    fprintf(stderr, "%s:%d: no sls_error with status %s\n", __FILE__, line, sls_status_str(expected));
-    ++failures;
-  } else if (part != NULL && strstr(sls_error_message(error), part) == NULL) {
-    fprintf(stderr, "%s:%d: message \"%s\" does not mention \"%s\"\n", __FILE__, line, sls_error_message(error),
-            part);
-    ++failures;
-  }
-  sls_error_free(error);
-}
-#define CHECK_ERROR(call, expected, part)                 \
-  do {                                                    \
-    sls_error* error_ = NULL;                             \
-    sls_status status_ = (call);                          \
-    check_error(status_, (expected), error_, (part), __LINE__); \
-  } while (0)
-/* `call` must use `&error_` as its sls_error** argument. */
+#include "c_checks.h"
 
 static void check_list(sls_device_list* list, size_t* count) {
   sls_device_info info;

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <random>
 
+#include "fusion/integrator.h"
 #include "fusion/volume.h"
 #include "sdk/core/camera_model_shared.h"
 #include "sdk/core/image.h"
@@ -56,6 +57,40 @@ inline Image32f ridge_depth(const CameraIntrinsics& camera, double apex_z, doubl
     }
   }
   return depth;
+}
+
+// The guided-raycast scene: a compact CPU volume with three noisy frames of a ridge fused
+// from the origin, the last frame as the guide with a hole three tiles wide (a shadow), and
+// the camera at full and half size.
+struct GuidedRaycastScene {
+  CameraIntrinsics camera;
+  CameraIntrinsics half;
+  VolumeGeometry geometry;
+  Volume volume;
+  Image32f guide;
+};
+
+inline GuidedRaycastScene guided_raycast_scene() {
+  CameraIntrinsics camera = small_camera(320, 240);
+  camera.fx = camera.fy = 6400.0;
+  CameraIntrinsics half = camera;
+  half.width /= 2;
+  half.height /= 2;
+  half.fx /= 2.0;
+  half.fy /= 2.0;
+  half.cx = 0.5 * (half.width - 1);
+  half.cy = 0.5 * (half.height - 1);
+  const VolumeGeometry geometry = VolumeGeometry::centred(Eigen::Vector3d(0.0, 0.0, 0.102), 96, 80, 96, 62.5e-6);
+  GuidedRaycastScene scene{camera, half, geometry, Volume(geometry, VoxelFormat::kCompact, Device::cpu()), Image32f()};
+  Integrator integrator(Device::cpu(), IntegrationOptions::gtsdf());
+  for (std::uint32_t n = 0; n < 3; ++n) {
+    scene.guide = ridge_depth(camera, 0.1, 20e-6, 11 + n);
+    integrator.integrate(scene.volume, scene.guide, camera, Pose());
+  }
+  for (int y = 100; y < 140; ++y) {
+    for (int x = 40; x < 90; ++x) scene.guide(x, y) = 0.0f;
+  }
+  return scene;
 }
 
 }  // namespace sls::fusion::test

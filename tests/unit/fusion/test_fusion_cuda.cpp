@@ -85,30 +85,14 @@ TEST(FusionCuda, IntegrationAndRaycastEqualCpu) {
 // volume (fused on the CPU, copied over), a guide with a hole, full and half size.
 TEST(FusionCuda, GuidedRaycastEqualsCpu) {
   SLS_REQUIRE_CUDA_DEVICE();
-  CameraIntrinsics camera = test::small_camera(320, 240);
-  camera.fx = camera.fy = 6400.0;
-  const VolumeGeometry geometry = VolumeGeometry::centred(Eigen::Vector3d(0.0, 0.0, 0.102), 96, 80, 96, 62.5e-6);
-  Volume cpu_volume(geometry, VoxelFormat::kCompact, Device::cpu());
-  Integrator integrator(Device::cpu(), IntegrationOptions::gtsdf());
-  Image32f guide;
-  for (std::uint32_t n = 0; n < 3; ++n) {
-    guide = test::ridge_depth(camera, 0.1, 20e-6, 11 + n);
-    integrator.integrate(cpu_volume, guide, camera, Pose());
-  }
-  for (int y = 100; y < 140; ++y) {
-    for (int x = 40; x < 90; ++x) guide(x, y) = 0.0f;
-  }
+  const test::GuidedRaycastScene scene = test::guided_raycast_scene();
+  const Volume& cpu_volume = scene.volume;
+  const Image32f& guide = scene.guide;
+  const VolumeGeometry& geometry = scene.geometry;
   Volume gpu_volume(geometry, VoxelFormat::kCompact, Device::cuda());
   gpu_volume.copy_from(cpu_volume);
-  CameraIntrinsics half = camera;
-  half.width /= 2;
-  half.height /= 2;
-  half.fx /= 2.0;
-  half.fy /= 2.0;
-  half.cx = 0.5 * (half.width - 1);
-  half.cy = 0.5 * (half.height - 1);
   const Pose T_world_camera = Pose::exp((Eigen::Matrix<double, 6, 1>() << 2e-5, 0, 0, 0, 0.002, 0).finished());
-  for (const CameraIntrinsics& raycast_camera : {camera, half}) {
+  for (const CameraIntrinsics& raycast_camera : {scene.camera, scene.half}) {
     Raycaster cpu_raycaster(Device::cpu(), raycast_camera, RaycastOptions{});
     Raycaster gpu_raycaster(Device::cuda(), raycast_camera, RaycastOptions{});
     const RaycastResult p = cpu_raycaster.raycast(cpu_volume, T_world_camera, guide);

@@ -286,28 +286,12 @@ TEST(Raycast, SkippingEmptyBricksFindsTheSameSurface) {
 // at half the size takes the full-size guide. Same surface as the unguided raycast everywhere;
 // a guide far from the surface finds nothing, so the range really is narrowed.
 TEST(Raycast, GuidedByTheIntegratedDepthFindsTheSameSurface) {
-  CameraIntrinsics camera = test::small_camera(320, 240);
-  camera.fx = camera.fy = 6400.0;
-  const VolumeGeometry geometry = VolumeGeometry::centred(Eigen::Vector3d(0.0, 0.0, 0.102), 96, 80, 96, 62.5e-6);
-  Volume volume(geometry, VoxelFormat::kCompact, Device::cpu());
-  Integrator integrator(Device::cpu(), IntegrationOptions::gtsdf());
-  Image32f guide;
-  for (std::uint32_t n = 0; n < 3; ++n) {
-    guide = test::ridge_depth(camera, 0.1, 20e-6, 11 + n);
-    integrator.integrate(volume, guide, camera, Pose());
-  }
-  // A hole in the guide three tiles wide (a shadow): those rays search their tiles' range.
-  for (int y = 100; y < 140; ++y) {
-    for (int x = 40; x < 90; ++x) guide(x, y) = 0.0f;
-  }
-  CameraIntrinsics half = camera;
-  half.width /= 2;
-  half.height /= 2;
-  half.fx /= 2.0;
-  half.fy /= 2.0;
-  half.cx = 0.5 * (half.width - 1);
-  half.cy = 0.5 * (half.height - 1);
-  for (const CameraIntrinsics& raycast_camera : {camera, half}) {
+  const test::GuidedRaycastScene scene = test::guided_raycast_scene();
+  const Volume& volume = scene.volume;
+  const Image32f& guide = scene.guide;
+  const VolumeGeometry& geometry = scene.geometry;
+  const CameraIntrinsics& camera = scene.camera;
+  for (const CameraIntrinsics& raycast_camera : {camera, scene.half}) {
     Raycaster raycaster(Device::cpu(), raycast_camera, RaycastOptions{});
     const RaycastResult full = raycaster.raycast(volume, Pose());
     const RaycastResult guided = raycaster.raycast(volume, Pose(), guide);
