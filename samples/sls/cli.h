@@ -17,7 +17,7 @@ enum ExitCode : int {
   kExitOk = 0,
   kExitError = 1,        // the work failed: the message says why
   kExitUsage = 2,        // bad command line
-  kExitUnavailable = 3,  // the feature is not in this build / not implemented yet
+  kExitUnavailable = 3,  // the feature is not in this build (e.g. CUDA asked of a build without it)
   kExitInterrupted = 4,  // stopped by a signal; what was done is written and valid (sls scan)
 };
 
