@@ -33,8 +33,7 @@
  *     sls_error* error = NULL;
  *     sls_status status = sls_scan_run_recording(scan, "scans/knob", &error);
  *     if (status == SLS_OK || status == SLS_ERROR_CANCELLED) sls_scan_write_mesh(scan, "knob.ply", NULL);
- *     if (status != SLS_OK) fprintf(stderr, "%s
-", sls_error_message(error));
+ *     if (status != SLS_OK) fprintf(stderr, "%s\n", sls_error_message(error));
  *     sls_error_free(error);
  *   }
  *   sls_scan_destroy(scan);
