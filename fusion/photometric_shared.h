@@ -36,7 +36,7 @@
 
 namespace sls::fusion {
 
-// The photometric reduction: the 29 sums of kTrackSums (JᵀJ, Jᵀr, Σr² and the count over the
+// The photometric reduction: the sums of kTrackSums (JᵀJ, Jᵀr, Σr² and the count over the
 // selected pixels, in the same layout), then over every matched pixel (selected or not): the
 // count and the sums of the live and reference intensities (the gain).
 constexpr int kPhotometricMatchedCount = kTrackSums;
@@ -181,7 +181,7 @@ SLS_HOST_DEVICE inline void accumulate_photometric(int outcome, const float jaco
   sums[kPhotometricMatchedCount] += T(1);
   sums[kPhotometricLiveSum] += static_cast<T>(live_value);
   sums[kPhotometricReferenceSum] += static_cast<T>(ref_value);
-  if (outcome == kPhotometricRow) accumulate_track_row(jacobian, residual, huber, sums);
+  if (outcome == kPhotometricRow) accumulate_track_row(jacobian, residual, huber, 1.0f, sums);
 }
 
 }  // namespace sls::fusion

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -57,6 +58,13 @@ void TrackingOptions::validate() const {
   if (!(normal_baseline_m > 0.0) || !std::isfinite(normal_baseline_m)) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: normal_baseline_m {} must be positive", normal_baseline_m);
   }
+  if (!(crease_radius_m > 0.0) || !std::isfinite(crease_radius_m)) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: crease_radius_m {} must be positive", crease_radius_m);
+  }
+  if (!(crease_angle_deg >= 0.0 && crease_angle_deg < 180.0)) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: crease_angle_deg {} outside [0, 180) (0 = off)",
+                crease_angle_deg);
+  }
   if (!(max_normal_angle_deg > 0.0 && max_normal_angle_deg <= 180.0)) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: max_normal_angle_deg {} outside (0, 180]",
                 max_normal_angle_deg);
@@ -98,12 +106,13 @@ using PhotometricSums = std::array<double, kPhotometricSums>;
 using TextureSums = std::array<double, kTextureSums>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
-// One level of the live pyramid: its camera and ray map (host), and on the CPU its depth and
-// normals (level 0's depth is the caller's).
+// One level of the live pyramid: its camera and ray map (host), and on the CPU its depth,
+// measurement weights and normals (level 0's depth and weights are the caller's).
 struct Level {
   CameraIntrinsics camera;
   RayMap rays;
   std::vector<float> depth;
+  std::vector<float> weight;  // with options.weight_by_confidence
   std::vector<Vec3f> normals;
   std::size_t pixels() const {
     return static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height);
@@ -202,18 +211,20 @@ bool add_photometric(Sums& system, const PhotometricSums& photometric, double we
   return true;
 }
 
-// A depth map at `fine`'s size halved into `coarse`'s (downsample_depth per coarse pixel; the
-// CPU side of launch_downsample_depth_cuda).
-void halve_depth(const float* fine_depth, const CameraIntrinsics& fine, float* coarse_depth,
-                 const CameraIntrinsics& coarse) {
+// A depth map at `fine`'s size halved into `coarse`'s, and its weight map when fine_weight is
+// given (downsample_depth per coarse pixel; the CPU side of launch_downsample_depth_cuda).
+void halve_depth(const float* fine_depth, const float* fine_weight, const CameraIntrinsics& fine, float* coarse_depth,
+                 float* coarse_weight, const CameraIntrinsics& coarse) {
   const float fine_fx = static_cast<float>(fine.fx);
 #if defined(_OPENMP)
 #pragma omp parallel for schedule(static)
 #endif
   for (int y = 0; y < coarse.height; ++y) {
     for (int x = 0; x < coarse.width; ++x) {
-      coarse_depth[static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse.width) + static_cast<std::size_t>(x)] =
-          downsample_depth(fine_depth, fine.width, fine.height, fine_fx, x, y);
+      const std::size_t i =
+          static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse.width) + static_cast<std::size_t>(x);
+      coarse_depth[i] = downsample_depth(fine_depth, fine.width, fine.height, fine_fx, x, y, fine_weight,
+                                         fine_weight != nullptr ? &coarse_weight[i] : nullptr);
     }
   }
 }
@@ -250,7 +261,14 @@ struct Tracker::Impl {
   // buffers of those halvings (the last is ICP's finest live depth).
   std::vector<CameraIntrinsics> input_cameras;
   std::vector<std::vector<float>> input_depth;
+  std::vector<std::vector<float>> input_weight;  // with options.weight_by_confidence
   std::vector<Level> levels;
+  // The crease test on the model maps (level 0's size; on the device for CUDA): the model's
+  // normals over the baseline, and the marks.
+  std::vector<Vec3f> crease_normals;
+  std::vector<std::uint8_t> crease_mask;
+  bool crease_test() const { return options.crease_angle_deg > 0.0; }
+  float crease_min_cos() const { return static_cast<float>(std::cos(options.crease_angle_deg * M_PI / 180.0)); }
   // The photometric term (options.photometric_weight > 0): on the CPU the live texture's
   // halvings down to level 0 and its pyramid (level 0 is the input or its last halving).
   bool photometric_on = false;
@@ -269,7 +287,13 @@ struct Tracker::Impl {
   std::vector<DeviceBuffer<float>> depth;  // level 0: uploads of host maps; the coarse levels
   DeviceBuffer<float> live_upload;         // a host live map at the live camera's size
   std::vector<DeviceBuffer<float>> input_device;  // the halvings down to level 0
+  // The measurement weights (options.weight_by_confidence): per level (level 0 when the input
+  // is halved or uploaded), a host map's upload, the halvings down to level 0.
+  std::vector<DeviceBuffer<float>> weight_device, input_weight_device;
+  DeviceBuffer<float> weight_upload;
   std::vector<DeviceBuffer<Vec3f>> rays, normals;
+  DeviceBuffer<Vec3f> crease_normals_device;
+  DeviceBuffer<std::uint8_t> crease_mask_device;
   DeviceBuffer<Vec3f> uploaded_points, uploaded_normals;  // host models, uploaded
   DeviceBuffer<double> partials, device_sums;
   double* host_sums = nullptr;  // pinned, kTrackSums
@@ -285,9 +309,11 @@ struct Tracker::Impl {
   // device-to-host copy of the sums per step, no allocation.
   TrackingResult track_on_device(const float* depth_device, const Vec3f* model_points, const Vec3f* model_normals,
                                  const Pose& T_world_model, const Pose& T_world_camera_guess,
-                                 const float* texture_device);
-  // The live depth pyramid from a map at the live camera's size (normals too when asked).
-  void depth_pyramid_device(const float* depth_device, const float* level_depth[8], bool with_normals);
+                                 const float* texture_device, const float* weight_device_in);
+  // The live depth pyramid from a map at the live camera's size (normals too when asked), and
+  // its weights' when weight_in is not null (else level_weight stays null).
+  void depth_pyramid_device(const float* depth_device, const float* weight_in, const float* level_depth[8],
+                            const float* level_weight[8], bool with_normals);
   void texture_pyramid_device(const float* texture_in, const float* level_texture[8]);
   double texture_mean_device(const float* texture0, const float* depth0);
   void keep_reference_device(const float* const level_depth[8], const float* const level_texture[8], double mean,
@@ -328,7 +354,8 @@ struct Tracker::Impl {
   }
   // The CPU's pyramids: level_depth[l] / level_texture[l] point at the input (level 0 when the
   // live camera is ICP's finest) or at the tracker's buffers.
-  void depth_pyramid(const float* depth_in, const float* level_depth[8], bool with_normals);
+  void depth_pyramid(const float* depth_in, const float* weight_in, const float* level_depth[8],
+                     const float* level_weight[8], bool with_normals);
   void texture_pyramid(const float* texture_in, const float* level_texture[8]);
   double texture_mean(const float* texture0, const float* depth0) const;
   void keep_reference(const float* const level_depth[8], const float* const level_texture[8], double mean,
@@ -454,14 +481,17 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
   }
   if (finest_reduced) {
     result.inliers = static_cast<std::size_t>(std::llround(last[kTrackCount]));
+    result.crease_pixels = static_cast<std::size_t>(std::llround(last[kTrackCreaseCount]));
     result.residual_rms_m = result.inliers > 0 ? std::sqrt(last[kTrackResidual2] / last[kTrackCount]) : 0.0;
   }
-  result.inlier_fraction = static_cast<double>(result.inliers) / static_cast<double>(frame.live_pixels);
+  // Of the live pixels ICP could use: those whose match lies on a crease are set aside.
+  const std::size_t usable = frame.live_pixels - std::min(result.crease_pixels, frame.live_pixels);
+  result.inlier_fraction = usable > 0 ? static_cast<double>(result.inliers) / static_cast<double>(usable) : 0.0;
   if (result.inlier_fraction < options.min_inlier_fraction) {
-    return lost(fmt::format("only {} of {} live pixels ({}) match the model within {:.0f} um and {:.0f} deg; "
-                            "at least {} must",
-                            result.inliers, frame.live_pixels, percent(result.inlier_fraction),
-                            options.max_distance_m * 1e6, options.max_normal_angle_deg,
+    return lost(fmt::format("only {} of {} live pixels ({}) match the model within {:.0f} um and {:.0f} deg "
+                            "({} more fell on creases); at least {} must",
+                            result.inliers, usable, percent(result.inlier_fraction), options.max_distance_m * 1e6,
+                            options.max_normal_angle_deg, result.crease_pixels,
                             percent(options.min_inlier_fraction)));
   }
   if (result.residual_rms_m > options.max_residual_rms_m) {
@@ -538,6 +568,19 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, cons
                                     static_cast<std::size_t>(s.input_cameras[k].height));
       }
     }
+    if (options.weight_by_confidence) {
+      for (std::size_t l = 0; l < s.levels.size(); ++l) s.weight_device.emplace_back(s.levels[l].pixels());
+      s.weight_upload.allocate(static_cast<std::size_t>(live_camera.width) *
+                               static_cast<std::size_t>(live_camera.height));
+      for (std::size_t k = 1; k < s.input_cameras.size(); ++k) {
+        s.input_weight_device.emplace_back(static_cast<std::size_t>(s.input_cameras[k].width) *
+                                           static_cast<std::size_t>(s.input_cameras[k].height));
+      }
+    }
+    if (s.crease_test()) {
+      s.crease_normals_device.allocate(s.levels[0].pixels());
+      s.crease_mask_device.allocate(s.levels[0].pixels());
+    }
     s.uploaded_points.allocate(s.levels[0].pixels());
     s.uploaded_normals.allocate(s.levels[0].pixels());
     s.partials.allocate(static_cast<std::size_t>(detail::kTrackPartials));
@@ -563,13 +606,21 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, cons
     SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
 #endif
   } else {
+    if (s.crease_test()) {
+      s.crease_normals.assign(s.levels[0].pixels(), Vec3f{0.0f, 0.0f, 0.0f});
+      s.crease_mask.assign(s.levels[0].pixels(), 0);
+    }
     for (Level& level : s.levels) {
       level.normals.assign(level.pixels(), Vec3f{0.0f, 0.0f, 0.0f});
       level.depth.assign(level.pixels(), 0.0f);
+      if (options.weight_by_confidence) level.weight.assign(level.pixels(), 0.0f);
     }
     for (std::size_t k = 1; k <= s.input_cameras.size(); ++k) {
       const CameraIntrinsics& c = k < s.input_cameras.size() ? s.input_cameras[k] : s.camera;
       s.input_depth.emplace_back(static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height), 0.0f);
+      if (options.weight_by_confidence) {
+        s.input_weight.emplace_back(static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height), 0.0f);
+      }
       if (s.photometric_on) {
         s.input_texture.emplace_back(static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height), 0.0f);
       }
@@ -640,21 +691,29 @@ std::optional<PhotometricSetup> Tracker::Impl::photometric_setup(bool have_textu
   return setup;
 }
 
-void Tracker::Impl::depth_pyramid(const float* depth_in, const float* level_depth[8], bool with_normals) {
-  // The live map halved down to ICP's finest level, then the pyramid and normals.
+void Tracker::Impl::depth_pyramid(const float* depth_in, const float* weight_in, const float* level_depth[8],
+                                  const float* level_weight[8], bool with_normals) {
+  // The live map (and its weights) halved down to ICP's finest level, then the pyramid and
+  // normals.
+  const bool weighted = weight_in != nullptr;
   level_depth[0] = depth_in;
+  level_weight[0] = weight_in;
   for (std::size_t k = 0; k < input_cameras.size(); ++k) {
     const CameraIntrinsics& fine = input_cameras[k];
     const CameraIntrinsics& coarse = k + 1 < input_cameras.size() ? input_cameras[k + 1] : camera;
-    halve_depth(level_depth[0], fine, input_depth[k].data(), coarse);
+    halve_depth(level_depth[0], level_weight[0], fine, input_depth[k].data(),
+                weighted ? input_weight[k].data() : nullptr, coarse);
     level_depth[0] = input_depth[k].data();
+    if (weighted) level_weight[0] = input_weight[k].data();
   }
   for (std::size_t l = 0; l < levels.size(); ++l) {
     Level& level = levels[l];
     const int w = level.camera.width, h = level.camera.height;
     if (l > 0) {
-      halve_depth(level_depth[l - 1], levels[l - 1].camera, level.depth.data(), level.camera);
+      halve_depth(level_depth[l - 1], level_weight[l - 1], levels[l - 1].camera, level.depth.data(),
+                  weighted ? level.weight.data() : nullptr, level.camera);
       level_depth[l] = level.depth.data();
+      level_weight[l] = weighted ? level.weight.data() : nullptr;
     }
     if (!with_normals) continue;
     const float fx = static_cast<float>(level.camera.fx);
@@ -711,7 +770,8 @@ void Tracker::Impl::keep_reference(const float* const level_depth[8], const floa
 }
 
 TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
-                              const Pose& T_world_camera_guess, const Image32f* texture) {
+                              const Pose& T_world_camera_guess, const Image32f* texture,
+                              const Image32f* confidence) {
   Impl& s = *impl_;
   const int width = s.camera.width, height = s.camera.height;
   const std::size_t pixels = s.levels[0].pixels();
@@ -727,8 +787,11 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
                 model.normals_camera.size(), width, height, pixels);
   }
   if (texture != nullptr) s.check_size(*texture, "live texture");
-  // With photometric_weight 0 the texture is not used at all.
+  if (confidence != nullptr) s.check_size(*confidence, "live confidence map");
+  // With photometric_weight 0 the texture is not used at all, nor the confidence without
+  // weight_by_confidence.
   const Image32f* live_texture = s.photometric_on ? texture : nullptr;
+  const Image32f* live_weight = s.options.weight_by_confidence ? confidence : nullptr;
   if (s.device.is_cuda()) {
 #if defined(SLS_HAVE_CUDA)
     require_device(s.device);
@@ -747,15 +810,22 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
       s.texture_upload.upload(live_texture->data(), live_texture->pixel_count(), s.stream);
       texture_device = s.texture_upload.data();
     }
+    const float* weight_device = nullptr;
+    if (live_weight != nullptr) {
+      s.weight_upload.upload(live_weight->data(), live_weight->pixel_count(), s.stream);
+      weight_device = s.weight_upload.data();
+    }
     return s.track_on_device(live, s.uploaded_points.data(), s.uploaded_normals.data(), T_world_model,
-                             T_world_camera_guess, texture_device);
+                             T_world_camera_guess, texture_device, weight_device);
 #else
     throw_error(ErrorCode::kUnsupported, "tracking: CUDA asked of a build without CUDA");
 #endif
   }
 
   const float* level_depth[8] = {};  // validate(): at most 8 levels
-  s.depth_pyramid(depth_m.data(), level_depth, true);
+  const float* level_weight[8] = {};
+  s.depth_pyramid(depth_m.data(), live_weight != nullptr ? live_weight->data() : nullptr, level_depth, level_weight,
+                  true);
 
   // The frame: live pixels, the model's centre and scale (two passes).
   auto statistics = [&](Vec3f reference) {
@@ -768,23 +838,42 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
   };
   const Frame frame = s.frame_from_statistics(statistics);
 
-  const TrackModelView model_view = s.model_view(model.points_camera.data(), model.normals_camera.data());
+  TrackModelView model_view = s.model_view(model.points_camera.data(), model.normals_camera.data());
+  if (s.crease_test()) {
+    const float fx = static_cast<float>(s.camera.fx), baseline = static_cast<float>(s.options.normal_baseline_m);
+    const float min_cos = s.crease_min_cos(), radius = static_cast<float>(s.options.crease_radius_m);
+    const Vec3f* points = model.points_camera.data();
+#if defined(_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        s.crease_normals[s.levels[0].rays.index(x, y)] =
+            baseline_normal(PointMap{points}, width, height, fx, baseline, x, y);
+      }
+    }
+#if defined(_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        s.crease_mask[s.levels[0].rays.index(x, y)] =
+            near_crease(s.crease_normals.data(), points, width, height, fx, radius, min_cos, x, y) ? 1 : 0;
+      }
+    }
+    model_view.creases = s.crease_mask.data();
+  }
   auto reduce = [&](int l, const TrackParams& params) {
     const Level& level = s.levels[static_cast<std::size_t>(l)];
     TrackLiveView live;
     live.depth = level_depth[l];
     live.rays = level.rays.rays.data();
     live.normals = level.normals.data();
+    live.weights = level_weight[l];
     live.width = level.camera.width;
     live.height = level.camera.height;
     return parallel_sum<kTrackSums>(live.height, [&](int y, double* sums) {
-      for (int x = 0; x < live.width; ++x) {
-        float jacobian[6];
-        float residual = 0.0f;
-        if (track_pixel(live, model_view, params, x, y, jacobian, &residual)) {
-          accumulate_track_row(jacobian, residual, params.huber_m, sums);
-        }
-      }
+      for (int x = 0; x < live.width; ++x) accumulate_track_pixel(live, model_view, params, x, y, sums);
     });
   };
 
@@ -855,8 +944,9 @@ void Tracker::set_reference_frame(const Image32f& depth_m, const Image32f& textu
 #endif
   }
   const float* level_depth[8] = {};
+  const float* level_weight[8] = {};
   const float* level_texture[8] = {};
-  s.depth_pyramid(depth_m.data(), level_depth, false);
+  s.depth_pyramid(depth_m.data(), nullptr, level_depth, level_weight, false);
   s.texture_pyramid(texture.data(), level_texture);
   const double mean = s.texture_mean(level_texture[0], level_depth[0]);
   if (!(mean > 0.0) || !std::isfinite(mean)) {
@@ -871,7 +961,8 @@ bool Tracker::has_reference_frame() const { return impl_->reference_frame.valid;
 
 #if defined(SLS_HAVE_CUDA)
 TrackingResult Tracker::track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
-                                     const Pose& T_world_camera_guess, const float* texture_device) {
+                                     const Pose& T_world_camera_guess, const float* texture_device,
+                                     const float* confidence_device) {
   Impl& s = *impl_;
   if (!s.device.is_cuda()) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: track_device on a tracker for {}; make it for CUDA",
@@ -891,7 +982,8 @@ TrackingResult Tracker::track_device(const float* depth_device, Raycaster& rayca
   }
   raycaster.synchronize();
   return s.track_on_device(depth_device, raycaster.points_device(), raycaster.normals_device(), T_world_model,
-                           T_world_camera_guess, s.photometric_on ? texture_device : nullptr);
+                           T_world_camera_guess, s.photometric_on ? texture_device : nullptr,
+                           s.options.weight_by_confidence ? confidence_device : nullptr);
 }
 
 void Tracker::set_reference_frame_device(const float* depth_device, const float* texture_device,
@@ -910,27 +1002,36 @@ void Tracker::set_reference_frame_device(const float* depth_device, const float*
   s.set_reference_on_device(depth_device, texture_device, T_world_camera);
 }
 
-void Tracker::Impl::depth_pyramid_device(const float* depth_device, const float* level_depth[8], bool with_normals) {
+void Tracker::Impl::depth_pyramid_device(const float* depth_device, const float* weight_in,
+                                         const float* level_depth[8], const float* level_weight[8],
+                                         bool with_normals) {
   Impl& s = *this;
-  // The live map halved down to ICP's finest level (into level 0's buffer), then the pyramid
-  // and normals, on the device.
+  // The live map (and its weights) halved down to ICP's finest level (into level 0's buffer),
+  // then the pyramid and normals, on the device.
+  const bool weighted = weight_in != nullptr;
   for (std::size_t k = 0; k < s.input_cameras.size(); ++k) {
     const CameraIntrinsics& fine = s.input_cameras[k];
     const CameraIntrinsics& coarse = k + 1 < s.input_cameras.size() ? s.input_cameras[k + 1] : s.camera;
-    float* coarse_depth = k + 1 < s.input_cameras.size() ? s.input_device[k].data() : s.depth[0].data();
-    detail::launch_downsample_depth_cuda(depth_device, fine.width, fine.height, static_cast<float>(fine.fx),
-                                         coarse_depth, coarse.width, coarse.height, s.stream);
+    const bool last = k + 1 == s.input_cameras.size();
+    float* coarse_depth = last ? s.depth[0].data() : s.input_device[k].data();
+    float* coarse_weight = !weighted ? nullptr : (last ? s.weight_device[0].data() : s.input_weight_device[k].data());
+    detail::launch_downsample_depth_cuda(depth_device, weight_in, fine.width, fine.height, static_cast<float>(fine.fx),
+                                         coarse_depth, coarse_weight, coarse.width, coarse.height, s.stream);
     depth_device = coarse_depth;
+    weight_in = coarse_weight;
   }
   level_depth[0] = depth_device;
+  level_weight[0] = weight_in;
   for (std::size_t l = 0; l < s.levels.size(); ++l) {
     const Level& level = s.levels[l];
     if (l > 0) {
       const Level& fine = s.levels[l - 1];
-      detail::launch_downsample_depth_cuda(level_depth[l - 1], fine.camera.width, fine.camera.height,
-                                           static_cast<float>(fine.camera.fx), s.depth[l].data(), level.camera.width,
-                                           level.camera.height, s.stream);
+      float* coarse_weight = weighted ? s.weight_device[l].data() : nullptr;
+      detail::launch_downsample_depth_cuda(level_depth[l - 1], level_weight[l - 1], fine.camera.width,
+                                           fine.camera.height, static_cast<float>(fine.camera.fx), s.depth[l].data(),
+                                           coarse_weight, level.camera.width, level.camera.height, s.stream);
       level_depth[l] = s.depth[l].data();
+      level_weight[l] = coarse_weight;
     }
     if (!with_normals) continue;
     detail::launch_live_normals_cuda(level_depth[l], s.rays[l].data(), level.camera.width, level.camera.height,
@@ -984,8 +1085,9 @@ void Tracker::Impl::keep_reference_device(const float* const level_depth[8], con
 void Tracker::Impl::set_reference_on_device(const float* depth_device, const float* texture_in,
                                             const Pose& T_world_camera) {
   const float* level_depth[8] = {};
+  const float* level_weight[8] = {};
   const float* level_texture[8] = {};
-  depth_pyramid_device(depth_device, level_depth, false);
+  depth_pyramid_device(depth_device, nullptr, level_depth, level_weight, false);
   texture_pyramid_device(texture_in, level_texture);
   const double mean = texture_mean_device(level_texture[0], level_depth[0]);
   if (!(mean > 0.0) || !std::isfinite(mean)) {
@@ -997,12 +1099,14 @@ void Tracker::Impl::set_reference_on_device(const float* depth_device, const flo
 
 TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const Vec3f* model_points,
                                               const Vec3f* model_normals, const Pose& T_world_model,
-                                              const Pose& T_world_camera_guess, const float* texture_in) {
+                                              const Pose& T_world_camera_guess, const float* texture_in,
+                                              const float* weight_in) {
   Impl& s = *this;
   const int width = s.camera.width, height = s.camera.height;
   const int pixels = width * height;
   const float* level_depth[8] = {};  // validate(): at most 8 levels
-  s.depth_pyramid_device(depth_device, level_depth, true);
+  const float* level_weight[8] = {};
+  s.depth_pyramid_device(depth_device, weight_in, level_depth, level_weight, true);
   depth_device = level_depth[0];
   auto download = [&](int count) {
     SLS_CUDA_CHECK(cudaMemcpyAsync(s.host_sums, s.device_sums.data(), static_cast<std::size_t>(count) * sizeof(double),
@@ -1019,13 +1123,21 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
   };
   const Frame frame = s.frame_from_statistics(statistics);
 
-  const TrackModelView model_view = s.model_view(model_points, model_normals);
+  TrackModelView model_view = s.model_view(model_points, model_normals);
+  if (s.crease_test()) {
+    detail::launch_model_creases_cuda(model_points, width, height, static_cast<float>(s.camera.fx),
+                                      static_cast<float>(s.options.normal_baseline_m),
+                                      static_cast<float>(s.options.crease_radius_m), s.crease_min_cos(),
+                                      s.crease_normals_device.data(), s.crease_mask_device.data(), s.stream);
+    model_view.creases = s.crease_mask_device.data();
+  }
   auto reduce = [&](int l, const TrackParams& params) {
     const Level& level = s.levels[static_cast<std::size_t>(l)];
     TrackLiveView live;
     live.depth = level_depth[l];
     live.rays = s.rays[static_cast<std::size_t>(l)].data();
     live.normals = s.normals[static_cast<std::size_t>(l)].data();
+    live.weights = level_weight[l];
     live.width = level.camera.width;
     live.height = level.camera.height;
     detail::launch_track_cuda(live, model_view, params, s.partials.data(), s.device_sums.data(), s.stream);

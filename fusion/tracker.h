@@ -73,6 +73,25 @@ struct TrackingOptions {
   // knurled knob, multiplies the loop-closure drift by 25 (10 µm -> 263 µm): full resolution
   // by default.
   int max_model_width = 4096;
+  // Creases: ICP sets aside the live pixels whose match lies within crease_radius_m of a crease
+  // of the model, where its surface turns by more than crease_angle_deg (track_shared.h's
+  // near_crease: normals over normal_baseline_m from the model's points, compared
+  // crease_radius_m apart); 0 turns the test off. Point-to-plane ICP takes the surface as
+  // planar around each match, and near a crease neither the decoder's depth nor the model's
+  // is. The radius is the decoder's: on the decoded demo knurl its depth error is biased up to
+  // 3-4 pixels (45-60 µm) from a crease (mean -4.8 / -3.4 / -1.7 / -0.9 / -0.4 µm at 0-4
+  // pixels, -0.1 µm beyond; docs/benchmarks.md), what its camera and projector blur spans. A
+  // smooth surface turns by r / R over r: 15° over 60 µm is a radius of curvature of 0.23 mm,
+  // far sharper than a surface ICP can take as planar at that scale. Measured on the decoded
+  // demo revolutions: docs/benchmarks.md.
+  double crease_angle_deg = 15.0;
+  double crease_radius_m = 60e-6;
+  // Measurement weights: with a confidence map given to track() (the decoder's
+  // DecodedFrame::confidence, 1 / (1 + (σ/σ₀)²): the inverse of its predicted variance, scaled
+  // to [0, 1]) each live pixel's residual counts in proportion to it, at every pyramid level
+  // (a coarse pixel carries the mean of its block's). The decoder's least trusted pixels (on
+  // knurl creases, at grazing angles) then pull the least. false: every pixel counts the same.
+  bool weight_by_confidence = true;
   // Robust weights: Huber's, at this many times the previous reduction's residual RMS (the
   // first reduction of a frame is plain least squares); 0 turns them off.
   double huber_rms_factor = 2.0;
@@ -105,7 +124,8 @@ struct TrackingResult {
   std::string reason;           // why it is lost (empty otherwise)
   std::size_t live_pixels = 0;  // finest level pixels with a depth
   std::size_t inliers = 0;      // of those, matched at the last iteration
-  double inlier_fraction = 0.0;
+  std::size_t crease_pixels = 0;  // of those, set aside at the last iteration: their match is on a crease
+  double inlier_fraction = 0.0;   // inliers / (live_pixels - crease_pixels)
   double residual_rms_m = 0.0;  // point-to-plane RMS of the inliers, finest level
   double condition = 0.0;       // largest / smallest eigenvalue of the last normal matrix (finest
                                 //  level, scaled parameterisation; infinity when singular)
@@ -142,8 +162,12 @@ class Tracker {
   // sls::Error(kInvalidArgument) naming it otherwise), for the photometric term. With
   // photometric_weight > 0 and no texture the term is off for this frame and the result says
   // so (photometric_skipped); a frame tracked with a texture becomes the next reference.
+  // `confidence`: the live pixels' measurement weights (the camera's size; see
+  // TrackingOptions::weight_by_confidence), or null for equal weights; pixels of weight 0,
+  // negative or not finite are not used.
   TrackingResult track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
-                       const Pose& T_world_camera_guess, const Image32f* texture = nullptr);
+                       const Pose& T_world_camera_guess, const Image32f* texture = nullptr,
+                       const Image32f* confidence = nullptr);
   // The photometric term's reference for the next track(): a frame fused without tracking
   // (its depth map and texture, the camera's size, and the pose it was fused at). Ignored when
   // photometric_weight is 0. sls::Error(kInvalidArgument) for images of another size.
@@ -156,9 +180,10 @@ class Tracker {
   // with the tracker's camera) after raycast_device(volume, T_world_model); the raycaster's
   // stream is synchronized here. No allocation: the pyramid lives in buffers made once.
   // `texture_device`: as track()'s texture, on the GPU (complete when called), or null; the
-  // reference frame stays on the GPU.
+  // reference frame stays on the GPU. `confidence_device`: as track()'s confidence, on the GPU.
   TrackingResult track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
-                              const Pose& T_world_camera_guess, const float* texture_device = nullptr);
+                              const Pose& T_world_camera_guess, const float* texture_device = nullptr,
+                              const float* confidence_device = nullptr);
   // set_reference_frame with both maps on the GPU (width x height floats, complete when called).
   void set_reference_frame_device(const float* depth_device, const float* texture_device,
                                   const Pose& T_world_camera);

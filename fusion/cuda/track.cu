@@ -57,13 +57,17 @@ __global__ void finish_sums_kernel(const double* __restrict__ partials, int bloc
   if (threadIdx.x == 0) out[k] = shared[0];
 }
 
-__global__ void downsample_kernel(const float* __restrict__ fine, int fine_width, int fine_height, float fine_fx,
-                                  float* __restrict__ coarse, int coarse_width, int coarse_height) {
+__global__ void downsample_kernel(const float* __restrict__ fine, const float* __restrict__ fine_weight,
+                                  int fine_width, int fine_height, float fine_fx, float* __restrict__ coarse,
+                                  float* __restrict__ coarse_weight, int coarse_width, int coarse_height) {
   const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
   const int y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
   if (x >= coarse_width || y >= coarse_height) return;
-  coarse[static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse_width) + static_cast<std::size_t>(x)] =
-      downsample_depth(fine, fine_width, fine_height, fine_fx, x, y);
+  const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse_width) + static_cast<std::size_t>(x);
+  float weight = 0.0f;
+  coarse[i] = downsample_depth(fine, fine_width, fine_height, fine_fx, x, y, fine_weight,
+                               coarse_weight != nullptr ? &weight : nullptr);
+  if (coarse_weight != nullptr) coarse_weight[i] = weight;
 }
 
 __global__ void live_normals_kernel(const float* __restrict__ depth, const Vec3f* __restrict__ rays, int width,
@@ -73,6 +77,25 @@ __global__ void live_normals_kernel(const float* __restrict__ depth, const Vec3f
   if (x >= width || y >= height) return;
   normals[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)] =
       live_normal(depth, rays, width, height, fx, baseline_m, x, y);
+}
+
+__global__ void model_normals_kernel(const Vec3f* __restrict__ points, int width, int height, float fx,
+                                     float baseline_m, Vec3f* __restrict__ normals) {
+  const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  if (x >= width || y >= height) return;
+  normals[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)] =
+      baseline_normal(PointMap{points}, width, height, fx, baseline_m, x, y);
+}
+
+__global__ void model_creases_kernel(const Vec3f* __restrict__ normals, const Vec3f* __restrict__ points, int width,
+                                     int height, float fx, float radius_m, float min_cos,
+                                     std::uint8_t* __restrict__ mask) {
+  const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  if (x >= width || y >= height) return;
+  mask[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)] =
+      near_crease(normals, points, width, height, fx, radius_m, min_cos, x, y) ? 1 : 0;
 }
 
 __global__ void frame_statistics_kernel(const Vec3f* __restrict__ model_points, const float* __restrict__ live_depth,
@@ -93,11 +116,7 @@ __global__ void track_kernel(TrackLiveView live, TrackModelView model, TrackPara
        n += static_cast<int>(gridDim.x * blockDim.x)) {
     const int y = n / live.width;
     const int x = n - y * live.width;
-    float jacobian[6];
-    float residual = 0.0f;
-    if (track_pixel(live, model, params, x, y, jacobian, &residual)) {
-      accumulate_track_row(jacobian, residual, params.huber_m, sums);
-    }
+    accumulate_track_pixel(live, model, params, x, y, sums);
   }
   block_sums_to_partials<kTrackSums>(sums, partials);
 }
@@ -144,11 +163,12 @@ dim3 image_grid(int width, int height, dim3 block) {
 
 }  // namespace
 
-void launch_downsample_depth_cuda(const float* fine, int fine_width, int fine_height, float fine_fx, float* coarse,
-                                  int coarse_width, int coarse_height, cudaStream_t stream) {
+void launch_downsample_depth_cuda(const float* fine, const float* fine_weight, int fine_width, int fine_height,
+                                  float fine_fx, float* coarse, float* coarse_weight, int coarse_width,
+                                  int coarse_height, cudaStream_t stream) {
   const dim3 block(32, 8);
   downsample_kernel<<<image_grid(coarse_width, coarse_height, block), block, 0, stream>>>(
-      fine, fine_width, fine_height, fine_fx, coarse, coarse_width, coarse_height);
+      fine, fine_weight, fine_width, fine_height, fine_fx, coarse, coarse_weight, coarse_width, coarse_height);
   SLS_CUDA_CHECK_LAUNCH();
 }
 
@@ -157,6 +177,17 @@ void launch_live_normals_cuda(const float* depth, const Vec3f* rays, int width, 
   const dim3 block(32, 8);
   live_normals_kernel<<<image_grid(width, height, block), block, 0, stream>>>(depth, rays, width, height, fx,
                                                                               baseline_m, normals);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+void launch_model_creases_cuda(const Vec3f* points, int width, int height, float fx, float baseline_m,
+                               float radius_m, float min_cos, Vec3f* normals, std::uint8_t* mask,
+                               cudaStream_t stream) {
+  const dim3 block(32, 8);
+  const dim3 grid = image_grid(width, height, block);
+  model_normals_kernel<<<grid, block, 0, stream>>>(points, width, height, fx, baseline_m, normals);
+  SLS_CUDA_CHECK_LAUNCH();
+  model_creases_kernel<<<grid, block, 0, stream>>>(normals, points, width, height, fx, radius_m, min_cos, mask);
   SLS_CUDA_CHECK_LAUNCH();
 }
 

@@ -8,6 +8,8 @@
 // in double, in block order, into `out`.
 #pragma once
 
+#include <cstdint>
+
 #include <cuda_runtime_api.h>
 
 #include "fusion/photometric_shared.h"
@@ -20,12 +22,19 @@ constexpr int kTrackMaxBlocks = 512;
 // Doubles `partials` must hold.
 constexpr int kTrackPartials = kTrackMaxBlocks * kTrackSums;
 
-// Level l + 1 of the live pyramid from level l (downsample_depth per coarse pixel).
-void launch_downsample_depth_cuda(const float* fine, int fine_width, int fine_height, float fine_fx, float* coarse,
-                                  int coarse_width, int coarse_height, cudaStream_t stream);
+// Level l + 1 of the live pyramid from level l (downsample_depth per coarse pixel), and of its
+// weight map when fine_weight and coarse_weight are given (both, or neither).
+void launch_downsample_depth_cuda(const float* fine, const float* fine_weight, int fine_width, int fine_height,
+                                  float fine_fx, float* coarse, float* coarse_weight, int coarse_width,
+                                  int coarse_height, cudaStream_t stream);
 // live_normal per pixel of a level.
 void launch_live_normals_cuda(const float* depth, const Vec3f* rays, int width, int height, float fx,
                               float baseline_m, Vec3f* normals, cudaStream_t stream);
+// The crease test on the model maps (width x height): baseline_normal per pixel into
+// `normals`, then near_crease per pixel into `mask`.
+void launch_model_creases_cuda(const Vec3f* points, int width, int height, float fx, float baseline_m,
+                               float radius_m, float min_cos, Vec3f* normals, std::uint8_t* mask,
+                               cudaStream_t stream);
 // accumulate_frame_statistics over `pixels` pixels (model points and live depth of the finest
 // level) into out[kFrameSums].
 void launch_frame_statistics_cuda(const Vec3f* model_points, const float* live_depth, int pixels, Vec3f reference,

@@ -21,6 +21,7 @@
 #include "fusion/extract.h"
 #include "fusion/integrator.h"
 #include "fusion/raycaster.h"
+#include "fusion/tracker.h"
 #include "samples/sls/commands.h"
 #include "samples/sls/evaluate.h"
 #include "samples/sls/scan_report.h"
@@ -55,6 +56,8 @@ struct ScanOptions {
   double max_voxels_million = 0;  // 0: 256 on a GPU, 48 on the CPU
   bool turntable_prior = false;   // --poses track: the recording's turntable angles as the pose guess
   double photometric_weight = 0;  // --poses track: the tracker's photometric term (0: off)
+  std::string icp_weights = "confidence";  // --poses track: ICP's per-pixel weights
+  double icp_crease_deg = fusion::TrackingOptions{}.crease_angle_deg;  // --poses track: the crease test (0: off)
   bool device_given = false;
 };
 
@@ -146,6 +149,8 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
         options.max_voxels_million > 0.0 ? options.max_voxels_million * 1e6 : session::automatic_max_voxels(device);
     session_options.turntable_prior = options.turntable_prior;
     session_options.tracking.photometric_weight = options.photometric_weight;
+    session_options.tracking.weight_by_confidence = options.icp_weights == "confidence";
+    session_options.tracking.crease_angle_deg = options.icp_crease_deg;
   }
   session::ScanSession session = session::make_recording_session(recording, session_options);
 
@@ -210,6 +215,10 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   report["poses"] = options.poses;
   report["turntable_prior"] = !groundtruth && options.turntable_prior;
   report["photometric_weight"] = groundtruth ? 0.0 : options.photometric_weight;
+  if (!groundtruth) {
+    report["icp_weights"] = options.icp_weights;
+    report["icp_crease_angle_deg"] = options.icp_crease_deg;
+  }
   report["fusion"] = {{"method", options.fusion},
                       {"truncation_voxels", fusion_options.truncation_voxels},
                       {"eta_voxels", fusion_options.eta_voxels},
@@ -240,6 +249,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
     if (!frame.reason.empty()) entry["reason"] = frame.reason;
     if (frame.tracking) {
       entry["tracking"] = {{"inlier_fraction", frame.tracking->inlier_fraction},
+                           {"crease_pixels", frame.tracking->crease_pixels},
                            {"residual_rms_um", frame.tracking->residual_rms_m * 1e6},
                            {"degenerate_directions", frame.tracking->degenerate_directions},
                            {"iterations", frame.tracking->iterations}};
@@ -409,6 +419,16 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                       "With --poses track: weight of the tracker's photometric term on each pattern stack's white - "
                       "black texture, relative to ICP's (0: off; frames given as depth maps have no texture)")
       ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
+  command->add_option("--icp-weights", options->icp_weights,
+                      "With --poses track: ICP's per-pixel weights: confidence (the decoder's confidence, an inverse "
+                      "predicted variance; frames given as depth maps have none and count equally) or equal")
+      ->check(CLI::IsMember({"confidence", "equal"}))
+      ->capture_default_str();
+  command->add_option("--icp-crease-deg", options->icp_crease_deg,
+                      "With --poses track: ICP sets aside matches within a normal baseline (30 um) of a model "
+                      "crease, where the surface turns by more than this angle (0: off)")
+      ->check(CLI::Range(0.0, 179.0))
       ->capture_default_str();
   command->add_option("--voxel-um", options->voxel_um,
                       "Voxel size in um (0: twice the pixel footprint, grown to fit --max-voxels)")

@@ -332,6 +332,9 @@ Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, c
 
 #if defined(SLS_HAVE_CUDA)
 const float* Decoder::depth_device() const { return impl_->cuda ? impl_->cuda->outputs().depth : nullptr; }
+const float* Decoder::confidence_device() const {
+  return impl_->cuda ? impl_->cuda->outputs().confidence : nullptr;
+}
 #endif
 
 Decoder::~Decoder() = default;

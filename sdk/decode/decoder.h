@@ -109,6 +109,8 @@ class Decoder {
   // valid until the next decode: the scan session integrates and tracks from it without a
   // second upload. nullptr for a CPU decoder.
   const float* depth_device() const;
+  // Its confidence map beside it (DecodedFrame::confidence), on the same terms.
+  const float* confidence_device() const;
 #endif
 
  private:

@@ -246,23 +246,27 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
                   fmt::format("texture of {}x{}, the camera has {}x{}", frame.texture->width(), frame.texture->height(),
                               camera.width, camera.height));
   }
-  Image32f decoded;
+  DecodedFrame decoded;
   const Image32f* depth = nullptr;
-  [[maybe_unused]] const float* depth_device = nullptr;  // the GPU copy (CUDA builds)
+  const Image32f* confidence = nullptr;  // the decoder's, for the tracker's measurement weights
+  [[maybe_unused]] const float* depth_device = nullptr;  // the GPU copies (CUDA builds)
+  [[maybe_unused]] const float* confidence_device = nullptr;
   if (!frame.images.empty()) {
     if (!s.decoder) return finish(FrameStatus::kSkipped, "a pattern stack, but the session has no pattern set");
     const Clock::time_point start = Clock::now();
     try {
-      decoded = s.decoder->decode(frame.images).depth_m;
+      decoded = s.decoder->decode(frame.images);
     } catch (const Error& error) {
       if (error.code() != ErrorCode::kInvalidArgument && error.code() != ErrorCode::kFormat) throw;
       report.times.decode_ms = ms_since(start);
       return finish(FrameStatus::kSkipped, fmt::format("cannot decode: {}", error.what()));
     }
     report.times.decode_ms = ms_since(start);
-    depth = &decoded;
+    depth = &decoded.depth_m;
+    confidence = &decoded.confidence;
 #if defined(SLS_HAVE_CUDA)
     depth_device = s.decoder->depth_device();
+    confidence_device = s.decoder->confidence_device();
 #endif
   } else if (frame.depth_m) {
     if (frame.depth_m->width() != s.calibration.camera.width ||
@@ -329,12 +333,13 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     fusion::TrackingResult tracked;
 #if defined(SLS_HAVE_CUDA)
     if (s.options.device.is_cuda()) {
-      tracked = s.tracker.track_device(depth_device, s.raycaster, s.T_world_model, guess, texture_device);
+      tracked = s.tracker.track_device(depth_device, s.raycaster, s.T_world_model, guess, texture_device,
+                                       confidence_device);
     } else {
-      tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture);
+      tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence);
     }
 #else
-    tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture);
+    tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence);
 #endif
     report.times.track_ms = ms_since(start);
     report.tracking = tracked;

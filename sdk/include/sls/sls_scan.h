@@ -117,7 +117,8 @@ typedef struct sls_frame_report {
   size_t depth_pixels;       /* valid depth pixels of the decoded frame */
   int tracked;               /* 1: registered by ICP, the next two fields are its; 0: the first
                               * fused frame, or not decoded */
-  double inlier_fraction;    /* of the frame's depth pixels, matched to the model */
+  double inlier_fraction;    /* of the frame's depth pixels whose match is not on a model crease
+                              * (those are set aside), matched to the model */
   double residual_rms_m;     /* point-to-plane residual of the inliers */
   double read_ms;            /* milliseconds per stage */
   double decode_ms;

@@ -21,6 +21,7 @@
 #include "fusion/tracker.h"
 #include "sdk/core/error.h"
 #include "sdk/core/ray_map.h"
+#include "tests/unit/fusion/crease_test_scene.h"
 #include "tests/unit/fusion/photometric_test_scenes.h"
 #include "tests/unit/fusion/tracker_test_scenes.h"
 
@@ -157,6 +158,70 @@ TEST(Tracker, StaysPutWhenTheGuessIsRightAndIsDeterministic) {
   EXPECT_TRUE(a.T_world_camera.is_approx(b.T_world_camera, 0.0));
   EXPECT_EQ(a.inliers, b.inliers);
   EXPECT_EQ(a.iterations, b.iterations);
+}
+
+// Measurement weights (TrackingOptions::weight_by_confidence): a band of a third of the
+// live pixels carries a systematic 20 µm depth error (a decoder's bias where it is least
+// sure) and confidence 0.01, the rest confidence 1. Unweighted (Huber alone), the band pulls
+// the pose off; weighted by confidence it counts 1 % as much, and the trusted pixels land
+// on the truth. All-ones confidence changes nothing; weights 0, negative or NaN leave the
+// pixel out.
+TEST(Tracker, ConfidenceWeightsDiscountTheDecodersDoubtfulPixels) {
+  const Model& m = bumpy_model();
+  const Pose truth = m.T_world_model * test_motion();
+  const test::BiasedBand band = test::biased_band(test::exact_depth(m.scene, m.camera, truth), 20e-6f, 0.01f);
+  const Image32f& live = band.live;
+  const Image32f& confidence = band.confidence;
+  const Image32f& trusted = band.trusted;
+  Tracker tracker(Device::cpu(), m.camera);
+  const TrackingResult equal = tracker.track(live, m.raycast, m.T_world_model, m.T_world_model);
+  const TrackingResult weighted =
+      tracker.track(live, m.raycast, m.T_world_model, m.T_world_model, nullptr, &confidence);
+  const test::SurfaceError e_equal = test::surface_error(trusted, m.camera, equal.T_world_camera, truth);
+  const test::SurfaceError e_weighted = test::surface_error(trusted, m.camera, weighted.T_world_camera, truth);
+  print("biased band, equal weights", equal, truth, e_equal);
+  print("biased band, confidence weights", weighted, truth, e_weighted);
+  ASSERT_FALSE(equal.lost) << equal.reason;
+  ASSERT_FALSE(weighted.lost) << weighted.reason;
+  EXPECT_GT(e_equal.rms_m, 3e-6);  // the band's pull is real: a sixth of its bias and more
+  EXPECT_LT(e_weighted.rms_m, kSurfaceBound);
+  EXPECT_LT(e_weighted.rms_m, 0.25 * e_equal.rms_m);
+
+  // Weighting off: the confidence map is ignored.
+  TrackingOptions off;
+  off.weight_by_confidence = false;
+  Tracker unweighted(Device::cpu(), m.camera, off);
+  const TrackingResult ignored =
+      unweighted.track(live, m.raycast, m.T_world_model, m.T_world_model, nullptr, &confidence);
+  EXPECT_TRUE(ignored.T_world_camera.is_approx(equal.T_world_camera, 0.0));
+
+  // All ones: the same result as no map at all.
+  Image32f ones(m.camera.width, m.camera.height);
+  for (std::size_t i = 0; i < ones.pixel_count(); ++i) ones.data()[i] = 1.0f;
+  const TrackingResult with_ones = tracker.track(live, m.raycast, m.T_world_model, m.T_world_model, nullptr, &ones);
+  EXPECT_TRUE(with_ones.T_world_camera.is_approx(equal.T_world_camera, 0.0));
+  EXPECT_EQ(with_ones.inliers, equal.inliers);
+
+  // Weights that are no measurement (0, negative, NaN, infinite) leave their pixels out: the
+  // band gone, the rest registers on the truth.
+  Image32f broken = confidence;
+  for (int y = 0; y < m.camera.height; ++y) {
+    for (int x = 0; x < m.camera.width / 3; ++x) {
+      const float values[4] = {0.0f, -1.0f, std::nanf(""), INFINITY};
+      broken(x, y) = values[(x + y) % 4];
+    }
+  }
+  const TrackingResult left_out =
+      tracker.track(live, m.raycast, m.T_world_model, m.T_world_model, nullptr, &broken);
+  const test::SurfaceError e_left_out = test::surface_error(trusted, m.camera, left_out.T_world_camera, truth);
+  print("band left out", left_out, truth, e_left_out);
+  ASSERT_FALSE(left_out.lost) << left_out.reason;
+  EXPECT_LT(e_left_out.rms_m, kSurfaceBound);
+  EXPECT_LT(left_out.inliers, weighted.inliers * 3 / 4);
+
+  // A map of another size is a clear error.
+  const Image32f small(m.camera.width / 2, m.camera.height);
+  EXPECT_THROW(tracker.track(live, m.raycast, m.T_world_model, m.T_world_model, nullptr, &small), Error);
 }
 
 // A plane seen face on: sliding in it and turning about its normal change nothing, so three
@@ -301,6 +366,47 @@ TEST(Tracker, BadInputIsAClearError) {
 
 // track_shared.h: the 2x2 block keeps the nearest surface across a depth step and averages
 // the rest; live normals face the camera and are not formed across a step.
+// The crease test on model maps: normals over the baseline from the points (baseline_normal),
+// then near_crease. A 90 degree V ridge along a column (points at 0.1 m, 37 um pixels, so the
+// 30 um baseline is one pixel): the two columns whose normals straddle the ridge and their
+// neighbours are marked, no other; a cylinder of 2 mm radius marks none, nor does a plane seen
+// at a slant; where the ridge's points are missing there are no normals beside it to compare.
+TEST(TrackShared, CreasesOnTheModelMaps) {
+  const int w = 12, h = 5;
+  const float fx = 2700.0f, pixel = 0.1f / fx, baseline = 30e-6f, radius = 30e-6f;
+  const float min_cos = std::cos(15.0f * static_cast<float>(M_PI) / 180.0f);
+  std::vector<Vec3f> points(static_cast<std::size_t>(w * h)), normals(points.size());
+  auto fill = [&](auto depth_of) {
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const float along = (static_cast<float>(x) - 6.0f) * pixel;
+        points[static_cast<std::size_t>(y * w + x)] =
+            Vec3f{along, (static_cast<float>(y) - 2.0f) * pixel, 0.1f + depth_of(along)};
+      }
+    }
+  };
+  auto marked = [&](int x, int y) {
+    for (int yy = 0; yy < h; ++yy) {
+      for (int xx = 0; xx < w; ++xx) {
+        normals[static_cast<std::size_t>(yy * w + xx)] = baseline_normal(PointMap{points.data()}, w, h, fx, baseline, xx, yy);
+      }
+    }
+    return near_crease(normals.data(), points.data(), w, h, fx, radius, min_cos, x, y);
+  };
+  auto ridge = [&](float along) { return std::fabs(along + 0.5f * pixel); };  // between columns 5 and 6
+  fill(ridge);
+  for (int x = 0; x < w; ++x) EXPECT_EQ(marked(x, 2), x >= 4 && x <= 7) << "ridge, column " << x;
+  fill([&](float along) { return 2e-3f - std::sqrt(4e-6f - along * along); });
+  for (int x = 0; x < w; ++x) EXPECT_FALSE(marked(x, 2)) << "cylinder, column " << x;
+  fill([&](float along) { return 3.0f * along; });  // 72 degrees from face on
+  for (int x = 0; x < w; ++x) EXPECT_FALSE(marked(x, 2)) << "slanted plane, column " << x;
+  fill(ridge);
+  for (int y = 0; y < h; ++y) {
+    points[static_cast<std::size_t>(y * w + 5)] = points[static_cast<std::size_t>(y * w + 6)] = Vec3f{0, 0, 0};
+  }
+  for (int x = 0; x < w; ++x) EXPECT_FALSE(marked(x, 2)) << "ridge missing, column " << x;
+}
+
 TEST(TrackShared, PyramidAndNormals) {
   const float fx = 2700.0f;
   // A block on one surface (within 8 footprints = 0.3 mm at 0.1 m), and one across a 1 mm step.
@@ -310,6 +416,17 @@ TEST(TrackShared, PyramidAndNormals) {
   EXPECT_NEAR(downsample_depth(fine, 4, 2, fx, 1, 0), 0.1000f, 1e-7f);
   const float empty[4] = {0.0f, 0.0f, std::nanf(""), -1.0f};
   EXPECT_EQ(downsample_depth(empty, 2, 2, fx, 0, 0), 0.0f);
+  // Weights: the mean of the depths kept (the step's far pixels and holes do not count).
+  const float fine_weight[8] = {0.2f, 0.4f, 1.0f, 0.5f,  //
+                                0.9f, 0.7f, 0.3f, 0.5f};
+  float coarse_weight = -1.0f;
+  EXPECT_NEAR(downsample_depth(fine, 4, 2, fx, 0, 0, fine_weight, &coarse_weight), (0.1000f + 0.1001f + 0.1002f) / 3.0f,
+              1e-7f);
+  EXPECT_NEAR(coarse_weight, (0.2f + 0.4f + 0.9f) / 3.0f, 1e-7f);
+  downsample_depth(fine, 4, 2, fx, 1, 0, fine_weight, &coarse_weight);
+  EXPECT_NEAR(coarse_weight, (1.0f + 0.3f) / 2.0f, 1e-7f);
+  downsample_depth(empty, 2, 2, fx, 0, 0, fine_weight, &coarse_weight);
+  EXPECT_EQ(coarse_weight, 0.0f);
 
   // A plane z = 0.1 + 0.5 x (tilted about y), on a pinhole ray map.
   const int w = 4, h = 3;
@@ -582,6 +699,48 @@ TEST(TrackerPhotometric, KnurledScrewTurnedByOneTooth) {
   // From the truth it stays within a few um (the shading bias).
   EXPECT_NEAR(turned_deg(from_truth.T_world_camera), tooth_deg, 0.03);
   EXPECT_LT(frame_error(live, camera, from_truth.T_world_camera).rms_m, 6e-6);
+}
+
+// Matches on creases (TrackingOptions::crease_angle_deg, crease_radius_m): the knurled screw
+// turned by 1 degree with a decoder's errors along its grooves (crease_test_scene.h), against
+// a model of the previous frame. The model's creases are found on its own surface, so the
+// biased pixels are set aside: the registration is the one of the unbiased frame. With the
+// test off they pull it off. Both land within a fraction of a voxel of the truth.
+TEST(Tracker, MatchesOnCreasesAreSetAside) {
+  const test::GroovedScrew screw;
+  const CameraIntrinsics& camera = screw.camera;
+  const test::TexturedFrame& live = screw.live;
+  const test::TexturedModel& model = screw.model;
+  const Pose& model_pose = screw.model_pose;
+  std::printf("[tracker] screw turned 1 deg: %zu of %zu live pixels on the groove lines\n", screw.lines,
+              live.depth_m.pixel_count());
+  ASSERT_GT(screw.lines, 500u);
+
+  TrackingOptions off;
+  off.crease_angle_deg = 0.0;
+  Tracker with_test(Device::cpu(), camera), without_test(Device::cpu(), camera, off);
+  auto track = [&](Tracker& tracker, const Image32f& depth, const char* name) {
+    const TrackingResult r = tracker.track(depth, model.raycast, model_pose, model_pose);
+    print(name, r, live.T_world_camera, test::surface_error(screw.clean, camera, r.T_world_camera, live.T_world_camera));
+    EXPECT_FALSE(r.lost) << name << ": " << r.reason;
+    EXPECT_LT(test::surface_error(screw.clean, camera, r.T_world_camera, live.T_world_camera).rms_m, kSurfaceBound)
+        << name;
+    return r;
+  };
+  const TrackingResult on = track(with_test, screw.biased, "biased grooves, crease test");
+  const TrackingResult on_exact = track(with_test, live.depth_m, "exact, crease test");
+  const TrackingResult off_biased = track(without_test, screw.biased, "biased grooves, no crease test");
+  const TrackingResult off_exact = track(without_test, live.depth_m, "exact, no crease test");
+  EXPECT_GT(on.crease_pixels, screw.lines);  // the lines and the flanks' pixels next to them
+  EXPECT_EQ(off_biased.crease_pixels, 0u);
+  // How far the bias moves the registration (the surface in view, RMS).
+  auto shift = [&](const TrackingResult& a, const TrackingResult& b) {
+    return test::surface_error(screw.clean, camera, a.T_world_camera, b.T_world_camera).rms_m;
+  };
+  std::printf("[tracker] the bias moves the surface %.3f um with the crease test, %.3f um without\n",
+              shift(on, on_exact) * 1e6, shift(off_biased, off_exact) * 1e6);
+  EXPECT_LT(shift(on, on_exact), 0.05e-6);
+  EXPECT_GT(shift(off_biased, off_exact), 0.2e-6);
 }
 
 // What the texture does pin on the knurl: sliding along the axis, which the straight knurl

@@ -18,6 +18,7 @@
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/error.h"
 #include "tests/support/test_support.h"
+#include "tests/unit/fusion/crease_test_scene.h"
 #include "tests/unit/fusion/photometric_test_scenes.h"
 #include "tests/unit/fusion/tracker_test_scenes.h"
 
@@ -55,6 +56,9 @@ void expect_equal(const TrackingResult& cpu, const TrackingResult& gpu, double i
   EXPECT_EQ(cpu.live_pixels, gpu.live_pixels);
   const double inlier_difference = std::fabs(static_cast<double>(cpu.inliers) - static_cast<double>(gpu.inliers));
   EXPECT_LE(inlier_difference, std::max(5.0, inlier_fraction * static_cast<double>(cpu.live_pixels)));
+  const double crease_difference =
+      std::fabs(static_cast<double>(cpu.crease_pixels) - static_cast<double>(gpu.crease_pixels));
+  EXPECT_LE(crease_difference, std::max(5.0, inlier_fraction * static_cast<double>(cpu.live_pixels)));
   EXPECT_EQ(cpu.degenerate_directions, gpu.degenerate_directions);
   // A level stops when a step falls under the minimum: rounding may take one more step there.
   EXPECT_LE(std::abs(cpu.iterations - gpu.iterations), 3);
@@ -218,6 +222,84 @@ TEST(TrackerCuda, TrackDeviceOnTheRaycastersMaps) {
   // The device pointers are the raycaster's own buffers.
   EXPECT_NE(raycaster.depth_device(), nullptr);
   EXPECT_NE(raycaster.points_device(), raycaster.normals_device());
+}
+
+// Confidence weights (TrackingOptions::weight_by_confidence): a biased band of low
+// confidence and varied confidence elsewhere, so every pyramid level's block means matter.
+// The same poses on the host path, with the live map halved on the device, and with the
+// depth and confidence maps on the GPU (track_device).
+TEST(TrackerCuda, ConfidenceWeightsEqualCpu) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Model& m = bumpy_model();
+  const Pose truth = m.T_world_model * test_motion();
+  const test::BiasedBand band =
+      test::biased_band(test::exact_depth(m.scene, m.camera, truth), 20e-6f, 0.01f, /*vary=*/true);
+  {
+    Tracker cpu(Device::cpu(), m.camera), gpu(Device::cuda(), m.camera);
+    const TrackingResult a = cpu.track(band.live, m.raycast, m.T_world_model, m.T_world_model, nullptr, &band.confidence);
+    const TrackingResult b = gpu.track(band.live, m.raycast, m.T_world_model, m.T_world_model, nullptr, &band.confidence);
+    print("confidence", a, b);
+    EXPECT_FALSE(b.lost) << b.reason;
+    expect_equal(a, b);
+    EXPECT_LT(test::surface_error(band.trusted, m.camera, b.T_world_camera, truth).rms_m, kSurfaceBound);
+    // Unweighted, the band pulls the pose off (test_tracker.cpp has the CPU figures).
+    const TrackingResult equal = gpu.track(band.live, m.raycast, m.T_world_model, m.T_world_model);
+    EXPECT_GT(test::surface_error(band.trusted, m.camera, equal.T_world_camera, truth).rms_m, 3e-6);
+
+    Volume volume(m.volume.geometry(), VoxelFormat::kFloat32, Device::cuda());
+    volume.copy_from(m.volume);
+    Raycaster raycaster(Device::cuda(), m.camera, Model::raycast_options());
+    raycaster.raycast_device(volume, m.T_world_model);
+    DeviceBuffer<float> live_device(band.live.pixel_count()), confidence_device(band.confidence.pixel_count());
+    live_device.upload(band.live.data(), band.live.pixel_count(), nullptr);
+    confidence_device.upload(band.confidence.data(), band.confidence.pixel_count(), nullptr);
+    ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+    const TrackingResult c = gpu.track_device(live_device.data(), raycaster, m.T_world_model, m.T_world_model,
+                                              nullptr, confidence_device.data());
+    print("confidence, track_device", a, c);
+    expect_equal(a, c, 1e-3, 0.1);
+  }
+  {
+    TrackingOptions options;
+    options.max_model_width = m.camera.width / 2;
+    Tracker cpu(Device::cpu(), m.camera, options), gpu(Device::cuda(), m.camera, options);
+    Raycaster cpu_raycaster(Device::cpu(), cpu.model_camera(), Model::raycast_options());
+    const RaycastResult model = cpu_raycaster.raycast(m.volume, m.T_world_model);
+    const TrackingResult a = cpu.track(band.live, model, m.T_world_model, m.T_world_model, nullptr, &band.confidence);
+    const TrackingResult b = gpu.track(band.live, model, m.T_world_model, m.T_world_model, nullptr, &band.confidence);
+    print("confidence, halved", a, b);
+    EXPECT_FALSE(b.lost) << b.reason;
+    expect_equal(a, b);
+  }
+}
+
+// The crease test (model-side marks, matches set aside) on the knurled screw with a decoder's
+// groove errors: the same poses and counts on the host path and with the maps on the GPU.
+TEST(TrackerCuda, CreaseTestEqualsCpu) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const test::GroovedScrew screw;
+  Tracker cpu(Device::cpu(), screw.camera), gpu(Device::cuda(), screw.camera);
+  const TrackingResult a = cpu.track(screw.biased, screw.model.raycast, screw.model_pose, screw.model_pose);
+  const TrackingResult b = gpu.track(screw.biased, screw.model.raycast, screw.model_pose, screw.model_pose);
+  print("grooved screw", a, b);
+  std::printf("[tracker-cuda] crease pixels: cpu %zu cuda %zu\n", a.crease_pixels, b.crease_pixels);
+  EXPECT_FALSE(b.lost) << b.reason;
+  EXPECT_GT(a.crease_pixels, screw.lines);
+  expect_equal(a, b);
+
+  Volume volume(screw.model.volume.geometry(), VoxelFormat::kFloat32, Device::cuda());
+  volume.copy_from(screw.model.volume);
+  RaycastOptions options;
+  options.truncation_voxels = IntegrationOptions::tsdf().truncation_voxels;
+  options.min_depth_m = 1e-3;
+  Raycaster raycaster(Device::cuda(), screw.camera, options);
+  raycaster.raycast_device(volume, screw.model_pose);
+  DeviceBuffer<float> live_device(screw.biased.pixel_count());
+  live_device.upload(screw.biased.data(), screw.biased.pixel_count(), nullptr);
+  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+  const TrackingResult c = gpu.track_device(live_device.data(), raycaster, screw.model_pose, screw.model_pose);
+  print("grooved screw, track_device", a, c);
+  expect_equal(a, c, 1e-3, 0.1);  // the GPU's own raycast of the model
 }
 
 TEST(TrackerCuda, BadInputIsAClearError) {

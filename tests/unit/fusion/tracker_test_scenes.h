@@ -230,4 +230,26 @@ inline SurfaceError surface_error(const Image32f& depth, const CameraIntrinsics&
   return error;
 }
 
+// A live depth map whose left third carries a systematic error (a decoder's bias where it is
+// least sure) with a low confidence there: `live` is `exact` with bias_m added in the band,
+// `confidence` is band_confidence in the band and elsewhere 1 (or, with vary, 0.5 .. 1 in a
+// fixed pattern, so a pyramid's block means differ from pixel to pixel), `trusted` is
+// `exact` without the band (to measure the registration on).
+struct BiasedBand {
+  Image32f live, confidence, trusted;
+};
+inline BiasedBand biased_band(const Image32f& exact, float bias_m, float band_confidence, bool vary = false) {
+  BiasedBand out{exact, Image32f(exact.width(), exact.height()), exact};
+  for (int y = 0; y < exact.height(); ++y) {
+    for (int x = 0; x < exact.width(); ++x) {
+      const bool band = x < exact.width() / 3;
+      if (band && exact(x, y) > 0.0f) out.live(x, y) += bias_m;
+      if (band) out.trusted(x, y) = 0.0f;
+      const float elsewhere = vary ? 0.5f + 0.5f * static_cast<float>((7 * x + 13 * y) % 11) / 10.0f : 1.0f;
+      out.confidence(x, y) = band ? band_confidence : elsewhere;
+    }
+  }
+  return out;
+}
+
 }  // namespace sls::fusion::test
