@@ -366,10 +366,16 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     report.times.track_ms += ms_since(start);
   }
 
-  // Integrate, move the volume when the camera has left it, raycast the model for the next frame.
+  // Move the volume when the camera has left it (before integrating, so the frame's whole view
+  // goes into a volume placed for it), integrate, raycast the model for the next frame.
   s.place_volume(T_world_camera, *depth);
-  fusion::Volume& volume = *s.volume();
   Clock::time_point start = Clock::now();
+  if (s.moving) {
+    report.move = s.moving->follow(T_world_camera);
+    report.times.move_ms = ms_since(start);
+  }
+  fusion::Volume& volume = *s.volume();  // the moved volume, if it moved
+  start = Clock::now();
 #if defined(SLS_HAVE_CUDA)
   if (depth_device != nullptr) {
     const auto [near_m, far_m] = fusion::integration_depth_band(*depth);
@@ -382,24 +388,18 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   report.integration = s.integrator.integrate(volume, *depth, s.calibration.camera, T_world_camera);
 #endif
   report.times.integrate_ms = ms_since(start);
-  if (s.moving) {
-    start = Clock::now();
-    report.move = s.moving->follow(T_world_camera);
-    report.times.move_ms = ms_since(start);
-  }
   if (!frame.known_T_world_camera) {
     start = Clock::now();
-    fusion::Volume& model_volume = *s.volume();  // the moved volume, if it moved
     // Guided by the depth just integrated from this pose: rays search only near it.
 #if defined(SLS_HAVE_CUDA)
     if (s.options.device.is_cuda()) {
-      s.raycaster.raycast_device(model_volume, T_world_camera, depth_device, depth->width(), depth->height());
+      s.raycaster.raycast_device(volume, T_world_camera, depth_device, depth->width(), depth->height());
       s.raycaster.synchronize();
     } else {
-      s.model = s.raycaster.raycast(model_volume, T_world_camera, *depth);
+      s.model = s.raycaster.raycast(volume, T_world_camera, *depth);
     }
 #else
-    s.model = s.raycaster.raycast(model_volume, T_world_camera, *depth);
+    s.model = s.raycaster.raycast(volume, T_world_camera, *depth);
 #endif
     report.times.raycast_ms = ms_since(start);
     s.T_world_model = T_world_camera;

@@ -408,7 +408,8 @@ TEST(MovingVolumeFollow, MovesOnlyWhenTheFocusLeavesTheMarginOrTheCameraTurns) {
     EXPECT_FALSE(moving.follow(test::moved_camera(start, step, 0.0, z)).moved) << step.transpose();
   }
   // Turning about the optical axis keeps the focus: only the rotation rule applies.
-  EXPECT_FALSE(moving.follow(test::moved_camera(start, Eigen::Vector3d::Zero(), 4.9, z)).moved);
+  const double limit_deg = options.max_rotation_deg;
+  EXPECT_FALSE(moving.follow(test::moved_camera(start, Eigen::Vector3d::Zero(), limit_deg - 0.1, z)).moved);
   EXPECT_EQ(moving.moves(), 0u);
 
   const Pose out = test::moved_camera(start, Eigen::Vector3d(1.2e-3, 0.0, 0.0), 0.0, z);
@@ -420,10 +421,10 @@ TEST(MovingVolumeFollow, MovesOnlyWhenTheFocusLeavesTheMarginOrTheCameraTurns) {
   EXPECT_EQ(moving.moves(), 1u);
   EXPECT_FALSE(moving.follow(out).moved) << "centred again";
 
-  const Pose turned = test::moved_camera(out, Eigen::Vector3d::Zero(), 5.5, z);
+  const Pose turned = test::moved_camera(out, Eigen::Vector3d::Zero(), limit_deg + 0.5, z);
   stats = moving.follow(turned);
   EXPECT_TRUE(stats.moved);
-  EXPECT_NEAR(stats.rotation_deg, 5.5, 1e-6);
+  EXPECT_NEAR(stats.rotation_deg, limit_deg + 0.5, 1e-6);
   EXPECT_NEAR(stats.translation_m, 0.0, 1e-12);
   EXPECT_EQ(moving.moves(), 2u);
 
