@@ -35,8 +35,8 @@ struct MovingVolumeOptions {
   // the exact-depth demo revolution of the knurled screw (120 frames, 3° steps), 5° (59 moves)
   // gave C2C 24 µm and a loop error of 0.25°, 15° (20 moves) 9 µm and 0.11°, 2.5° (119
   // moves) 0.53°. 15° is about the most the default box (the field at the focus, half its
-  // width deep) allows: the field's edges then swing in depth by a quarter of the box's
-  // half-depth each way, leaving the rest for the surface's relief.
+  // width deep) allows: the field's edges then swing in depth by tan 15° · half the width,
+  // about half the box's half-depth, each way, leaving the rest for the surface's relief.
   double max_rotation_deg = 15.0;
   ExtractOptions extract;          // for the shipped surface and final_surface()
   // Throws sls::Error(kInvalidArgument) naming the bad value.

@@ -181,7 +181,7 @@ SLS_HOST_DEVICE inline void accumulate_photometric(int outcome, const float jaco
   sums[kPhotometricMatchedCount] += T(1);
   sums[kPhotometricLiveSum] += static_cast<T>(live_value);
   sums[kPhotometricReferenceSum] += static_cast<T>(ref_value);
-  if (outcome == kPhotometricRow) accumulate_track_row(jacobian, residual, huber, 1.0f, sums);
+  if (outcome == kPhotometricRow) accumulate_track_row(jacobian, residual, huber, 0.0f, 1.0f, sums);
 }
 
 }  // namespace sls::fusion

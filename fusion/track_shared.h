@@ -211,7 +211,8 @@ struct TrackParams {
   float min_normal_cos = 0.0f;
   Vec3f centre{0.0f, 0.0f, 0.0f};  // c (model frame)
   float inverse_scale = 1.0f;      // 1 / L
-  float huber_m = 0.0f;            // Huber scale of the residuals (0: plain least squares)
+  float huber_m = 0.0f;            // Huber scale of the residuals (0: none)
+  float tukey_m = 0.0f;            // Tukey's biweight scale c of the residuals (0: none; before Huber's)
 };
 
 // What track_pixel made of a live pixel.
@@ -263,17 +264,26 @@ SLS_HOST_DEVICE inline int track_pixel(const TrackLiveView& live, const TrackMod
   return kTrackInlier;
 }
 
-// Adds one inlier's row to the sums (float per GPU thread, double on the CPU), weighted by
-// its measurement weight times Huber's function of its residual (1 within huber_m, huber_m / |r|
-// beyond): pixels a decoder misplaces (knurl creases, where one pixel mixes two faces) pull
-// with a bounded force instead of a quadratic one, and pixels it knows to be noisy pull less.
-// The residual sum and the count stay unweighted (the RMS test).
-template <typename T>
-SLS_HOST_DEVICE inline void accumulate_track_row(const float jacobian[6], float residual, float huber_m,
-                                                 float measurement_weight, T sums[kTrackSums]) {
+// The robust weight of a residual: Tukey's biweight (1 − (r/c)²)² within c and 0 beyond when
+// tukey_m = c > 0, else Huber's (1 within huber_m, huber_m / |r| beyond) when huber_m > 0,
+// else 1. Pixels a decoder misplaces (remnants of crease errors, the edges of the projector's
+// shadows: tens of µm off) pull with a bounded force under Huber's and with none under Tukey's.
+SLS_HOST_DEVICE inline float robust_weight(float residual, float huber_m, float tukey_m) {
   const float magnitude = std::fabs(residual);
-  const float weight =
-      measurement_weight * (huber_m > 0.0f && magnitude > huber_m ? huber_m / magnitude : 1.0f);
+  if (tukey_m > 0.0f) {
+    const float q = magnitude / tukey_m;
+    return q < 1.0f ? (1.0f - q * q) * (1.0f - q * q) : 0.0f;
+  }
+  return huber_m > 0.0f && magnitude > huber_m ? huber_m / magnitude : 1.0f;
+}
+
+// Adds one inlier's row to the sums (float per GPU thread, double on the CPU), weighted by
+// its measurement weight times robust_weight of its residual. The residual sum and the count
+// stay unweighted (the RMS test, the next reduction's scales).
+template <typename T>
+SLS_HOST_DEVICE inline void accumulate_track_row(const float jacobian[6], float residual, float huber_m, float tukey_m,
+                                                 float measurement_weight, T sums[kTrackSums]) {
+  const float weight = measurement_weight * robust_weight(residual, huber_m, tukey_m);
   int k = 0;
   for (int r = 0; r < 6; ++r) {
     for (int c = r; c < 6; ++c) {
@@ -294,7 +304,7 @@ SLS_HOST_DEVICE inline void accumulate_track_pixel(const TrackLiveView& live, co
   float residual = 0.0f, weight = 1.0f;
   const int outcome = track_pixel(live, model, params, x, y, jacobian, &residual, &weight);
   if (outcome == kTrackInlier) {
-    accumulate_track_row(jacobian, residual, params.huber_m, weight, sums);
+    accumulate_track_row(jacobian, residual, params.huber_m, params.tukey_m, weight, sums);
   } else if (outcome == kTrackOnCrease) {
     sums[kTrackCreaseCount] += T(1);
   }

@@ -52,6 +52,9 @@ void TrackingOptions::validate() const {
   if (!(huber_rms_factor >= 0.0) || !std::isfinite(huber_rms_factor)) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: huber_rms_factor {} must be 0 or positive", huber_rms_factor);
   }
+  if (!(tukey_rms_factor >= 0.0) || !std::isfinite(tukey_rms_factor)) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: tukey_rms_factor {} must be 0 or positive", tukey_rms_factor);
+  }
   if (max_model_width < 16) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: max_model_width {} (at least 16 pixels)", max_model_width);
   }
@@ -431,10 +434,11 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
         finest_reduced = true;
         last = sums;
       }
-      // The next reduction's Huber scale from this one's residual RMS.
-      if (options.huber_rms_factor > 0.0 && sums[kTrackCount] > 0.0) {
-        params.huber_m =
-            static_cast<float>(options.huber_rms_factor * std::sqrt(sums[kTrackResidual2] / sums[kTrackCount]));
+      // The next reduction's robust scale from this one's residual RMS.
+      if (sums[kTrackCount] > 0.0) {
+        const double rms = std::sqrt(sums[kTrackResidual2] / sums[kTrackCount]);
+        params.tukey_m = static_cast<float>(options.tukey_rms_factor * rms);
+        params.huber_m = options.tukey_rms_factor > 0.0 ? 0.0f : static_cast<float>(options.huber_rms_factor * rms);
       }
       const double count = sums[kTrackCount];
       if (count < 6.0) break;  // nothing to solve at this level: go finer (the tests below judge)

@@ -145,6 +145,51 @@ TEST(Tracker, NoisyLiveDepthStillRegisters) {
   EXPECT_NEAR(r.residual_rms_m, 5e-6, 1.5e-6);  // the noise, seen along the normals
 }
 
+// Robust weights (TrackingOptions::tukey_rms_factor, huber_rms_factor): every 4th pixel of
+// every 4th row of the left third sits 120 µm behind the surface (a decoder's misplaced
+// pixels, within the 200 µm association distance), the rest is exact. Sparse, so the good
+// pixels around them keep their live normals (a coarse level blends them into a small bias).
+// Least squares follows them; Huber's bounds their pull but still moves the pose; Tukey's
+// biweight (the default) weighs them 0 once a reduction has measured the residuals' scale.
+TEST(Tracker, TukeyWeightsIgnoreScatteredOutliers) {
+  const Model& m = bumpy_model();
+  const Pose truth = m.T_world_model * test_motion();
+  const Image32f exact = test::exact_depth(m.scene, m.camera, truth);
+  Image32f live = exact;
+  for (int y = 0; y < live.height(); ++y) {
+    for (int x = 0; x < live.width() / 3; ++x) {
+      if (x % 4 == 0 && y % 4 == 0 && live(x, y) > 0.0f) live(x, y) += 120e-6f;
+    }
+  }
+  auto run = [&](double tukey, double huber, const char* name) {
+    TrackingOptions options;
+    options.tukey_rms_factor = tukey;
+    options.huber_rms_factor = huber;
+    const TrackingResult r = Tracker(Device::cpu(), m.camera, options)
+                                 .track(live, m.raycast, m.T_world_model, m.T_world_model);
+    const test::SurfaceError e = test::surface_error(exact, m.camera, r.T_world_camera, truth);
+    print(name, r, truth, e);
+    EXPECT_FALSE(r.lost) << name << ": " << r.reason;
+    return e.rms_m;
+  };
+  const double plain = run(0.0, 0.0, "outliers, least squares");
+  const double huber = run(0.0, 2.0, "outliers, Huber");
+  const double tukey = run(TrackingOptions{}.tukey_rms_factor, 2.0, "outliers, Tukey");
+  EXPECT_GT(plain, kSurfaceBound);  // the outliers' pull is real
+  EXPECT_LT(huber, plain);
+  EXPECT_LT(tukey, kSurfaceBound);
+  EXPECT_LT(tukey, 0.25 * huber);
+}
+
+TEST(TrackShared, RobustWeights) {
+  EXPECT_EQ(robust_weight(5e-6f, 0.0f, 0.0f), 1.0f);                     // none
+  EXPECT_EQ(robust_weight(5e-6f, 10e-6f, 0.0f), 1.0f);                   // Huber, within
+  EXPECT_FLOAT_EQ(robust_weight(-40e-6f, 10e-6f, 0.0f), 0.25f);          // Huber, beyond
+  EXPECT_FLOAT_EQ(robust_weight(-5e-6f, 10e-6f, 10e-6f), 0.5625f);       // Tukey: (1 - 0.25)²
+  EXPECT_EQ(robust_weight(10e-6f, 10e-6f, 10e-6f), 0.0f);                // Tukey, at c and beyond
+  EXPECT_EQ(robust_weight(std::nanf(""), 0.0f, 10e-6f), 0.0f);
+}
+
 TEST(Tracker, StaysPutWhenTheGuessIsRightAndIsDeterministic) {
   const Model& m = bumpy_model();
   const Image32f live = test::exact_depth(m.scene, m.camera, m.T_world_model);
@@ -155,7 +200,7 @@ TEST(Tracker, StaysPutWhenTheGuessIsRightAndIsDeterministic) {
   print("no motion", a, m.T_world_model, e);
   EXPECT_FALSE(a.lost) << a.reason;
   EXPECT_LT(e.rms_m, kSurfaceBound);
-  EXPECT_TRUE(a.T_world_camera.is_approx(b.T_world_camera, 0.0));
+  EXPECT_TRUE(test::same_pose(a.T_world_camera, b.T_world_camera));
   EXPECT_EQ(a.inliers, b.inliers);
   EXPECT_EQ(a.iterations, b.iterations);
 }
@@ -193,13 +238,13 @@ TEST(Tracker, ConfidenceWeightsDiscountTheDecodersDoubtfulPixels) {
   Tracker unweighted(Device::cpu(), m.camera, off);
   const TrackingResult ignored =
       unweighted.track(live, m.raycast, m.T_world_model, m.T_world_model, nullptr, &confidence);
-  EXPECT_TRUE(ignored.T_world_camera.is_approx(equal.T_world_camera, 0.0));
+  EXPECT_TRUE(test::same_pose(ignored.T_world_camera, equal.T_world_camera));
 
   // All ones: the same result as no map at all.
   Image32f ones(m.camera.width, m.camera.height);
   for (std::size_t i = 0; i < ones.pixel_count(); ++i) ones.data()[i] = 1.0f;
   const TrackingResult with_ones = tracker.track(live, m.raycast, m.T_world_model, m.T_world_model, nullptr, &ones);
-  EXPECT_TRUE(with_ones.T_world_camera.is_approx(equal.T_world_camera, 0.0));
+  EXPECT_TRUE(test::same_pose(with_ones.T_world_camera, equal.T_world_camera));
   EXPECT_EQ(with_ones.inliers, equal.inliers);
 
   // Weights that are no measurement (0, negative, NaN, infinite) leave their pixels out: the
@@ -271,7 +316,7 @@ TEST(Tracker, UnrelatedGeometryIsLost) {
   std::printf("[tracker] unrelated: %s\n", r.reason.c_str());
   EXPECT_TRUE(r.lost);
   EXPECT_NE(r.reason.find("match the model"), std::string::npos) << r.reason;
-  EXPECT_TRUE(r.T_world_camera.is_approx(guess, 0.0));
+  EXPECT_TRUE(test::same_pose(r.T_world_camera, guess));
   EXPECT_EQ(r.inliers, 0u);
 }
 
@@ -282,7 +327,7 @@ TEST(Tracker, EmptyLiveMapIsLost) {
                                          m.T_world_model);
   EXPECT_TRUE(r.lost);
   EXPECT_NE(r.reason.find("no valid depth"), std::string::npos) << r.reason;
-  EXPECT_TRUE(r.T_world_camera.is_approx(m.T_world_model, 0.0));
+  EXPECT_TRUE(test::same_pose(r.T_world_camera, m.T_world_model));
 }
 
 TEST(Tracker, ImplausibleCorrectionAndResidualAreLost) {
@@ -297,7 +342,7 @@ TEST(Tracker, ImplausibleCorrectionAndResidualAreLost) {
     std::printf("[tracker] correction: %s\n", r.reason.c_str());
     EXPECT_TRUE(r.lost);
     EXPECT_NE(r.reason.find("moves the view's centre"), std::string::npos) << r.reason;
-    EXPECT_TRUE(r.T_world_camera.is_approx(m.T_world_model, 0.0));
+    EXPECT_TRUE(test::same_pose(r.T_world_camera, m.T_world_model));
   }
   {
     TrackingOptions options;
@@ -574,7 +619,7 @@ TEST(TrackerPhotometric, ReferenceFramesAndMissingTextures) {
   const TrackingResult no_texture = tracker.track(f.live.depth_m, model.raycast, model_pose, model_pose);
   EXPECT_FALSE(no_texture.photometric);
   EXPECT_EQ(no_texture.photometric_skipped, "no live texture");
-  EXPECT_TRUE(no_texture.T_world_camera.is_approx(plain.T_world_camera, 0.0));
+  EXPECT_TRUE(test::same_pose(no_texture.T_world_camera, plain.T_world_camera));
   EXPECT_EQ(no_texture.inliers, plain.inliers);
   EXPECT_FALSE(tracker.has_reference_frame());
 
@@ -607,7 +652,7 @@ TEST(TrackerPhotometric, ReferenceFramesAndMissingTextures) {
   EXPECT_FALSE(depth_only.has_reference_frame());
   const TrackingResult ignored =
       depth_only.track(f.live.depth_m, model.raycast, model_pose, model_pose, &f.live.texture);
-  EXPECT_TRUE(ignored.T_world_camera.is_approx(plain.T_world_camera, 0.0));
+  EXPECT_TRUE(test::same_pose(ignored.T_world_camera, plain.T_world_camera));
 }
 
 TEST(TrackerPhotometric, BadInputIsAClearError) {

@@ -108,7 +108,7 @@ TEST(TrackerCuda, EqualsCpuOnEveryCase) {
     print("unrelated", a, b);
     EXPECT_TRUE(b.lost);
     EXPECT_EQ(a.reason, b.reason);
-    EXPECT_TRUE(b.T_world_camera.is_approx(m.T_world_model, 0.0));
+    EXPECT_TRUE(test::same_pose(b.T_world_camera, m.T_world_model));
   }
   // An empty live map.
   {
@@ -126,7 +126,7 @@ TEST(TrackerCuda, EqualsCpuOnEveryCase) {
     const TrackingResult b = strict.track(live, m.raycast, m.T_world_model, m.T_world_model);
     EXPECT_TRUE(b.lost);
     EXPECT_NE(b.reason.find("moves the view's centre"), std::string::npos) << b.reason;
-    EXPECT_TRUE(b.T_world_camera.is_approx(m.T_world_model, 0.0));
+    EXPECT_TRUE(test::same_pose(b.T_world_camera, m.T_world_model));
   }
 }
 
@@ -210,7 +210,7 @@ TEST(TrackerCuda, TrackDeviceOnTheRaycastersMaps) {
   // raycast() give the same result through track().
   for (int n = 0; n < 3; ++n) {
     const TrackingResult again = gpu.track_device(live_device.data(), raycaster, m.T_world_model, m.T_world_model);
-    EXPECT_TRUE(again.T_world_camera.is_approx(b.T_world_camera, 0.0)) << n;
+    EXPECT_TRUE(test::same_pose(again.T_world_camera, b.T_world_camera)) << n;
     EXPECT_EQ(again.inliers, b.inliers);
     EXPECT_EQ(again.iterations, b.iterations);
     EXPECT_EQ(again.residual_rms_m, b.residual_rms_m);
@@ -396,7 +396,7 @@ TEST(TrackerCuda, PhotometricEqualsCpu) {
       first = b;
     } else {
       // Deterministic: the same bits again.
-      EXPECT_TRUE(b.T_world_camera.is_approx(first.T_world_camera, 0.0)) << n;
+      EXPECT_TRUE(test::same_pose(b.T_world_camera, first.T_world_camera)) << n;
       EXPECT_EQ(b.photometric_pixels, first.photometric_pixels);
       EXPECT_EQ(b.photometric_rms, first.photometric_rms);
     }

@@ -24,6 +24,12 @@
 
 namespace sls::fusion::test {
 
+// The same pose bit for bit (Pose::is_approx with tolerance 0 is not: the angle of a⁻¹·a can
+// round to a few 1e-8 rad).
+inline bool same_pose(const Pose& a, const Pose& b) {
+  return a.translation() == b.translation() && a.rotation() == b.rotation();
+}
+
 // `call` throws sls::Error(kInvalidArgument) whose message holds `fragment`.
 inline void expect_invalid(const std::function<void()>& call, const std::string& fragment) {
   try {
