@@ -426,8 +426,8 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::IsMember({"confidence", "equal"}))
       ->capture_default_str();
   command->add_option("--icp-crease-deg", options->icp_crease_deg,
-                      "With --poses track: ICP sets aside matches within a normal baseline (30 um) of a model "
-                      "crease, where the surface turns by more than this angle (0: off)")
+                      "With --poses track: ICP sets aside matches within 60 um of a model crease, where the "
+                      "surface turns by more than this angle (0: off)")
       ->check(CLI::Range(0.0, 179.0))
       ->capture_default_str();
   command->add_option("--voxel-um", options->voxel_um,
