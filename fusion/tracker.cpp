@@ -109,6 +109,18 @@ using PhotometricSums = std::array<double, kPhotometricSums>;
 using TextureSums = std::array<double, kTextureSums>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
+// body(x, y) for every pixel of a width x height map, rows spread over the CPU's threads (the
+// CPU launcher of the per-pixel bodies in track_shared.h and photometric_shared.h).
+template <typename Body>
+void for_each_pixel(int width, int height, const Body& body) {
+#if defined(_OPENMP)
+#pragma omp parallel for schedule(static)
+#endif
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) body(x, y);
+  }
+}
+
 // One level of the live pyramid: its camera and ray map (host), and on the CPU its depth,
 // measurement weights and normals (level 0's depth and weights are the caller's).
 struct Level {
@@ -219,31 +231,21 @@ bool add_photometric(Sums& system, const PhotometricSums& photometric, double we
 void halve_depth(const float* fine_depth, const float* fine_weight, const CameraIntrinsics& fine, float* coarse_depth,
                  float* coarse_weight, const CameraIntrinsics& coarse) {
   const float fine_fx = static_cast<float>(fine.fx);
-#if defined(_OPENMP)
-#pragma omp parallel for schedule(static)
-#endif
-  for (int y = 0; y < coarse.height; ++y) {
-    for (int x = 0; x < coarse.width; ++x) {
-      const std::size_t i =
-          static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse.width) + static_cast<std::size_t>(x);
-      coarse_depth[i] = downsample_depth(fine_depth, fine.width, fine.height, fine_fx, x, y, fine_weight,
-                                         fine_weight != nullptr ? &coarse_weight[i] : nullptr);
-    }
-  }
+  for_each_pixel(coarse.width, coarse.height, [&](int x, int y) {
+    const std::size_t i =
+        static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse.width) + static_cast<std::size_t>(x);
+    coarse_depth[i] = downsample_depth(fine_depth, fine.width, fine.height, fine_fx, x, y, fine_weight,
+                                       fine_weight != nullptr ? &coarse_weight[i] : nullptr);
+  });
 }
 
 // A texture at `fine`'s size halved into `coarse`'s (downsample_texture per coarse pixel).
 void halve_texture(const float* fine_texture, const CameraIntrinsics& fine, float* coarse_texture,
                    const CameraIntrinsics& coarse) {
-#if defined(_OPENMP)
-#pragma omp parallel for schedule(static)
-#endif
-  for (int y = 0; y < coarse.height; ++y) {
-    for (int x = 0; x < coarse.width; ++x) {
-      coarse_texture[static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse.width) +
-                     static_cast<std::size_t>(x)] = downsample_texture(fine_texture, fine.width, fine.height, x, y);
-    }
-  }
+  for_each_pixel(coarse.width, coarse.height, [&](int x, int y) {
+    coarse_texture[static_cast<std::size_t>(y) * static_cast<std::size_t>(coarse.width) +
+                   static_cast<std::size_t>(x)] = downsample_texture(fine_texture, fine.width, fine.height, x, y);
+  });
 }
 
 // What the photometric term needs for a frame beyond the per-level maps.
@@ -723,14 +725,9 @@ void Tracker::Impl::depth_pyramid(const float* depth_in, const float* weight_in,
     const float fx = static_cast<float>(level.camera.fx);
     const float baseline = static_cast<float>(options.normal_baseline_m);
     const float* depth_l = level_depth[l];
-#if defined(_OPENMP)
-#pragma omp parallel for schedule(static)
-#endif
-    for (int y = 0; y < h; ++y) {
-      for (int x = 0; x < w; ++x) {
-        level.normals[level.rays.index(x, y)] = live_normal(depth_l, level.rays.rays.data(), w, h, fx, baseline, x, y);
-      }
-    }
+    for_each_pixel(w, h, [&](int x, int y) {
+      level.normals[level.rays.index(x, y)] = live_normal(depth_l, level.rays.rays.data(), w, h, fx, baseline, x, y);
+    });
   }
 }
 
@@ -847,24 +844,13 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
     const float fx = static_cast<float>(s.camera.fx), baseline = static_cast<float>(s.options.normal_baseline_m);
     const float min_cos = s.crease_min_cos(), radius = static_cast<float>(s.options.crease_radius_m);
     const Vec3f* points = model.points_camera.data();
-#if defined(_OPENMP)
-#pragma omp parallel for schedule(static)
-#endif
-    for (int y = 0; y < height; ++y) {
-      for (int x = 0; x < width; ++x) {
-        s.crease_normals[s.levels[0].rays.index(x, y)] =
-            baseline_normal(PointMap{points}, width, height, fx, baseline, x, y);
-      }
-    }
-#if defined(_OPENMP)
-#pragma omp parallel for schedule(static)
-#endif
-    for (int y = 0; y < height; ++y) {
-      for (int x = 0; x < width; ++x) {
-        s.crease_mask[s.levels[0].rays.index(x, y)] =
-            near_crease(s.crease_normals.data(), points, width, height, fx, radius, min_cos, x, y) ? 1 : 0;
-      }
-    }
+    for_each_pixel(width, height, [&](int x, int y) {
+      s.crease_normals[s.levels[0].rays.index(x, y)] = baseline_normal(PointMap{points}, width, height, fx, baseline, x, y);
+    });
+    for_each_pixel(width, height, [&](int x, int y) {
+      s.crease_mask[s.levels[0].rays.index(x, y)] =
+          near_crease(s.crease_normals.data(), points, width, height, fx, radius, min_cos, x, y) ? 1 : 0;
+    });
     model_view.creases = s.crease_mask.data();
   }
   auto reduce = [&](int l, const TrackParams& params) {
