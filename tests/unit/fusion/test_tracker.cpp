@@ -207,9 +207,9 @@ TEST(Tracker, StaysPutWhenTheGuessIsRightAndIsDeterministic) {
 
 // Measurement weights (TrackingOptions::weight_by_confidence): a band of a third of the
 // live pixels carries a systematic 20 µm depth error (a decoder's bias where it is least
-// sure) and confidence 0.01, the rest confidence 1. Unweighted (robust weights alone), the band pulls
-// the pose off; weighted by confidence it counts 1 % as much, and the trusted pixels land
-// on the truth. All-ones confidence changes nothing; weights 0, negative or NaN leave the
+// sure) and confidence 0.01, the rest confidence 1. Unweighted (robust weights alone), the
+// band pulls the pose off; weighted by confidence it counts 1 % as much, and the trusted
+// pixels land on the truth. All-ones confidence changes nothing; weights 0, negative or NaN leave the
 // pixel out.
 TEST(Tracker, ConfidenceWeightsDiscountTheDecodersDoubtfulPixels) {
   const Model& m = bumpy_model();
