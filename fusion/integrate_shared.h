@@ -2,12 +2,17 @@
 // sections 3 and 6). For frame n, a voxel at camera-frame depth z that projects (with the
 // SLS camera model, distortion included) to pixel p:
 //   d = D_n(p) - z,  f = clamp(d / δ, -1, 1),  ω = [D_n(p) valid and d >= -η]
-//   A = (W·U + ω f) / (W + ω),  W <- min(W + ω, W_max)          (the running average: TSDF)
+//   A <- (W·A + ω f) / (W + ω),  W <- min(W + ω, W_max)        (the running average: TSDF)
 // and, for GTSDF, T red-black Gauss-Seidel sweeps over the voxels observed this frame near
 // the surface (ω = 1, |A| < 1), starting from U = A:
 //   U <- (A + α Σ_ξ b_ξ U_ξ) / (1 + α Σ_ξ b_ξ),  b_ξ = φ'(s) / 2s,  s = |U_ξ - U|
 // over the 6 axis neighbours ξ that have been observed (W > 0). Neighbours of a voxel have
 // the other parity of i + j + k, so each half-sweep is race-free. α = 0 is exactly TSDF.
+// A is the plain average of the raw f, the data term of the paper's functional (2), so a
+// GTSDF volume keeps it in its own array (VolumeView::average): averaging the smoothed U of
+// the last frame instead, as the printed eq. (12) reads, would smooth each voxel again on
+// every one of its ~100 observations (fusion/README.md has the figures). A TSDF volume's A
+// is its U.
 #pragma once
 
 #include <cmath>
@@ -70,12 +75,13 @@ SLS_HOST_DEVICE inline bool integrate_voxel(const VolumeView& v, const Integrati
   const float f = std::fmax(-1.0f, std::fmin(1.0f, d / p.truncation_m));
   const std::size_t index = v.index(i, j, k);
   const float weight = v.w(index);
-  const float value = weight > 0.0f ? v.u(index) : 0.0f;
-  const float a = (weight * value + f) / (weight + 1.0f);
-  v.set_u(index, a);
+  const float previous = weight > 0.0f ? v.average(index) : 0.0f;
+  const float a = (weight * previous + f) / (weight + 1.0f);
+  v.set_average(index, a);
   v.set_w(index, std::fmin(weight + 1.0f, p.weight_max));
   *average = a;
   const bool near_surface = std::fabs(a) < 1.0f;
+  v.set_u(index, a);  // GTSDF's sweeps start from A
   if (near_surface) v.mark_surface(i, j, k);
   return near_surface;
 }

@@ -252,6 +252,13 @@ void check_inputs(const Volume& volume, const Device& device, int width, int hei
                 camera.width, camera.height);
   }
   options.validate(volume.format());
+  // Without its own A, GTSDF would feed its smoothed U back into the running average, and the
+  // smoothing would pile up over a voxel's ~100 observations (fusion/README.md).
+  if (options.is_gtsdf() && volume.average_storage() != AverageStorage::kSeparate) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "fusion: GTSDF needs a volume that keeps the running average apart from U "
+                "(Volume(..., IntegrationOptions::average_storage()))");
+  }
 }
 
 // The CPU integrator: the running average over every voxel (rows of the volume in

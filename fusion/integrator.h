@@ -38,6 +38,11 @@ struct IntegrationOptions {
   static IntegrationOptions tsdf();   // λ = 0
   static IntegrationOptions gtsdf();  // λ = 4, β = 1/6 (α = 2/3), κ = 0.1, Geman-McClure, T = 3
   bool is_gtsdf() const { return lambda > 0.0 && iterations > 0; }
+  // The volumes these options need: GTSDF keeps the running average apart from U (TSDF
+  // integrates into either kind).
+  AverageStorage average_storage() const {
+    return is_gtsdf() ? AverageStorage::kSeparate : AverageStorage::kInU;
+  }
   // Throws sls::Error(kInvalidArgument) naming the bad value.
   void validate(VoxelFormat format) const;
   IntegrationParams params(double voxel_size_m) const;

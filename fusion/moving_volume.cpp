@@ -199,7 +199,7 @@ struct MovingVolume::Impl {
 };
 
 MovingVolume::MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFormat format, const Device& device,
-                           const MovingVolumeOptions& options)
+                           const MovingVolumeOptions& options, AverageStorage average)
     : impl_(std::make_unique<Impl>()) {
   options.validate();
   impl_->options = options;
@@ -210,8 +210,8 @@ MovingVolume::MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFor
   geometry.nz = nz;
   geometry.voxel_size_m = voxel_size_m;
   impl_->buffers.reserve(2);
-  impl_->buffers.emplace_back(geometry, format, device);
-  impl_->buffers.emplace_back(geometry, format, device);
+  impl_->buffers.emplace_back(geometry, format, device, average);
+  impl_->buffers.emplace_back(geometry, format, device, average);
 #if defined(SLS_HAVE_CUDA)
   if (device.is_cuda()) {
     SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&impl_->stream, cudaStreamNonBlocking));

@@ -57,9 +57,10 @@ struct MoveStats {
 class MovingVolume {
  public:
   // counts and voxel size of the volume; its pose comes from place(). Allocates both buffers
-  // (sls::Error(kOutOfMemory) as Volume's when they do not fit).
+  // (sls::Error(kOutOfMemory) as Volume's when they do not fit). GTSDF integration needs
+  // AverageStorage::kSeparate; moves resample A with U.
   MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFormat format, const Device& device,
-               const MovingVolumeOptions& options);
+               const MovingVolumeOptions& options, AverageStorage average = AverageStorage::kInU);
   ~MovingVolume();
   MovingVolume(MovingVolume&&) noexcept;
   MovingVolume& operator=(MovingVolume&&) noexcept;

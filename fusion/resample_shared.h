@@ -7,6 +7,7 @@
 //   U  = Σ_c w_c U_c / Σ_c w_c   over the 8 old voxels c around g that are observed (W_c > 0),
 //                                w_c their trilinear weights (renormalised: the unobserved ones
 //                                take no part, so U is never pulled towards a made-up value)
+//   A  = Σ_c w_c A_c / Σ_c w_c   the same for the running average, where the volume keeps it
 //   W  = round(Σ_c w_c W_c / Σ_c w_c), at least 1: the weights carried, interpolated the same
 //                                way and rounded to a whole count in both formats (weights are
 //                                observation counts; uint8 in the compact format)
@@ -53,13 +54,14 @@ SLS_HOST_DEVICE inline void resample_voxel(const VolumeView& from, const VolumeV
   if (!(gx > -1.0f && gy > -1.0f && gz > -1.0f && gx < static_cast<float>(from.nx) &&
         gy < static_cast<float>(from.ny) && gz < static_cast<float>(from.nz))) {
     to.set_u(out, 1.0f);
+    to.set_average(out, 1.0f);
     to.set_w(out, 0.0f);
     return;
   }
   const float fx = std::floor(gx), fy = std::floor(gy), fz = std::floor(gz);
   const int i0 = static_cast<int>(fx), j0 = static_cast<int>(fy), k0 = static_cast<int>(fz);
   const float tx = gx - fx, ty = gy - fy, tz = gz - fz;
-  float support = 0.0f, sum_u = 0.0f, sum_w = 0.0f;
+  float support = 0.0f, sum_u = 0.0f, sum_a = 0.0f, sum_w = 0.0f;
   for (int c = 0; c < 8; ++c) {
     const int dx = c & 1, dy = (c >> 1) & 1, dz = (c >> 2) & 1;
     const float weight = (dx != 0 ? tx : 1.0f - tx) * (dy != 0 ? ty : 1.0f - ty) * (dz != 0 ? tz : 1.0f - tz);
@@ -69,16 +71,19 @@ SLS_HOST_DEVICE inline void resample_voxel(const VolumeView& from, const VolumeV
     if (!(w > 0.0f)) continue;
     support += weight;
     sum_u += weight * from.u(index);
+    sum_a += weight * from.average(index);
     sum_w += weight * w;
   }
   if (!(support >= kResampleMinSupport)) {
     to.set_u(out, 1.0f);
+    to.set_average(out, 1.0f);
     to.set_w(out, 0.0f);
     return;
   }
   const float u = std::fmax(-1.0f, std::fmin(1.0f, sum_u / support));
   const float w = std::fmax(1.0f, std::floor(sum_w / support + 0.5f));
   to.set_u(out, u);
+  to.set_average(out, std::fmax(-1.0f, std::fmin(1.0f, sum_a / support)));
   to.set_w(out, w);
   if (std::fabs(u) < 1.0f) to.mark_surface(i, j, k);
 }

@@ -51,7 +51,11 @@ void VolumeGeometry::validate() const {
   }
 }
 
-std::size_t bytes_per_voxel(VoxelFormat format) { return format == VoxelFormat::kFloat32 ? 8u : 3u; }
+std::size_t bytes_per_voxel(VoxelFormat format, AverageStorage average) {
+  const std::size_t u_bytes = format == VoxelFormat::kFloat32 ? 4u : 2u;
+  const std::size_t w_bytes = format == VoxelFormat::kFloat32 ? 4u : 1u;
+  return u_bytes + w_bytes + (average == AverageStorage::kSeparate ? u_bytes : 0u);
+}
 
 const char* voxel_format_name(VoxelFormat format) {
   return format == VoxelFormat::kFloat32 ? "float32" : "compact";
@@ -71,15 +75,16 @@ void set_view_pose(VolumeView* view, const Pose& T_world_volume) {
 struct Volume::Impl {
   VolumeGeometry geometry;
   VoxelFormat format = VoxelFormat::kFloat32;
+  AverageStorage average = AverageStorage::kInU;
   Device device;
   // CPU storage.
-  std::vector<float> u32, w32;
-  std::vector<std::uint16_t> u16;
+  std::vector<float> u32, w32, a32;
+  std::vector<std::uint16_t> u16, a16;
   std::vector<std::uint8_t> w8;
   std::vector<std::uint8_t> bricks;  // VolumeView::surface_bricks
 #if defined(SLS_HAVE_CUDA)
-  DeviceBuffer<float> device_u32, device_w32;
-  DeviceBuffer<std::uint16_t> device_u16;
+  DeviceBuffer<float> device_u32, device_w32, device_a32;
+  DeviceBuffer<std::uint16_t> device_u16, device_a16;
   DeviceBuffer<std::uint8_t> device_w8;
   DeviceBuffer<std::uint8_t> device_bricks;
 #endif
@@ -95,34 +100,39 @@ struct Volume::Impl {
 namespace {
 
 template <typename T>
-void allocate_host(std::vector<T>* buffer, std::size_t count, const VolumeGeometry& g, VoxelFormat format) {
+void allocate_host(std::vector<T>* buffer, std::size_t count, const VolumeGeometry& g, VoxelFormat format,
+                   AverageStorage average) {
   try {
     buffer->assign(count, T{});
   } catch (const std::bad_alloc&) {
     throw_error(ErrorCode::kOutOfMemory, "volume {} x {} x {} ({}, {:.1f} MiB) does not fit in host memory", g.nx,
                 g.ny, g.nz, voxel_format_name(format),
-                static_cast<double>(count * bytes_per_voxel(format)) / 1048576.0);
+                static_cast<double>(count * bytes_per_voxel(format, average)) / 1048576.0);
   }
 }
 
 }  // namespace
 
-Volume::Volume(const VolumeGeometry& geometry, VoxelFormat format, const Device& device)
+Volume::Volume(const VolumeGeometry& geometry, VoxelFormat format, const Device& device, AverageStorage average)
     : impl_(std::make_unique<Impl>()) {
   geometry.validate();
   impl_->geometry = geometry;
   impl_->format = format;
+  impl_->average = average;
   impl_->device = device;
   const std::size_t count = geometry.voxel_count();
+  const bool separate = average == AverageStorage::kSeparate;
   if (!device.is_cuda()) {
     if (format == VoxelFormat::kFloat32) {
-      allocate_host(&impl_->u32, count, geometry, format);
-      allocate_host(&impl_->w32, count, geometry, format);
+      allocate_host(&impl_->u32, count, geometry, format, average);
+      allocate_host(&impl_->w32, count, geometry, format, average);
+      if (separate) allocate_host(&impl_->a32, count, geometry, format, average);
     } else {
-      allocate_host(&impl_->u16, count, geometry, format);
-      allocate_host(&impl_->w8, count, geometry, format);
+      allocate_host(&impl_->u16, count, geometry, format, average);
+      allocate_host(&impl_->w8, count, geometry, format, average);
+      if (separate) allocate_host(&impl_->a16, count, geometry, format, average);
     }
-    allocate_host(&impl_->bricks, impl_->brick_count(), geometry, format);
+    allocate_host(&impl_->bricks, impl_->brick_count(), geometry, format, average);
     return;
   }
 #if defined(SLS_HAVE_CUDA)
@@ -130,21 +140,24 @@ Volume::Volume(const VolumeGeometry& geometry, VoxelFormat format, const Device&
   // Say what does not fit before trying: the volume is the one big allocation.
   std::size_t free_bytes = 0, total_bytes = 0;
   SLS_CUDA_CHECK(cudaMemGetInfo(&free_bytes, &total_bytes));
-  const std::size_t needed = count * bytes_per_voxel(format);
+  const std::size_t needed = count * bytes_per_voxel(format, average);
   if (needed > free_bytes) {
     throw_error(ErrorCode::kOutOfMemory,
-                "volume {} x {} x {} ({}, {} B/voxel) needs {:.1f} MiB of GPU memory; {:.1f} MiB of {:.1f} MiB are "
+                "volume {} x {} x {} ({}{}, {} B/voxel) needs {:.1f} MiB of GPU memory; {:.1f} MiB of {:.1f} MiB are "
                 "free: use fewer voxels or the compact format",
-                geometry.nx, geometry.ny, geometry.nz, voxel_format_name(format), bytes_per_voxel(format),
+                geometry.nx, geometry.ny, geometry.nz, voxel_format_name(format),
+                separate ? " with GTSDF's running average" : "", bytes_per_voxel(format, average),
                 static_cast<double>(needed) / 1048576.0, static_cast<double>(free_bytes) / 1048576.0,
                 static_cast<double>(total_bytes) / 1048576.0);
   }
   if (format == VoxelFormat::kFloat32) {
     impl_->device_u32.allocate(count);
     impl_->device_w32.allocate(count);
+    if (separate) impl_->device_a32.allocate(count);
   } else {
     impl_->device_u16.allocate(count);
     impl_->device_w8.allocate(count);
+    if (separate) impl_->device_a16.allocate(count);
   }
   impl_->device_bricks.allocate(impl_->brick_count());
   clear();
@@ -159,8 +172,11 @@ Volume& Volume::operator=(Volume&&) noexcept = default;
 
 const VolumeGeometry& Volume::geometry() const { return impl_->geometry; }
 VoxelFormat Volume::format() const { return impl_->format; }
+AverageStorage Volume::average_storage() const { return impl_->average; }
 const Device& Volume::device() const { return impl_->device; }
-std::size_t Volume::bytes() const { return impl_->geometry.voxel_count() * bytes_per_voxel(impl_->format); }
+std::size_t Volume::bytes() const {
+  return impl_->geometry.voxel_count() * bytes_per_voxel(impl_->format, impl_->average);
+}
 
 void Volume::clear() {
   // U = 0 with W = 0: an unobserved voxel's U is never read as a value (0 keeps the first
@@ -169,7 +185,9 @@ void Volume::clear() {
   if (!s.device.is_cuda()) {
     std::fill(s.u32.begin(), s.u32.end(), 0.0f);
     std::fill(s.w32.begin(), s.w32.end(), 0.0f);
+    std::fill(s.a32.begin(), s.a32.end(), 0.0f);
     std::fill(s.u16.begin(), s.u16.end(), std::uint16_t{0});
+    std::fill(s.a16.begin(), s.a16.end(), std::uint16_t{0});
     std::fill(s.w8.begin(), s.w8.end(), std::uint8_t{0});
     std::fill(s.bricks.begin(), s.bricks.end(), std::uint8_t{0});
     return;
@@ -178,7 +196,9 @@ void Volume::clear() {
   require_device(s.device);
   if (s.device_u32.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_u32.data(), 0, s.device_u32.size_bytes()));
   if (s.device_w32.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_w32.data(), 0, s.device_w32.size_bytes()));
+  if (s.device_a32.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_a32.data(), 0, s.device_a32.size_bytes()));
   if (s.device_u16.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_u16.data(), 0, s.device_u16.size_bytes()));
+  if (s.device_a16.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_a16.data(), 0, s.device_a16.size_bytes()));
   if (s.device_w8.size() > 0) SLS_CUDA_CHECK(cudaMemset(s.device_w8.data(), 0, s.device_w8.size_bytes()));
   SLS_CUDA_CHECK(cudaMemset(s.device_bricks.data(), 0, s.device_bricks.size_bytes()));
   // cudaMemset returns before device memory is set, on the legacy stream, which the
@@ -204,6 +224,8 @@ VolumeView Volume::view() const {
     v.w32 = s.w32.empty() ? nullptr : s.w32.data();
     v.u16 = s.u16.empty() ? nullptr : s.u16.data();
     v.w8 = s.w8.empty() ? nullptr : s.w8.data();
+    v.a32 = s.a32.empty() ? nullptr : s.a32.data();
+    v.a16 = s.a16.empty() ? nullptr : s.a16.data();
     v.surface_bricks = s.bricks.data();
     return v;
   }
@@ -212,6 +234,8 @@ VolumeView Volume::view() const {
   v.w32 = s.device_w32.data();
   v.u16 = s.device_u16.data();
   v.w8 = s.device_w8.data();
+  v.a32 = s.device_a32.size() > 0 ? s.device_a32.data() : nullptr;
+  v.a16 = s.device_a16.size() > 0 ? s.device_a16.data() : nullptr;
   v.surface_bricks = s.device_bricks.data();
 #endif
   return v;
@@ -233,9 +257,14 @@ void copy_bytes(void* to, const void* from, std::size_t bytes) {
 void Volume::copy_from(const Volume& other) {
   const VolumeGeometry& a = impl_->geometry;
   const VolumeGeometry& b = other.geometry();
-  if (a.nx != b.nx || a.ny != b.ny || a.nz != b.nz || a.voxel_size_m != b.voxel_size_m || format() != other.format()) {
-    throw_error(ErrorCode::kInvalidArgument, "volume copy: {} x {} x {} {} into {} x {} x {} {}", b.nx, b.ny, b.nz,
-                voxel_format_name(other.format()), a.nx, a.ny, a.nz, voxel_format_name(format()));
+  if (a.nx != b.nx || a.ny != b.ny || a.nz != b.nz || a.voxel_size_m != b.voxel_size_m || format() != other.format() ||
+      average_storage() != other.average_storage()) {
+    const auto average_name = [](AverageStorage storage) {
+      return storage == AverageStorage::kSeparate ? " with running average" : "";
+    };
+    throw_error(ErrorCode::kInvalidArgument, "volume copy: {} x {} x {} {}{} into {} x {} x {} {}{}", b.nx, b.ny, b.nz,
+                voxel_format_name(other.format()), average_name(other.average_storage()), a.nx, a.ny, a.nz,
+                voxel_format_name(format()), average_name(average_storage()));
   }
   const VolumeView to = view();
   const VolumeView from = other.view();
@@ -245,9 +274,11 @@ void Volume::copy_from(const Volume& other) {
     if (format() == VoxelFormat::kFloat32) {
       std::copy(from.u32, from.u32 + count, to.u32);
       std::copy(from.w32, from.w32 + count, to.w32);
+      if (from.a32 != nullptr) std::copy(from.a32, from.a32 + count, to.a32);
     } else {
       std::copy(from.u16, from.u16 + count, to.u16);
       std::copy(from.w8, from.w8 + count, to.w8);
+      if (from.a16 != nullptr) std::copy(from.a16, from.a16 + count, to.a16);
     }
     std::copy(from.surface_bricks, from.surface_bricks + from.brick_count(), to.surface_bricks);
     return;
@@ -257,16 +288,18 @@ void Volume::copy_from(const Volume& other) {
   if (format() == VoxelFormat::kFloat32) {
     copy_bytes(to.u32, from.u32, count * sizeof(float));
     copy_bytes(to.w32, from.w32, count * sizeof(float));
+    if (from.a32 != nullptr) copy_bytes(to.a32, from.a32, count * sizeof(float));
   } else {
     copy_bytes(to.u16, from.u16, count * sizeof(std::uint16_t));
     copy_bytes(to.w8, from.w8, count);
+    if (from.a16 != nullptr) copy_bytes(to.a16, from.a16, count * sizeof(std::uint16_t));
   }
   copy_bytes(to.surface_bricks, from.surface_bricks, from.brick_count());
 #endif
 }
 
 Volume Volume::to_host() const {
-  Volume host(impl_->geometry, impl_->format, Device::cpu());
+  Volume host(impl_->geometry, impl_->format, Device::cpu(), impl_->average);
   host.copy_from(*this);
   return host;
 }

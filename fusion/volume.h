@@ -31,8 +31,14 @@ struct VolumeGeometry {
   void validate() const;
 };
 
-// Bytes per voxel of a format (8 or 3).
-std::size_t bytes_per_voxel(VoxelFormat format);
+// Where the running average A of the frames lives (DESIGN.md section 3, the paper's (2)).
+enum class AverageStorage : std::int32_t {
+  kInU = 0,      // U is A: standard TSDF
+  kSeparate = 1, // A has its own array (U's type) and U is GTSDF's regularised field
+};
+
+// Bytes per voxel: 8 or 3, plus 4 or 2 with a separate running average.
+std::size_t bytes_per_voxel(VoxelFormat format, AverageStorage average = AverageStorage::kInU);
 const char* voxel_format_name(VoxelFormat format);
 // "float32" or "compact"; sls::Error(kInvalidArgument) otherwise.
 VoxelFormat parse_voxel_format(const std::string& name);
@@ -41,14 +47,16 @@ class Volume {
  public:
   // Allocates and clears (W = 0: nothing observed). Throws sls::Error(kOutOfMemory) naming
   // the size and what is free when it does not fit (host or GPU), kUnsupported for CUDA in a
-  // build without it.
-  Volume(const VolumeGeometry& geometry, VoxelFormat format, const Device& device);
+  // build without it. GTSDF integration needs AverageStorage::kSeparate.
+  Volume(const VolumeGeometry& geometry, VoxelFormat format, const Device& device,
+         AverageStorage average = AverageStorage::kInU);
   ~Volume();
   Volume(Volume&&) noexcept;
   Volume& operator=(Volume&&) noexcept;
 
   const VolumeGeometry& geometry() const;
   VoxelFormat format() const;
+  AverageStorage average_storage() const;
   const Device& device() const;
   std::size_t bytes() const;
 
@@ -56,9 +64,10 @@ class Volume {
   void set_pose(const Pose& T_world_volume);    // moves the volume (its voxels keep their values)
   // Pointers on the volume's device (host pointers for a CPU volume). Valid while the volume lives.
   VolumeView view() const;
-  // A CPU copy (same geometry and format); a CPU volume is copied as well.
+  // A CPU copy (same geometry, format and average storage); a CPU volume is copied as well.
   Volume to_host() const;
-  // Copies all voxels from another volume of the same geometry and format (any devices).
+  // Copies all voxels from another volume of the same geometry, format and average storage
+  // (any devices).
   void copy_from(const Volume& other);
 
  private:

@@ -3,6 +3,9 @@
 // units of the truncation δ, in [-1, 1]) and W (weight) arrays, in one of two formats:
 //   kFloat32  U float, W float            8 B/voxel  (reference, tests)
 //   kCompact  U IEEE binary16, W uint8    3 B/voxel  (960³ = 2.6 GB: the production format)
+// A GTSDF volume also keeps A, the plain running average of the frames' truncated distances
+// (the data term of the paper's functional (2)), in U's type: +4 or +2 B/voxel. Without it
+// (TSDF) U is A.
 // Arrays are structure-of-arrays, x fastest, so neighbouring threads touch neighbouring bytes.
 #pragma once
 
@@ -91,6 +94,8 @@ struct VolumeView {
   float* w32 = nullptr;
   std::uint16_t* u16 = nullptr;    // kCompact
   std::uint8_t* w8 = nullptr;
+  float* a32 = nullptr;            // A, when the volume keeps it (kFloat32)
+  std::uint16_t* a16 = nullptr;    // A, when the volume keeps it (kCompact)
   // One flag per brick of kBrick³ voxels, set once a voxel within one voxel of the brick has
   // been observed with |U| < 1 (never cleared until the volume is): where it is 0 there is no
   // surface, and a raycast jumps the whole brick. nullptr: no flags (every brick may hold one).
@@ -119,6 +124,21 @@ struct VolumeView {
       u32[index] = value;
     } else {
       u16[index] = float_to_half(value);
+    }
+  }
+  SLS_HOST_DEVICE bool keeps_average() const { return a32 != nullptr || a16 != nullptr; }
+  // A: the running average where the volume keeps it, else U (which then is A).
+  SLS_HOST_DEVICE float average(std::size_t index) const {
+    if (a32 != nullptr) return a32[index];
+    if (a16 != nullptr) return half_to_float(a16[index]);
+    return u(index);
+  }
+  // Writes A where the volume keeps it (a TSDF volume's A is its U: nothing to do).
+  SLS_HOST_DEVICE void set_average(std::size_t index, float value) const {
+    if (a32 != nullptr) {
+      a32[index] = value;
+    } else if (a16 != nullptr) {
+      a16[index] = float_to_half(value);
     }
   }
   // Weights are whole numbers in both formats (counts of observations, capped).

@@ -184,7 +184,9 @@ struct ScanSession::Impl {
 
   void place_volume(const Pose& T_world_camera, const Image32f& depth_m) {
     if (options.fixed_volume) {
-      if (!fixed) fixed.emplace(*options.fixed_volume, options.voxel_format, options.device);
+      if (!fixed) {
+        fixed.emplace(*options.fixed_volume, options.voxel_format, options.device, options.integration.average_storage());
+      }
       return;
     }
     if (moving) return;
@@ -204,7 +206,8 @@ struct ScanSession::Impl {
       if (voxels > options.max_voxels) voxel *= std::cbrt(voxels / options.max_voxels) * 1.001;
     }
     const Eigen::Vector3i counts = (size / voxel).array().ceil().cast<int>().cwiseMax(2);
-    moving.emplace(counts.x(), counts.y(), counts.z(), voxel, options.voxel_format, options.device, moving_options);
+    moving.emplace(counts.x(), counts.y(), counts.z(), voxel, options.voxel_format, options.device, moving_options,
+                   options.integration.average_storage());
     moving->place(T_world_camera);
   }
 };

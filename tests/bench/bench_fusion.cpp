@@ -119,7 +119,7 @@ void BM_DeviceCopy(benchmark::State& state) {
 void integrate_benchmark(benchmark::State& state, const fusion::IntegrationOptions& options) {
   if (!have_gpu(state)) return;
   const Frames& f = paper_frames();
-  fusion::Volume volume(paper_volume(f), format_arg(state), Device::cuda());
+  fusion::Volume volume(paper_volume(f), format_arg(state), Device::cuda(), options.average_storage());
   fusion::Integrator integrator(Device::cuda(), options);
   const CameraIntrinsics& camera = f.rig.camera;
   std::vector<DeviceBuffer<float>> depth;
@@ -154,7 +154,8 @@ void integrate_benchmark(benchmark::State& state, const fusion::IntegrationOptio
     frame = (frame + 1) % depth.size();
   }
   state.counters["voxels_M"] = static_cast<double>(volume.geometry().voxel_count()) / 1e6;
-  state.counters["bytes_per_voxel"] = static_cast<double>(fusion::bytes_per_voxel(volume.format()));
+  state.counters["bytes_per_voxel"] =
+      static_cast<double>(fusion::bytes_per_voxel(volume.format(), volume.average_storage()));
   state.counters["active_voxels_M"] = static_cast<double>(active) / 1e6;
   state.counters["visited_voxels_M"] = static_cast<double>(visited) / 1e6;
   state.counters["Mpixel"] = static_cast<double>(camera.width) * camera.height / 1e6;
@@ -166,7 +167,7 @@ void BM_IntegrateGtsdf(benchmark::State& state) { integrate_benchmark(state, fus
 void BM_Raycast(benchmark::State& state) {
   if (!have_gpu(state)) return;
   const Frames& f = paper_frames();
-  fusion::Volume volume(paper_volume(f), format_arg(state), Device::cuda());
+  fusion::Volume volume(paper_volume(f), format_arg(state), Device::cuda(), fusion::AverageStorage::kSeparate);
   fusion::Integrator integrator(Device::cuda(), fusion::IntegrationOptions::gtsdf());
   for (std::size_t n = 0; n < f.depth.size(); ++n) integrator.integrate(volume, f.depth[n], f.rig.camera, f.T_object_camera[n]);
   fusion::RaycastOptions options;

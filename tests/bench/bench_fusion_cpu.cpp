@@ -62,7 +62,7 @@ void BM_IntegrateCpu(benchmark::State& state, const fusion::IntegrationOptions& 
   fusion::IntegrationOptions options = base;
   options.truncation_voxels = std::stod(env("SLS_BENCH_TRUNCATION_M")) / voxel_m;
   options.eta_voxels = options.truncation_voxels * 1.5;
-  fusion::Volume volume(geometry, fusion::VoxelFormat::kFloat32, Device::cpu());
+  fusion::Volume volume(geometry, fusion::VoxelFormat::kFloat32, Device::cpu(), options.average_storage());
   fusion::Integrator integrator(Device::cpu(), options);
   for (auto _ : state) {
     volume.clear();

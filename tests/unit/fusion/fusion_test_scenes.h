@@ -81,7 +81,7 @@ inline GuidedRaycastScene guided_raycast_scene() {
   half.cx = 0.5 * (half.width - 1);
   half.cy = 0.5 * (half.height - 1);
   const VolumeGeometry geometry = VolumeGeometry::centred(Eigen::Vector3d(0.0, 0.0, 0.102), 96, 80, 96, 62.5e-6);
-  GuidedRaycastScene scene{camera, half, geometry, Volume(geometry, VoxelFormat::kCompact, Device::cpu()), Image32f()};
+  GuidedRaycastScene scene{camera, half, geometry, Volume(geometry, VoxelFormat::kCompact, Device::cpu(), AverageStorage::kSeparate), Image32f()};
   Integrator integrator(Device::cpu(), IntegrationOptions::gtsdf());
   for (std::uint32_t n = 0; n < 3; ++n) {
     scene.guide = ridge_depth(camera, 0.1, 20e-6, 11 + n);

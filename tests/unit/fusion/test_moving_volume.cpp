@@ -4,7 +4,8 @@
 // bound), a move by whole voxels must copy voxels bit for bit, the shipped surface must lie on
 // the sphere outside the new volume and, with the new volume's surface, cover the old one
 // without a gap or an overlap; follow() must move exactly when its rule says; the brick flags
-// must let a raycast of the moved volume see what a freshly filled one shows.
+// must let a raycast of the moved volume see what a freshly filled one shows; a GTSDF
+// volume's running average must move exactly as its U does.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -159,6 +160,52 @@ TEST_P(MovingVolumeTest, WholeVoxelTranslationCopiesVoxelsExactly) {
   EXPECT_EQ(mismatched, 0u);
   const std::vector<std::uint8_t> expected = test::expected_bricks(b);
   EXPECT_TRUE(std::equal(expected.begin(), expected.end(), b.surface_bricks));
+}
+
+// A GTSDF volume's running average A moves with it, resampled exactly as U is: A holds the
+// SDF of a sphere δ/2 larger than U's, and after the big move (rotation included) it equals,
+// bit for bit, the U of a plain volume that held that larger sphere and made the same move.
+TEST_P(MovingVolumeTest, RunningAverageMovesExactlyAsUDoes) {
+  const VoxelFormat format = GetParam();
+  MovingVolume gtsdf(kCount, kCount, kCount, kVoxel, format, Device::cpu(), test::scene_options(),
+                     AverageStorage::kSeparate);
+  MovingVolume reference(kCount, kCount, kCount, kVoxel, format, Device::cpu(), test::scene_options());
+  gtsdf.place(test::first_camera());
+  reference.place(test::first_camera());
+  test::Sphere larger = test::scene_sphere();
+  larger.radius += 0.5 * kDelta;
+  test::fill_sphere(&gtsdf.volume(), test::scene_sphere(), true, 3);
+  test::fill_sphere(&reference.volume(), larger, true, 3);
+  {
+    // The band of the larger sphere differs: observed where either is; A from the larger one.
+    const VolumeView g = gtsdf.volume().view(), r = reference.volume().view();
+    for (std::size_t i = 0; i < g.voxel_count(); ++i) {
+      if (!(g.w(i) > 0.0f) || !(r.w(i) > 0.0f)) {
+        g.set_w(i, 0.0f);
+        r.set_w(i, 0.0f);
+      }
+      g.set_average(i, r.u(i));
+    }
+  }
+  ASSERT_TRUE(gtsdf.move_to(gtsdf.placement(big_move_camera())).moved);
+  ASSERT_TRUE(reference.move_to(reference.placement(big_move_camera())).moved);
+  const VolumeView g = gtsdf.volume().view(), r = reference.volume().view();
+  ASSERT_TRUE(g.keeps_average());
+  ASSERT_FALSE(r.keeps_average());
+  std::size_t observed = 0, differ_from_reference = 0, differ_from_u = 0;
+  for (std::size_t i = 0; i < g.voxel_count(); ++i) {
+    ASSERT_EQ(g.w(i), r.w(i));
+    if (!(g.w(i) > 0.0f)) continue;
+    ++observed;
+    differ_from_reference += g.average(i) != r.u(i) ? 1u : 0u;
+    differ_from_u += g.average(i) != g.u(i) ? 1u : 0u;
+  }
+  std::printf("[moving] %s running average: %zu observed voxels after the move, %zu differ from the reference "
+              "volume's U, %zu from their own U\n",
+              voxel_format_name(format), observed, differ_from_reference, differ_from_u);
+  EXPECT_GT(observed, 50000u);
+  EXPECT_EQ(differ_from_reference, 0u);
+  EXPECT_GT(differ_from_u, observed / 2);  // A was not overwritten by U
 }
 
 // A spatial hash of points in cells of one voxel, for "is there a point within r <= 1 voxel".

@@ -4,7 +4,9 @@
 // in the same order (edge-id order) with the same normals and weights, the same shipped mesh
 // and the same final surface. Moves: a translation with a rotation (part of the sphere
 // leaves), a whole-voxel translation, a follow() that turns, and a move clear of the old
-// place (every crossing ships: more than the device buffers first hold). Skipped without a GPU.
+// place (every crossing ships: more than the device buffers first hold). The volumes keep
+// GTSDF's running average A (a field other than U), which must move the same way on both.
+// Skipped without a GPU.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -28,7 +30,7 @@ using test::kCount;
 using test::kVoxel;
 
 struct VoxelComparison {
-  std::size_t bit_differences = 0;   // U bits or W differ
+  std::size_t bit_differences = 0;   // U or A bits or W differ
   std::size_t beyond = 0;            // |dU| beyond one binary16 ulp (compact) / 1e-6 (float), or W differs
   double worst_u = 0.0;
   std::size_t brick_differences = 0;
@@ -44,10 +46,14 @@ VoxelComparison compare_voxels(const Volume& cpu, const Volume& gpu) {
                                ? (a.u32[n] == b.u32[n] || (std::isnan(a.u32[n]) && std::isnan(b.u32[n]))) &&
                                      a.w32[n] == b.w32[n]
                                : a.u16[n] == b.u16[n] && a.w8[n] == b.w8[n];
+    const bool same_average = !a.keeps_average() || (a.format == VoxelFormat::kFloat32
+                                                         ? a.a32[n] == b.a32[n] || (std::isnan(a.a32[n]) && std::isnan(b.a32[n]))
+                                                         : a.a16[n] == b.a16[n]);
     c.observed += a.w(n) > 0.0f ? 1u : 0u;
-    if (same_bits) continue;
+    if (same_bits && same_average) continue;
     ++c.bit_differences;
-    const double du = std::fabs(static_cast<double>(a.u(n)) - static_cast<double>(b.u(n)));
+    const double du = std::max(std::fabs(static_cast<double>(a.u(n)) - static_cast<double>(b.u(n))),
+                               std::fabs(static_cast<double>(a.average(n)) - static_cast<double>(b.average(n))));
     c.worst_u = std::max(c.worst_u, du);
     // One binary16 ulp at |U| < 1 is at most 2^-11.
     const double tolerance = a.format == VoxelFormat::kCompact ? 1.0 / 2048.0 : 1e-6;
@@ -119,13 +125,15 @@ TEST_P(MovingVolumeCuda, MovesEqualTheCpuOnes) {
   SLS_REQUIRE_CUDA_DEVICE();
   const VoxelFormat format = GetParam();
   const MovingVolumeOptions options = test::scene_options();
-  MovingVolume cpu(kCount, kCount, kCount, kVoxel, format, Device::cpu(), options);
-  MovingVolume gpu(kCount, kCount, kCount, kVoxel, format, Device::cuda(), options);
+  MovingVolume cpu(kCount, kCount, kCount, kVoxel, format, Device::cpu(), options, AverageStorage::kSeparate);
+  MovingVolume gpu(kCount, kCount, kCount, kVoxel, format, Device::cuda(), options, AverageStorage::kSeparate);
   const Pose start = test::first_camera();
   cpu.place(start);
   gpu.place(start);
   EXPECT_EQ(gpu.volume().device(), Device::cuda());
   test::fill_sphere(&cpu.volume(), test::scene_sphere(), true, 9);
+  const VolumeView filled = cpu.volume().view();
+  for (std::size_t n = 0; n < filled.voxel_count(); ++n) filled.set_average(n, 0.75f * filled.u(n));
   gpu.volume().copy_from(cpu.volume());
   MoveStats none;
   expect_same_state(cpu, gpu, none, none, "filled");

@@ -30,9 +30,9 @@ TEST_P(ScanSessionStagesCuda, EqualTheCpuOnes) {
   moving.focus_distance_m = 0.1;
   const double voxel = 12e-3 / counts.x();
   fusion::MovingVolume cpu_volume(counts.x(), counts.y(), counts.z(), voxel, fusion::VoxelFormat::kCompact,
-                                  Device::cpu(), moving);
+                                  Device::cpu(), moving, fusion::AverageStorage::kSeparate);
   fusion::MovingVolume gpu_volume(counts.x(), counts.y(), counts.z(), voxel, fusion::VoxelFormat::kCompact,
-                                  Device::cuda(), moving);
+                                  Device::cuda(), moving, fusion::AverageStorage::kSeparate);
   cpu_volume.place(Pose());
   gpu_volume.place(Pose());
   fusion::Integrator cpu_integrator(Device::cpu(), fusion::IntegrationOptions::gtsdf());
