@@ -93,4 +93,23 @@ inline GuidedRaycastScene guided_raycast_scene() {
   return scene;
 }
 
+// A GTSDF volume's running average A against a reference volume's U (e.g. TSDF's), voxel by
+// voxel: weights must be equal everywhere; over the observed voxels, how many A differ from
+// the reference's U (bits, through float) and how many from the volume's own U.
+struct AverageComparison {
+  std::size_t observed = 0, weight_differs = 0, average_differs = 0, differs_from_own_u = 0;
+};
+
+inline AverageComparison compare_average(const VolumeView& with_average, const VolumeView& reference) {
+  AverageComparison c;
+  for (std::size_t i = 0; i < with_average.voxel_count(); ++i) {
+    c.weight_differs += with_average.w(i) != reference.w(i) ? 1u : 0u;
+    if (!(with_average.w(i) > 0.0f)) continue;
+    ++c.observed;
+    c.average_differs += with_average.average(i) != reference.u(i) ? 1u : 0u;
+    c.differs_from_own_u += with_average.u(i) != with_average.average(i) ? 1u : 0u;
+  }
+  return c;
+}
+
 }  // namespace sls::fusion::test

@@ -23,6 +23,7 @@
 #include "fusion/raycaster.h"
 #include "fusion/resample_shared.h"
 #include "sdk/core/error.h"
+#include "tests/unit/fusion/fusion_test_scenes.h"
 #include "tests/unit/fusion/moving_volume_scene.h"
 
 namespace sls::fusion {
@@ -189,23 +190,16 @@ TEST_P(MovingVolumeTest, RunningAverageMovesExactlyAsUDoes) {
   }
   ASSERT_TRUE(gtsdf.move_to(gtsdf.placement(big_move_camera())).moved);
   ASSERT_TRUE(reference.move_to(reference.placement(big_move_camera())).moved);
-  const VolumeView g = gtsdf.volume().view(), r = reference.volume().view();
-  ASSERT_TRUE(g.keeps_average());
-  ASSERT_FALSE(r.keeps_average());
-  std::size_t observed = 0, differ_from_reference = 0, differ_from_u = 0;
-  for (std::size_t i = 0; i < g.voxel_count(); ++i) {
-    ASSERT_EQ(g.w(i), r.w(i));
-    if (!(g.w(i) > 0.0f)) continue;
-    ++observed;
-    differ_from_reference += g.average(i) != r.u(i) ? 1u : 0u;
-    differ_from_u += g.average(i) != g.u(i) ? 1u : 0u;
-  }
+  ASSERT_TRUE(gtsdf.volume().view().keeps_average());
+  ASSERT_FALSE(reference.volume().view().keeps_average());
+  const test::AverageComparison c = test::compare_average(gtsdf.volume().view(), reference.volume().view());
   std::printf("[moving] %s running average: %zu observed voxels after the move, %zu differ from the reference "
-              "volume's U, %zu from their own U\n",
-              voxel_format_name(format), observed, differ_from_reference, differ_from_u);
-  EXPECT_GT(observed, 50000u);
-  EXPECT_EQ(differ_from_reference, 0u);
-  EXPECT_GT(differ_from_u, observed / 2);  // A was not overwritten by U
+              "volume's U, %zu from their own U, %zu weights differ\n",
+              voxel_format_name(format), c.observed, c.average_differs, c.differs_from_own_u, c.weight_differs);
+  EXPECT_GT(c.observed, 50000u);
+  EXPECT_EQ(c.weight_differs, 0u);
+  EXPECT_EQ(c.average_differs, 0u);
+  EXPECT_GT(c.differs_from_own_u, c.observed / 2);  // A was not overwritten by U
 }
 
 // A spatial hash of points in cells of one voxel, for "is there a point within r <= 1 voxel".
