@@ -17,6 +17,20 @@ if(NOT CLI11_FOUND)
 endif()
 find_package(OpenMP)
 
+# CHOLMOD (SuiteSparse): the deformation graph's sparse Cholesky (fusion/deformation). Required:
+# no dense fallback. Debian's libsuitesparse-dev has no CMake package; look for the header and
+# the library (CMAKE_PREFIX_PATH finds an unpacked copy, as on the GPU machine: scripts/gpu-check).
+find_path(CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse)
+find_library(CHOLMOD_LIBRARY NAMES cholmod)
+if(NOT CHOLMOD_INCLUDE_DIR OR NOT CHOLMOD_LIBRARY)
+  message(FATAL_ERROR "CHOLMOD (SuiteSparse) not found: run scripts/install-deps (Debian: libsuitesparse-dev); "
+                      "on a machine without it, unpack the Debian packages and pass -DCMAKE_PREFIX_PATH "
+                      "(scripts/gpu-check does this with scripts/fetch-cholmod's folder)")
+endif()
+add_library(SuiteSparse::CHOLMOD UNKNOWN IMPORTED)
+set_target_properties(SuiteSparse::CHOLMOD PROPERTIES IMPORTED_LOCATION "${CHOLMOD_LIBRARY}"
+                      INTERFACE_INCLUDE_DIRECTORIES "${CHOLMOD_INCLUDE_DIR}")
+
 find_package(OpenCV 4 QUIET COMPONENTS core imgproc imgcodecs calib3d structured_light)
 find_package(PkgConfig)
 if(PkgConfig_FOUND)
@@ -34,5 +48,6 @@ else()
   set(SLS_YAML_TARGET yaml-cpp)
 endif()
 
+message(STATUS "CHOLMOD: ${CHOLMOD_LIBRARY}")
 message(STATUS "optional: OpenCV=${OpenCV_FOUND} Aravis=${ARAVIS_FOUND} libusb=${LIBUSB_FOUND} "
                "umockdev=${UMOCKDEV_FOUND} GTest=${GTest_FOUND} benchmark=${benchmark_FOUND} OpenMP=${OpenMP_FOUND}")

@@ -1,0 +1,236 @@
+#include "fusion/deformation/normal_equations.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "sdk/core/error.h"
+
+namespace sls::fusion::deformation {
+namespace {
+
+// The pairs (a <= b) of unknown blocks that nodes coupled by one residual block make.
+void couple(const int* nodes, int count, int pinned, std::vector<std::pair<int, int>>* pairs) {
+  for (int i = 0; i < count; ++i) {
+    const int a = nodes[i] - pinned;
+    if (a < 0) continue;
+    for (int k = 0; k < count; ++k) {
+      const int b = nodes[k] - pinned;
+      if (b >= a) pairs->emplace_back(a, b);
+    }
+  }
+}
+
+// H += Σ_rows J_iᵀ J_k over a block's rows (12 x 12, row-major), vectorisable: the products
+// go to a local array first, so the compiler knows nothing aliases.
+void add_outer_products(const ResidualBlock& block, int i, int k, double* H) {
+  double local[144] = {};
+  for (int row = 0; row < block.rows; ++row) {
+    const double* __restrict Ji = block.J[i][row];
+    const double* __restrict Jk = block.J[k][row];
+    for (int r = 0; r < 12; ++r) {
+      const double a = Ji[r];
+      if (a == 0.0) continue;  // the Jacobians are sparse within a block (E_reg, point-to-point E_con)
+      double* __restrict line = local + 12 * r;
+      for (int c = 0; c < 12; ++c) line[c] += a * Jk[c];
+    }
+  }
+  for (int e = 0; e < 144; ++e) H[e] += local[e];
+}
+
+}  // namespace
+
+int NormalEquations::block_offset(int row_block, int column_block) const {
+  const std::vector<int>& rows = rows_[static_cast<std::size_t>(column_block)];
+  const auto found = std::lower_bound(rows.begin(), rows.end(), row_block);
+  if (found == rows.end() || *found != row_block) return -1;
+  return offsets_[static_cast<std::size_t>(column_block)][static_cast<std::size_t>(found - rows.begin())];
+}
+
+bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
+  const int blocks = static_cast<int>(model.nodes->size()) - model.pinned;
+  if (solver_.analyzed() && blocks == blocks_ && model.structure_version == prepared_version_) return false;
+  prepared_version_ = model.structure_version;
+  std::vector<std::pair<int, int>> needed;
+  for (int b = 0; b < blocks; ++b) needed.emplace_back(b, b);
+  // The blocks each residual couples (as for_each_residual_block makes them, without
+  // computing them).
+  for (std::size_t j = 0; j < model.nodes->size(); ++j) {
+    for (int k : (*model.neighbours)[j]) {
+      const int link[2] = {static_cast<int>(j), k};
+      couple(link, 2, model.pinned, &needed);
+    }
+  }
+  for (const Constraint& constraint : *model.constraints) {
+    int nodes[kMaxBlockNodes];
+    int count = 0;
+    for (const NodeBinding* binding : {&constraint.source_binding, &constraint.target_binding}) {
+      for (int i = 0; i < binding->count; ++i) nodes[count++] = binding->nodes[i];
+    }
+    couple(nodes, count, model.pinned, &needed);
+  }
+  std::sort(needed.begin(), needed.end());
+  needed.erase(std::unique(needed.begin(), needed.end()), needed.end());
+  bool inside = blocks == blocks_ && solver_.analyzed();
+  for (std::size_t i = 0; inside && i < needed.size(); ++i) inside = block_offset(needed[i].first, needed[i].second) >= 0;
+  if (inside) return false;
+
+  // Grow: the union of the kept pattern (same unknowns only) and the needed one.
+  std::vector<std::vector<int>> rows(static_cast<std::size_t>(blocks));
+  if (blocks == blocks_) rows = rows_;
+  rows.resize(static_cast<std::size_t>(blocks));
+  for (const auto& [a, b] : needed) rows[static_cast<std::size_t>(b)].push_back(a);
+  offsets_.assign(static_cast<std::size_t>(blocks), {});
+  int count = 0;
+  for (std::size_t b = 0; b < rows.size(); ++b) {
+    std::sort(rows[b].begin(), rows[b].end());
+    rows[b].erase(std::unique(rows[b].begin(), rows[b].end()), rows[b].end());
+    for (std::size_t i = 0; i < rows[b].size(); ++i) offsets_[b].push_back(count++);
+  }
+  rows_ = std::move(rows);
+  blocks_ = blocks;
+  block_values_.assign(static_cast<std::size_t>(count) * 144, 0.0);
+  link_values_.assign(block_values_.size(), 0.0);
+  links_valid_ = false;
+  gradient_.assign(static_cast<std::size_t>(blocks) * 12, 0.0);
+
+  // The order the blocks are factored in: AMD on the block pattern (one entry per block), so
+  // the scalar matrix is handed to CHOLMOD already ordered and whole blocks stay together.
+  std::vector<int> block_starts(1, 0), block_rows;
+  for (int b = 0; b < blocks; ++b) {
+    block_rows.insert(block_rows.end(), rows_[static_cast<std::size_t>(b)].begin(), rows_[static_cast<std::size_t>(b)].end());
+    block_starts.push_back(static_cast<int>(block_rows.size()));
+  }
+  order_ = SparseCholesky::fill_reducing_order(blocks, block_starts, block_rows);
+  std::vector<int> position(static_cast<std::size_t>(blocks));
+  for (int p = 0; p < blocks; ++p) position[static_cast<std::size_t>(order_[static_cast<std::size_t>(p)])] = p;
+  // Per ordered block column P: its ordered row blocks Q <= P, with the stored block (a <= b)
+  // each comes from and whether it is read transposed.
+  ordered_.assign(static_cast<std::size_t>(blocks), {});
+  for (int b = 0; b < blocks; ++b) {
+    for (std::size_t i = 0; i < rows_[static_cast<std::size_t>(b)].size(); ++i) {
+      const int a = rows_[static_cast<std::size_t>(b)][i];
+      const int offset = offsets_[static_cast<std::size_t>(b)][i];
+      const int pa = position[static_cast<std::size_t>(a)], pb = position[static_cast<std::size_t>(b)];
+      if (pa <= pb) {
+        ordered_[static_cast<std::size_t>(pb)].push_back({pa, offset, false});
+      } else {
+        ordered_[static_cast<std::size_t>(pa)].push_back({pb, offset, true});
+      }
+    }
+  }
+  for (auto& column : ordered_) {
+    std::sort(column.begin(), column.end(), [](const OrderedBlock& x, const OrderedBlock& y) { return x.row < y.row; });
+  }
+  // Scalar compressed columns of the ordered upper triangle: column 12P + c holds rows
+  // 12Q + r of each row block Q (ascending), r <= c in the diagonal block.
+  column_starts_.assign(1, 0);
+  scalar_rows_.clear();
+  for (int P = 0; P < blocks; ++P) {
+    for (int c = 0; c < 12; ++c) {
+      for (const OrderedBlock& block : ordered_[static_cast<std::size_t>(P)]) {
+        const int last = block.row == P ? c : 11;
+        for (int r = 0; r <= last; ++r) scalar_rows_.push_back(12 * block.row + r);
+      }
+      column_starts_.push_back(static_cast<int>(scalar_rows_.size()));
+    }
+  }
+  values_.assign(scalar_rows_.size(), 0.0);
+  const auto start = std::chrono::steady_clock::now();
+  solver_.analyze(12 * blocks, column_starts_, scalar_rows_);
+  *analyze_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return true;
+}
+
+void NormalEquations::accumulate(const ResidualBlock& block, int pinned, std::vector<double>* hessian,
+                                 bool gradient) {
+  for (int i = 0; i < block.count; ++i) {
+    const int a = block.nodes[i] - pinned;
+    if (a < 0) continue;
+    if (gradient) {
+      double* g = &gradient_[static_cast<std::size_t>(12 * a)];
+      for (int row = 0; row < block.rows; ++row) {
+        for (int p = 0; p < 12; ++p) g[p] += block.J[i][row][p] * block.r[row];
+      }
+    }
+    if (hessian == nullptr) continue;
+    for (int k = 0; k < block.count; ++k) {
+      const int b = block.nodes[k] - pinned;
+      if (b < a) continue;
+      const int offset = block_offset(a, b);
+      if (offset < 0) throw_error(ErrorCode::kInternal, "deformation normal equations: block ({}, {}) not in the pattern", a, b);
+      add_outer_products(block, i, k, &(*hessian)[static_cast<std::size_t>(offset) * 144]);
+    }
+  }
+}
+
+void NormalEquations::assemble(const ResidualModel& model) {
+  std::fill(gradient_.begin(), gradient_.end(), 0.0);
+  // The links' residuals are affine in the parameters x with a constant Jacobian, so their
+  // share of JᵀJ is constant while the pattern (and so the nodes) stays, and their share of
+  // Jᵀr is g₀ + JᵀJ (x − x₀) from one walk at x₀.
+  const Eigen::VectorXd x = pack_parameters(*model.nodes, model.pinned, model.options->length_scale_m);
+  if (!links_valid_) {
+    std::fill(link_values_.begin(), link_values_.end(), 0.0);
+    for_each_residual_block(model, [&](const ResidualBlock& block) { accumulate(block, model.pinned, &link_values_, true); },
+                            Terms::kLinks);
+    link_gradient_ = gradient_;
+    link_parameters_ = x;
+    links_valid_ = true;
+  } else {
+    gradient_ = link_gradient_;
+    const Eigen::VectorXd change = x - link_parameters_;
+    for (int b = 0; b < blocks_; ++b) {
+      for (std::size_t i = 0; i < rows_[static_cast<std::size_t>(b)].size(); ++i) {
+        const int a = rows_[static_cast<std::size_t>(b)][i];
+        const double* H = &link_values_[static_cast<std::size_t>(offsets_[static_cast<std::size_t>(b)][i]) * 144];
+        for (int r = 0; r < 12; ++r) {
+          for (int c = 0; c < 12; ++c) {
+            const double h = H[12 * r + c];
+            if (h == 0.0) continue;
+            gradient_[static_cast<std::size_t>(12 * a + r)] += h * change[12 * b + c];
+            if (a != b) gradient_[static_cast<std::size_t>(12 * b + c)] += h * change[12 * a + r];
+          }
+        }
+      }
+    }
+  }
+  block_values_ = link_values_;
+  for_each_residual_block(model, [&](const ResidualBlock& block) { accumulate(block, model.pinned, &block_values_, true); },
+                          Terms::kRotationAndConstraints);
+}
+
+int NormalEquations::factorize(double damping) {
+  std::size_t k = 0;
+  for (int P = 0; P < blocks_; ++P) {
+    for (int c = 0; c < 12; ++c) {
+      for (const OrderedBlock& block : ordered_[static_cast<std::size_t>(P)]) {
+        const double* H = &block_values_[static_cast<std::size_t>(block.offset) * 144];
+        const bool diagonal = block.row == P;
+        const int last = diagonal ? c : 11;
+        for (int r = 0; r <= last; ++r) {
+          values_[k++] = (block.transposed ? H[12 * c + r] : H[12 * r + c]) + (diagonal && r == c ? damping : 0.0);
+        }
+      }
+    }
+  }
+  const int singular = solver_.factorize(values_);
+  if (singular < 0) return -1;
+  return 12 * order_[static_cast<std::size_t>(singular / 12)] + singular % 12;
+}
+
+std::vector<double> NormalEquations::step() const {
+  std::vector<double> negative(gradient_.size());
+  for (int P = 0; P < blocks_; ++P) {
+    const int b = order_[static_cast<std::size_t>(P)];
+    for (int i = 0; i < 12; ++i) negative[static_cast<std::size_t>(12 * P + i)] = -gradient_[static_cast<std::size_t>(12 * b + i)];
+  }
+  const std::vector<double> ordered = solver_.solve(negative);
+  std::vector<double> step(ordered.size());
+  for (int P = 0; P < blocks_; ++P) {
+    const int b = order_[static_cast<std::size_t>(P)];
+    for (int i = 0; i < 12; ++i) step[static_cast<std::size_t>(12 * b + i)] = ordered[static_cast<std::size_t>(12 * P + i)];
+  }
+  return step;
+}
+
+}  // namespace sls::fusion::deformation

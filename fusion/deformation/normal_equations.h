@@ -1,0 +1,64 @@
+// The deformation graph's Gauss–Newton normal equations (JᵀJ + μI) δ = −Jᵀr in 12 x 12 blocks,
+// one block row and column per unpinned node, factored by SparseCholesky in a fill-reducing
+// order of the blocks (AMD on the block pattern). The pattern kept is
+// the union of every pattern seen since the unknowns last changed: a step whose blocks lie
+// inside it reuses CHOLMOD's analysis (blocks it does not use are zeros), one that needs a new
+// block (a new node, a constraint coupling nodes not coupled before) grows it and analyses
+// again.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "fusion/deformation/residuals.h"
+#include "fusion/deformation/sparse_cholesky.h"
+
+namespace sls::fusion::deformation {
+
+class NormalEquations {
+ public:
+  // Makes the pattern hold every block the model needs; true when it was analysed again
+  // (adding the analysis' milliseconds to *analyze_ms).
+  bool prepare(const ResidualModel& model, double* analyze_ms);
+  // JᵀJ and Jᵀr from every residual block.
+  void assemble(const ResidualModel& model);
+  // Factors JᵀJ + damping·I: -1, or the unknown whose pivot vanished (singular).
+  int factorize(double damping);
+  // −(JᵀJ + μI)⁻¹ Jᵀr.
+  std::vector<double> step() const;
+
+  std::size_t nonzeros() const { return scalar_rows_.size(); }
+  std::size_t analyses() const { return solver_.analyses(); }
+  std::size_t factorizations() const { return solver_.factorizations(); }
+
+ private:
+  int block_offset(int row_block, int column_block) const;
+  // Adds a block's JᵀJ to `hessian` (when given) and its Jᵀr to the gradient (when asked).
+  void accumulate(const ResidualBlock& block, int pinned, std::vector<double>* hessian, bool gradient);
+
+  int blocks_ = 0;                            // unknowns / 12
+  std::size_t prepared_version_ = 0;          // the model's structure_version last prepared for
+  std::vector<std::vector<int>> rows_;        // per block column, its row blocks (<= it), ascending
+  std::vector<std::vector<int>> offsets_;     // each block's index into block_values_ (/ 144)
+  std::vector<double> block_values_;          // 144 per block, row-major
+  std::vector<double> link_values_;           // E_reg's share of them (constant while the pattern is)
+  std::vector<double> link_gradient_;         // their Jᵀr at link_parameters_
+  Eigen::VectorXd link_parameters_;
+  bool links_valid_ = false;
+  std::vector<double> gradient_;              // Jᵀr
+  // The factored order: order_[P] is the block placed P-th; ordered_[P] its row blocks.
+  struct OrderedBlock {
+    int row = 0;             // ordered row block, <= its column
+    int offset = 0;          // into block_values_ (/ 144)
+    bool transposed = false; // the stored block (a <= b) is read as its transpose
+  };
+  std::vector<int> order_;
+  std::vector<std::vector<OrderedBlock>> ordered_;
+  std::vector<int> column_starts_, scalar_rows_;
+  std::vector<double> values_;
+  SparseCholesky solver_;
+};
+
+}  // namespace sls::fusion::deformation

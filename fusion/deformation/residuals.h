@@ -1,0 +1,110 @@
+// The deformation graph's residuals and their Jacobians (deformation_graph.h gives the
+// energy), one block at a time: E_rot per node (6 rows), E_reg per directed link (3 rows, and 9 for its
+// region part),
+// E_con per constraint (3 rows, or 1 along a normal). Every consumer — the energy, the normal
+// equations, the dense Jacobian the tests compare with finite differences — walks the same
+// blocks (for_each_residual_block), so what is checked is what is solved.
+//
+// Parameters per node: A row-major (9), then t / L (3): unit-free, as the residuals are.
+// The normal of a point-to-plane constraint with a deformed target is turned by the target's
+// nodes as they are when the block is made, and held: the Jacobian leaves its turning out
+// (a Gauss–Newton step linearises it away; it is second order in the correction).
+#pragma once
+
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "fusion/deformation/deformation_graph.h"
+
+namespace sls::fusion::deformation {
+
+// What the residuals are computed from (the graph's state, borrowed).
+struct ResidualModel {
+  const std::vector<Node>* nodes = nullptr;
+  const std::vector<std::vector<int>>* neighbours = nullptr;
+  const std::vector<Constraint>* constraints = nullptr;
+  const GraphOptions* options = nullptr;
+  int pinned = 0;  // the first `pinned` nodes have no parameters
+  // Changes whenever nodes, links or constraints are added or removed (not when parameters
+  // change): the normal equations' pattern depends on nothing else.
+  std::size_t structure_version = 0;
+};
+
+enum class Term { kRotation, kRegularization, kConstraint };
+
+constexpr int kMaxBlockNodes = 2 * kMaxBoundNodes;
+constexpr int kMaxBlockRows = 9;
+
+struct ResidualBlock {
+  Term term = Term::kRotation;
+  int rows = 0;
+  double r[kMaxBlockRows] = {};
+  int count = 0;                                 // distinct nodes
+  int nodes[kMaxBlockNodes] = {};
+  double J[kMaxBlockNodes][kMaxBlockRows][12];   // d r / d parameters of each node (pinned ones too)
+
+  bool jacobian = true;  // false: residuals only (the energy), J left alone
+
+  // The slot of a node in the block (appended, its rows' Jacobian zeroed, when new).
+  int slot(int node);
+};
+
+void rotation_block(const ResidualModel& model, int node, ResidualBlock* block);
+void regularization_block(const ResidualModel& model, int from, int to, ResidualBlock* block);
+// E_reg's agreement over the ball of radius ρ (GraphOptions::region_radius_m): ρ/√3 (A_j − A_k).
+void region_block(const ResidualModel& model, int from, int to, ResidualBlock* block);
+void constraint_block(const ResidualModel& model, const Constraint& constraint, ResidualBlock* block);
+
+// Which blocks a walk visits: E_reg (with its region part) is linear in the parameters with
+// a Jacobian fixed by the node positions, so its share of JᵀJ changes only when links do.
+enum class Terms { kAll, kLinks, kRotationAndConstraints };
+
+// Every block once, in a fixed order: E_rot of each unpinned node, E_reg of each directed
+// link with an unpinned end (and its region part when ρ > 0), then every constraint.
+template <typename Visit>
+void for_each_residual_block(const ResidualModel& model, Visit&& visit, Terms terms = Terms::kAll,
+                             bool jacobian = true) {
+  ResidualBlock block;
+  block.jacobian = jacobian;
+  const int size = static_cast<int>(model.nodes->size());
+  if (terms != Terms::kLinks) {
+    for (int j = model.pinned; j < size; ++j) {
+      rotation_block(model, j, &block);
+      visit(block);
+    }
+  }
+  if (terms != Terms::kRotationAndConstraints) {
+    for (int j = 0; j < size; ++j) {
+      for (int k : (*model.neighbours)[static_cast<std::size_t>(j)]) {
+        if (j < model.pinned && k < model.pinned) continue;
+        regularization_block(model, j, k, &block);
+        visit(block);
+        if (model.options->region_radius_m > 0.0) {
+          region_block(model, j, k, &block);
+          visit(block);
+        }
+      }
+    }
+  }
+  if (terms != Terms::kLinks) {
+    for (const Constraint& constraint : *model.constraints) {
+      constraint_block(model, constraint, &block);
+      visit(block);
+    }
+  }
+}
+
+EnergyTerms evaluate_energy(const ResidualModel& model);
+
+Eigen::VectorXd pack_parameters(const std::vector<Node>& nodes, int pinned, double length_scale_m);
+void unpack_parameters(const Eigen::VectorXd& parameters, std::vector<Node>* nodes, int pinned, double length_scale_m);
+// nodes += scale * step (the unpinned nodes' parameters, as pack_parameters orders them).
+void apply_step(std::vector<Node>* nodes, int pinned, const std::vector<double>& step, double scale,
+                double length_scale_m);
+
+Eigen::VectorXd residual_vector(const ResidualModel& model);
+Eigen::MatrixXd dense_jacobian(const ResidualModel& model);
+
+}  // namespace sls::fusion::deformation
