@@ -245,6 +245,11 @@ Volume& MovingVolume::volume() { return impl_->now(); }
 const Volume& MovingVolume::volume() const { return impl_->buffers[static_cast<std::size_t>(impl_->current)]; }
 
 MoveStats MovingVolume::follow(const Pose& T_world_camera) {
+  if (!needs_move(T_world_camera)) return MoveStats{};
+  return move_to(placement(T_world_camera));
+}
+
+bool MovingVolume::needs_move(const Pose& T_world_camera) const {
   const VolumeGeometry& geometry = volume().geometry();
   const Pose T_volume_world = geometry.T_world_volume.inverse();
   const Eigen::Vector3d focus =
@@ -259,8 +264,7 @@ MoveStats MovingVolume::follow(const Pose& T_world_camera) {
       Pose(geometry.T_world_volume.quaternion().conjugate() * T_world_camera.quaternion(), Eigen::Vector3d::Zero())
           .angle_rad() *
       kDegPerRad;
-  if (!leaves && !(turned_deg > impl_->options.max_rotation_deg)) return MoveStats{};
-  return move_to(placement(T_world_camera));
+  return leaves || turned_deg > impl_->options.max_rotation_deg;
 }
 
 MoveStats MovingVolume::move_to(const Pose& T_world_volume) {

@@ -75,7 +75,10 @@ class MovingVolume {
   Volume& volume();
   const Volume& volume() const;
 
-  // Moves when the camera has left the margin or turned too far (see above).
+  // Whether follow() would move for this camera pose: the focus point has left the margin or
+  // the camera turned too far (see above).
+  bool needs_move(const Pose& T_world_camera) const;
+  // Moves when needs_move().
   MoveStats follow(const Pose& T_world_camera);
   // Moves to this pose unconditionally (resample + ship). What ships: the old volume's
   // crossings whose point lies outside the new volume's sample box (the hull of its voxel

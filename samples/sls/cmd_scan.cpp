@@ -58,6 +58,8 @@ struct ScanOptions {
   double photometric_weight = 0;  // --poses track: the tracker's photometric term (0: off)
   std::string icp_weights = "confidence";  // --poses track: ICP's per-pixel weights
   double icp_crease_deg = fusion::TrackingOptions{}.crease_angle_deg;  // --poses track: the crease test (0: off)
+  std::string deformation = "on";   // --poses track: online deformation (the graph)
+  std::string loop_closure;         // on | off; empty: on for a full turntable revolution
   bool device_given = false;
 };
 
@@ -116,7 +118,80 @@ double median(std::vector<double> values) {
 
 nlohmann::json stage_json(const session::StageTimes& times) {
   return {{"read", times.read_ms},       {"decode", times.decode_ms}, {"track", times.track_ms},
-          {"integrate", times.integrate_ms}, {"move", times.move_ms},   {"raycast", times.raycast_ms}};
+          {"integrate", times.integrate_ms}, {"move", times.move_ms},   {"raycast", times.raycast_ms},
+          {"deform", times.deform_ms}};
+}
+
+struct LoopClosureChoice {
+  bool requested = false;
+  std::string why;
+};
+
+// --loop-closure on|off, or by default on for a full turntable revolution.
+LoopClosureChoice loop_closure_choice(const RecordingReader& recording, const ScanOptions& options,
+                                      bool deformation) {
+  if (!deformation) return {false, options.poses == "groundtruth" ? "known poses" : "--deformation off"};
+  if (options.loop_closure == "on") return {true, "--loop-closure on"};
+  if (options.loop_closure == "off") return {false, "--loop-closure off"};
+  std::vector<double> angles;
+  for (std::size_t i = 0; i < recording.frame_count(); ++i) {
+    if (recording.frame(i).turntable_angle_deg) angles.push_back(*recording.frame(i).turntable_angle_deg);
+  }
+  if (angles.size() < 3) return {false, "no turntable angles: not a turntable revolution"};
+  const double span = std::abs(angles.back() - angles.front());
+  const double step = span / static_cast<double>(angles.size() - 1);
+  if (span + 2.0 * step >= 360.0 - 1e-6) return {true, fmt::format("a full turntable revolution ({:.1f}°)", span)};
+  return {false, fmt::format("the turntable turned {:.1f}°, not a full revolution", span)};
+}
+
+nlohmann::json loop_closure_json(const session::LoopClosureReport& loop) {
+  return {{"closed", true},
+          {"first_frame", loop.first_frame},
+          {"last_frame", loop.last_frame},
+          {"registration",
+           {{"inlier_fraction", loop.registration.inlier_fraction},
+            {"residual_rms_um", loop.registration.residual_rms_m * 1e6},
+            {"degenerate_directions", loop.registration.degenerate_directions},
+            {"iterations", loop.registration.iterations}}},
+          {"constraints", loop.constraints},
+          {"iterations", loop.solve.iterations},
+          {"energy_before", loop.solve.before.total()},
+          {"energy_after", loop.solve.after.total()},
+          {"solve_ms", loop.solve.ms},
+          {"last_pose_moved_um", loop.moved_m * 1e6},
+          {"last_pose_moved_deg", loop.moved_deg},
+          {"last_pose_correction_um", loop.correction_m * 1e6},
+          {"last_pose_correction_deg", loop.correction_deg},
+          {"ms", loop.ms}};
+}
+
+nlohmann::json deformation_json(const session::ScanSession& session) {
+  if (!session.deformation_enabled()) return {{"enabled", false}};
+  const session::DeformationStatus status = session.deformation_status(true);
+  const session::ScanSession::GraphSummary graph = session.graph_summary();
+  nlohmann::json keyframes = nlohmann::json::array();
+  for (const session::KeyframeSolve& k : session.keyframe_solves()) {
+    keyframes.push_back({{"frame", k.frame},
+                         {"node", k.node},
+                         {"matches", k.matches},
+                         {"constraints", k.constraints},
+                         {"iterations", k.solve.iterations},
+                         {"energy_after", k.solve.after.total()},
+                         {"solve_ms", k.solve.ms},
+                         {"ms", k.ms}});
+  }
+  nlohmann::json out = {{"enabled", true},
+                        {"nodes", graph.nodes},
+                        {"links", graph.links},
+                        {"constraints", graph.constraints},
+                        {"analyses", graph.analyses},
+                        {"factorizations", graph.factorizations},
+                        {"node_spacing_mm", graph.node_spacing_m * 1e3},
+                        {"region_radius_mm", graph.region_radius_m * 1e3},
+                        {"worker_ms", status.worker_ms},
+                        {"keyframes", keyframes}};
+  if (!status.error.empty()) out["error"] = status.error;
+  return out;
 }
 
 // Decodes, tracks (or takes the true poses) and fuses every frame of the recording through a
@@ -152,6 +227,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
     session_options.tracking.weight_by_confidence = options.icp_weights == "confidence";
     session_options.tracking.crease_angle_deg = options.icp_crease_deg;
   }
+  session_options.deformation.enabled = !groundtruth && options.deformation == "on";
   session::ScanSession session = session::make_recording_session(recording, session_options);
 
   g_stop_requested.store(false);
@@ -193,11 +269,38 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
                 session.frames().size(), outcome.interrupted ? ", interrupted" : "");
   }
 
+  // The loop closure, after the revolution: asked for, or by default when the recording is a
+  // full turntable revolution (its angles span 360° less at most two steps).
+  const LoopClosureChoice loop = loop_closure_choice(recording, options, session.deformation_enabled());
+  nlohmann::json loop_json = {{"requested", loop.requested}, {"why", loop.why}};
+  std::string loop_failure;
   auto start = Clock::now();
+  if (loop.requested && !outcome.interrupted) {
+    try {
+      const session::LoopClosureReport closed = session.close_loop();
+      loop_json.update(loop_closure_json(closed));
+    } catch (const Error& error) {
+      if (error.code() != ErrorCode::kInvalidArgument) throw;
+      loop_failure = error.what();
+      loop_json["closed"] = false;
+      loop_json["reason"] = loop_failure;
+      if (!context.options.json) std::cerr << "\nwarning: " << loop_failure << "\n";
+    }
+  }
+  const double loop_ms = ms_since(start);
+
+  start = Clock::now();
   const fusion::ExtractedSurface surface = session.final_surface();
   const double extract_ms = ms_since(start);
   const std::vector<StampedPose> trajectory = session.trajectory();
   std::filesystem::create_directories(options.out);
+  // With deformation, the model and trajectory as tracked too (OUT/undeformed), so `sls eval`
+  // can put the two side by side.
+  if (session.deformation_enabled()) {
+    std::filesystem::create_directories(options.out + "/undeformed");
+    write_ply(options.out + "/undeformed/cloud.ply", session.final_surface_undeformed().cloud);
+    write_tum_trajectory(options.out + "/undeformed/trajectory.txt", session.trajectory_undeformed());
+  }
   // A shaded picture of the current volume from the last fused view, with the camera's own
   // model (render.png): the fused surface at the scanner's resolution.
   write_png(options.out + "/render.png", session.render(trajectory.back().T_world_camera));
@@ -258,6 +361,13 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
       entry["move"] = {{"translation_mm", frame.move.translation_m * 1e3}, {"rotation_deg", frame.move.rotation_deg},
                        {"shipped_points", frame.move.shipped_points}};
     }
+    if (frame.deformation.keyframe) {
+      entry["deformation"] = {{"keyframe", true},
+                              {"nodes", frame.deformation.nodes},
+                              {"constraints", frame.deformation.constraints},
+                              {"pending", frame.deformation.pending},
+                              {"last_solve_ms", frame.deformation.solve_ms}};
+    }
     per_frame.push_back(entry);
     if (frame.status != session::FrameStatus::kFused) {
       lost.push_back({{"frame", frame.index}, {"status", session::frame_status_name(frame.status)},
@@ -274,7 +384,10 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   session::StageTimes totals = session.totals();
   report["ms_per_stage"] = stage_json(totals);
   report["ms_per_stage"]["extract"] = extract_ms;
-  report["ms_total"] = totals.total_ms() + extract_ms;
+  report["ms_per_stage"]["loop_closure"] = loop_ms;
+  report["ms_total"] = totals.total_ms() + extract_ms + loop_ms;
+  report["deformation"] = deformation_json(session);
+  report["loop_closure"] = loop_json;
   report["ms_track_integrate_move_raycast_median"] = median(pipeline_ms);
   report["points"] = surface.cloud.size();
   report["triangles"] = surface.mesh.faces.size();
@@ -295,6 +408,14 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
     evaluation = eval::evaluate_result(options.out, recording.folder(), eval_options,
                                        context.progress_callback("eval"));
     report["evaluation"] = evaluation_json(*evaluation);
+    if (session.deformation_enabled()) {
+      // The same figures for the model as tracked: what deformation changed.
+      eval::EvalOptions undeformed_options;
+      undeformed_options.voxel_size_m = geometry.voxel_size_m;
+      report["evaluation_undeformed"] =
+          evaluation_json(eval::evaluate_result(options.out + "/undeformed", recording.folder(), undeformed_options,
+                                                context.progress_callback("eval")));
+    }
     report["ms_per_stage"]["evaluate"] = ms_since(start);
     html.evaluation = &*evaluation;
     html.point_errors_m = evaluation->cloud_point_errors_m;
@@ -430,6 +551,15 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                       "surface turns by more than this angle (0: off)")
       ->check(CLI::Range(0.0, 179.0))
       ->capture_default_str();
+  command->add_option("--deformation", options->deformation,
+                      "With --poses track: online deformation, the graph that corrects drift beside the frame loop "
+                      "(off: the model as tracked)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  command->add_option("--loop-closure", options->loop_closure,
+                      "With --poses track: close the loop after the scan, registering the last frame to the first "
+                      "(default: on for a full turntable revolution, else off)")
+      ->check(CLI::IsMember({"on", "off"}));
   command->add_option("--voxel-um", options->voxel_um,
                       "Voxel size in um (0: twice the pixel footprint, grown to fit --max-voxels)")
       ->check(CLI::NonNegativeNumber)

@@ -1,4 +1,5 @@
 #include "sdk/session/scan_session.h"
+#include "sdk/session/scan_session_impl.h"
 
 #include <algorithm>
 #include <chrono>
@@ -10,9 +11,6 @@
 
 #include "sdk/core/error.h"
 
-#if defined(SLS_HAVE_CUDA)
-#include "sdk/core/cuda/device_buffer.h"
-#endif
 
 namespace sls::session {
 namespace {
@@ -24,21 +22,6 @@ double ms_since(Clock::time_point start) {
 
 constexpr double kDegree = M_PI / 180.0;
 
-// The median of the valid depths (the focus distance of a first frame).
-double median_depth(const Image32f& depth_m) {
-  std::vector<float> values;
-  values.reserve(depth_m.pixel_count() / 4);
-  for (int y = 0; y < depth_m.height(); ++y) {
-    for (int x = 0; x < depth_m.width(); ++x) {
-      const float z = depth_m(x, y);
-      if (z > 0.0f && std::isfinite(z)) values.push_back(z);
-    }
-  }
-  if (values.empty()) return 0.0;
-  auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  return *middle;
-}
 
 // The texture of a pattern stack for the tracker's photometric term: white − black (the
 // projector's light alone: no ambient, no camera black level, i.e. albedo × irradiance), or
@@ -69,6 +52,21 @@ std::size_t count_valid(const Image32f& depth_m) {
 
 }  // namespace
 
+double median_depth(const Image32f& depth_m) {
+  std::vector<float> values;
+  values.reserve(depth_m.pixel_count() / 4);
+  for (int y = 0; y < depth_m.height(); ++y) {
+    for (int x = 0; x < depth_m.width(); ++x) {
+      const float z = depth_m(x, y);
+      if (z > 0.0f && std::isfinite(z)) values.push_back(z);
+    }
+  }
+  if (values.empty()) return 0.0;
+  auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
 Pose turntable_camera_motion(const TurntableAxis& axis, double delta_deg) {
   const Eigen::Matrix3d rotation =
       Eigen::AngleAxisd(-delta_deg * kDegree, axis.direction_camera.normalized()).toRotationMatrix();
@@ -91,6 +89,7 @@ StageTimes& StageTimes::operator+=(const StageTimes& other) {
   integrate_ms += other.integrate_ms;
   move_ms += other.move_ms;
   raycast_ms += other.raycast_ms;
+  deform_ms += other.deform_ms;
   return *this;
 }
 
@@ -112,105 +111,10 @@ void ScanSessionOptions::validate() const {
   }
   integration.validate(voxel_format);
   tracking.validate();
+  deformation.validate();
   decode.validate();
 }
 
-struct ScanSession::Impl {
-  ScannerCalibration calibration;
-  ScanSessionOptions options;
-  std::optional<Decoder> decoder;
-  fusion::Integrator integrator;
-  fusion::Tracker tracker;
-  fusion::Raycaster raycaster;
-  std::optional<fusion::MovingVolume> moving;
-  std::optional<fusion::Volume> fixed;
-
-  bool have_model = false;                 // a fused frame exists (and the model was raycast)
-  Pose T_world_model;                      // the pose the model was last raycast from
-  fusion::RaycastResult model;             // the CPU model (host path)
-  // The last two fused frames: the constant-velocity prior.
-  struct Fused {
-    int index = 0;
-    Pose T_world_camera;
-    std::optional<double> angle_deg;
-  };
-  std::optional<Fused> last, before_last;
-
-  std::vector<FrameReport> frames;
-  StageTimes totals;
-#if defined(SLS_HAVE_CUDA)
-  DeviceBuffer<float> depth_upload;  // a depth-map frame on the GPU (decoded frames stay there)
-  DeviceBuffer<float> texture_upload;  // the frame's texture (photometric term), kept on the GPU
-#endif
-
-  Impl(const ScannerCalibration& calibration_in, const ScanSessionOptions& options_in)
-      : calibration(calibration_in),
-        options(options_in),
-        integrator(options_in.device, options_in.integration),
-        tracker(options_in.device, calibration_in.camera, options_in.tracking),
-        raycaster(options_in.device, tracker.model_camera(), raycast_options(options_in)) {}
-
-  static fusion::RaycastOptions raycast_options(const ScanSessionOptions& options) {
-    fusion::RaycastOptions raycast;
-    raycast.truncation_voxels = options.integration.truncation_voxels;
-    raycast.min_depth_m = options.decode.min_depth_m;
-    raycast.max_depth_m = options.decode.max_depth_m;
-    return raycast;
-  }
-
-  fusion::Volume* volume() {
-    if (fixed) return &*fixed;
-    return moving ? &moving->volume() : nullptr;
-  }
-  const fusion::Volume* volume() const {
-    if (fixed) return &*fixed;
-    return moving ? &moving->volume() : nullptr;
-  }
-
-  // The pose guess for a frame: the turntable's angle about its calibrated axis when asked
-  // and known, else constant velocity from the last two fused frames.
-  Pose predict(const ScanFrame& frame) const {
-    const Pose& base = last->T_world_camera;
-    if (options.turntable_prior && calibration.turntable && frame.turntable_angle_deg && last->angle_deg) {
-      return base * turntable_camera_motion(*calibration.turntable, *frame.turntable_angle_deg - *last->angle_deg);
-    }
-    if (!before_last) return base;
-    const Pose step = before_last->T_world_camera.inverse() * base;
-    const double frames_between = static_cast<double>(last->index - before_last->index);
-    const double frames_ahead = static_cast<double>(frame.index - last->index);
-    if (!(frames_between > 0.0) || !(frames_ahead > 0.0)) return base;
-    return base * Pose::exp(step.log() * (frames_ahead / frames_between));
-  }
-
-  void place_volume(const Pose& T_world_camera, const Image32f& depth_m) {
-    if (options.fixed_volume) {
-      if (!fixed) {
-        fixed.emplace(*options.fixed_volume, options.voxel_format, options.device, options.integration.average_storage());
-      }
-      return;
-    }
-    if (moving) return;
-    fusion::MovingVolumeOptions moving_options = options.moving;
-    if (!(moving_options.focus_distance_m > 0.0)) moving_options.focus_distance_m = median_depth(depth_m);
-    const double focus = moving_options.focus_distance_m;
-    const CameraIntrinsics& camera = calibration.camera;
-    Eigen::Vector3d size = options.volume_size_m;
-    if (!(size.minCoeff() > 0.0)) {
-      const double width = camera.width / camera.fx * focus, height = camera.height / camera.fy * focus;
-      size = Eigen::Vector3d(width, height, 0.5 * width);
-    }
-    double voxel = options.voxel_size_m;
-    if (!(voxel > 0.0)) {
-      voxel = 2.0 * focus / camera.fx;
-      const double voxels = (size / voxel).prod();
-      if (voxels > options.max_voxels) voxel *= std::cbrt(voxels / options.max_voxels) * 1.001;
-    }
-    const Eigen::Vector3i counts = (size / voxel).array().ceil().cast<int>().cwiseMax(2);
-    moving.emplace(counts.x(), counts.y(), counts.z(), voxel, options.voxel_format, options.device, moving_options,
-                   options.integration.average_storage());
-    moving->place(T_world_camera);
-  }
-};
 
 ScanSession::ScanSession(const ScannerCalibration& calibration, const PatternSet* patterns,
                          const ScanSessionOptions& options) {
@@ -372,10 +276,24 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   // Move the volume when the camera has left it (before integrating, so the frame's whole view
   // goes into a volume placed for it), integrate, raycast the model for the next frame.
   s.place_volume(T_world_camera, *depth);
+  if (!s.first) s.first = Impl::Fused{frame.index, T_world_camera, frame.turntable_angle_deg};
   Clock::time_point start = Clock::now();
   if (s.moving) {
+    // The loop closure's reference: the first frames as seen from the first pose, before the
+    // volume leaves them.
+    if (s.deformation && !s.reference_taken && s.moving->needs_move(T_world_camera)) {
+      s.capture_reference(s.moving->volume());
+      report.times.deform_ms += ms_since(start);
+      start = Clock::now();
+    }
+    const std::size_t shipped_before = s.moving->shipped_cloud().size();
     report.move = s.moving->follow(T_world_camera);
     report.times.move_ms = ms_since(start);
+    if (report.move.moved) {
+      start = Clock::now();
+      s.record_shipped(frame.index - 1, shipped_before);
+      report.times.deform_ms += ms_since(start);
+    }
   }
   fusion::Volume& volume = *s.volume();  // the moved volume, if it moved
   start = Clock::now();
@@ -408,21 +326,18 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     s.T_world_model = T_world_camera;
     s.have_model = true;
   }
+  if (s.deformation) {
+    start = Clock::now();
+    report.deformation = s.feed_deformation(frame.index, T_world_camera, *depth, confidence, depth_device,
+                                            confidence_device);
+    report.times.deform_ms += ms_since(start);
+  }
   s.before_last = s.last;
   s.last = Impl::Fused{frame.index, T_world_camera, frame.turntable_angle_deg};
   return finish(FrameStatus::kFused, "");
 }
 
 const std::vector<FrameReport>& ScanSession::frames() const { return impl_->frames; }
-
-std::vector<StampedPose> ScanSession::trajectory() const {
-  std::vector<StampedPose> poses;
-  for (const FrameReport& frame : impl_->frames) {
-    if (frame.status != FrameStatus::kFused) continue;
-    poses.push_back({static_cast<double>(frame.timestamp_ns) * 1e-9, frame.T_world_camera});
-  }
-  return poses;
-}
 
 StageTimes ScanSession::totals() const { return impl_->totals; }
 
@@ -445,13 +360,6 @@ std::size_t ScanSession::volume_bytes() const {
 }
 
 std::size_t ScanSession::moves() const { return impl_->moving ? impl_->moving->moves() : 0; }
-
-fusion::ExtractedSurface ScanSession::final_surface() const {
-  const Impl& s = *impl_;
-  if (s.moving) return s.moving->final_surface();
-  if (s.fixed) return fusion::extract_surface(s.fixed->to_host());
-  return {};
-}
 
 Image8u ScanSession::render(const Pose& T_world_camera) const {
   const fusion::Volume* volume = impl_->volume();

@@ -37,6 +37,7 @@
 #include "sdk/core/trajectory.h"
 #include "sdk/decode/decoder.h"
 #include "sdk/decode/pattern_set.h"
+#include "sdk/session/scan_deformation.h"
 
 namespace sls::session {
 
@@ -57,6 +58,9 @@ struct ScanSessionOptions {
   std::optional<fusion::VolumeGeometry> fixed_volume;
   // Use the recording's turntable angles with the calibration's axis as the pose guess.
   bool turntable_prior = false;
+  // Online deformation (paper section IV, scan_deformation.h) of tracked scans into a moving
+  // volume; with it, close_loop(). Off for known poses or a fixed volume (no drift to correct).
+  DeformationOptions deformation;
   // Throws sls::Error(kInvalidArgument) naming the bad value.
   void validate() const;
 };
@@ -89,8 +93,22 @@ struct StageTimes {
   double integrate_ms = 0.0;
   double move_ms = 0.0;
   double raycast_ms = 0.0;
-  double total_ms() const { return read_ms + decode_ms + track_ms + integrate_ms + move_ms + raycast_ms; }
+  double deform_ms = 0.0;  // the frame loop's share of online deformation (samples, queueing);
+                           // the graph's solves run beside it (FrameDeformation::solve_ms)
+  double total_ms() const {
+    return read_ms + decode_ms + track_ms + integrate_ms + move_ms + raycast_ms + deform_ms;
+  }
   StageTimes& operator+=(const StageTimes& other);
+};
+
+// Online deformation as a frame saw it: whether the frame made a keyframe (a graph node), and
+// the graph as the worker had it then (it solves beside the frame loop, a little behind).
+struct FrameDeformation {
+  bool keyframe = false;
+  std::size_t nodes = 0;
+  std::size_t constraints = 0;
+  std::size_t pending = 0;      // keyframes and shipped parts the worker had still to do
+  double solve_ms = 0.0;        // the worker's last keyframe job (match + Gauss–Newton)
 };
 
 struct FrameReport {
@@ -103,7 +121,24 @@ struct FrameReport {
   std::optional<fusion::TrackingResult> tracking;  // absent for the first frame and known poses
   fusion::IntegrationStats integration;
   fusion::MoveStats move;
+  FrameDeformation deformation;
   StageTimes times;
+};
+
+// What close_loop() did: the last fused frame registered (ICP) to the first frame's surface
+// (the model raycast from the first pose before the volume first moved), its points made
+// E_con terms to where that registration puts them, and the graph solved.
+struct LoopClosureReport {
+  int first_frame = 0;
+  int last_frame = 0;
+  fusion::TrackingResult registration;    // of the last frame to the first frame's surface
+  std::size_t constraints = 0;            // E_con terms added
+  fusion::deformation::SolveStats solve;
+  // The last pose: how far the loop closure moved it (from the online deformation's estimate),
+  // and how far from the tracked pose it ends.
+  double moved_m = 0.0, moved_deg = 0.0;
+  double correction_m = 0.0, correction_deg = 0.0;
+  double ms = 0.0;                        // all of it, the registration included
 };
 
 class ScanSession {
@@ -128,8 +163,35 @@ class ScanSession {
   std::size_t volume_bytes() const;                       // both buffers of a moving volume
   std::size_t moves() const;
 
-  // The model so far: the shipped parts plus the current volume's surface (world frame).
+  // The model so far: the shipped parts plus the current volume's surface (world frame),
+  // deformed by the graph when online deformation is on (each part by the nodes of its time;
+  // the cloud then carries the float property "correction": how far each point moved, m).
   fusion::ExtractedSurface final_surface() const;
+  // The same without the deformation (as tracked).
+  fusion::ExtractedSurface final_surface_undeformed() const;
+  // The fused frames' poses as tracked (trajectory() gives them deformed).
+  std::vector<StampedPose> trajectory_undeformed() const;
+
+  // The loop closure (paper section IV-C), triggered by the caller after the revolution: the
+  // last fused frame registered to the first frame's surface, starting from the deformed
+  // estimate of its pose (the turntable's angle with turntable_prior), then loop_iterations
+  // Gauss–Newton steps with those constraints. Afterwards final_surface() and trajectory()
+  // are the closed model. sls::Error(kInvalidArgument), the model kept as it was: no frame
+  // fused ("before any frame"), online deformation off, too few keyframes, or a last frame
+  // that does not register to the first frame's surface (named, with the tracker's reason).
+  LoopClosureReport close_loop();
+  const std::optional<LoopClosureReport>& loop_closure() const;
+  // Online deformation: whether it runs, the worker's state (waits for it: drain), and what
+  // it did per keyframe.
+  bool deformation_enabled() const;
+  DeformationStatus deformation_status(bool wait_for_worker) const;
+  std::vector<KeyframeSolve> keyframe_solves() const;
+  // The graph's size and CHOLMOD's work over the scan (after the worker is done).
+  struct GraphSummary {
+    std::size_t nodes = 0, links = 0, constraints = 0, analyses = 0, factorizations = 0;
+    double node_spacing_m = 0.0, region_radius_m = 0.0;
+  };
+  GraphSummary graph_summary() const;
   // A shaded raycast of the current volume from a pose (pictures).
   Image8u render(const Pose& T_world_camera) const;
 

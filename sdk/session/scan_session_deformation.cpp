@@ -1,0 +1,272 @@
+// The scan session's online deformation (scan_session.h, scan_deformation.h): what the frame
+// loop hands the graph's worker, the deformed model and trajectory, and the loop closure.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "fusion/deformation/map_deformation.h"
+#include "sdk/core/error.h"
+#include "sdk/session/scan_session.h"
+#include "sdk/session/scan_session_impl.h"
+
+#if defined(SLS_HAVE_CUDA)
+#include <cuda_runtime_api.h>
+#endif
+
+namespace sls::session {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+constexpr double kDegPerRad = 180.0 / M_PI;
+
+// A sample whose 2-pixel neighbours lie further than this along the surface is on a depth
+// edge: a hundred pixel footprints at the focus distance.
+double edge_step_m(const CameraIntrinsics& camera, double focus_m) { return 100.0 * focus_m / camera.fx; }
+
+void pose_difference(const Pose& a, const Pose& b, double* metres, double* degrees) {
+  const Pose delta = a.inverse() * b;
+  *metres = (b.translation() - a.translation()).norm();
+  *degrees = delta.angle_rad() * kDegPerRad;
+}
+
+}  // namespace
+
+void ScanSession::Impl::capture_reference(const fusion::Volume& volume) {
+  if (reference_taken || !first) return;
+  if (options.device.is_cuda()) {
+    if (!reference_raycaster) reference_raycaster.emplace(options.device, tracker.model_camera(), raycast_options(options));
+    reference_raycaster->raycast_device(volume, first->T_world_camera);
+    reference_raycaster->synchronize();
+  } else {
+    reference_model = raycaster.raycast(volume, first->T_world_camera);
+  }
+  reference_taken = true;
+}
+
+void ScanSession::Impl::record_shipped(int time, std::size_t shipped_before) {
+  const PointCloud& shipped = moving->shipped_cloud();
+  parts.push_back({time, shipped.size(), moving->shipped_mesh().vertices.size()});
+  if (deformation && shipped.size() > shipped_before) deformation->add_shipped(time, shipped, shipped_before, shipped.size());
+}
+
+FrameDeformation ScanSession::Impl::feed_deformation(int frame, const Pose& T_world_camera, const Image32f& depth_m,
+                                                     const Image32f* confidence,
+                                                     [[maybe_unused]] const float* depth_device,
+                                                     [[maybe_unused]] const float* confidence_device) {
+  FrameDeformation out;
+  // The last fused frame, for close_loop(): on the GPU a device copy (the decoder's buffers
+  // hold the next frame by then), else a host copy.
+#if defined(SLS_HAVE_CUDA)
+  if (depth_device != nullptr) {
+    const std::size_t pixels = depth_m.pixel_count();
+    if (last_depth_device.size() != pixels) last_depth_device.allocate(pixels);
+    SLS_CUDA_CHECK(cudaMemcpyAsync(last_depth_device.data(), depth_device, pixels * sizeof(float),
+                                   cudaMemcpyDeviceToDevice, nullptr));
+    last_confidence_on_device = confidence_device != nullptr;
+    if (confidence_device != nullptr) {
+      if (last_confidence_device.size() != pixels) last_confidence_device.allocate(pixels);
+      SLS_CUDA_CHECK(cudaMemcpyAsync(last_confidence_device.data(), confidence_device, pixels * sizeof(float),
+                                     cudaMemcpyDeviceToDevice, nullptr));
+    }
+    SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+    last_depth = Image32f();
+  } else
+#endif
+  {
+    last_depth = depth_m;
+    last_confidence.reset();
+    if (confidence != nullptr) last_confidence = *confidence;
+  }
+  const Eigen::Vector3d focus = focus_point(T_world_camera);
+  if (deformation->wants_keyframe(T_world_camera, focus)) {
+    out.keyframe = true;
+    deformation->add_keyframe(frame, T_world_camera, focus,
+                              sample_depth_map(depth_m, calibration.camera, options.deformation.keyframe_samples,
+                                               edge_step_m(calibration.camera, focus_distance_m)));
+  }
+  const DeformationStatus status = deformation->status();
+  out.nodes = status.nodes;
+  out.constraints = status.constraints;
+  out.pending = status.pending;
+  out.solve_ms = status.last_solve_ms;
+  return out;
+}
+
+fusion::ExtractedSurface ScanSession::Impl::surface(bool deformed) const {
+  if (fixed) return fusion::extract_surface(fixed->to_host());
+  if (!moving) return {};
+  fusion::ExtractedSurface result = moving->final_surface();
+  if (!deformed || !deformation || !last) return result;
+  deformation->drain();
+  const fusion::deformation::DeformationGraph& graph = deformation->graph();
+  if (graph.size() == 0) return result;
+  const std::vector<fusion::deformation::NodeTransform> transforms = graph.transforms();
+  std::vector<float> moved;
+  std::size_t cloud_begin = 0, mesh_begin = 0;
+  const auto deform_part = [&](int time, std::size_t cloud_end, std::size_t mesh_end) {
+    fusion::deformation::deform_cloud_part(graph, transforms, time, &result.cloud, cloud_begin, cloud_end, &moved);
+    fusion::deformation::deform_cloud_part(graph, transforms, time, &result.mesh.vertices, mesh_begin, mesh_end);
+    cloud_begin = cloud_end;
+    mesh_begin = mesh_end;
+  };
+  for (const ShippedPart& part : parts) deform_part(part.time, part.cloud_end, part.mesh_vertex_end);
+  deform_part(last->index, result.cloud.size(), result.mesh.vertices.size());  // the volume's own surface
+  result.cloud.properties.push_back({"correction", std::move(moved)});
+  return result;
+}
+
+fusion::ExtractedSurface ScanSession::final_surface() const { return impl_->surface(true); }
+fusion::ExtractedSurface ScanSession::final_surface_undeformed() const { return impl_->surface(false); }
+
+std::vector<StampedPose> ScanSession::trajectory_undeformed() const {
+  std::vector<StampedPose> poses;
+  for (const FrameReport& frame : impl_->frames) {
+    if (frame.status != FrameStatus::kFused) continue;
+    poses.push_back({static_cast<double>(frame.timestamp_ns) * 1e-9, frame.T_world_camera});
+  }
+  return poses;
+}
+
+std::vector<StampedPose> ScanSession::trajectory() const {
+  const Impl& s = *impl_;
+  std::vector<StampedPose> poses = trajectory_undeformed();
+  if (!s.deformation) return poses;
+  s.deformation->drain();
+  std::size_t i = 0;
+  for (const FrameReport& frame : s.frames) {
+    if (frame.status != FrameStatus::kFused) continue;
+    StampedPose& pose = poses[i++];
+    pose.T_world_camera = s.deformation->deform_pose(frame.index, pose.T_world_camera, s.focus_point(pose.T_world_camera));
+  }
+  return poses;
+}
+
+bool ScanSession::deformation_enabled() const { return impl_->deformation != nullptr; }
+
+DeformationStatus ScanSession::deformation_status(bool wait_for_worker) const {
+  if (!impl_->deformation) return {};
+  if (wait_for_worker) impl_->deformation->drain();
+  return impl_->deformation->status();
+}
+
+std::vector<KeyframeSolve> ScanSession::keyframe_solves() const {
+  if (!impl_->deformation) return {};
+  return impl_->deformation->keyframe_solves();
+}
+
+ScanSession::GraphSummary ScanSession::graph_summary() const {
+  GraphSummary summary;
+  if (!impl_->deformation) return summary;
+  impl_->deformation->drain();
+  const fusion::deformation::DeformationGraph& graph = impl_->deformation->graph();
+  summary.nodes = graph.size();
+  summary.links = graph.edges().size();
+  summary.constraints = graph.constraints().size();
+  summary.analyses = graph.analyses();
+  summary.factorizations = graph.factorizations();
+  summary.node_spacing_m = graph.options().length_scale_m;
+  summary.region_radius_m = graph.options().region_radius_m;
+  return summary;
+}
+
+const std::optional<LoopClosureReport>& ScanSession::loop_closure() const { return impl_->loop; }
+
+LoopClosureReport ScanSession::close_loop() {
+  Impl& s = *impl_;
+  const Clock::time_point start = Clock::now();
+  if (!s.last || !s.first) {
+    throw_error(ErrorCode::kInvalidArgument, "loop closure asked before any frame was fused");
+  }
+  if (!s.deformation) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "loop closure needs online deformation, which is off for this scan ({})",
+                s.options.fixed_volume ? "a fixed volume with known poses" : "turned off in its options");
+  }
+  if (s.last->index == s.first->index) {
+    throw_error(ErrorCode::kInvalidArgument, "loop closure needs more than one fused frame (only frame {})",
+                s.first->index);
+  }
+  s.deformation->drain();
+  fusion::deformation::DeformationGraph& graph = s.deformation->graph();
+  if (static_cast<int>(graph.size()) <= graph.pinned_count()) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "loop closure: too few keyframes ({} graph nodes, the first {} pinned): the scan moved too little "
+                "for a loop",
+                graph.size(), graph.pinned_count());
+  }
+  if (!s.reference_taken) s.capture_reference(s.moving->volume());  // the volume never moved
+
+  // Register the last frame to the first frame's surface, from the best guess of its pose in
+  // the first frame's world: the turntable's angle when it is known and used, else the
+  // online deformation's estimate.
+  const Impl::Fused& last = *s.last;
+  const Impl::Fused& first = *s.first;
+  const Pose deformed_last = s.deformation->deform_pose(last.index, last.T_world_camera, s.focus_point(last.T_world_camera));
+  Pose guess = deformed_last;
+  if (s.options.turntable_prior && s.calibration.turntable && last.angle_deg && first.angle_deg) {
+    guess = first.T_world_camera * turntable_camera_motion(*s.calibration.turntable, *last.angle_deg - *first.angle_deg);
+  }
+  LoopClosureReport report;
+  report.first_frame = first.index;
+  report.last_frame = last.index;
+  Image32f depth = s.last_depth;
+#if defined(SLS_HAVE_CUDA)
+  if (s.options.device.is_cuda()) {
+    report.registration = s.tracker.track_device(s.last_depth_device.data(), *s.reference_raycaster,
+                                                 first.T_world_camera, guess, nullptr,
+                                                 s.last_confidence_on_device ? s.last_confidence_device.data() : nullptr);
+    depth = Image32f(s.calibration.camera.width, s.calibration.camera.height, 0.0f);
+    s.last_depth_device.download(depth.data(), depth.pixel_count(), nullptr);
+    SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+  } else {
+    report.registration = s.tracker.track(s.last_depth, s.reference_model, first.T_world_camera, guess, nullptr,
+                                          s.last_confidence ? &*s.last_confidence : nullptr);
+  }
+#else
+  report.registration = s.tracker.track(s.last_depth, s.reference_model, first.T_world_camera, guess, nullptr,
+                                        s.last_confidence ? &*s.last_confidence : nullptr);
+#endif
+  if (report.registration.lost) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "loop closure: the last fused frame ({}) does not register to the first frame's ({}) surface: {} "
+                "(the scan is not a closed loop, or drifted beyond the tracker's reach); the model is kept as "
+                "online deformation left it",
+                last.index, first.index, report.registration.reason);
+  }
+
+  // Its points: where tracking put them (deformed by the nodes of their time) should be where
+  // the registration puts them.
+  const SurfaceSamples samples = sample_depth_map(depth, s.calibration.camera, s.options.deformation.keyframe_samples,
+                                                  edge_step_m(s.calibration.camera, s.focus_distance_m));
+  const Pose& registered = report.registration.T_world_camera;
+  // Each point is where one rigid registration puts it: as certain as that registration's
+  // residual, not as a surface point's noise (σ_con).
+  const double sigma_registration =
+      std::max(report.registration.residual_rms_m, 0.1 * s.moving->volume().geometry().voxel_size_m);
+  const double weight = std::pow(s.deformation->constraint_sigma_m() / sigma_registration, 2.0);
+  for (const Eigen::Vector3f& p_camera : samples.points) {
+    const Eigen::Vector3d p = p_camera.cast<double>();
+    fusion::deformation::Constraint constraint;
+    constraint.source = last.T_world_camera * p;
+    constraint.source_binding = graph.bind_before(constraint.source, last.index);
+    constraint.target = registered * p;
+    constraint.weight = weight;
+    graph.add_constraint(constraint);
+  }
+  report.constraints = samples.points.size();
+  report.solve = graph.solve(s.options.deformation.loop_iterations);
+  const Pose closed = s.deformation->deform_pose(last.index, last.T_world_camera, s.focus_point(last.T_world_camera));
+  pose_difference(deformed_last, closed, &report.moved_m, &report.moved_deg);
+  pose_difference(last.T_world_camera, closed, &report.correction_m, &report.correction_deg);
+  report.ms = ms_since(start);
+  s.loop = report;
+  return report;
+}
+
+}  // namespace sls::session

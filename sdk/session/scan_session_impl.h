@@ -1,0 +1,165 @@
+// The scan session's state (scan_session.h), shared by its two sources: scan_session.cpp
+// (the frame loop) and scan_session_deformation.cpp (online deformation's results: the
+// deformed model and trajectory, the loop closure). Internal to sdk/session.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "sdk/session/scan_session.h"
+
+#if defined(SLS_HAVE_CUDA)
+#include "sdk/core/cuda/device_buffer.h"
+#endif
+
+namespace sls::session {
+
+// The median of the valid depths (the focus distance of a first frame).
+double median_depth(const Image32f& depth_m);
+
+struct ScanSession::Impl {
+  ScannerCalibration calibration;
+  ScanSessionOptions options;
+  std::optional<Decoder> decoder;
+  fusion::Integrator integrator;
+  fusion::Tracker tracker;
+  fusion::Raycaster raycaster;
+  std::optional<fusion::MovingVolume> moving;
+  std::optional<fusion::Volume> fixed;
+
+  bool have_model = false;                 // a fused frame exists (and the model was raycast)
+  Pose T_world_model;                      // the pose the model was last raycast from
+  fusion::RaycastResult model;             // the CPU model (host path)
+  // The last two fused frames: the constant-velocity prior.
+  struct Fused {
+    int index = 0;
+    Pose T_world_camera;
+    std::optional<double> angle_deg;
+  };
+  std::optional<Fused> last, before_last;
+  std::optional<Fused> first;              // the first fused frame (the loop closure's reference)
+
+  // Online deformation (scan_deformation.h): made with the moving volume.
+  std::unique_ptr<ScanDeformation> deformation;
+  double focus_distance_m = 0.0;           // the moving volume's (a pose's focus point)
+  // Where each shipped part ends in the moving volume's shipped cloud and mesh, and the last
+  // frame it was observed in (the frame before the move): what the map deformation binds by.
+  struct ShippedPart {
+    int time = 0;
+    std::size_t cloud_end = 0;
+    std::size_t mesh_vertex_end = 0;
+  };
+  std::vector<ShippedPart> parts;
+  // The loop closure's reference: the model seen from the first pose, raycast before the
+  // volume first moves away from it (on the CPU a RaycastResult, on a GPU its own raycaster).
+  bool reference_taken = false;
+  fusion::RaycastResult reference_model;
+  std::optional<fusion::Raycaster> reference_raycaster;
+  // The last fused frame's depth (and the decoder's confidence): what close_loop() registers.
+  Image32f last_depth;
+  std::optional<Image32f> last_confidence;
+  std::optional<LoopClosureReport> loop;
+
+  std::vector<FrameReport> frames;
+  StageTimes totals;
+#if defined(SLS_HAVE_CUDA)
+  DeviceBuffer<float> last_depth_device;       // the last fused frame's, on the GPU
+  DeviceBuffer<float> last_confidence_device;
+  bool last_confidence_on_device = false;
+  DeviceBuffer<float> depth_upload;  // a depth-map frame on the GPU (decoded frames stay there)
+  DeviceBuffer<float> texture_upload;  // the frame's texture (photometric term), kept on the GPU
+#endif
+
+  Impl(const ScannerCalibration& calibration_in, const ScanSessionOptions& options_in)
+      : calibration(calibration_in),
+        options(options_in),
+        integrator(options_in.device, options_in.integration),
+        tracker(options_in.device, calibration_in.camera, options_in.tracking),
+        raycaster(options_in.device, tracker.model_camera(), raycast_options(options_in)) {}
+
+  static fusion::RaycastOptions raycast_options(const ScanSessionOptions& options) {
+    fusion::RaycastOptions raycast;
+    raycast.truncation_voxels = options.integration.truncation_voxels;
+    raycast.min_depth_m = options.decode.min_depth_m;
+    raycast.max_depth_m = options.decode.max_depth_m;
+    return raycast;
+  }
+
+  fusion::Volume* volume() {
+    if (fixed) return &*fixed;
+    return moving ? &moving->volume() : nullptr;
+  }
+  const fusion::Volume* volume() const {
+    if (fixed) return &*fixed;
+    return moving ? &moving->volume() : nullptr;
+  }
+
+  // The pose guess for a frame: the turntable's angle about its calibrated axis when asked
+  // and known, else constant velocity from the last two fused frames.
+  Pose predict(const ScanFrame& frame) const {
+    const Pose& base = last->T_world_camera;
+    if (options.turntable_prior && calibration.turntable && frame.turntable_angle_deg && last->angle_deg) {
+      return base * turntable_camera_motion(*calibration.turntable, *frame.turntable_angle_deg - *last->angle_deg);
+    }
+    if (!before_last) return base;
+    const Pose step = before_last->T_world_camera.inverse() * base;
+    const double frames_between = static_cast<double>(last->index - before_last->index);
+    const double frames_ahead = static_cast<double>(frame.index - last->index);
+    if (!(frames_between > 0.0) || !(frames_ahead > 0.0)) return base;
+    return base * Pose::exp(step.log() * (frames_ahead / frames_between));
+  }
+
+  void place_volume(const Pose& T_world_camera, const Image32f& depth_m) {
+    if (options.fixed_volume) {
+      if (!fixed) {
+        fixed.emplace(*options.fixed_volume, options.voxel_format, options.device, options.integration.average_storage());
+      }
+      return;
+    }
+    if (moving) return;
+    fusion::MovingVolumeOptions moving_options = options.moving;
+    if (!(moving_options.focus_distance_m > 0.0)) moving_options.focus_distance_m = median_depth(depth_m);
+    const double focus = moving_options.focus_distance_m;
+    const CameraIntrinsics& camera = calibration.camera;
+    Eigen::Vector3d size = options.volume_size_m;
+    if (!(size.minCoeff() > 0.0)) {
+      const double width = camera.width / camera.fx * focus, height = camera.height / camera.fy * focus;
+      size = Eigen::Vector3d(width, height, 0.5 * width);
+    }
+    double voxel = options.voxel_size_m;
+    if (!(voxel > 0.0)) {
+      voxel = 2.0 * focus / camera.fx;
+      const double voxels = (size / voxel).prod();
+      if (voxels > options.max_voxels) voxel *= std::cbrt(voxels / options.max_voxels) * 1.001;
+    }
+    const Eigen::Vector3i counts = (size / voxel).array().ceil().cast<int>().cwiseMax(2);
+    moving.emplace(counts.x(), counts.y(), counts.z(), voxel, options.voxel_format, options.device, moving_options,
+                   options.integration.average_storage());
+    moving->place(T_world_camera);
+    focus_distance_m = focus;
+    if (options.deformation.enabled) {
+      const Eigen::Vector3d extent = moving->volume().geometry().size_m();
+      const DeformationOptions& d = options.deformation;
+      const double spacing = d.node_spacing_m > 0.0 ? d.node_spacing_m : 0.25 * extent.minCoeff();
+      const double region = d.region_radius_m > 0.0 ? d.region_radius_m : 0.5 * extent.maxCoeff();
+      deformation = std::make_unique<ScanDeformation>(d, spacing, region, voxel);
+    }
+  }
+
+  // Online deformation's share of a fused frame (scan_session_deformation.cpp): the reference
+  // raycast, a shipped part recorded and queued, the last frame kept, a keyframe queued.
+  void capture_reference(const fusion::Volume& volume);
+  void record_shipped(int time, std::size_t shipped_before);
+  FrameDeformation feed_deformation(int frame, const Pose& T_world_camera, const Image32f& depth_m,
+                                    const Image32f* confidence, const float* depth_device,
+                                    const float* confidence_device);
+  // The model (shipped parts and the current volume), deformed or not.
+  fusion::ExtractedSurface surface(bool deformed) const;
+
+  Eigen::Vector3d focus_point(const Pose& T_world_camera) const {
+    return T_world_camera * Eigen::Vector3d(0.0, 0.0, focus_distance_m);
+  }
+};
+
+}  // namespace sls::session
