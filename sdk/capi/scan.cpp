@@ -1,7 +1,9 @@
 // sls_scan: the scan session (sdk/session/scan_session.h) behind the C API. A recording, or
 // devices by URI captured into one (sdk/session/scan_setup.h, as `sls scan` does), replayed
 // through a ScanSession; each FrameReport goes to the caller's callback as an sls_frame_report,
-// and a cancel reaches the replay (and the capture) through their progress callbacks.
+// and a cancel reaches the replay (and the capture) through their progress callbacks. After a
+// run, sls_scan_close_loop() is the session's close_loop(); the writes take the session's
+// (deformed) model and trajectory.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -46,6 +48,7 @@ namespace {
 constexpr std::size_t kScanConfigFirstVersionSize = offsetof(sls_scan_config, max_voxels) + sizeof(double);
 constexpr std::size_t kCaptureConfigFirstVersionSize = offsetof(sls_capture_config, frames) + sizeof(int);
 constexpr std::size_t kSummaryFirstVersionSize = offsetof(sls_scan_summary, volume_moves) + sizeof(std::size_t);
+constexpr std::size_t kLoopClosureFirstVersionSize = offsetof(sls_loop_closure, ms) + sizeof(double);
 
 // Holds a scan for one call, or finds it held (a run in progress).
 class ScanHold {
@@ -99,6 +102,7 @@ sls::session::ScanSessionOptions session_options(const sls_scan_config& config, 
                      config.max_voxels);
   }
   options.max_voxels = config.max_voxels > 0.0 ? config.max_voxels : sls::session::automatic_max_voxels(device);
+  options.deformation.enabled = config.online_deformation != 0;
   options.validate();
   return options;
 }
@@ -138,7 +142,12 @@ sls_frame_report to_c(const sls::session::FrameReport& frame, std::size_t record
   report.integrate_ms = frame.times.integrate_ms;
   report.move_ms = frame.times.move_ms;
   report.raycast_ms = frame.times.raycast_ms;
+  report.deform_ms = frame.times.deform_ms;
   report.total_ms = frame.times.total_ms();
+  report.keyframe = frame.deformation.keyframe ? 1 : 0;
+  report.deformation_nodes = frame.deformation.nodes;
+  report.deformation_constraints = frame.deformation.constraints;
+  report.deformation_solve_ms = frame.deformation.solve_ms;
   return report;
 }
 
@@ -225,6 +234,29 @@ const sls::session::ScanSession& fused_session(const sls_scan& scan) {
   return *scan.session;
 }
 
+// The loop closure of the last run's model; the model extracted before it is dropped, so the
+// writes extract the closed one.
+sls_loop_closure close_loop(sls_scan& scan) {
+  if (!scan.session) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "loop closure asked before any run: run the scan first");
+  }
+  // Dropped whatever happens: a solve that fails part way may have moved the graph.
+  scan.surface.reset();
+  const sls::session::LoopClosureReport closed = scan.session->close_loop();
+  sls_loop_closure result;
+  sls_loop_closure_init(&result);
+  result.first_frame = closed.first_frame;
+  result.last_frame = closed.last_frame;
+  result.registration_inlier_fraction = closed.registration.inlier_fraction;
+  result.registration_residual_rms_m = closed.registration.residual_rms_m;
+  result.constraints = closed.constraints;
+  result.iterations = closed.solve.iterations;
+  result.last_pose_correction_m = closed.correction_m;
+  result.last_pose_correction_deg = closed.correction_deg;
+  result.ms = closed.ms;
+  return result;
+}
+
 const sls::fusion::ExtractedSurface& model(const sls_scan& scan) {
   const sls::session::ScanSession& session = fused_session(scan);
   if (!scan.surface) scan.surface = session.final_surface();
@@ -243,6 +275,7 @@ SLS_API void sls_scan_config_init(sls_scan_config* config) {
   config->use_turntable_prior = 0;
   config->voxel_size_m = 0.0;
   config->max_voxels = 0.0;
+  config->online_deformation = 1;
 }
 
 SLS_API void sls_capture_config_init(sls_capture_config* config) {
@@ -255,6 +288,12 @@ SLS_API void sls_scan_summary_init(sls_scan_summary* summary) {
   if (summary == nullptr) return;
   std::memset(summary, 0, sizeof(*summary));
   summary->struct_size = sizeof(*summary);
+}
+
+SLS_API void sls_loop_closure_init(sls_loop_closure* result) {
+  if (result == nullptr) return;
+  std::memset(result, 0, sizeof(*result));
+  result->struct_size = sizeof(*result);
 }
 
 SLS_API sls_status sls_scan_create(sls_context* context, const sls_scan_config* config, sls_scan** scan,
@@ -340,9 +379,28 @@ SLS_API sls_status sls_scan_get_summary(const sls_scan* scan, sls_scan_summary* 
       }
       if (filled.fused > 0) filled.voxel_size_m = session.volume_geometry().voxel_size_m;
       filled.volume_moves = session.moves();
+      // The graph once the worker is done: waits for it only when the caller's struct asks.
+      if (summary->struct_size > offsetof(sls_scan_summary, deformation_nodes)) {
+        const sls::session::ScanSession::GraphSummary graph = session.graph_summary();
+        filled.deformation_nodes = graph.nodes;
+        filled.deformation_constraints = graph.constraints;
+      }
+      filled.loop_closed = session.loop_closure().has_value() ? 1 : 0;
     }
     filled.cancelled = scan->cancelled ? 1 : 0;
     sls::capi::write_versioned(filled, summary, kSummaryFirstVersionSize, "sls_scan_summary");
+  });
+}
+
+SLS_API sls_status sls_scan_close_loop(sls_scan* scan, sls_loop_closure* result, sls_error** error) {
+  SLS_CAPI_REQUIRE(scan != nullptr, error, "scan is NULL");
+  const ScanHold hold(*scan);
+  if (!hold.held()) return report_busy(__func__, error);
+  return sls::capi::guarded(__func__, error, [&] {
+    // The caller's struct checked before the model changes: a bad one changes nothing.
+    if (result != nullptr) sls::capi::require_versioned(result, kLoopClosureFirstVersionSize, "sls_loop_closure");
+    const sls_loop_closure closed = close_loop(*scan);
+    if (result != nullptr) sls::capi::write_versioned(closed, result, kLoopClosureFirstVersionSize, "sls_loop_closure");
   });
 }
 

@@ -289,7 +289,7 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     const std::size_t shipped_before = s.moving->shipped_cloud().size();
     report.move = s.moving->follow(T_world_camera);
     report.times.move_ms = ms_since(start);
-    if (report.move.moved) {
+    if (report.move.moved && s.deformation) {
       start = Clock::now();
       s.record_shipped(frame.index - 1, shipped_before);
       report.times.deform_ms += ms_since(start);

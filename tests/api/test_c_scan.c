@@ -8,7 +8,13 @@
  *    returns SLS_ERROR_CANCELLED and keeps the model, whose cloud, mesh and trajectory files
  *    are valid; a cancel is final;
  *  - the same scan cancelled from another thread while it runs;
- *  - sim:// devices captured into a recording and scanned (sls_scan_run_devices), to SLS_OK;
+ *  - the whole revolution scanned with online deformation (a config of the size before
+ *    online_deformation: the default, on), then the loop closed (sls_scan_close_loop): its
+ *    result, the summary, and the writes, which give the closed model and poses; the
+ *    mistakes of a loop closure (before a run, deformation off, a run that fused nothing, a
+ *    bad struct, during a run);
+ *  - sim:// devices captured into a recording and scanned (sls_scan_run_devices), to SLS_OK
+ *    (the camera never moves: no loop to close, said clearly, the model kept);
  *  - the mistakes: NULL handles, bad configs, a missing or corrupt recording, a recording of
  *    which no frame can be fused, a run or a query on a running scan (from the callback).
  * Exit status 0 when every check holds; each failed check prints its line. */
@@ -207,21 +213,24 @@ typedef struct frame_log {
   double T_world_camera[MAX_FRAMES][16];
   int tracked[MAX_FRAMES];
   int sane[MAX_FRAMES]; /* struct size, strings, counts, times */
+  int keyframes;        /* frames reported as keyframes */
+  size_t max_deformation_nodes;
+  double deform_ms;     /* the frame loop's share, summed */
   char first_reason[256];
-  sls_status busy_summary, busy_run, busy_callback, busy_write; /* calls on the running scan */
+  sls_status busy_summary, busy_run, busy_callback, busy_write, busy_close; /* calls on the running scan */
 } frame_log;
 
 static void frame_log_init(frame_log* log, sls_scan* scan, int cancel_after) {
   memset(log, 0, sizeof(*log));
   log->scan = scan;
   log->cancel_after = cancel_after;
-  log->busy_summary = log->busy_run = log->busy_callback = log->busy_write = SLS_OK;
+  log->busy_summary = log->busy_run = log->busy_callback = log->busy_write = log->busy_close = SLS_OK;
 }
 
 static void on_frame(const sls_frame_report* report, void* user) {
   frame_log* log = (frame_log*)user;
   int n = log->count;
-  int times_ok;
+  int times_ok, deformation_ok;
   if (n >= MAX_FRAMES) return;
   if (n > 0 && report->index != log->index[n - 1] + 1) log->out_of_order = 1;
   log->index[n] = report->index;
@@ -229,10 +238,17 @@ static void on_frame(const sls_frame_report* report, void* user) {
   memcpy(log->T_world_camera[n], report->T_world_camera, sizeof(report->T_world_camera));
   log->tracked[n] = report->tracked;
   times_ok = report->read_ms >= 0 && report->decode_ms >= 0 && report->track_ms >= 0 && report->integrate_ms >= 0 &&
-             report->move_ms >= 0 && report->raycast_ms >= 0 &&
+             report->move_ms >= 0 && report->raycast_ms >= 0 && report->deform_ms >= 0 &&
              fabs(report->total_ms - (report->read_ms + report->decode_ms + report->track_ms + report->integrate_ms +
-                                      report->move_ms + report->raycast_ms)) < 1e-6;
-  log->sane[n] = report->struct_size == sizeof(sls_frame_report) && report->reason != NULL &&
+                                      report->move_ms + report->raycast_ms + report->deform_ms)) < 1e-6;
+  /* A keyframe is a fused frame; the worker's counts never exceed what was queued. */
+  deformation_ok = (report->keyframe == 0 || report->keyframe == 1) &&
+                   (!report->keyframe || report->status == SLS_FRAME_FUSED) &&
+                   report->deformation_nodes <= (size_t)report->index + 1 && report->deformation_solve_ms >= 0;
+  log->keyframes += report->keyframe;
+  if (report->deformation_nodes > log->max_deformation_nodes) log->max_deformation_nodes = report->deformation_nodes;
+  log->deform_ms += report->deform_ms;
+  log->sane[n] = report->struct_size == sizeof(sls_frame_report) && report->reason != NULL && deformation_ok &&
                  (report->status == SLS_FRAME_FUSED) == (report->reason[0] == '\0') &&
                  report->recording_frames > (size_t)report->index && times_ok &&
                  (report->status == SLS_FRAME_SKIPPED || report->depth_pixels > 0) &&
@@ -247,6 +263,7 @@ static void on_frame(const sls_frame_report* report, void* user) {
     log->busy_run = sls_scan_run_recording(log->scan, "elsewhere", NULL);
     log->busy_callback = sls_scan_set_frame_callback(log->scan, NULL, NULL, NULL);
     log->busy_write = sls_scan_write_cloud(log->scan, "never.ply", NULL);
+    log->busy_close = sls_scan_close_loop(log->scan, NULL, NULL);
   }
   log->count = n + 1;
   if (report->index == log->cancel_after) sls_scan_cancel(log->scan, NULL);
@@ -297,6 +314,7 @@ static void check_cancelled_turntable_scan(sls_context* context, const char* rec
   CHECK(log.first_reason[0] == '\0');
   CHECK(log.busy_summary == SLS_ERROR_BUSY && log.busy_run == SLS_ERROR_BUSY);
   CHECK(log.busy_callback == SLS_ERROR_BUSY && log.busy_write == SLS_ERROR_BUSY);
+  CHECK(log.busy_close == SLS_ERROR_BUSY);
 
   /* Poses: world is the first camera, so frame i's pose is the camera's motion since frame 0;
    * the truth's is T_object_camera(0)^-1 T_object_camera(i). The camera turns 10 degrees a
@@ -339,6 +357,196 @@ static void check_cancelled_turntable_scan(sls_context* context, const char* rec
               "/nonexistent-folder/cloud.ply");
   sls_scan_destroy(scan);
   free(truth_path), free(cloud), free(mesh), free(trajectory);
+}
+
+/* 1 when two files can be read and their contents differ. */
+static int files_differ(const char* a, const char* b) {
+  int differ = 0;
+  FILE* file_a = fopen(a, "rb");
+  FILE* file_b = fopen(b, "rb");
+  if (file_a != NULL && file_b != NULL) {
+    int byte_a, byte_b;
+    do {
+      byte_a = fgetc(file_a);
+      byte_b = fgetc(file_b);
+    } while (byte_a == byte_b && byte_a != EOF);
+    differ = byte_a != byte_b;
+  }
+  if (file_a != NULL) fclose(file_a);
+  if (file_b != NULL) fclose(file_b);
+  return differ;
+}
+
+/* The whole revolution (36 frames, 10 degrees apart, the turntable prior) with online
+ * deformation, from a config of the size a caller compiled before online_deformation has (its
+ * struct ends at max_voxels: the field past it is not read, deformation keeps its default, on),
+ * then the loop closed: the last frame registers to the first, and the closed model and
+ * trajectory are what the writes give afterwards. */
+static void check_loop_closure(sls_context* context, const char* recording, const char* scratch) {
+  enum { kFrames = 36 };
+  static frame_log log;
+  static double truth[kFrames][16], before[kFrames][16], after[kFrames][16];
+  char* truth_path = path_join(recording, "groundtruth/trajectory.txt");
+  char* cloud_before = path_join(scratch, "loop_open_cloud.ply");
+  char* cloud_after = path_join(scratch, "loop_closed_cloud.ply");
+  char* mesh_after = path_join(scratch, "loop_closed_mesh.ply");
+  char* trajectory_before = path_join(scratch, "loop_open_trajectory.txt");
+  char* trajectory_after = path_join(scratch, "loop_closed_trajectory.txt");
+  sls_scan_config config;
+  sls_scan_summary summary;
+  sls_loop_closure loop;
+  sls_scan* scan = NULL;
+  sls_error* error = NULL;
+  sls_status status;
+  double true_motion[16], translation_m, rotation_deg, drift_m, drift_deg, closed_m, closed_deg;
+  int i, last = kFrames - 1;
+  sls_scan_config_init(&config);
+  CHECK(config.online_deformation == 1);
+  config.use_turntable_prior = 1;
+  config.max_voxels = 2e6;
+  config.online_deformation = 0; /* past the old struct's end: not read */
+  config.struct_size = offsetof(sls_scan_config, max_voxels) + sizeof(double);
+  if (!succeeded(sls_scan_create(context, &config, &scan, &error), error, __LINE__)) return;
+  frame_log_init(&log, scan, -1);
+  CHECK_OK(sls_scan_set_frame_callback(scan, on_frame, &log, &error_));
+  CHECK_OK(sls_scan_run_recording(scan, recording, &error_));
+  CHECK(log.count == kFrames && !log.out_of_order);
+  for (i = 0; i < log.count; ++i) CHECK(log.sane[i] && log.status[i] == SLS_FRAME_FUSED);
+  /* Deformation ran: keyframes as the turntable turned (a node every 5 degrees at most, so
+   * about one a frame), the worker's graph growing behind them. */
+  printf("online deformation: %d keyframes, up to %lu nodes seen by the frame loop, %.1f ms in the frame loop\n",
+         log.keyframes, (unsigned long)log.max_deformation_nodes, log.deform_ms);
+  CHECK(log.keyframes >= 4 && log.keyframes <= kFrames);
+  CHECK(log.max_deformation_nodes > 0 && log.max_deformation_nodes <= (size_t)log.keyframes);
+
+  sls_scan_summary_init(&summary);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.fused == kFrames && summary.cancelled == 0);
+  CHECK(summary.deformation_nodes == (size_t)log.keyframes);
+  CHECK(summary.loop_closed == 0);
+  /* The open model written first (the scan keeps it extracted), then the loop closed. */
+  CHECK_OK(sls_scan_write_cloud(scan, cloud_before, &error_));
+  CHECK_OK(sls_scan_write_trajectory(scan, trajectory_before, &error_));
+
+  sls_loop_closure_init(&loop);
+  CHECK(loop.struct_size == sizeof(loop) && loop.constraints == 0);
+  sls_loop_closure_init(NULL);
+  status = sls_scan_close_loop(scan, &loop, &error);
+  if (!succeeded(status, error, __LINE__)) {
+    sls_scan_destroy(scan);
+    return;
+  }
+  printf("loop closure: frame %d to %d, registration %.3f inliers %.1f um rms, %lu constraints, %d iterations, "
+         "last pose corrected %.1f um %.4f deg, %.0f ms\n",
+         loop.first_frame, loop.last_frame, loop.registration_inlier_fraction, loop.registration_residual_rms_m * 1e6,
+         (unsigned long)loop.constraints, loop.iterations, loop.last_pose_correction_m * 1e6,
+         loop.last_pose_correction_deg, loop.ms);
+  CHECK(loop.struct_size == sizeof(loop));
+  CHECK(loop.first_frame == 0 && loop.last_frame == last);
+  CHECK(loop.registration_inlier_fraction > 0.5 && loop.registration_inlier_fraction <= 1.0);
+  CHECK(loop.registration_residual_rms_m > 0 && loop.registration_residual_rms_m < 100e-6);
+  CHECK(loop.constraints > 100);
+  CHECK(loop.iterations >= 1);
+  /* Drift over a tracked revolution is well under a millimetre and a degree. */
+  CHECK(loop.last_pose_correction_m >= 0 && loop.last_pose_correction_m < 1e-3);
+  CHECK(loop.last_pose_correction_deg >= 0 && loop.last_pose_correction_deg < 1.0);
+  CHECK(loop.ms > 0);
+
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.loop_closed == 1);
+  CHECK(summary.deformation_nodes == (size_t)log.keyframes);
+  CHECK(summary.deformation_constraints >= loop.constraints);
+  /* A summary of the size before the deformation fields: filled up to there, nothing past. */
+  memset(&summary, 0x5a, sizeof(summary));
+  summary.struct_size = offsetof(sls_scan_summary, volume_moves) + sizeof(size_t);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.struct_size == offsetof(sls_scan_summary, volume_moves) + sizeof(size_t));
+  CHECK(summary.fused == kFrames && summary.cancelled == 0);
+  {
+    sls_scan_summary untouched;
+    memset(&untouched, 0x5a, sizeof(untouched));
+    CHECK(summary.deformation_nodes == untouched.deformation_nodes && summary.loop_closed == untouched.loop_closed);
+  }
+
+  /* The writes give the closed model: the cloud differs from the open one, and the last pose
+   * of the trajectory is the tracked pose (the frame report's) moved by the correction. */
+  CHECK_OK(sls_scan_write_cloud(scan, cloud_after, &error_));
+  CHECK_OK(sls_scan_write_mesh(scan, mesh_after, &error_));
+  CHECK_OK(sls_scan_write_trajectory(scan, trajectory_after, &error_));
+  check_cloud_file(cloud_after);
+  check_mesh_file(mesh_after);
+  CHECK(files_differ(cloud_before, cloud_after));
+  CHECK(read_tum(trajectory_before, before, kFrames) == kFrames);
+  CHECK(read_tum(trajectory_after, after, kFrames) == kFrames);
+  pose_difference(log.T_world_camera[last], after[last], &translation_m, &rotation_deg);
+  CHECK(fabs(translation_m - loop.last_pose_correction_m) < 2e-6);
+  CHECK(fabs(rotation_deg - loop.last_pose_correction_deg) < 1e-3);
+  pose_difference(before[last], after[last], &translation_m, &rotation_deg);
+  CHECK(translation_m > 0 || rotation_deg > 0);
+  /* Against the truth (world = the first camera): the last pose as tracked and as closed. */
+  CHECK(read_tum(truth_path, truth, kFrames) == kFrames);
+  relative_pose(truth[0], truth[last], true_motion);
+  pose_difference(true_motion, log.T_world_camera[last], &drift_m, &drift_deg);
+  pose_difference(true_motion, after[last], &closed_m, &closed_deg);
+  printf("last pose against the truth: tracked %.1f um %.4f deg, closed %.1f um %.4f deg\n", drift_m * 1e6, drift_deg,
+         closed_m * 1e6, closed_deg);
+  CHECK(closed_m < 0.5e-3 && closed_deg < 0.2);
+
+  /* A result of a bad size is refused before anything is done, and left as it was. */
+  loop.struct_size = 4;
+  CHECK_ERROR(sls_scan_close_loop(scan, &loop, &error_), SLS_ERROR_INVALID_ARGUMENT, "sls_loop_closure_init");
+  CHECK(loop.struct_size == 4);
+  sls_scan_destroy(scan);
+  free(truth_path), free(cloud_before), free(cloud_after), free(mesh_after), free(trajectory_before),
+      free(trajectory_after);
+}
+
+/* The loop closure refused, clearly, the model kept: before a run, with online deformation
+ * off, and a NULL scan. */
+static void check_loop_closure_refused(sls_context* context, const char* recording, const char* scratch) {
+  static frame_log log;
+  char* cloud = path_join(scratch, "no_deformation_cloud.ply");
+  char* trajectory = path_join(scratch, "no_deformation_trajectory.txt");
+  sls_scan_config config;
+  sls_scan_summary summary;
+  sls_loop_closure loop;
+  sls_scan* scan = NULL;
+  sls_error* error = NULL;
+  int i;
+  sls_loop_closure_init(&loop);
+  CHECK_ERROR(sls_scan_close_loop(NULL, &loop, &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");
+
+  sls_scan_config_init(&config);
+  config.use_turntable_prior = 1;
+  config.max_voxels = 2e6;
+  config.online_deformation = 0;
+  if (!succeeded(sls_scan_create(context, &config, &scan, &error), error, __LINE__)) return;
+  CHECK_ERROR(sls_scan_close_loop(scan, &loop, &error_), SLS_ERROR_INVALID_ARGUMENT, "before any run");
+  CHECK_ERROR(sls_scan_close_loop(scan, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "before any run");
+  CHECK(loop.struct_size == sizeof(loop) && loop.last_frame == 0); /* untouched */
+
+  /* Deformation off: no keyframes, no graph; the loop cannot be closed, the model stays. */
+  frame_log_init(&log, scan, 3);
+  CHECK_OK(sls_scan_set_frame_callback(scan, on_frame, &log, &error_));
+  CHECK_ERROR(sls_scan_run_recording(scan, recording, &error_), SLS_ERROR_CANCELLED, "cancelled");
+  CHECK(log.count == 4);
+  for (i = 0; i < log.count; ++i) CHECK(log.sane[i] && log.status[i] == SLS_FRAME_FUSED);
+  printf("deformation off: %d keyframes, %lu nodes, %.4f ms in the frame loop\n", log.keyframes,
+         (unsigned long)log.max_deformation_nodes, log.deform_ms);
+  CHECK(log.keyframes == 0 && log.max_deformation_nodes == 0);
+  CHECK(log.deform_ms == 0.0); /* nothing of deformation's runs in the frame loop */
+  CHECK_ERROR(sls_scan_close_loop(scan, &loop, &error_), SLS_ERROR_INVALID_ARGUMENT, "online deformation");
+  CHECK(loop.last_frame == 0);
+  sls_scan_summary_init(&summary);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.fused == 4 && summary.deformation_nodes == 0 && summary.deformation_constraints == 0);
+  CHECK(summary.loop_closed == 0);
+  CHECK_OK(sls_scan_write_cloud(scan, cloud, &error_));
+  CHECK_OK(sls_scan_write_trajectory(scan, trajectory, &error_));
+  check_cloud_file(cloud);
+  CHECK(count_tum_poses(trajectory) == 4);
+  sls_scan_destroy(scan);
+  free(cloud), free(trajectory);
 }
 
 /* Replaces a file's content; 1 when written. */
@@ -472,6 +680,10 @@ static void check_devices_scan(sls_context* context, const char* recording, cons
   sls_scan_summary_init(&summary);
   CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
   CHECK(summary.frames == 2 && summary.fused == 2 && summary.cancelled == 0);
+  /* The camera never moved: one keyframe, no loop to close; said so, and the model is kept. */
+  CHECK_ERROR(sls_scan_close_loop(scan, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "too few keyframes");
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.loop_closed == 0 && summary.fused == 2);
   CHECK_OK(sls_scan_write_trajectory(scan, trajectory, &error_));
   CHECK(count_tum_poses(trajectory) == 2);
 
@@ -513,6 +725,7 @@ static void check_devices_scan(sls_context* context, const char* recording, cons
   CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
   CHECK(summary.frames == 2 && summary.skipped == 2 && summary.fused == 0);
   CHECK_ERROR(sls_scan_write_mesh(scan, "mesh.ply", &error_), SLS_ERROR_INVALID_ARGUMENT, "no frame");
+  CHECK_ERROR(sls_scan_close_loop(scan, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "before any frame was fused");
 
   /* An image that is no PNG at all, or a corrupt manifest: the recording fails its check
    * before any frame, with FORMAT naming the file. */
@@ -604,6 +817,8 @@ int main(int argc, char** argv) {
   check_mistakes(context, argv[2]);
   check_cancelled_turntable_scan(context, argv[1], argv[2]);
   check_cancel_from_another_thread(context, argv[1], argv[2]);
+  check_loop_closure_refused(context, argv[1], argv[2]);
+  check_loop_closure(context, argv[1], argv[2]);
   check_devices_scan(context, argv[1], argv[2]);
   sls_context_destroy(context);
   if (failures != 0) fprintf(stderr, "%d check(s) failed\n", failures);

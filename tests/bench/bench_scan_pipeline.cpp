@@ -7,7 +7,12 @@
 // each stage's median, the frames lost, the moves and the loop-closure drift against the
 // simulator's true poses. Rendering the frames is not timed.
 // Arguments: frames (0: the preset's 440), object (0 knurled screw, 1 knurled knob), the
-// tracker's max_model_width (0: its default, full resolution; 2048: ICP at 2000 x 1500).
+// tracker's max_model_width (0: its default, full resolution; 2048: ICP at 2000 x 1500),
+// deformation (1: online deformation beside the frame loop, then the loop closure; 0: off).
+// The headline is the revolution as the user waits for it: every add_frame (uploads, host
+// work, moves, the deformation's share), the loop closure and the final (deformed) surface's
+// extraction, summed wall time (`revolution_s`), with the per-stage medians beside it; the
+// trajectory's errors (ATE, loop) as tracked and as deformed.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -15,8 +20,13 @@
 #include <string>
 #include <vector>
 
+#include <chrono>
+#include <optional>
+
 #include "drivers/sim/renderer.h"
+#include "samples/sls/evaluate.h"
 #include "sdk/core/device.h"
+#include "sdk/core/error.h"
 #include "sdk/session/scan_session.h"
 
 namespace sls {
@@ -49,9 +59,16 @@ void BM_ScanPipeline(benchmark::State& state) {
   options.voxel_size_m = 10.4e-6;
   options.volume_size_m = Eigen::Vector3d::Constant(960 * options.voxel_size_m * (1.0 - 1e-9));
   if (state.range(2) > 0) options.tracking.max_model_width = static_cast<int>(state.range(2));
+  options.deformation.enabled = state.range(3) != 0;
+  using Clock = std::chrono::steady_clock;
+  const auto seconds_since = [](Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+  };
   for (auto _ : state) {
     session::ScanSession scan(rig.calibration(), nullptr, options);
-    std::vector<double> pipeline, track, integrate, move, raycast, condition, inliers;
+    std::vector<double> pipeline, track, integrate, move, raycast, condition, inliers, deform, total;
+    double frames_s = 0.0;
+    std::vector<StampedPose> truth;
     std::vector<double> move_resample, move_ship, move_assemble, move_points;  // frames that moved
     double degenerate = 0.0;
     int lost = 0;
@@ -62,7 +79,11 @@ void BM_ScanPipeline(benchmark::State& state) {
       frame.index = k;
       frame.timestamp_ns = static_cast<std::int64_t>(k) * 333'333'333;
       frame.depth_m = renderer.render_depth();
+      truth.push_back({static_cast<double>(frame.timestamp_ns) * 1e-9, rig.T_object_camera(k)});
+      const Clock::time_point start = Clock::now();
       const session::FrameReport report = scan.add_frame(frame);
+      frames_s += seconds_since(start);
+      total.push_back(report.times.total_ms());
       if (report.status != session::FrameStatus::kFused) {
         if (lost == 0) first_lost = "frame " + std::to_string(k) + ": " + report.reason;
         ++lost;
@@ -80,6 +101,7 @@ void BM_ScanPipeline(benchmark::State& state) {
       integrate.push_back(t.integrate_ms);
       move.push_back(t.move_ms);
       raycast.push_back(t.raycast_ms);
+      deform.push_back(t.deform_ms);
       if (report.move.moved) {
         move_resample.push_back(report.move.resample_ms);
         move_ship.push_back(report.move.ship_ms);
@@ -87,7 +109,37 @@ void BM_ScanPipeline(benchmark::State& state) {
         move_points.push_back(static_cast<double>(report.move.shipped_points));
       }
     }
-    state.SetIterationTime(0.0);
+    // The end of the revolution: the loop closure (with deformation) and the final surface.
+    Clock::time_point start = Clock::now();
+    if (scan.deformation_enabled()) {
+      try {
+        const session::LoopClosureReport loop = scan.close_loop();
+        state.counters["loop_closure_ms"] = loop.ms;
+        state.counters["loop_solve_ms"] = loop.solve.ms;
+      } catch (const Error& error) {
+        state.SetLabel(std::string("loop closure failed: ") + error.what());
+      }
+    }
+    const double loop_s = seconds_since(start);
+    start = Clock::now();
+    const fusion::ExtractedSurface surface = scan.final_surface();
+    const double extract_s = seconds_since(start);
+    state.SetIterationTime(frames_s + loop_s + extract_s);
+    state.counters["revolution_s"] = frames_s + loop_s + extract_s;
+    state.counters["frames_s"] = frames_s;
+    state.counters["extract_s"] = extract_s;
+    state.counters["points"] = static_cast<double>(surface.cloud.size());
+    state.counters["frame_total_median_ms"] = median(total);
+    state.counters["deform_frame_ms"] = median(deform);
+    if (scan.deformation_enabled()) {
+      const session::DeformationStatus status = scan.deformation_status(true);
+      std::vector<double> jobs;
+      for (const session::KeyframeSolve& k : scan.keyframe_solves()) jobs.push_back(k.ms);
+      state.counters["worker_job_ms"] = median(jobs);
+      state.counters["worker_s"] = status.worker_ms * 1e-3;
+      state.counters["nodes"] = static_cast<double>(status.nodes);
+      state.counters["constraints"] = static_cast<double>(status.constraints);
+    }
     state.counters["median_ms"] = median(pipeline);
     state.counters["track_ms"] = median(track);
     state.counters["integrate_ms"] = median(integrate);
@@ -105,23 +157,27 @@ void BM_ScanPipeline(benchmark::State& state) {
     state.counters["degenerate"] = degenerate / static_cast<double>(std::max<std::size_t>(condition.size(), 1));
     state.counters["moves"] = static_cast<double>(scan.moves());
     if (!first_lost.empty()) state.SetLabel("first lost " + first_lost);
-    const std::vector<StampedPose> trajectory = scan.trajectory();
-    if (trajectory.size() >= 2) {
-      // Drift over the revolution: the first-to-last motion against the true one.
-      const Pose truth = rig.T_object_camera(0).inverse() * rig.T_object_camera(frames - 1);
-      const Pose estimate = trajectory.front().T_world_camera.inverse() * trajectory.back().T_world_camera;
-      const Pose error = truth.inverse() * estimate;
-      state.counters["loop_error_um"] = error.translation().norm() * 1e6;
-      state.counters["loop_error_deg"] = error.angle_rad() * 180.0 / M_PI;
-    }
+    // Drift over the revolution: the first-to-last motion against the true one (the loop
+    // error), and the ATE, as tracked and as deformed (sls eval's definitions).
+    const auto errors = [&](const std::vector<StampedPose>& trajectory, const char* suffix) {
+      const std::optional<eval::TrajectoryErrors> e = eval::trajectory_errors(trajectory, truth);
+      if (!e) return;
+      state.counters[std::string("loop_error_um") + suffix] = e->loop_closure_error_m * 1e6;
+      state.counters[std::string("loop_error_deg") + suffix] = e->loop_closure_error_rad * 180.0 / M_PI;
+      state.counters[std::string("ate_um") + suffix] = e->ate_rmse_m * 1e6;
+    };
+    errors(scan.trajectory_undeformed(), "");
+    if (scan.deformation_enabled()) errors(scan.trajectory(), "_closed");
   }
 }
 BENCHMARK(BM_ScanPipeline)
-    ->Args({0, 0, 0})
-    ->Args({0, 1, 0})
-    ->Args({0, 0, 2048})
-    ->Args({0, 1, 2048})
-    ->ArgNames({"frames", "object", "model_width"})
+    ->Args({0, 0, 0, 1})
+    ->Args({0, 1, 0, 1})
+    ->Args({0, 0, 0, 0})
+    ->Args({0, 1, 0, 0})
+    ->Args({0, 0, 2048, 1})
+    ->Args({0, 1, 2048, 1})
+    ->ArgNames({"frames", "object", "model_width", "deformation"})
     ->Iterations(1)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);

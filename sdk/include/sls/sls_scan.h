@@ -11,13 +11,21 @@
  * turntable angle about the calibrated axis), integrate it (GTSDF or TSDF), move the volume
  * when the camera leaves it, raycast the model for the next frame. A frame that cannot be read
  * or decoded is skipped, one the tracker cannot register is lost: neither touches the model,
- * and the scan goes on. After a run the model (cloud, mesh) and the trajectory of the fused
- * frames can be written. The world frame is the camera frame of the first fused frame.
+ * and the scan goes on. With online_deformation (the default) a deformation graph, solved on a
+ * worker thread of the scan beside the frame loop, corrects the drift of tracking (keyframes
+ * are its nodes, surface seen again its constraints); after a run that went round the object
+ * (a turntable revolution), sls_scan_close_loop() registers the last frame to the first and
+ * closes the loop. After a run the model (cloud, mesh) and the trajectory of the fused frames
+ * can be written, deformed by the graph. The world frame is the camera frame of the first
+ * fused frame.
  *
  * Threads: a run blocks the thread that calls it; the frame callback runs on that thread.
  * sls_scan_cancel() may be called from any thread, the frame callback included. Every other
  * function on a scan returns SLS_ERROR_BUSY while a run is in progress (from the callback too);
- * different scans are independent. Destroying a scan while it runs is the caller's bug.
+ * different scans are independent. Destroying a scan while it runs is the caller's bug. The
+ * deformation worker is the scan's own thread, started by a run and stopped by the next run or
+ * sls_scan_destroy() (after its current job); no callback runs on it, and the calls that read
+ * the graph (sls_scan_close_loop, sls_scan_get_summary, the writes) wait for it to catch up.
  *
  * Typical use:
  *   static void on_frame(const sls_frame_report* report, void* user) {
@@ -32,6 +40,8 @@
  *       sls_scan_set_frame_callback(scan, on_frame, NULL, NULL) == SLS_OK) {
  *     sls_error* error = NULL;
  *     sls_status status = sls_scan_run_recording(scan, "scans/knob", &error);
+ *     if (status == SLS_OK && sls_scan_close_loop(scan, NULL, NULL) != SLS_OK)
+ *       fprintf(stderr, "loop not closed: the model as online deformation left it\n");
  *     if (status == SLS_OK || status == SLS_ERROR_CANCELLED) sls_scan_write_mesh(scan, "knob.ply", NULL);
  *     if (status != SLS_OK) fprintf(stderr, "%s\n", sls_error_message(error));
  *     sls_error_free(error);
@@ -77,6 +87,12 @@ typedef struct sls_scan_config {
   double max_voxels;        /* the largest volume (one of the moving volume's two buffers) the
                              * automatic voxel size is grown to fit; default 0: 256e6 with CUDA,
                              * 48e6 on the CPU */
+  /* Appended later (a caller whose struct_size ends before a field gets its default): */
+  int online_deformation;   /* default 1: a deformation graph, solved on a worker thread beside
+                             * the frame loop, corrects the tracked model's drift (keyframes as
+                             * nodes, revisited surface as constraints); the model, trajectory
+                             * and sls_scan_close_loop() use it. 0: off, the model as tracked,
+                             * and no loop closure */
 } sls_scan_config;
 
 /* Fills *config with the defaults. */
@@ -126,7 +142,18 @@ typedef struct sls_frame_report {
   double integrate_ms;
   double move_ms;
   double raycast_ms;
-  double total_ms;           /* the sum of the stages above */
+  double total_ms;           /* the sum of the stages above, deform_ms included */
+  /* Appended later (there when struct_size covers them): online deformation as this frame saw
+   * it, 0 with online_deformation off. The graph is
+   * solved on a worker thread a little behind the frame loop, so the counts are the worker's
+   * at this frame, not final. */
+  int keyframe;                   /* 1: this fused frame made a keyframe, a node of the graph */
+  size_t deformation_nodes;       /* the graph's nodes (keyframes the worker has added) */
+  size_t deformation_constraints; /* its constraints (matches of revisited surface) */
+  double deformation_solve_ms;    /* the worker's last keyframe job (matching + Gauss-Newton),
+                                   * in its own thread: not part of total_ms */
+  double deform_ms;               /* the frame loop's share of online deformation (surface
+                                   * samples, queueing for the worker), part of total_ms */
 } sls_frame_report;
 
 /* Called after each frame of a run, in frame order, on the thread running sls_scan_run_*().
@@ -207,6 +234,11 @@ typedef struct sls_scan_summary {
   int cancelled;        /* 1: the run was cancelled before its end */
   double voxel_size_m;  /* the volume's voxel size; 0 before the first fused frame */
   size_t volume_moves;  /* times the volume moved with the camera */
+  /* Appended later (filled when struct_size covers them): */
+  size_t deformation_nodes;       /* the deformation graph's nodes (keyframes) once the worker is
+                                   * done; 0 with online_deformation off */
+  size_t deformation_constraints; /* its constraints, those of the loop closure included */
+  int loop_closed;                /* 1: sls_scan_close_loop() succeeded on this run's model */
 } sls_scan_summary;
 
 /* Sets struct_size and clears the other fields. */
@@ -215,19 +247,58 @@ SLS_API void sls_scan_summary_init(sls_scan_summary* summary);
 /* The last run's summary; all zero before the first run. */
 SLS_API sls_status sls_scan_get_summary(const sls_scan* scan, sls_scan_summary* summary, sls_error** error);
 
+/* What sls_scan_close_loop() did. Versioned like sls_scan_summary: initialise with
+ * sls_loop_closure_init(); the library fills only the fields the caller's struct_size covers. */
+typedef struct sls_loop_closure {
+  size_t struct_size;
+  int first_frame;                     /* recording index of the first fused frame */
+  int last_frame;                      /* and of the last, registered to the first's surface */
+  double registration_inlier_fraction; /* the last frame's ICP registration to the first frame's
+                                        * surface: matched fraction of its depth pixels */
+  double registration_residual_rms_m;  /* and its point-to-plane residual */
+  size_t constraints;                  /* constraints added to the graph (the last frame's samples) */
+  int iterations;                      /* Gauss-Newton steps of the graph's solve */
+  double last_pose_correction_m;       /* the last fused pose after the closure against the pose
+                                        * as tracked: translation, metres */
+  double last_pose_correction_deg;     /* and rotation, degrees */
+  double ms;                           /* the whole closure, registration and solve, milliseconds */
+} sls_loop_closure;
+
+/* Sets struct_size and clears the other fields. */
+SLS_API void sls_loop_closure_init(sls_loop_closure* result);
+
+/* Closes the loop of the last run, after it (e.g. a full turntable revolution): waits for the
+ * deformation worker, registers the last fused frame to the first frame's surface (ICP from the
+ * deformed estimate of its pose, or from the turntable angle with use_turntable_prior), adds
+ * the points of the last frame as constraints to where that registration puts them, and solves
+ * the deformation graph. Afterwards sls_scan_write_cloud(), _mesh() and _trajectory() write the
+ * closed model, and sls_scan_get_summary() says loop_closed 1. May be called on the results of
+ * a cancelled run; called again, it adds a second set of constraints and solves again. Blocks
+ * the calling thread (a registration and a solve: tens of milliseconds to about a second).
+ *   result: NULL, or a struct from sls_loop_closure_init() the library fills (caller-owned).
+ * SLS_ERROR_INVALID_ARGUMENT, the model kept as it was and `result` untouched, when no frame has
+ * been fused (before any run, or a run that fused none), online_deformation is 0, the scan has
+ * too few keyframes (it moved too little for a loop), or the last frame does not register to
+ * the first frame's surface (not a closed loop, or drift beyond the tracker's reach): the
+ * message says which; a bad result->struct_size, checked first. SLS_ERROR_BUSY during a run. */
+SLS_API sls_status sls_scan_close_loop(sls_scan* scan, sls_loop_closure* result, sls_error** error);
+
 /* The model as a point cloud (zero crossings of the volume with normals and confidence), in the
  * world frame, written as binary PLY to `path` (atomically: a temporary file renamed). The parts
  * the moving volume shipped and the current volume's surface, so a cancelled or interrupted
- * run writes what it fused. SLS_ERROR_INVALID_ARGUMENT when no frame has been fused,
- * SLS_ERROR_IO when the file cannot be written. */
+ * run writes what it fused. With online_deformation, the model deformed by the graph (each part
+ * by the nodes of its time; the cloud then has a float property "correction": how far each
+ * point moved, metres), closed after sls_scan_close_loop(). SLS_ERROR_INVALID_ARGUMENT when no
+ * frame has been fused, SLS_ERROR_IO when the file cannot be written. */
 SLS_API sls_status sls_scan_write_cloud(const sls_scan* scan, const char* path, sls_error** error);
 
 /* The model as a triangle mesh (marching cubes), binary PLY, as sls_scan_write_cloud(). */
 SLS_API sls_status sls_scan_write_mesh(const sls_scan* scan, const char* path, sls_error** error);
 
 /* The poses of the fused frames, T_world_camera, as a TUM trajectory
- * (`timestamp tx ty tz qx qy qz qw`, seconds from the recording's timestamps). Errors as
- * sls_scan_write_cloud(). */
+ * (`timestamp tx ty tz qx qy qz qw`, seconds from the recording's timestamps); with
+ * online_deformation deformed by the graph (so they can differ from the frame reports' poses,
+ * which are as tracked), closed after sls_scan_close_loop(). Errors as sls_scan_write_cloud(). */
 SLS_API sls_status sls_scan_write_trajectory(const sls_scan* scan, const char* path, sls_error** error);
 
 #ifdef __cplusplus

@@ -1,0 +1,190 @@
+// Online deformation and loop closure in the scan session (sdk/session/scan_deformation.h,
+// ScanSession::close_loop) against the simulator's truth: a full turntable revolution of the
+// knurled knob at the ci preset (36 depth maps of 400 x 300, the decoder's noise model,
+// tracked with the turntable prior) closes to a fraction of its drift, the map and poses are
+// deformed by the nodes of their own time, and the errors a caller can cause are clear.
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "sdk/core/error.h"
+#include "sdk/session/scan_deformation.h"
+#include "sdk/session/scan_session.h"
+#include "tests/unit/session/sim_frames.h"
+
+namespace sls::session {
+namespace {
+
+ScanSessionOptions revolution_options(const Device& device) {
+  ScanSessionOptions options = small_options(device);
+  options.turntable_prior = true;  // the ci preset's 10° steps alias with the knurl from depth alone
+  return options;
+}
+
+// The error of the first-to-last motion (the loop) of a trajectory against the truth.
+RelativeError loop_error(const std::vector<StampedPose>& trajectory, const SimFrames& sim, std::size_t last) {
+  return relative_error(trajectory.front().T_world_camera, trajectory.back().T_world_camera, sim.truth(0),
+                        sim.truth(last));
+}
+
+// RMS over frames of the camera position error relative to frame 0.
+double relative_rms_m(const std::vector<StampedPose>& trajectory, const SimFrames& sim) {
+  double sum = 0.0;
+  for (std::size_t i = 0; i < trajectory.size(); ++i) {
+    const RelativeError e =
+        relative_error(trajectory.front().T_world_camera, trajectory[i].T_world_camera, sim.truth(0), sim.truth(i));
+    sum += e.translation_m * e.translation_m;
+  }
+  return std::sqrt(sum / static_cast<double>(trajectory.size()));
+}
+
+TEST(ScanDeformation, ClosesATurntableRevolution) {
+  SimFrames sim("knurled-knob", 36);
+  ScanSession session(sim.calibration(), nullptr, revolution_options(Device::cpu()));
+  std::size_t keyframes = 0;
+  for (int k = 0; k < 36; ++k) {
+    const FrameReport report = session.add_frame(sim.frame(k));
+    ASSERT_EQ(report.status, FrameStatus::kFused) << "frame " << k << ": " << report.reason;
+    keyframes += report.deformation.keyframe;
+  }
+  EXPECT_GT(keyframes, 20u);  // 10° steps: every frame turns past the 5° node angle
+  const LoopClosureReport loop = session.close_loop();
+  EXPECT_EQ(loop.first_frame, 0);
+  EXPECT_EQ(loop.last_frame, 35);
+  EXPECT_FALSE(loop.registration.lost);
+  EXPECT_GT(loop.constraints, 500u);
+  EXPECT_GE(loop.solve.iterations, 1);
+  EXPECT_LT(loop.solve.after.total(), loop.solve.before.total());
+  ASSERT_TRUE(session.loop_closure().has_value());
+
+  const std::vector<StampedPose> tracked = session.trajectory_undeformed();
+  const std::vector<StampedPose> closed = session.trajectory();
+  ASSERT_EQ(tracked.size(), 36u);
+  ASSERT_EQ(closed.size(), 36u);
+  const RelativeError before = loop_error(tracked, sim, 35);
+  const RelativeError after = loop_error(closed, sim, 35);
+  std::printf("[ measured ] loop %.1f um / %.4f deg -> %.1f um / %.4f deg; relative RMS %.1f -> %.1f um\n",
+              before.translation_m * 1e6, before.rotation_deg, after.translation_m * 1e6, after.rotation_deg,
+              relative_rms_m(tracked, sim) * 1e6, relative_rms_m(closed, sim) * 1e6);
+  EXPECT_LT(after.translation_m, 0.25 * before.translation_m);
+  EXPECT_LT(after.rotation_deg, 0.25 * before.rotation_deg);
+  EXPECT_LT(relative_rms_m(closed, sim), relative_rms_m(tracked, sim));
+  // The first frame holds the world: its nodes are pinned, so its pose moves only by the
+  // share of the next (free) nodes it is bound to, far less than the loop's correction.
+  const Pose first_moved = tracked.front().T_world_camera.inverse() * closed.front().T_world_camera;
+  EXPECT_LT(first_moved.translation().norm(), 0.05 * before.translation_m);
+
+  // The map: deformed part by part, each point's move in "correction", the first parts
+  // (bound to the pinned nodes) barely moved, the last ones by about the loop's correction.
+  const fusion::ExtractedSurface model = session.final_surface();
+  const fusion::ExtractedSurface as_tracked = session.final_surface_undeformed();
+  ASSERT_EQ(model.cloud.size(), as_tracked.cloud.size());
+  const PointProperty* correction = model.cloud.find_property("correction");
+  ASSERT_NE(correction, nullptr);
+  ASSERT_EQ(correction->values.size(), model.cloud.size());
+  EXPECT_EQ(as_tracked.cloud.find_property("correction"), nullptr);
+  EXPECT_LT(correction->values.front(), 5e-6f);
+  double largest = 0.0;
+  for (float v : correction->values) largest = std::max(largest, static_cast<double>(v));
+  EXPECT_GT(largest, 10e-6);
+  EXPECT_EQ(model.mesh.vertices.size(), as_tracked.mesh.vertices.size());
+
+  const ScanSession::GraphSummary graph = session.graph_summary();
+  EXPECT_EQ(graph.nodes, keyframes);
+  EXPECT_GE(graph.links, graph.nodes - 1);
+  EXPECT_GE(graph.analyses, 1u);
+  EXPECT_GT(graph.factorizations, graph.analyses);
+  const DeformationStatus status = session.deformation_status(true);
+  EXPECT_EQ(status.pending, 0u);
+  EXPECT_TRUE(status.error.empty()) << status.error;
+  EXPECT_EQ(session.keyframe_solves().size(), keyframes);
+}
+
+TEST(ScanDeformation, RefusesALoopClosureBeforeAnyFrame) {
+  SimFrames sim("knurled-knob", 36);
+  ScanSession session(sim.calibration(), nullptr, revolution_options(Device::cpu()));
+  try {
+    session.close_loop();
+    FAIL() << "closed a loop with no frame";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(error.what()).find("before any frame"), std::string::npos) << error.what();
+  }
+}
+
+TEST(ScanDeformation, RefusesALoopClosureWithDeformationOffAndKeepsTheModel) {
+  SimFrames sim("knurled-knob", 36);
+  ScanSessionOptions options = revolution_options(Device::cpu());
+  options.deformation.enabled = false;
+  ScanSession session(sim.calibration(), nullptr, options);
+  for (int k = 0; k < 3; ++k) ASSERT_EQ(session.add_frame(sim.frame(k)).status, FrameStatus::kFused);
+  EXPECT_FALSE(session.deformation_enabled());
+  const std::size_t points = session.final_surface().cloud.size();
+  try {
+    session.close_loop();
+    FAIL() << "closed a loop without deformation";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(error.what()).find("deformation"), std::string::npos) << error.what();
+  }
+  EXPECT_EQ(session.final_surface().cloud.size(), points);
+  EXPECT_EQ(session.final_surface().cloud.find_property("correction"), nullptr);
+}
+
+// A quarter turn is no loop: the last frame does not see the first frame's surface. The
+// error says so, and the model and trajectory stay as online deformation left them.
+TEST(ScanDeformation, RefusesAnOpenPathAndKeepsTheModel) {
+  SimFrames sim("knurled-knob", 36);
+  ScanSession session(sim.calibration(), nullptr, revolution_options(Device::cpu()));
+  for (int k = 0; k < 10; ++k) ASSERT_EQ(session.add_frame(sim.frame(k)).status, FrameStatus::kFused);
+  const std::vector<StampedPose> before = session.trajectory();
+  const std::size_t points = session.final_surface().cloud.size();
+  try {
+    session.close_loop();
+    FAIL() << "closed a quarter turn";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(error.what()).find("does not register"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("model is kept"), std::string::npos) << error.what();
+  }
+  EXPECT_FALSE(session.loop_closure().has_value());
+  const std::vector<StampedPose> after = session.trajectory();
+  ASSERT_EQ(after.size(), before.size());
+  for (std::size_t i = 0; i < after.size(); ++i) {
+    EXPECT_TRUE(after[i].T_world_camera.is_approx(before[i].T_world_camera, 1e-12)) << i;
+  }
+  EXPECT_EQ(session.final_surface().cloud.size(), points);
+}
+
+TEST(ScanDeformation, SamplesADepthMapWithNormalsTowardsTheCamera) {
+  CameraIntrinsics camera;
+  camera.width = 64;
+  camera.height = 48;
+  camera.fx = camera.fy = 100.0;
+  camera.cx = 31.5;
+  camera.cy = 23.5;
+  // A plane tilted about y: z = 0.1 + 0.5 x.
+  Image32f depth(64, 48, 0.0f);
+  for (int y = 0; y < 48; ++y) {
+    for (int x = 0; x < 64; ++x) {
+      const double u = (x - camera.cx) / camera.fx;
+      depth(x, y) = static_cast<float>(0.1 / (1.0 - 0.5 * u));
+    }
+  }
+  for (int y = 0; y < 48; ++y) depth(40, y) = 0.0f;  // a column without depth
+  const SurfaceSamples samples = sample_depth_map(depth, camera, 100, 1e-2);  // 1 mm pixels
+  ASSERT_GT(samples.points.size(), 40u);
+  ASSERT_EQ(samples.points.size(), samples.normals.size());
+  const Eigen::Vector3f expected = Eigen::Vector3f(0.5f, 0.0f, -1.0f).normalized();
+  for (std::size_t i = 0; i < samples.points.size(); ++i) {
+    const Eigen::Vector3f& p = samples.points[i];
+    EXPECT_NEAR(p.z(), 0.1f + 0.5f * p.x(), 1e-6f);
+    EXPECT_GT(samples.normals[i].dot(expected), 0.9999f) << i;
+  }
+  EXPECT_TRUE(sample_depth_map(Image32f(3, 3, 0.1f), camera, 100, 1e-2).points.empty());
+}
+
+}  // namespace
+}  // namespace sls::session
