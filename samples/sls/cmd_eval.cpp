@@ -1,12 +1,17 @@
 // sls eval: the quality of a fused result against a simulated recording's ground truth
 // (DESIGN.md section 4; definitions in samples/sls/evaluate.h): C2C mean / RMS / 95th
 // percentile, edge-region C2C, coverage of the surface the recording saw, and with a
-// trajectory.txt in the result, ATE and the loop-closure error against the true poses.
+// trajectory.txt in the result, ATE and the loop-closure error against the true poses. A scan
+// with online deformation leaves the model as tracked in OUT/undeformed (cloud.ply,
+// trajectory.txt): it is measured too, at the result's voxel size, and printed beside the
+// deformed figures ("undeformed" in --json).
 //
 //   sls eval --result OUT --truth OUT/recording [--json]
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -84,6 +89,27 @@ nlohmann::json evaluation_json(const eval::EvalReport& report) {
 
 namespace {
 
+// The figures compared side by side: name, key of evaluation_json, unit.
+struct SideBySideFigure {
+  const char* name;
+  const char* key;
+  const char* format;
+};
+constexpr SideBySideFigure kSideBySide[] = {{"c2c mean", "c2c_mean_um", "{:.2f} um"},
+                                            {"c2c rms", "c2c_rms_um", "{:.2f} um"},
+                                            {"c2c p95", "c2c_p95_um", "{:.2f} um"},
+                                            {"edge c2c mean", "c2c_edge_mean_um", "{:.2f} um"},
+                                            {"coverage", "coverage", "{:.4f}"},
+                                            {"ATE rmse", "ate_rmse_um", "{:.2f} um"},
+                                            {"loop closure", "loop_closure_error_um", "{:.2f} um"},
+                                            {"loop closure angle", "loop_closure_error_deg", "{:.4f} deg"}};
+
+std::string figure_text(const nlohmann::json& evaluation, const SideBySideFigure& figure) {
+  const auto found = evaluation.find(figure.key);
+  if (found == evaluation.end() || !found->is_number()) return "n/a";
+  return fmt::format(fmt::runtime(figure.format), found->get<double>());
+}
+
 int run_eval(const Context& context, const EvalCommandOptions& options) {
   eval::EvalOptions eval_options = options.eval;
   eval_options.voxel_size_m = options.voxel_um * 1e-6;
@@ -93,6 +119,18 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
 
   nlohmann::json out = {{"ok", true}};
   out.update(evaluation_json(report));
+
+  // With online deformation, `sls scan` leaves the model as tracked in RESULT/undeformed: the
+  // same figures for it, at the result's voxel size (undeformed/ has no report.json).
+  const std::string undeformed_folder = options.result + "/undeformed";
+  std::optional<nlohmann::json> undeformed;
+  if (std::filesystem::exists(undeformed_folder + "/cloud.ply")) {
+    eval::EvalOptions undeformed_options = eval_options;
+    undeformed_options.voxel_size_m = report.voxel_size_m;
+    undeformed = evaluation_json(
+        eval::evaluate_result(undeformed_folder, options.truth, undeformed_options, context.progress_callback("eval")));
+    out["undeformed"] = *undeformed;
+  }
 
   context.emit(out, [&] {
     auto um = [](const eval::DistanceStats& stats, double eval::DistanceStats::*field) {
@@ -136,6 +174,16 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
                                report.T_object_world.translation().norm() * kUm,
                                report.T_object_world.angle_rad() * 180.0 / M_PI);
     }
+    if (undeformed) {
+      std::cout << fmt::format("\nonline deformation: {} (deformed) beside {} (as tracked, {} points), voxel {:.2f} um\n",
+                               report.result_folder, undeformed_folder, (*undeformed)["points"].get<std::size_t>(),
+                               report.voxel_size_m * kUm);
+      std::cout << fmt::format("  {:<20}{:>16}{:>16}\n", "", "deformed", "as tracked");
+      for (const SideBySideFigure& figure : kSideBySide) {
+        std::cout << fmt::format("  {:<20}{:>16}{:>16}\n", figure.name, figure_text(out, figure),
+                                 figure_text(*undeformed, figure));
+      }
+    }
   });
   return kExitOk;
 }
@@ -145,9 +193,13 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
 void add_eval_command(CLI::App& app, Context& context, int* exit_code) {
   CLI::App* command = app.add_subcommand(
       "eval", "Measure a fused result against a simulated recording: C2C, edge-region C2C, coverage, ATE, loop "
-      "closure (in um)");
+      "closure (in um); with RESULT/undeformed (online deformation), the model as tracked beside it");
   auto options = std::make_shared<EvalCommandOptions>();
-  command->add_option("--result", options->result, "Result folder (cloud.ply; mesh.ply, report.json optional)")
+  command->add_option("--result", options->result,
+                      "Result folder (cloud.ply; mesh.ply, report.json, trajectory.txt optional). When it holds "
+                      "undeformed/cloud.ply (and trajectory.txt: sls scan with online deformation writes the model "
+                      "as tracked there), that is measured too, at the result's voxel size, and printed side by side "
+                      "(\"deformed\" / \"as tracked\"; --json: an \"undeformed\" object with the same keys)")
       ->required();
   command->add_option("--truth", options->truth, "The simulated recording it was made from (with groundtruth/)")
       ->required();

@@ -27,6 +27,7 @@
 #include "samples/sls/scan_report.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
+#include "sdk/core/stopwatch.h"
 #include "sdk/core/file_util.h"
 #include "sdk/core/image_io.h"
 #include "sdk/core/ply.h"
@@ -63,10 +64,7 @@ struct ScanOptions {
   bool device_given = false;
 };
 
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
+using Clock = SteadyClock;
 
 // The volume around the object: the bounding box of the ground truth's reference surface
 // plus a margin of the integration band, at the requested (or automatic) voxel size.
@@ -428,6 +426,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   html.report = report;
   html.cloud = &surface.cloud;
   html.trajectory = trajectory;
+  if (session.deformation_enabled()) html.trajectory_undeformed = session.trajectory_undeformed();
   html.title = fmt::format("Scan of {}", recording.folder());
   sls::report::write_scan_report_html(options.out, html);
   return report;

@@ -1,4 +1,5 @@
 #include "samples/sls/scan_report.h"
+#include "samples/sls/scan_report_detail.h"
 
 #include <algorithm>
 #include <cmath>
@@ -14,6 +15,60 @@
 #include "sdk/core/image_io.h"
 
 namespace sls::report {
+
+namespace detail {
+
+std::string escape_html(const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char c : text) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      case '\'': out += "&#39;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+// report.json is written by other versions and other tools: every look-up tolerates absence.
+const nlohmann::json* find_key(const nlohmann::json& object, std::initializer_list<const char*> path) {
+  const nlohmann::json* node = &object;
+  for (const char* key : path) {
+    if (!node->is_object()) return nullptr;
+    const auto found = node->find(key);
+    if (found == node->end()) return nullptr;
+    node = &*found;
+  }
+  return node;
+}
+
+std::optional<double> number_at(const nlohmann::json& object, std::initializer_list<const char*> path) {
+  const nlohmann::json* node = find_key(object, path);
+  if (node == nullptr || !node->is_number()) return std::nullopt;
+  return node->get<double>();
+}
+
+std::string text_of(const nlohmann::json& value) { return value.is_string() ? value.get<std::string>() : value.dump(); }
+
+void add_row(std::string& html, const std::string& name, const std::string& value) {
+  html += fmt::format("<tr><th>{}</th><td>{}</td></tr>\n", escape_html(name), escape_html(value));
+}
+
+}  // namespace detail
+
+using detail::add_row;
+using detail::escape_html;
+using detail::find_key;
+using detail::number_at;
+using detail::text_of;
+using detail::deformation_quality_table;
+using detail::deformation_tables;
+using detail::fused_frame_numbers;
+using detail::has_deformation;
 namespace {
 
 constexpr double kUm = 1e6;
@@ -64,42 +119,6 @@ std::array<std::uint8_t, 3> scaled(const std::array<double, 3>& colour, double f
   }
   return out;
 }
-
-std::string escape_html(const std::string& text) {
-  std::string out;
-  out.reserve(text.size());
-  for (const char c : text) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&#39;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
-
-// report.json is written by other versions and other tools: every look-up tolerates absence.
-const nlohmann::json* find_key(const nlohmann::json& object, std::initializer_list<const char*> path) {
-  const nlohmann::json* node = &object;
-  for (const char* key : path) {
-    if (!node->is_object()) return nullptr;
-    const auto found = node->find(key);
-    if (found == node->end()) return nullptr;
-    node = &*found;
-  }
-  return node;
-}
-
-std::optional<double> number_at(const nlohmann::json& object, std::initializer_list<const char*> path) {
-  const nlohmann::json* node = find_key(object, path);
-  if (node == nullptr || !node->is_number()) return std::nullopt;
-  return node->get<double>();
-}
-
-std::string text_of(const nlohmann::json& value) { return value.is_string() ? value.get<std::string>() : value.dump(); }
 
 std::vector<LostFrame> lost_frames_of(const ScanReportInputs& inputs) {
   if (!inputs.lost_frames.empty()) return inputs.lost_frames;
@@ -491,14 +510,12 @@ std::string trajectory_svg(const std::vector<StampedPose>& trajectory, const std
   return svg;
 }
 
+
 // ---------------------------------------------------------------------------------------
 // The report
 
 namespace {
 
-void add_row(std::string& html, const std::string& name, const std::string& value) {
-  html += fmt::format("<tr><th>{}</th><td>{}</td></tr>\n", escape_html(name), escape_html(value));
-}
 
 std::string um(double metres) { return fmt::format("{:.2f} µm", metres * kUm); }
 
@@ -574,7 +591,8 @@ void summary_table(std::string& html, const ScanReportInputs& inputs, const std:
   }
 }
 
-std::string colour_bar_svg(double max_m) {
+// `id`: the gradient's, unique in the page.
+std::string colour_bar_svg(double max_m, const char* id = "viridis") {
   std::string stops;
   for (int k = 0; k <= 8; ++k) {
     const auto c = viridis(k / 8.0);
@@ -582,9 +600,9 @@ std::string colour_bar_svg(double max_m) {
   }
   std::string svg = fmt::format(
       "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"520\" height=\"54\" font-family=\"sans-serif\" "
-      "font-size=\"12\"><defs><linearGradient id=\"viridis\" x1=\"0\" x2=\"1\" y1=\"0\" y2=\"0\">{}</linearGradient>"
-      "</defs><rect x=\"10\" y=\"4\" width=\"500\" height=\"20\" fill=\"url(#viridis)\" stroke=\"#555\"/>",
-      stops);
+      "font-size=\"12\"><defs><linearGradient id=\"{1}\" x1=\"0\" x2=\"1\" y1=\"0\" y2=\"0\">{0}</linearGradient>"
+      "</defs><rect x=\"10\" y=\"4\" width=\"500\" height=\"20\" fill=\"url(#{1})\" stroke=\"#555\"/>",
+      stops, id);
   for (int k = 0; k <= 4; ++k) {
     const double x = 10.0 + 125.0 * k;
     svg += fmt::format("<line x1=\"{0}\" y1=\"24\" x2=\"{0}\" y2=\"30\" stroke=\"#555\"/>"
@@ -665,6 +683,36 @@ figcaption {{ font-size: 90%; color: #555; }}
     html += fmt::format("<p>{} estimated poses{}.</p>\n", inputs.trajectory.size(),
                         inputs.truth.empty() ? "" : fmt::format(", {} true poses", inputs.truth.size()));
     html += trajectory_svg(inputs.trajectory, inputs.truth, lost);
+  }
+
+  if (has_deformation(inputs)) {
+    html += "<h2>Deformation and loop closure</h2>\n";
+    html += "<p>The deformation graph corrects the tracking's drift beside the frame loop; after a full turntable "
+            "revolution the loop closure registers the last frame to the first and solves the graph again. The "
+            "model, trajectory and figures above are deformed; OUT/undeformed holds them as tracked.</p>\n";
+    deformation_tables(html, inputs.report);
+    deformation_quality_table(html, inputs.report);
+    if (!inputs.trajectory_undeformed.empty() && !inputs.trajectory.empty()) {
+      html += "<h3>Trajectory before and after deformation</h3>\n";
+      html += deformation_chart_svg(inputs.trajectory, inputs.trajectory_undeformed, inputs.truth,
+                                    fused_frame_numbers(inputs.report, inputs.trajectory.size()));
+    }
+    const PointProperty* correction = cloud != nullptr ? cloud->find_property("correction") : nullptr;
+    if (correction != nullptr && !cloud->empty() && correction->values.size() == cloud->size()) {
+      const double max_m = heat_map_max_m(correction->values);
+      html += "<h3>Correction</h3>\n";
+      html += fmt::format("<p>How far deformation moved each point of the model, 0 to {} (the 95th percentile; "
+                          "larger corrections clipped).</p>\n",
+                          um(max_m));
+      html += colour_bar_svg(max_m, "viridis-correction");
+      html += "<br>\n";
+      SplatOptions heat = options;
+      heat.point_errors_m = &correction->values;
+      heat.error_max_m = max_m;
+      for (std::size_t k = 0; k < views.size(); ++k) {
+        figure(fmt::format("report_correction_{}.png", k), render_cloud(*cloud, views[k], heat), views[k].name);
+      }
+    }
   }
   html += "</body></html>\n";
   files.html = out_dir + "/report.html";

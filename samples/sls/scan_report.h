@@ -1,7 +1,10 @@
 // A self-contained HTML report of one scan (OUT/report.html with PNG figures beside it), for
 // people: the summary of report.json (frames, lost frames and why, time per stage, fusion
 // settings), the quality figures of `sls eval` when there are any, shaded renders of the
-// fused cloud, an error heat map against ground truth, and the camera trajectory.
+// fused cloud, an error heat map against ground truth, and the camera trajectory. With online
+// deformation (report["deformation"]["enabled"]): the graph and the loop closure, the quality
+// with and without deformation side by side, the trajectory's error (or correction) per frame
+// before and after, and a heat map of how far deformation moved each point.
 // Library sls_report (samples/sls/CMakeLists.txt); it knows nothing of cmd_scan's internals,
 // everything comes in through ScanReportInputs.
 //
@@ -39,8 +42,13 @@ struct LostFrame {
 
 struct ScanReportInputs {
   nlohmann::json report;                // sls scan's report.json object; any key may be missing
-  const PointCloud* cloud = nullptr;    // the final cloud in the world frame (normals used when present)
+  // The final cloud in the world frame (normals used when present; with deformation its float
+  // property "correction", how far each point moved in metres, gives the correction heat map).
+  const PointCloud* cloud = nullptr;
   std::vector<StampedPose> trajectory;  // estimated T_world_camera per fused frame
+  // With online deformation: the same frames' poses as tracked, before the deformation
+  // (`trajectory` then holds them deformed). Empty otherwise.
+  std::vector<StampedPose> trajectory_undeformed;
   // Empty if none; already in the estimate's world frame (eval::truth_in_estimate_frame).
   std::vector<StampedPose> truth;
   std::vector<float> point_errors_m;               // empty, or one per cloud point (heat map)
@@ -57,9 +65,10 @@ struct ScanReportFiles {
   std::vector<std::string> images;
 };
 
-// Writes OUT/report.html and its PNGs (report_view_*.png, report_error_*.png) atomically,
-// creating OUT. sls::Error (kInvalidArgument) for point errors whose count differs from the
-// cloud's, kIo when OUT cannot be written.
+// Writes OUT/report.html and its PNGs (report_view_*.png, report_error_*.png, and with
+// deformation report_correction_*.png) atomically, creating OUT. sls::Error
+// (kInvalidArgument) for point errors whose count differs from the cloud's, kIo when OUT
+// cannot be written.
 ScanReportFiles write_scan_report_html(const std::string& out_dir, const ScanReportInputs& inputs);
 
 // ---------------------------------------------------------------------------------------
@@ -111,5 +120,18 @@ double heat_map_max_m(const std::vector<float>& point_errors_m);
 // circle appears round) and side view (along the plane: the axis points up).
 std::string trajectory_svg(const std::vector<StampedPose>& trajectory, const std::vector<StampedPose>& truth,
                            const std::vector<LostFrame>& lost_frames);
+
+// An inline SVG line chart over the frames of the trajectory before and after deformation.
+// With a true trajectory (at least two poses matching by timestamp): each trajectory's
+// position error against the truth per frame, each rigidly aligned onto the truth as the ATE
+// is (eval::trajectory_errors), so the curves' RMS are the two ATEs. Otherwise the correction
+// per frame: the distance between the deformed and the tracked camera position (matched by
+// timestamp). `frame_numbers`: the recording frame of each pose of `deformed` (the x axis);
+// empty or of another length: 0, 1, 2, ... (fused frames). Says so when there is nothing to
+// draw.
+std::string deformation_chart_svg(const std::vector<StampedPose>& deformed,
+                                  const std::vector<StampedPose>& undeformed,
+                                  const std::vector<StampedPose>& truth,
+                                  const std::vector<std::size_t>& frame_numbers = {});
 
 }  // namespace sls::report

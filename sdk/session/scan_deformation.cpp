@@ -9,17 +9,16 @@
 #include <mutex>
 #include <thread>
 #include <unordered_map>
+#include <unordered_set>
 #include <utility>
 
 #include "sdk/core/error.h"
+#include "sdk/core/stopwatch.h"
 
 namespace sls::session {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
+using Clock = SteadyClock;
 
 constexpr double kDegree = M_PI / 180.0;
 
@@ -27,7 +26,8 @@ constexpr double kDegree = M_PI / 180.0;
 class PointGrid {
  public:
   explicit PointGrid(double cell_m) : cell_(cell_m) {}
-  void insert(const Eigen::Vector3d& p, int index) { cells_[key(cell_of(p))].push_back(index); }
+  void insert(const Eigen::Vector3d& p, int index) { cells_[cell_key(p)].push_back(index); }
+  std::uint64_t cell_key(const Eigen::Vector3d& p) const { return key(cell_of(p)); }
   // The index of the point nearest p within the cell size (-1: none).
   template <typename Position>
   int nearest(const Eigen::Vector3d& p, const Position& position) const {
@@ -77,7 +77,7 @@ struct Job {
   int frame = 0;
   Pose T_world_camera;
   Eigen::Vector3d focus = Eigen::Vector3d::Zero();
-  SurfaceSamples samples;  // camera frame (keyframe) or world (shipped, already thinned)
+  SurfaceSamples samples;  // camera frame (keyframe) or world (shipped: the whole part)
 };
 
 }  // namespace
@@ -237,11 +237,17 @@ struct ScanDeformation::Impl {
     }
   }
 
+  // A shipped part thinned to one sample per cell (the first in shipping order), each bound
+  // to the nodes of the time it was shipped.
   void add_shipped_samples(const Job& job) {
     const int time = job.frame;
+    std::unordered_set<std::uint64_t> taken;
+    const PointGrid cells(sample_spacing_m);
     for (std::size_t i = 0; i < job.samples.points.size(); ++i) {
+      const Eigen::Vector3d p = job.samples.points[i].cast<double>();
+      if (!taken.insert(cells.cell_key(p)).second) continue;
       ShippedSample sample;
-      sample.position = job.samples.points[i].cast<double>();
+      sample.position = p;
       sample.normal = job.samples.normals[i].cast<double>();
       sample.binding = graph.bind_before(sample.position, time);
       sample.newest_node = 0;
@@ -373,22 +379,14 @@ void ScanDeformation::add_keyframe(int frame, const Pose& T_world_camera, const 
 void ScanDeformation::add_shipped(int frame, const PointCloud& cloud, std::size_t begin, std::size_t end) {
   Impl& s = *impl_;
   if (end > cloud.size() || begin >= end || !cloud.has_normals()) return;
-  // Thinned here to one sample per cell (first in shipping order), so the job is small.
+  // A plain copy on the frame thread (the worker thins it): the frame loop does not wait on
+  // hashing the ~600 k points of a move at the paper's size.
   Job job;
   job.kind = Job::Kind::kShipped;
   job.frame = frame;
-  std::unordered_map<std::uint64_t, char> taken;
-  const double cell = s.sample_spacing_m;
-  for (std::size_t i = begin; i < end; ++i) {
-    const Eigen::Vector3f& p = cloud.positions[i];
-    const auto coordinate = [cell](float v) {
-      return static_cast<std::uint64_t>(static_cast<std::uint32_t>(static_cast<int>(std::floor(static_cast<double>(v) / cell))) & 0x1FFFFFu);
-    };
-    const std::uint64_t key = coordinate(p.x()) | (coordinate(p.y()) << 21) | (coordinate(p.z()) << 42);
-    if (!taken.emplace(key, 1).second) continue;
-    job.samples.points.push_back(p);
-    job.samples.normals.push_back(cloud.normals[i]);
-  }
+  const auto offset = [](std::size_t i) { return static_cast<std::ptrdiff_t>(i); };
+  job.samples.points.assign(cloud.positions.begin() + offset(begin), cloud.positions.begin() + offset(end));
+  job.samples.normals.assign(cloud.normals.begin() + offset(begin), cloud.normals.begin() + offset(end));
   s.post(std::move(job));
 }
 

@@ -10,15 +10,13 @@
 #include <fmt/format.h>
 
 #include "sdk/core/error.h"
+#include "sdk/core/stopwatch.h"
 
 
 namespace sls::session {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
+using Clock = SteadyClock;
 
 constexpr double kDegree = M_PI / 180.0;
 

@@ -8,6 +8,7 @@
 
 #include "fusion/deformation/map_deformation.h"
 #include "sdk/core/error.h"
+#include "sdk/core/stopwatch.h"
 #include "sdk/session/scan_session.h"
 #include "sdk/session/scan_session_impl.h"
 
@@ -18,10 +19,7 @@
 namespace sls::session {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
+using Clock = SteadyClock;
 
 constexpr double kDegPerRad = 180.0 / M_PI;
 
@@ -39,13 +37,16 @@ void pose_difference(const Pose& a, const Pose& b, double* metres, double* degre
 
 void ScanSession::Impl::capture_reference(const fusion::Volume& volume) {
   if (reference_taken || !first) return;
+#if defined(SLS_HAVE_CUDA)
   if (options.device.is_cuda()) {
     if (!reference_raycaster) reference_raycaster.emplace(options.device, tracker.model_camera(), raycast_options(options));
     reference_raycaster->raycast_device(volume, first->T_world_camera);
     reference_raycaster->synchronize();
-  } else {
-    reference_model = raycaster.raycast(volume, first->T_world_camera);
+    reference_taken = true;
+    return;
   }
+#endif
+  reference_model = raycaster.raycast(volume, first->T_world_camera);
   reference_taken = true;
 }
 

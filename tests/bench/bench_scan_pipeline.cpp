@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <string>
 #include <vector>
 
@@ -129,8 +130,19 @@ void BM_ScanPipeline(benchmark::State& state) {
     state.counters["frames_s"] = frames_s;
     state.counters["extract_s"] = extract_s;
     state.counters["points"] = static_cast<double>(surface.cloud.size());
+    if (scan.deformation_enabled()) {
+      // The map deformation's share of the extraction: the same surface as tracked (not part
+      // of the revolution's time).
+      start = Clock::now();
+      const fusion::ExtractedSurface tracked = scan.final_surface_undeformed();
+      state.counters["extract_undeformed_s"] = seconds_since(start);
+      state.counters["points_undeformed"] = static_cast<double>(tracked.cloud.size());
+    }
     state.counters["frame_total_median_ms"] = median(total);
     state.counters["deform_frame_ms"] = median(deform);
+    // All of the frame loop's deformation work (keyframes, shipped parts, the reference
+    // raycast), slow frames included.
+    state.counters["deform_frames_s"] = std::accumulate(deform.begin(), deform.end(), 0.0) * 1e-3;
     if (scan.deformation_enabled()) {
       const session::DeformationStatus status = scan.deformation_status(true);
       std::vector<double> jobs;

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Drives the `sls` binary as a user would: help and version, JSON output, exit statuses,
 `inspect` on good and corrupt files, `scan` tracking a simulated turntable scan (a corrupt
-frame reported, an interrupt leaving a valid partial model), `eval`. Usage: test_sls_cli.py PATH_TO_SLS (stdlib only)."""
+frame reported, an interrupt leaving a valid partial model, online deformation and the loop
+closure, each switched off), `eval` (the model as tracked side by side). Usage: test_sls_cli.py PATH_TO_SLS (stdlib only)."""
 import json
 import os
 import pathlib
@@ -159,6 +160,85 @@ class SlsCli(unittest.TestCase):
         self.assertLess(evaluation["c2c_mean_um"], 60.0)
         self.assertLess(evaluation["ate_rmse_um"], 300.0)
         self.assertGreater(evaluation["coverage"], 0.9)
+
+        # Online deformation (on by default) and, the recording being a full revolution, the
+        # loop closure: the last frame registered to the first, the graph solved.
+        deformation, loop = report["deformation"], report["loop_closure"]
+        self.assertTrue(deformation["enabled"], deformation)
+        self.assertGreater(deformation["nodes"], 1)
+        self.assertNotIn("error", deformation)
+        self.assertTrue(loop["requested"], loop)
+        self.assertIn("full turntable revolution", loop["why"])
+        self.assertTrue(loop["closed"], loop)
+        self.assertEqual((loop["first_frame"], loop["last_frame"]), (0, 35))
+        for stage in ("deform", "loop_closure", "evaluate"):
+            self.assertIn(stage, report["ms_per_stage"])
+        # The model and trajectory as tracked beside the deformed ones, both measured.
+        undeformed = out / "undeformed"
+        inspect = json.loads(run("--json", "inspect", str(out / "cloud.ply"), str(undeformed / "cloud.ply"),
+                                 str(undeformed / "trajectory.txt")).stdout)
+        self.assertTrue(inspect["ok"], inspect)
+        deformed_cloud, tracked_cloud, tracked_trajectory = inspect["results"]
+        self.assertIn("correction", deformed_cloud["properties"])
+        self.assertNotIn("correction", tracked_cloud["properties"])
+        self.assertEqual(tracked_trajectory["poses"], 35)
+        for key in ("evaluation", "evaluation_undeformed"):
+            self.assertIn("ate_rmse_um", report[key], key)
+            self.assertIn("c2c_mean_um", report[key], key)
+        html = (out / "report.html").read_text()
+        for needle in ("Deformation and loop closure", "Quality with and without deformation", "deformation-chart"):
+            self.assertIn(needle, html)
+        self.assertTrue((out / "report_correction_0.png").exists())
+        # sls eval measures RESULT/undeformed too, at the result's voxel size: the figures the
+        # scan reported for it.
+        self.assertIn("undeformed", evaluation)
+        tracked = evaluation["undeformed"]
+        self.assertEqual(tracked["result"], str(undeformed))
+        self.assertEqual(tracked["voxel_size_m"], evaluation["voxel_size_m"])
+        for key in ("c2c_mean_um", "c2c_rms_um", "c2c_p95_um", "c2c_edge_mean_um", "coverage", "ate_rmse_um",
+                    "loop_closure_error_um", "loop_closure_error_deg"):
+            self.assertIn(key, tracked)
+            self.assertAlmostEqual(tracked[key], report["evaluation_undeformed"][key], places=3, msg=key)
+        human = run("eval", "--result", str(out), "--truth", str(rec))
+        self.assertEqual(human.returncode, 0, human.stderr)
+        self.assertRegex(human.stdout, r"deformed +as tracked")
+        self.assertRegex(human.stdout, r"ATE rmse +[0-9.]+ um +[0-9.]+ um")
+
+        # --deformation off: the model as tracked, nothing in OUT/undeformed, no loop closure
+        # (a short simulated scan: the switches, not the figures, are under test here).
+        rigid = self.dir / "rigid"
+        result = run("--json", "scan", "--sim", "ci", "--frames", "4", "--turntable-prior", "--device", "cpu",
+                     "--deformation", "off", "--out", str(rigid))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        report = json.loads(result.stdout)
+        self.assertEqual(report["deformation"], {"enabled": False})
+        self.assertEqual(report["loop_closure"], {"requested": False, "why": "--deformation off"})
+        self.assertNotIn("evaluation_undeformed", report)
+        self.assertFalse((rigid / "undeformed").exists())
+        self.assertNotIn("Deformation and loop closure", (rigid / "report.html").read_text())
+        self.assertNotIn("undeformed", json.loads(run("--json", "eval", "--result", str(rigid), "--truth",
+                                                      str(rigid / "recording")).stdout))
+
+        # --loop-closure off: deformation still runs, the loop is left open.
+        open_loop = self.dir / "open"
+        result = run("--json", "scan", "--sim", "ci", "--frames", "4", "--turntable-prior", "--device", "cpu",
+                     "--loop-closure", "off", "--out", str(open_loop))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        report = json.loads(result.stdout)
+        self.assertTrue(report["deformation"]["enabled"])
+        self.assertEqual(report["loop_closure"], {"requested": False, "why": "--loop-closure off"})
+        self.assertTrue((open_loop / "undeformed" / "cloud.ply").exists())
+
+    def test_scan_deformation_and_loop_closure_options(self):
+        help_text = run("scan", "--help").stdout
+        for option in ("--deformation", "--loop-closure"):
+            self.assertIn(option, help_text)
+        self.assertIn("undeformed", run("eval", "--help").stdout)
+        for option in ("--deformation", "--loop-closure"):
+            bad = run("scan", "--sim", "ci", option, "maybe", "--out", str(self.dir / "bad"))
+            self.assertEqual(bad.returncode, 2, bad.stderr)
+            self.assertIn(option, bad.stderr)
+            self.assertFalse((self.dir / "bad").exists())
 
     def test_scan_interrupted_leaves_a_valid_partial_model(self):
         rec = self.knob_depth_recording()

@@ -1,6 +1,7 @@
 // The scan report (samples/sls/scan_report.h): splat renders that show the object and its
-// shading, heat-map colours that follow the errors, the trajectory plot, and report.html with
-// its figures and PNGs, with and without ground truth.
+// shading, heat-map colours that follow the errors, the trajectory plot, the chart of the
+// trajectory before and after deformation, and report.html with its figures and PNGs, with
+// and without ground truth, with and without online deformation.
 #include "samples/sls/scan_report.h"
 
 #include <cmath>
@@ -9,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "sdk/core/error.h"
@@ -89,6 +91,54 @@ nlohmann::json scan_report_json() {
           {"ms_per_stage", {{"read", 120.5}, {"decode", 880.25}, {"integrate", 412.0}, {"extract", 55.0}}},
           {"points", 20000},
           {"triangles", 40000}};
+}
+
+// What sls scan adds to report.json when online deformation ran and the loop was closed.
+nlohmann::json with_deformation(nlohmann::json report) {
+  report["deformation"] = {{"enabled", true},
+                           {"nodes", 12},
+                           {"links", 30},
+                           {"constraints", 4567},
+                           {"analyses", 1},
+                           {"factorizations", 14},
+                           {"node_spacing_mm", 2.5},
+                           {"region_radius_mm", 7.5},
+                           {"worker_ms", 321.5},
+                           {"keyframes",
+                            {{{"frame", 0}, {"node", 0}, {"matches", 0}, {"constraints", 0}, {"iterations", 0},
+                              {"energy_after", 0.0}, {"solve_ms", 0.5}, {"ms", 1.0}},
+                             {{"frame", 3}, {"node", 1}, {"matches", 900}, {"constraints", 800}, {"iterations", 3},
+                              {"energy_after", 1e-9}, {"solve_ms", 4.25}, {"ms", 6.0}}}}};
+  report["loop_closure"] = {{"requested", true},
+                            {"why", "a full turntable revolution (350.0°)"},
+                            {"closed", true},
+                            {"first_frame", 0},
+                            {"last_frame", 23},
+                            {"registration",
+                             {{"inlier_fraction", 0.875}, {"residual_rms_um", 9.5}, {"degenerate_directions", 0},
+                              {"iterations", 7}}},
+                            {"constraints", 1234},
+                            {"iterations", 5},
+                            {"energy_before", 0.25},
+                            {"energy_after", 0.0125},
+                            {"solve_ms", 42.0},
+                            {"last_pose_moved_um", 87.5},
+                            {"last_pose_moved_deg", 0.0625},
+                            {"last_pose_correction_um", 140.25},
+                            {"last_pose_correction_deg", 0.125},
+                            {"ms", 99.0}};
+  report["ms_per_stage"]["deform"] = 12.5;
+  report["ms_per_stage"]["loop_closure"] = 99.0;
+  auto evaluation = [](double c2c_um, double ate_um, double loop_um) {
+    return nlohmann::json{{"c2c_mean_um", c2c_um},      {"c2c_rms_um", 2.0 * c2c_um},
+                          {"c2c_p95_um", 3.0 * c2c_um}, {"c2c_edge_mean_um", 4.0 * c2c_um},
+                          {"coverage", 0.95},           {"ate_rmse_um", ate_um},
+                          {"loop_closure_error_um", loop_um}, {"loop_closure_error_deg", 0.5}};
+  };
+  report["evaluation"] = evaluation(11.0, 21.0, 6.5);
+  report["evaluation_undeformed"] = evaluation(17.0, 63.0, 150.0);
+  report["evaluation_undeformed"]["c2c_edge_mean_um"] = nullptr;  // no creases measured: n/a
+  return report;
 }
 
 // The src="..." of every <img> in the page.
@@ -191,6 +241,55 @@ TEST(TrajectoryPlot, ShowsBothTrajectoriesAndTheLostFrames) {
   EXPECT_NE(trajectory_svg({}, {}, {}).find("no poses"), std::string::npos);
 }
 
+TEST(ScanReportDeformationChart, PositionErrorsBeforeAndAfterAgainstTheTruth) {
+  const std::vector<StampedPose> truth = circle_trajectory(24, 0.0);
+  std::vector<StampedPose> tracked = circle_trajectory(24, 3e-6);   // drifts 3 um a frame
+  std::vector<StampedPose> deformed = circle_trajectory(24, 0.3e-6);  // a tenth of that
+  tracked.erase(tracked.begin() + 5);                                 // frame 5 lost
+  deformed.erase(deformed.begin() + 5);
+  std::vector<std::size_t> frames;
+  for (std::size_t i = 0; i < 24; ++i) {
+    if (i != 5) frames.push_back(i);
+  }
+  const std::string svg = deformation_chart_svg(deformed, tracked, truth, frames);
+  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
+  EXPECT_NE(svg.find("</svg>"), std::string::npos);
+  EXPECT_NE(svg.find("position error against the truth"), std::string::npos);
+  // Two curves, each aligned as the ATE is: their RMS are the two ATEs.
+  std::size_t polylines = 0;
+  for (std::size_t at = svg.find("<polyline"); at != std::string::npos; at = svg.find("<polyline", at + 1)) ++polylines;
+  EXPECT_EQ(polylines, 2u);
+  const auto before = eval::trajectory_errors(tracked, truth);
+  const auto after = eval::trajectory_errors(deformed, truth);
+  ASSERT_TRUE(before && after);
+  EXPECT_GT(before->ate_rmse_m, 5.0 * after->ate_rmse_m);
+  EXPECT_NE(svg.find(fmt::format("as tracked (RMS {:.2f} µm", before->ate_rmse_m * 1e6)), std::string::npos) << svg;
+  EXPECT_NE(svg.find(fmt::format("deformed (RMS {:.2f} µm", after->ate_rmse_m * 1e6)), std::string::npos);
+  EXPECT_NE(svg.find("23 frames)"), std::string::npos);
+  EXPECT_NE(svg.find(">frame<"), std::string::npos);           // recording frames on the x axis
+  EXPECT_NE(svg.find("deformed: frame 23,"), std::string::npos);  // the last point at frame 23
+  EXPECT_EQ(svg.find("deformed: frame 5,"), std::string::npos);   // the lost frame has none
+}
+
+TEST(ScanReportDeformationChart, WithoutTruthTheCorrectionPerFrame) {
+  const std::vector<StampedPose> tracked = circle_trajectory(10, 4e-6);
+  const std::vector<StampedPose> deformed = circle_trajectory(10, 0.0);
+  const std::string svg = deformation_chart_svg(deformed, tracked, {});
+  EXPECT_NE(svg.find("correction per frame"), std::string::npos);
+  EXPECT_EQ(svg.find("against the truth"), std::string::npos);
+  // One curve, 0 at the first frame and 36 um (9 frames of 4 um) at the last.
+  EXPECT_EQ(svg.find("<polyline"), svg.rfind("<polyline"));
+  EXPECT_NE(svg.find("correction: frame 0, 0.00 µm"), std::string::npos);
+  EXPECT_NE(svg.find("correction: frame 9, 36.00 µm"), std::string::npos);
+  EXPECT_NE(svg.find("max 36.00 µm, 10 frames"), std::string::npos);
+  EXPECT_NE(svg.find(">fused frame<"), std::string::npos);  // no frame numbers given
+  // A truth that matches no timestamp is no truth: the correction again.
+  std::vector<StampedPose> elsewhere = circle_trajectory(10, 0.0);
+  for (StampedPose& pose : elsewhere) pose.timestamp_s += 1000.0;
+  EXPECT_NE(deformation_chart_svg(deformed, tracked, elsewhere).find("correction per frame"), std::string::npos);
+  EXPECT_NE(deformation_chart_svg({}, {}, {}).find("no poses to compare"), std::string::npos);
+}
+
 class ScanReport : public ::testing::Test {
  protected:
   test::TemporaryDirectory directory_;
@@ -231,6 +330,8 @@ TEST_F(ScanReport, WithoutGroundTruth) {
   EXPECT_EQ(html.find("<decode>"), std::string::npos);  // escaped
   EXPECT_EQ(html.find("Error against ground truth"), std::string::npos);
   EXPECT_EQ(html.find("Quality against ground truth"), std::string::npos);
+  EXPECT_EQ(html.find("Deformation and loop closure"), std::string::npos);
+  EXPECT_EQ(html.find("deformation-chart"), std::string::npos);
 }
 
 TEST_F(ScanReport, WithGroundTruthErrorsAndEvaluation) {
@@ -270,6 +371,9 @@ TEST_F(ScanReport, WithGroundTruthErrorsAndEvaluation) {
                              "(2 of 2 placed)", "ground truth"}) {
     EXPECT_NE(html.find(needle), std::string::npos) << needle;
   }
+  EXPECT_EQ(html.find("Deformation and loop closure"), std::string::npos);
+  EXPECT_EQ(html.find("Quality with and without deformation"), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(out + "/report_correction_0.png"));
 
   // The lead's own lost frames (with timestamps) take precedence over report.json's.
   inputs.lost_frames = {{5, 2.5, "dropped"}};
@@ -284,6 +388,103 @@ TEST_F(ScanReport, WithGroundTruthErrorsAndEvaluation) {
   } catch (const Error& error) {
     EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument);
   }
+}
+
+TEST_F(ScanReport, WithDeformationAndLoopClosure) {
+  ScanReportInputs inputs;
+  inputs.report = with_deformation(scan_report_json());
+  PointCloud cloud = sphere_;
+  PointProperty correction{"correction", {}};
+  for (std::size_t n = 0; n < cloud.size(); ++n) correction.values.push_back(static_cast<float>(n % 50) * 1e-6f);
+  cloud.properties.push_back(correction);
+  inputs.cloud = &cloud;
+  inputs.truth = circle_trajectory(24, 0.0);
+  inputs.trajectory = circle_trajectory(24, 0.3e-6);
+  inputs.trajectory_undeformed = circle_trajectory(24, 3e-6);
+  // SLS_KEEP_SCAN_REPORT=folder keeps this report too (in folder/deformation).
+  const char* keep = std::getenv("SLS_KEEP_SCAN_REPORT");
+  const std::string out = keep != nullptr ? std::string(keep) + "/deformation" : directory_.file("out");
+  const ScanReportFiles files = write_scan_report_html(out, inputs);
+  const std::string html = read_file_text(files.html);
+  const std::vector<std::string> sources = check_images(out, html);
+  // The three views, and the correction heat map from the same three.
+  EXPECT_EQ(sources, (std::vector<std::string>{"report_view_0.png", "report_view_1.png", "report_view_2.png",
+                                               "report_correction_0.png", "report_correction_1.png",
+                                               "report_correction_2.png"}));
+  for (int k = 0; k < 3; ++k) {
+    const std::string name = out + fmt::format("/report_correction_{}.png", k);
+    EXPECT_TRUE(std::filesystem::exists(name)) << name;
+    EXPECT_NE(read_file_text(name), read_file_text(out + fmt::format("/report_view_{}.png", k)));
+  }
+  EXPECT_EQ(files.images.size(), 6u);
+  const std::string scale = fmt::format("≥ {:.1f} µm", heat_map_max_m(correction.values) * 1e6);
+  for (const std::string& needle : std::vector<std::string>{
+           "Deformation and loop closure", "12 nodes, 30 links, 4567 constraints", "2.500 mm / 7.500 mm",
+           "2: 3 Gauss–Newton iterations in all, median solve 4.25 ms", "1 analyses, 14 factorizations", "321.5 ms",
+           "closed (a full turntable revolution (350.0°))", "the last, 23, registered to the first, 0",
+           "inlier fraction 0.875, residual RMS 9.50 µm, 7 iterations", "1234 constraints, 5 iterations, energy "
+           "0.25 → 0.0125, 42.0 ms", "87.50 µm, 0.0625°", "140.25 µm, 0.1250°",
+           // The quality as tracked and deformed, side by side.
+           "Quality with and without deformation",
+           "<tr><th>C2C mean</th><td>17.00 µm</td><td>11.00 µm</td><td>-6.00 µm</td></tr>",
+           "<tr><th>C2C p95</th><td>51.00 µm</td><td>33.00 µm</td><td>-18.00 µm</td></tr>",
+           "<tr><th>edge C2C mean</th><td>n/a</td><td>44.00 µm</td><td></td></tr>",
+           "<tr><th>coverage</th><td>0.9500</td><td>0.9500</td><td>+0.0000</td></tr>",
+           "<tr><th>ATE RMSE</th><td>63.00 µm</td><td>21.00 µm</td><td>-42.00 µm</td></tr>",
+           "<tr><th>loop closure error</th><td>150.00 µm</td><td>6.50 µm</td><td>-143.50 µm</td></tr>",
+           "<tr><th>loop closure angle</th><td>0.5000°</td><td>0.5000°</td><td>+0.0000°</td></tr>",
+           // The chart against the truth, the correction's colour bar, the new stages.
+           "Trajectory before and after deformation", "deformation-chart", "position error against the truth",
+           "as tracked (RMS", "viridis-correction", scale, "<td>deform</td><td>12.5 ms", "<td>loop_closure</td>"}) {
+    EXPECT_NE(html.find(needle), std::string::npos) << needle;
+  }
+  // The existing figures stay.
+  EXPECT_NE(html.find("Camera trajectory"), std::string::npos);
+  EXPECT_NE(html.find("(2 of 2 placed)"), std::string::npos);
+
+  // No truth: the chart shows the correction per frame.
+  inputs.truth.clear();
+  const std::string without_truth = read_file_text(write_scan_report_html(out, inputs).html);
+  EXPECT_NE(without_truth.find("correction per frame"), std::string::npos);
+  EXPECT_EQ(without_truth.find("position error against the truth"), std::string::npos);
+
+  // A loop closure that failed says why; one not asked for says why not; no undeformed
+  // evaluation: no side-by-side table.
+  inputs.report["loop_closure"] = {{"requested", true},
+                                   {"why", "--loop-closure on"},
+                                   {"closed", false},
+                                   {"reason", "the last frame does not register: <too few matches>"}};
+  inputs.report.erase("evaluation_undeformed");
+  const std::string failed = read_file_text(write_scan_report_html(out, inputs).html);
+  EXPECT_NE(failed.find("not closed: the last frame does not register: &lt;too few matches&gt; (requested: "
+                        "--loop-closure on)"),
+            std::string::npos);
+  EXPECT_EQ(failed.find("Quality with and without deformation"), std::string::npos);
+  EXPECT_NE(failed.find("Deformation and loop closure"), std::string::npos);
+  inputs.report["loop_closure"] = {{"requested", false}, {"why", "--loop-closure off"}};
+  EXPECT_NE(read_file_text(write_scan_report_html(out, inputs).html).find("not requested: --loop-closure off"),
+            std::string::npos);
+}
+
+TEST_F(ScanReport, WithoutDeformationNothingOfIt) {
+  // --deformation off: report.json says so, no tracked poses; even a cloud with a
+  // "correction" property gets no correction heat map.
+  ScanReportInputs inputs;
+  inputs.report = scan_report_json();
+  inputs.report["deformation"] = {{"enabled", false}};
+  inputs.report["loop_closure"] = {{"requested", false}, {"why", "--deformation off"}};
+  PointCloud cloud = sphere_;
+  cloud.properties.push_back({"correction", std::vector<float>(cloud.size(), 1e-6f)});
+  inputs.cloud = &cloud;
+  inputs.trajectory = circle_trajectory(24, 0.0);
+  const std::string out = directory_.file("out");
+  const std::string html = read_file_text(write_scan_report_html(out, inputs).html);
+  for (const char* needle : {"Deformation and loop closure", "Quality with and without deformation",
+                             "deformation-chart", "viridis-correction", "report_correction_"}) {
+    EXPECT_EQ(html.find(needle), std::string::npos) << needle;
+  }
+  EXPECT_FALSE(std::filesystem::exists(out + "/report_correction_0.png"));
+  EXPECT_EQ(check_images(out, html).size(), 3u);
 }
 
 TEST_F(ScanReport, AnEmptyReportStillWritesAPage) {
