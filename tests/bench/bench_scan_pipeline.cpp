@@ -8,7 +8,11 @@
 // simulator's true poses. Rendering the frames is not timed.
 // Arguments: frames (0: the preset's 440), object (0 knurled screw, 1 knurled knob), the
 // tracker's max_model_width (0: its default, full resolution; 2048: ICP at 2000 x 1500),
-// deformation (1: online deformation beside the frame loop, then the loop closure; 0: off).
+// deformation (1: online deformation beside the frame loop, then the loop closure; 0: off),
+// input (0: depth maps with the decoder's noise model; 1: the 22-image pattern stacks rendered
+// by the simulator, decoded by the session on the GPU — rendering is not timed, decoding is).
+// The model is measured against the exact object as `sls eval` does (C2C, edge C2C within 3
+// voxels of a crease; aligned at the first pose), deformed and as tracked; not timed.
 // The headline is the revolution as the user waits for it: every add_frame (uploads, host
 // work, moves, the deformation's share), the loop closure and the final (deformed) surface's
 // extraction, summed wall time (`revolution_s`), with the per-stage medians beside it; the
@@ -61,12 +65,13 @@ void BM_ScanPipeline(benchmark::State& state) {
   options.volume_size_m = Eigen::Vector3d::Constant(960 * options.voxel_size_m * (1.0 - 1e-9));
   if (state.range(2) > 0) options.tracking.max_model_width = static_cast<int>(state.range(2));
   options.deformation.enabled = state.range(3) != 0;
+  const bool patterns = state.range(4) != 0;
   using Clock = std::chrono::steady_clock;
   const auto seconds_since = [](Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
   };
   for (auto _ : state) {
-    session::ScanSession scan(rig.calibration(), nullptr, options);
+    session::ScanSession scan(rig.calibration(), patterns ? &rig.patterns : nullptr, options);
     std::vector<double> pipeline, track, integrate, move, raycast, condition, inliers, deform, total;
     double frames_s = 0.0;
     std::vector<StampedPose> truth;
@@ -79,7 +84,11 @@ void BM_ScanPipeline(benchmark::State& state) {
       session::ScanFrame frame;
       frame.index = k;
       frame.timestamp_ns = static_cast<std::int64_t>(k) * 333'333'333;
-      frame.depth_m = renderer.render_depth();
+      if (patterns) {
+        for (int j = 0; j < static_cast<int>(rig.patterns.size()); ++j) frame.images.push_back(renderer.render_pattern(j));
+      } else {
+        frame.depth_m = renderer.render_depth();
+      }
       truth.push_back({static_cast<double>(frame.timestamp_ns) * 1e-9, rig.T_object_camera(k)});
       const Clock::time_point start = Clock::now();
       const session::FrameReport report = scan.add_frame(frame);
@@ -180,16 +189,42 @@ void BM_ScanPipeline(benchmark::State& state) {
     };
     errors(scan.trajectory_undeformed(), "");
     if (scan.deformation_enabled()) errors(scan.trajectory(), "_closed");
+    {
+      // The model against the exact object (not timed): world -> object by the first pose.
+      const auto c2c = [&](const fusion::ExtractedSurface& model, const std::vector<StampedPose>& trajectory,
+                           const char* suffix) {
+        if (trajectory.empty() || model.cloud.empty()) return;
+        const Pose T_object_world = rig.T_object_camera(0) * trajectory.front().T_world_camera.inverse();
+        std::vector<Eigen::Vector3d> points(model.cloud.size());
+        for (std::size_t i = 0; i < points.size(); ++i) {
+          points[i] = T_object_world * model.cloud.positions[i].cast<double>();
+        }
+        const eval::SurfaceErrors e = eval::surface_errors(points, scene, 3.0 * options.voxel_size_m);
+        state.counters[std::string("c2c_mean_um") + suffix] = e.all.mean_m * 1e6;
+        state.counters[std::string("c2c_rms_um") + suffix] = e.all.rms_m * 1e6;
+        state.counters[std::string("c2c_p95_um") + suffix] = e.all.p95_m * 1e6;
+        state.counters[std::string("c2c_max_um") + suffix] = e.all.max_m * 1e6;
+        state.counters[std::string("c2c_edge_um") + suffix] = e.edge.mean_m * 1e6;
+      };
+      if (scan.deformation_enabled()) {
+        c2c(surface, scan.trajectory(), "_closed");
+        c2c(scan.final_surface_undeformed(), scan.trajectory_undeformed(), "");
+      } else {
+        c2c(surface, scan.trajectory_undeformed(), "");
+      }
+    }
   }
 }
 BENCHMARK(BM_ScanPipeline)
-    ->Args({0, 0, 0, 1})
-    ->Args({0, 1, 0, 1})
-    ->Args({0, 0, 0, 0})
-    ->Args({0, 1, 0, 0})
-    ->Args({0, 0, 2048, 1})
-    ->Args({0, 1, 2048, 1})
-    ->ArgNames({"frames", "object", "model_width", "deformation"})
+    ->Args({0, 0, 0, 1, 0})
+    ->Args({0, 1, 0, 1, 0})
+    ->Args({0, 0, 0, 0, 0})
+    ->Args({0, 1, 0, 0, 0})
+    ->Args({0, 0, 2048, 1, 0})
+    ->Args({0, 1, 2048, 1, 0})
+    ->Args({0, 0, 0, 1, 1})
+    ->Args({0, 1, 0, 1, 1})
+    ->ArgNames({"frames", "object", "model_width", "deformation", "input"})
     ->Iterations(1)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);
