@@ -39,7 +39,7 @@ std::unique_ptr<RenderBackend> make_cuda_render_backend(const RayMap& rays, int 
 
 // The noisy depth of one pixel: one body for both backends.
 SLS_HOST_DEVICE inline float noisy_depth(const PixelGeometry& g, NoiseKey key) {
-  if (!(g.flags & kPixelLit)) return 0.0f;
+  if (!(g.flags & kPixelDecodable)) return 0.0f;  // the decoder would leave it empty
   NoiseStream stream = make_noise_stream(key, kUserStream + 1);
   return static_cast<float>(static_cast<double>(g.depth_m) + static_cast<double>(g.depth_sigma_m) * stream.normal());
 }

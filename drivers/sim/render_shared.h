@@ -49,11 +49,18 @@ struct FrameRenderParams {
   // The phase-shift part of the pattern set, for the depth-only noise model.
   int phase_period_px;
   int phase_steps;
+  // What the decoder keeps (DecodeOptions' defaults), for the same model: a fringe weaker than
+  // this share of (white − black)/2, a predicted coordinate noise above this (projector px)
+  // or camera and projector rays meeting at less than this angle leave a pixel undecoded.
+  double decode_min_modulation_ratio;
+  double decode_max_phase_sigma_px;
+  double decode_min_sin_angle;
 };
 
 enum PixelFlags : std::uint32_t {
   kPixelVisible = 1u,  // the camera ray meets the object
   kPixelLit = 2u,      // ... and the projector sees that point (not shadowed, inside its image)
+  kPixelDecodable = 4u,  // ... and a phase-shift decode would keep it (depth-only mode)
 };
 
 // The per-frame geometry of one pixel (step 1).
@@ -76,10 +83,19 @@ struct PixelGeometry {
 //   phase noise σ_φ = sqrt(2/N) σ_I / B, projector-coordinate noise σ_u = P σ_φ / 2π,
 //   and depth noise σ_z = σ_u · (projector pixel footprint z_p / fx_p) / sin(angle between the
 //   camera and projector rays). Grows with incidence (less light, smaller B) and defocus.
-SLS_HOST_DEVICE inline double depth_noise_sigma_m(const FrameRenderParams& p, const PixelGeometry& g,
-                                                  Vec3d camera_direction, Vec3d towards_projector,
-                                                  double projector_depth_m) {
-  if (p.phase_steps <= 0 || p.phase_period_px <= 0) return 0.0;
+// `decodable`: the decoder's own tests pass (B / ((white − black)/2) = the MTF product at
+// least decode_min_modulation_ratio, σ_u at most decode_max_phase_sigma_px, the angle at
+// least the minimum): where they fail, a decode leaves the pixel empty, so must this model.
+struct DepthNoise {
+  double sigma_m = 0.0;
+  bool decodable = false;
+};
+
+SLS_HOST_DEVICE inline DepthNoise depth_noise(const FrameRenderParams& p, const PixelGeometry& g,
+                                              Vec3d camera_direction, Vec3d towards_projector,
+                                              double projector_depth_m) {
+  DepthNoise out;
+  if (p.phase_steps <= 0 || p.phase_period_px <= 0) return out;
   const double period = static_cast<double>(p.phase_period_px);
   const double black = p.projector_optics.contrast_ratio > 1.0 ? 1.0 / p.projector_optics.contrast_ratio : 0.0;
   const double projector_pixel_m = projector_depth_m / p.projector.fx;
@@ -92,12 +108,18 @@ SLS_HOST_DEVICE inline double depth_noise_sigma_m(const FrameRenderParams& p, co
   const double modulation = 0.5 * white * (1.0 - black) * mtf;
   const double mean = static_cast<double>(g.ambient_electrons) + 0.5 * white;
   const double read = p.camera_sensor.read_noise_e;
-  if (!(modulation > 0.0)) return 1.0;  // no fringe left: any depth is as good as another
+  if (!(modulation > 0.0)) {  // no fringe left: any depth is as good as another
+    out.sigma_m = 1.0;
+    return out;
+  }
   const double sigma_phase = std::sqrt(2.0 / p.phase_steps) * std::sqrt(mean + read * read) / modulation;
   const double sigma_u = period * sigma_phase / 6.283185307179586;
   const double cos_angle = -dot(camera_direction, towards_projector);
   const double sin_angle = std::sqrt(1.0 - (cos_angle > 1.0 ? 1.0 : cos_angle * cos_angle));
-  return sigma_u * projector_pixel_m / (sin_angle > 1e-3 ? sin_angle : 1e-3);
+  out.sigma_m = sigma_u * projector_pixel_m / (sin_angle > 1e-3 ? sin_angle : 1e-3);
+  out.decodable = mtf >= p.decode_min_modulation_ratio && sigma_u <= p.decode_max_phase_sigma_px &&
+                  sin_angle >= p.decode_min_sin_angle;
+  return out;
 }
 
 SLS_HOST_DEVICE inline PixelGeometry trace_pixel(const FrameRenderParams& p, Vec3f ray_camera, bool ray_valid) {
@@ -150,7 +172,9 @@ SLS_HOST_DEVICE inline PixelGeometry trace_pixel(const FrameRenderParams& p, Vec
   g.projector_sigma_u = static_cast<float>(projector_sigma.x);
   g.projector_sigma_v = static_cast<float>(projector_sigma.y);
   g.flags |= kPixelLit;
-  g.depth_sigma_m = static_cast<float>(depth_noise_sigma_m(p, g, ray.direction, towards, point_projector.z));
+  const DepthNoise noise = depth_noise(p, g, ray.direction, towards, point_projector.z);
+  g.depth_sigma_m = static_cast<float>(noise.sigma_m);
+  if (noise.decodable) g.flags |= kPixelDecodable;
   return g;
 }
 

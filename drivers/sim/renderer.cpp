@@ -5,6 +5,7 @@
 
 #include "drivers/sim/render_backend.h"
 #include "sdk/core/error.h"
+#include "sdk/decode/decoder.h"
 
 namespace sls::sim {
 namespace {
@@ -106,6 +107,10 @@ FrameRenderParams frame_params(const SimRig& rig, const Scene& scene, int frame)
   params.cos_reference = std::cos(rig.optics.triangulation_angle_rad);
   params.ambient_electrons = rig.optics.ambient_electrons;
   params.shadow_offset_m = 1e-7;
+  const DecodeOptions decode;  // the decoder's defaults: what it keeps
+  params.decode_min_modulation_ratio = decode.min_modulation_ratio;
+  params.decode_max_phase_sigma_px = decode.max_phase_sigma_px;
+  params.decode_min_sin_angle = std::sin(decode.min_triangulation_angle_deg * M_PI / 180.0);
   for (const PatternDesc& pattern : rig.patterns.patterns) {
     if (pattern.kind == PatternKind::kPhaseShift && pattern.axis == PatternAxis::kColumns) {
       params.phase_period_px = pattern.period_px;

@@ -2,7 +2,10 @@
 // homography, shadow masks lie where the geometry puts them, pixel noise follows the photon
 // transfer model, depth-only noise has the predicted σ, the device path renders what the
 // renderer renders, and the CUDA backend equals the CPU one.
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -13,6 +16,7 @@
 #include "sdk/core/ply.h"
 #include "sdk/core/recording.h"
 #include "sdk/core/trajectory.h"
+#include "sdk/decode/decoder.h"
 #include "tests/support/test_support.h"
 #include "tests/unit/sim/sim_test_rig.h"
 
@@ -208,11 +212,15 @@ TEST(Renderer, DepthModeNoiseHasThePredictedSigma) {
   const GroundTruthFrame truth = renderer.ground_truth();
   const Image32f depth = renderer.render_depth();
   double sum_z2 = 0.0;
-  int count = 0;
+  int count = 0, undecodable = 0;
   for (int y = 0; y < depth.height(); ++y) {
     for (int x = 0; x < depth.width(); ++x) {
       if (!truth.valid(x, y)) {
         EXPECT_EQ(depth(x, y), 0.0f);
+        continue;
+      }
+      if (depth(x, y) == 0.0f) {  // lit, but what a decoder leaves empty (the next test)
+        ++undecodable;
         continue;
       }
       const double sigma = truth.depth_sigma_m(x, y);
@@ -224,7 +232,58 @@ TEST(Renderer, DepthModeNoiseHasThePredictedSigma) {
     }
   }
   ASSERT_GT(count, 5000);
+  EXPECT_LT(undecodable, count / 10);
   EXPECT_NEAR(sum_z2 / count, 1.0, 5.0 * std::sqrt(2.0 / count) + 0.05);
+}
+
+// Depth-only mode leaves empty the lit pixels that a decode of the same frame's pattern stack
+// leaves empty (a fringe too weak, too much predicted noise, rays meeting at too small an
+// angle). Before it did, such pixels came back with their predicted σ — millimetres at
+// grazing incidence, a metre where no fringe is left — and left a thin tail of false surface
+// in every model fused from depth maps.
+TEST(Renderer, DepthModeLeavesEmptyWhatTheDecoderLeavesEmpty) {
+  for (const Scene& scene : {make_knurled_screw_scene(), make_knurled_knob_scene()}) {
+    SimRig rig = small_rig(scene, 320);
+    Renderer renderer(rig, scene, Device::cpu());
+    renderer.set_frame(3);
+    const GroundTruthFrame truth = renderer.ground_truth();
+    const Image32f depth = renderer.render_depth();
+    std::vector<Image16u> stack;
+    for (int j = 0; j < static_cast<int>(rig.patterns.size()); ++j) stack.push_back(renderer.render_pattern(j));
+    Decoder decoder(rig.patterns, rig.calibration());
+    const DecodedFrame decoded = decoder.decode(stack);
+    int lit = 0, empty = 0, empty_and_undecoded = 0, decoded_count = 0, decoded_and_kept = 0;
+    double worst_error_m = 0.0;
+    for (int y = 0; y < depth.height(); ++y) {
+      for (int x = 0; x < depth.width(); ++x) {
+        if (!truth.valid(x, y)) continue;
+        ++lit;
+        const bool kept = depth(x, y) > 0.0f;
+        const bool was_decoded = decoded.depth_m(x, y) > 0.0f;
+        if (!kept) {
+          ++empty;
+          if (!was_decoded) ++empty_and_undecoded;
+        } else {
+          worst_error_m = std::max(worst_error_m, std::fabs(static_cast<double>(depth(x, y) - truth.depth_m(x, y))));
+        }
+        if (was_decoded) {
+          ++decoded_count;
+          if (kept) ++decoded_and_kept;
+        }
+      }
+    }
+    std::printf("[ measured ] %s: %d lit, %d left empty (%d of them undecoded too); %d decoded, %d of them kept; "
+                "worst kept error %.1f um\n",
+                scene.name().c_str(), lit, empty, empty_and_undecoded, decoded_count, decoded_and_kept,
+                worst_error_m * 1e6);
+    ASSERT_GT(empty, 0) << scene.name();
+    // Mostly where the decoder fails too (measured 87 % screw, 76 % knob: near its thresholds
+    // the decoder's noisy measurement and this prediction of it split either way), and
+    // hardly ever where it succeeds (0.3 %, 1 %).
+    EXPECT_GE(empty_and_undecoded, empty * 7 / 10) << scene.name();
+    EXPECT_GE(decoded_and_kept, decoded_count * 95 / 100) << scene.name();
+    EXPECT_LT(worst_error_m, 1e-3) << scene.name();
+  }
 }
 
 TEST(SimScanner, DevicePathCapturesWhatTheRendererRenders) {
