@@ -89,25 +89,13 @@ nlohmann::json evaluation_json(const eval::EvalReport& report) {
 
 namespace {
 
-// The figures compared side by side: name, key of evaluation_json, unit.
-struct SideBySideFigure {
-  const char* name;
-  const char* key;
-  const char* format;
-};
-constexpr SideBySideFigure kSideBySide[] = {{"c2c mean", "c2c_mean_um", "{:.2f} um"},
-                                            {"c2c rms", "c2c_rms_um", "{:.2f} um"},
-                                            {"c2c p95", "c2c_p95_um", "{:.2f} um"},
-                                            {"edge c2c mean", "c2c_edge_mean_um", "{:.2f} um"},
-                                            {"coverage", "coverage", "{:.4f}"},
-                                            {"ATE rmse", "ate_rmse_um", "{:.2f} um"},
-                                            {"loop closure", "loop_closure_error_um", "{:.2f} um"},
-                                            {"loop closure angle", "loop_closure_error_deg", "{:.4f} deg"}};
-
-std::string figure_text(const nlohmann::json& evaluation, const SideBySideFigure& figure) {
+std::string figure_text(const nlohmann::json& evaluation, const eval::SideBySideFigure& figure) {
   const auto found = evaluation.find(figure.key);
   if (found == evaluation.end() || !found->is_number()) return "n/a";
-  return fmt::format(fmt::runtime(figure.format), found->get<double>());
+  const char* unit = figure.unit == eval::FigureUnit::kMicrometres ? " um"
+                     : figure.unit == eval::FigureUnit::kDegrees   ? " deg"
+                                                                   : "";
+  return fmt::format("{:.{}f}{}", found->get<double>(), figure.decimals, unit);
 }
 
 int run_eval(const Context& context, const EvalCommandOptions& options) {
@@ -179,8 +167,8 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
                                report.result_folder, undeformed_folder, (*undeformed)["points"].get<std::size_t>(),
                                report.voxel_size_m * kUm);
       std::cout << fmt::format("  {:<20}{:>16}{:>16}\n", "", "deformed", "as tracked");
-      for (const SideBySideFigure& figure : kSideBySide) {
-        std::cout << fmt::format("  {:<20}{:>16}{:>16}\n", figure.name, figure_text(out, figure),
+      for (const eval::SideBySideFigure& figure : eval::kSideBySideFigures) {
+        std::cout << fmt::format("  {:<20}{:>16}{:>16}\n", figure.label, figure_text(out, figure),
                                  figure_text(*undeformed, figure));
       }
     }

@@ -201,4 +201,23 @@ struct EvalReport {
 EvalReport evaluate_result(const std::string& result_folder, const std::string& recording_folder,
                            const EvalOptions& options, const ProgressCallback& progress = {});
 
+// The figures shown side by side, with and without deformation (`sls eval`'s text, the
+// report's table): their label, their key in the evaluation JSON, decimals and unit.
+enum class FigureUnit { kMicrometres, kDegrees, kNone };
+struct SideBySideFigure {
+  const char* label;
+  const char* key;
+  int decimals;
+  FigureUnit unit;
+};
+inline constexpr SideBySideFigure kSideBySideFigures[] = {
+    {"C2C mean", "c2c_mean_um", 2, FigureUnit::kMicrometres},
+    {"C2C RMS", "c2c_rms_um", 2, FigureUnit::kMicrometres},
+    {"C2C p95", "c2c_p95_um", 2, FigureUnit::kMicrometres},
+    {"edge C2C mean", "c2c_edge_mean_um", 2, FigureUnit::kMicrometres},
+    {"coverage", "coverage", 4, FigureUnit::kNone},
+    {"ATE RMSE", "ate_rmse_um", 2, FigureUnit::kMicrometres},
+    {"loop closure error", "loop_closure_error_um", 2, FigureUnit::kMicrometres},
+    {"loop closure angle", "loop_closure_error_deg", 4, FigureUnit::kDegrees}};
+
 }  // namespace sls::eval

@@ -307,32 +307,20 @@ void deformation_quality_table(std::string& html, const nlohmann::json& report) 
   const nlohmann::json* deformed = find_key(report, {"evaluation"});
   const nlohmann::json* tracked = find_key(report, {"evaluation_undeformed"});
   if (deformed == nullptr || tracked == nullptr || !deformed->is_object() || !tracked->is_object()) return;
-  struct Figure {
-    const char* name;
-    const char* key;
-    const char* format;
-  };
-  static constexpr Figure kFigures[] = {{"C2C mean", "c2c_mean_um", "{:.2f} µm"},
-                                        {"C2C RMS", "c2c_rms_um", "{:.2f} µm"},
-                                        {"C2C p95", "c2c_p95_um", "{:.2f} µm"},
-                                        {"edge C2C mean", "c2c_edge_mean_um", "{:.2f} µm"},
-                                        {"coverage", "coverage", "{:.4f}"},
-                                        {"ATE RMSE", "ate_rmse_um", "{:.2f} µm"},
-                                        {"loop closure error", "loop_closure_error_um", "{:.2f} µm"},
-                                        {"loop closure angle", "loop_closure_error_deg", "{:.4f}°"}};
   html += "<h3>Quality with and without deformation</h3>\n"
           "<table class=\"deformation-quality\">\n<tr><th>figure</th><th>as tracked (undeformed)</th>"
           "<th>deformed</th><th>change</th></tr>\n";
-  for (const Figure& figure : kFigures) {
+  for (const eval::SideBySideFigure& figure : eval::kSideBySideFigures) {
     const auto before = number_at(*tracked, {figure.key});
     const auto after = number_at(*deformed, {figure.key});
-    auto text = [&](const std::optional<double>& value) {
-      return value ? fmt::format(fmt::runtime(figure.format), *value) : std::string("n/a");
-    };
+    const char* unit = figure.unit == eval::FigureUnit::kMicrometres ? " µm"
+                       : figure.unit == eval::FigureUnit::kDegrees   ? "°"
+                                                                     : "";
+    const auto format = [&](double value) { return fmt::format("{:.{}f}{}", value, figure.decimals, unit); };
+    auto text = [&](const std::optional<double>& value) { return value ? format(*value) : std::string("n/a"); };
     const std::string change =
-        before && after ? (*after >= *before ? "+" : "-") + fmt::format(fmt::runtime(figure.format), std::fabs(*after - *before))
-                        : std::string();
-    html += fmt::format("<tr><th>{}</th><td>{}</td><td>{}</td><td>{}</td></tr>\n", escape_html(figure.name),
+        before && after ? (*after >= *before ? "+" : "-") + format(std::fabs(*after - *before)) : std::string();
+    html += fmt::format("<tr><th>{}</th><td>{}</td><td>{}</td><td>{}</td></tr>\n", escape_html(figure.label),
                         escape_html(text(before)), escape_html(text(after)), escape_html(change));
   }
   html += "</table>\n";

@@ -202,7 +202,7 @@ class SlsCli(unittest.TestCase):
         human = run("eval", "--result", str(out), "--truth", str(rec))
         self.assertEqual(human.returncode, 0, human.stderr)
         self.assertRegex(human.stdout, r"deformed +as tracked")
-        self.assertRegex(human.stdout, r"ATE rmse +[0-9.]+ um +[0-9.]+ um")
+        self.assertRegex(human.stdout, r"ATE RMSE +[0-9.]+ um +[0-9.]+ um")
 
         # --deformation off: the model as tracked, nothing in OUT/undeformed, no loop closure
         # (a short simulated scan: the switches, not the figures, are under test here).
