@@ -4,6 +4,7 @@
 #include <cmath>
 #include <initializer_list>
 #include <iterator>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -269,9 +270,13 @@ void ScannerCalibration::validate() const {
                   length);
     }
   }
-  if (!std::isfinite(reprojection_rms_px)) {
-    throw_error(ErrorCode::kInvalidArgument, "reprojection_rms_px: {} is not finite (use -1 for unknown)",
-                reprojection_rms_px);
+  const std::pair<const char*, double> rms_values[] = {{"reprojection_rms_px", reprojection_rms_px},
+                                                       {"camera_rms_px", camera_rms_px},
+                                                       {"projector_rms_px", projector_rms_px}};
+  for (const auto& [key, value] : rms_values) {
+    if (!std::isfinite(value)) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: {} is not finite (use -1 for unknown)", key, value);
+    }
   }
 }
 
@@ -295,6 +300,11 @@ void write_calibration(const std::string& path, const ScannerCalibration& calibr
     write_matrix(out, "turntable_axis_direction", 3, 1, calibration.turntable->direction_camera.data());
   }
   fmt::format_to(it, "reprojection_rms_px: {}\n", format_real(calibration.reprojection_rms_px));
+  if (calibration.camera_rms_px >= 0.0) fmt::format_to(it, "camera_rms_px: {}\n", format_real(calibration.camera_rms_px));
+  if (calibration.projector_rms_px >= 0.0) {
+    fmt::format_to(it, "projector_rms_px: {}\n", format_real(calibration.projector_rms_px));
+  }
+  if (!calibration.calibrated_utc.empty()) fmt::format_to(it, "calibrated_utc: {}\n", quote(calibration.calibrated_utc));
   write_file_atomic(path, out);
 }
 
@@ -350,6 +360,9 @@ ScannerCalibration read_calibration(const std::string& path) {
                                           read_vector3(reader, "turntable_axis_direction")};
   }
   if (reader.has("reprojection_rms_px")) calibration.reprojection_rms_px = reader.read_real("reprojection_rms_px");
+  if (reader.has("camera_rms_px")) calibration.camera_rms_px = reader.read_real("camera_rms_px");
+  if (reader.has("projector_rms_px")) calibration.projector_rms_px = reader.read_real("projector_rms_px");
+  if (reader.has("calibrated_utc")) calibration.calibrated_utc = reader.read_string("calibrated_utc");
 
   try {
     calibration.validate();

@@ -27,7 +27,11 @@ struct ScannerCalibration {
   CameraIntrinsics projector;
   Pose T_camera_projector;  // projector frame -> camera frame
   std::optional<TurntableAxis> turntable;
-  double reprojection_rms_px = -1.0;  // from the calibration that produced it; < 0 if unknown
+  double reprojection_rms_px = -1.0;  // from the calibration that produced it (the joint,
+                                      // stereo RMS of `sls calibrate`); < 0 if unknown
+  double camera_rms_px = -1.0;        // the camera's and the projector's own RMS; < 0 if unknown
+  double projector_rms_px = -1.0;
+  std::string calibrated_utc;         // ISO 8601 time of the calibration; empty if unknown
   std::string description;            // free text: rig name, date, tool
 
   // Throws sls::Error (invalid argument) naming the first problem: non-positive image size

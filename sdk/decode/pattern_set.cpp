@@ -1,5 +1,7 @@
 #include "sdk/decode/pattern_set.h"
 
+#include <cstdio>
+
 #include <fmt/format.h>
 
 #include <nlohmann/json.hpp>
@@ -201,6 +203,60 @@ PatternSet make_gray_phase_pattern_set(const GrayPhaseOptions& options) {
   set.name = options.name.empty() ? name : options.name;
   validate_pattern_set(set);
   return set;
+}
+
+PatternSet make_opencv_graycode_pattern_set(int width, int height, bool references) {
+  if (width <= 0 || height <= 0 || width > kMaxProjectorSide || height > kMaxProjectorSide) {
+    throw_error(ErrorCode::kInvalidArgument, "OpenCV Gray-code pattern set: projector size {}x{} is unusable", width,
+                height);
+  }
+  PatternSet set;
+  set.name = fmt::format("opencv_graycode_{}x{}", width, height);
+  set.projector_width = width;
+  set.projector_height = height;
+  for (const PatternAxis axis : {PatternAxis::kColumns, PatternAxis::kRows}) {
+    const int extent = extent_for(axis, width, height);
+    for (int bit = gray_code_bits(extent) - 1; bit >= 0; --bit) {
+      for (const bool inverted : {false, true}) {
+        PatternDesc d;
+        d.kind = PatternKind::kGrayCode;
+        d.axis = axis;
+        d.extent = extent;
+        d.bit = bit;
+        d.inverted = inverted;
+        set.patterns.push_back(d);
+      }
+    }
+  }
+  if (references) {
+    set.patterns.push_back(make_reference(PatternKind::kWhite, width));
+    set.patterns.push_back(make_reference(PatternKind::kBlack, width));
+  }
+  validate_pattern_set(set);
+  return set;
+}
+
+PatternSet pattern_set_from_name(const std::string& name) {
+  const std::size_t colon = name.find(':');
+  const std::string family = name.substr(0, colon);
+  int width = 0, height = 0;
+  char trailing = 0;
+  const bool sized = colon != std::string::npos &&
+                     std::sscanf(name.c_str() + colon + 1, "%dx%d%c", &width, &height, &trailing) == 2;
+  if (family == "opencv-graycode" || family == "gray-phase") {
+    if (!sized) {
+      throw_error(ErrorCode::kInvalidArgument, "pattern set name '{}': expected {}:WIDTHxHEIGHT (the projector's size)",
+                  name, family);
+    }
+    if (family == "opencv-graycode") return make_opencv_graycode_pattern_set(width, height);
+    GrayPhaseOptions options;
+    options.projector_width = width;
+    options.projector_height = height;
+    options.rows = true;
+    return make_gray_phase_pattern_set(options);
+  }
+  throw_error(ErrorCode::kInvalidArgument,
+              "unknown pattern set name '{}' (known: opencv-graycode:WxH, gray-phase:WxH)", name);
 }
 
 void validate_pattern_set(const PatternSet& set) {

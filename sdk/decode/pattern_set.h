@@ -81,6 +81,18 @@ struct GrayPhaseOptions {
 // Throws sls::Error(kInvalidArgument) for unusable options.
 PatternSet make_gray_phase_pattern_set(const GrayPhaseOptions& options = {});
 
+// OpenCV structured_light GrayCodePattern's order for a width x height projector (what its
+// users and tools such as procam-calibration capture): per column bit, coarsest first, the
+// pattern then its inverse; the same for the rows; then (with references) white and black
+// last. Gray code only: coordinates are integers.
+PatternSet make_opencv_graycode_pattern_set(int width, int height, bool references = true);
+
+// A built-in set by name, for captures made elsewhere (`sls calibrate --patterns`):
+//   "opencv-graycode:WxH"   make_opencv_graycode_pattern_set(W, H)
+//   "gray-phase:WxH"        make_gray_phase_pattern_set with columns and rows, W x H
+// Throws sls::Error(kInvalidArgument) naming the name and the names known.
+PatternSet pattern_set_from_name(const std::string& name);
+
 // Bits a Gray code needs to give each of `extent` pixels its own code: ceil(log2(extent)).
 int gray_code_bits(int extent);
 

@@ -17,36 +17,9 @@
 
 namespace sls::test {
 
-// OpenCV's order for a width x height projector: per column bit (coarsest first) the pattern
-// and its inverse, the same for the rows, then (with references) white and black.
+// OpenCV's order (now part of sdk/decode, where `sls calibrate --patterns` finds it by name).
 inline PatternSet opencv_graycode_pattern_set(int width, int height, bool references = true) {
-  PatternSet set;
-  set.name = "opencv_graycode_" + std::to_string(width) + "x" + std::to_string(height);
-  set.projector_width = width;
-  set.projector_height = height;
-  for (const PatternAxis axis : {PatternAxis::kColumns, PatternAxis::kRows}) {
-    const int extent = axis == PatternAxis::kColumns ? width : height;
-    for (int bit = gray_code_bits(extent) - 1; bit >= 0; --bit) {
-      for (const bool inverted : {false, true}) {
-        PatternDesc d;
-        d.kind = PatternKind::kGrayCode;
-        d.axis = axis;
-        d.extent = extent;
-        d.bit = bit;
-        d.inverted = inverted;
-        set.patterns.push_back(d);
-      }
-    }
-  }
-  if (references) {
-    for (const PatternKind kind : {PatternKind::kWhite, PatternKind::kBlack}) {
-      PatternDesc d;
-      d.kind = kind;
-      d.extent = width;
-      set.patterns.push_back(d);
-    }
-  }
-  return set;
+  return make_opencv_graycode_pattern_set(width, height, references);
 }
 
 // GrayCodePattern reads 8-bit images: a camera image of `bit_depth` bits scaled down to 8.

@@ -18,7 +18,7 @@ ALLOWED = {
     "sdk/include": set(),
     "sdk/core": set(),
     "firmware-interface": {"sdk/core"},
-    "calib": {"sdk/core"},
+    "calib": {"sdk/core", "sdk/decode"},  # decodes the board views' patterns
     "sdk/decode": {"sdk/core"},
     "fusion": {"sdk/core"},
     "drivers": {"sdk/core", "firmware-interface", "sdk/decode"},

@@ -1,0 +1,226 @@
+#include "calib/calibrate_capture.h"
+
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "sdk/core/error.h"
+#include "sdk/core/file_util.h"
+#include "sdk/core/image_io.h"
+#include "sdk/core/recording.h"
+
+namespace sls::calib {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string utc_now() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return text;
+}
+
+// The board of a simulated capture (groundtruth/board.json), for a board not given.
+BoardSpec read_board_json(const std::string& path) {
+  nlohmann::json json;
+  try {
+    json = nlohmann::json::parse(read_file_text(path));
+    BoardSpec board;
+    board.inner_cols = json.at("inner_corners").at(0).get<int>();
+    board.inner_rows = json.at("inner_corners").at(1).get<int>();
+    board.square_m = json.at("square_m").get<double>();
+    return board;
+  } catch (const nlohmann::json::exception& error) {
+    throw_error(ErrorCode::kFormat, "{}: not a board description: {}", path, error.what());
+  }
+}
+
+struct Source {
+  std::string kind;
+  PatternSet patterns;
+  DecodeOptions decode;
+  int bit_depth = 0;
+  int width = 0, height = 0;
+  std::vector<std::string> names;
+  std::vector<std::optional<double>> angles;
+  std::vector<std::string> skipped;  // per view: non-empty when it cannot be used at all
+  std::function<std::vector<Image16u>(std::size_t)> load;
+  std::string groundtruth;           // folder, empty when none
+};
+
+Source open_recording(const std::string& folder, const std::string& pattern_name) {
+  auto reader = std::make_shared<RecordingReader>(RecordingReader::open(folder));
+  Source source;
+  source.kind = "recording";
+  const RecordingInfo& info = reader->info();
+  if (info.images_per_frame == 0) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: a depth-only recording has no pattern images to calibrate from",
+                folder);
+  }
+  source.patterns = pattern_name.empty() ? pattern_set_from_json(info.pattern_set_json) : pattern_set_from_name(pattern_name);
+  source.bit_depth = info.camera.bit_depth;
+  source.width = info.camera.width;
+  source.height = info.camera.height;
+  source.decode.bit_depth = info.camera.bit_depth;  // the recording's camera, as a scan decodes it
+  for (std::size_t i = 0; i < reader->frame_count(); ++i) {
+    const FrameInfo& frame = reader->frame(i);
+    source.names.push_back(fmt::format("frame {}", frame.index));
+    source.angles.push_back(frame.turntable_angle_deg);
+    source.skipped.push_back(frame.complete ? "" : "incomplete frame (capture cut short)");
+  }
+  source.load = [reader](std::size_t i) { return reader->load_images(i); };
+  source.groundtruth = reader->groundtruth_folder();
+  return source;
+}
+
+std::vector<std::string> sorted_entries(const std::string& folder, bool directories) {
+  std::vector<std::string> out;
+  std::error_code error;
+  for (const fs::directory_entry& entry : fs::directory_iterator(folder, error)) {
+    if (directories ? entry.is_directory() : (entry.is_regular_file() && entry.path().extension() == ".png")) {
+      out.push_back(entry.path().string());
+    }
+  }
+  if (error) throw_error(ErrorCode::kIo, "{}: cannot list: {}", folder, error.message());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+Source open_folder(const std::string& folder, const std::string& pattern_name) {
+  if (pattern_name.empty()) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "{} is a folder of captures: name its pattern set (e.g. --patterns opencv-graycode:1024x768)", folder);
+  }
+  Source source;
+  source.kind = "folder";
+  source.patterns = pattern_set_from_name(pattern_name);
+  const std::vector<std::string> poses = sorted_entries(folder, true);
+  if (poses.empty()) {
+    throw_error(ErrorCode::kNotFound, "{}: no subfolders (one per board pose) and no manifest.json", folder);
+  }
+  std::vector<std::vector<std::string>> files;
+  for (const std::string& pose : poses) {
+    files.push_back(sorted_entries(pose, false));
+    if (files.back().size() != source.patterns.size()) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: {} PNG images, the pattern set '{}' has {}", pose,
+                  files.back().size(), source.patterns.name, source.patterns.size());
+    }
+    source.names.push_back(fs::path(pose).filename().string());
+    source.angles.emplace_back();
+    source.skipped.emplace_back();
+  }
+  const PngHeader header = read_png_header(files.front().front());
+  source.bit_depth = header.bit_depth;
+  source.width = header.width;
+  source.height = header.height;
+  source.decode = decode_options_for_unknown_camera(header.bit_depth);
+  source.load = [files, header](std::size_t i) {
+    std::vector<Image16u> stack;
+    for (const std::string& path : files[i]) {
+      Image16u image = read_png_u16(path);
+      if (image.width() != header.width || image.height() != header.height) {
+        throw_error(ErrorCode::kFormat, "{}: {}x{} image, the capture's first is {}x{}", path, image.width(),
+                    image.height(), header.width, header.height);
+      }
+      stack.push_back(std::move(image));
+    }
+    return stack;
+  };
+  return source;
+}
+
+}  // namespace
+
+CalibrateCaptureResult calibrate_capture(const CalibrateCaptureOptions& options, const ProgressCallback& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  if (!fs::is_directory(options.input)) {
+    throw_error(ErrorCode::kNotFound, "{}: not a recording or a folder of captures", options.input);
+  }
+  Source source = fs::exists(fs::path(options.input) / "manifest.json") ? open_recording(options.input, options.patterns)
+                                                                          : open_folder(options.input, options.patterns);
+  CalibrateCaptureResult result;
+  result.input_kind = source.kind;
+  result.pattern_set_name = source.patterns.name;
+  result.camera_bit_depth = source.bit_depth;
+  result.board = options.board;
+  const std::string board_json = source.groundtruth.empty() ? "" : source.groundtruth + "/board.json";
+  if (result.board.square_m <= 0.0 && result.board.inner_cols <= 0 && !board_json.empty() && fs::exists(board_json)) {
+    result.board = read_board_json(board_json);
+  }
+  if (result.board.inner_cols <= 0 || result.board.inner_rows <= 0 || result.board.square_m <= 0.0) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "the board is not described: give its inner corners and square size (--board COLSxROWS --square M)");
+  }
+  result.board.validate();
+
+  ObservationOptions observation;
+  observation.board = result.board;
+  observation.decode = source.decode;
+  observation.min_projector_corner_fraction = options.min_projector_corner_fraction;
+  observation.device = options.device;
+  const std::size_t count = source.names.size();
+  for (std::size_t i = 0; i < count; ++i) {
+    report_progress(progress, {"calibrate", i, count, source.names[i]});
+    // A view that cannot be read (a missing, corrupt or mis-sized image) is rejected with the
+    // reason, not fatal: the other views still calibrate.
+    std::string reason = source.skipped[i];
+    std::vector<Image16u> stack;
+    if (reason.empty()) {
+      try {
+        stack = source.load(i);
+      } catch (const Error& error) {
+        if (error.code() == ErrorCode::kCancelled || error.code() == ErrorCode::kOutOfMemory) throw;
+        reason = error.what();
+      }
+    }
+    if (!reason.empty()) {
+      ViewObservation rejected;
+      rejected.name = source.names[i];
+      rejected.turntable_angle_deg = source.angles[i];
+      rejected.rejected_reason = reason;
+      result.views.push_back(std::move(rejected));
+      continue;
+    }
+    result.views.push_back(observe_view(source.names[i], source.angles[i], stack, source.patterns, observation));
+  }
+  report_progress(progress, {"calibrate", count, count, "solve"});
+
+  ProcamSettings settings;
+  settings.board = result.board;
+  settings.camera_width = source.width;
+  settings.camera_height = source.height;
+  settings.projector_width = source.patterns.projector_width;
+  settings.projector_height = source.patterns.projector_height;
+  settings.estimate_k3 = options.estimate_k3;
+  settings.max_obliquity_deg = options.max_obliquity_deg;
+  result.procam = calibrate_procam(result.views, settings);
+  result.axis = fit_turntable_axis(result.views, result.procam.views, result.procam.calibration, result.board);
+  ScannerCalibration& calibration = result.procam.calibration;
+  if (result.axis.fitted) calibration.turntable = result.axis.axis;
+  calibration.camera_rms_px = result.procam.camera_rms_px;
+  calibration.projector_rms_px = result.procam.projector_rms_px;
+  calibration.calibrated_utc = utc_now();
+  calibration.description = fmt::format(
+      "slscan calibrate: {} of {} board views ({}x{} corners, {} m squares), pattern set {}, camera {:.3f} px, "
+      "projector {:.3f} px, stereo {:.3f} px RMS{}",
+      result.procam.views_used, count, result.board.inner_cols, result.board.inner_rows, result.board.square_m,
+      source.patterns.name, result.procam.camera_rms_px, result.procam.projector_rms_px, result.procam.stereo_rms_px,
+      result.axis.fitted ? fmt::format(", turntable axis from {} views", result.axis.views) : "");
+
+  const std::string truth_path = source.groundtruth.empty() ? "" : source.groundtruth + "/calibration.yml";
+  if (!truth_path.empty() && fs::exists(truth_path)) {
+    result.truth = read_calibration(truth_path);
+    result.errors = compare_calibrations(calibration, *result.truth);
+  }
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace sls::calib

@@ -1,0 +1,319 @@
+#include "calib/procam_calibration.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include <fmt/format.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+
+#include "calib/least_squares.h"
+#include "sdk/core/camera_model_shared.h"
+#include "sdk/core/error.h"
+
+namespace sls::calib {
+namespace {
+
+constexpr double kDegree = M_PI / 180.0;
+
+CameraIntrinsics intrinsics_from(const cv::Mat& k, const cv::Mat& d, int width, int height) {
+  CameraIntrinsics c;
+  c.width = width;
+  c.height = height;
+  c.fx = k.at<double>(0, 0);
+  c.fy = k.at<double>(1, 1);
+  c.cx = k.at<double>(0, 2);
+  c.cy = k.at<double>(1, 2);
+  const cv::Mat flat = d.reshape(1, 1);
+  const auto coefficient = [&](int i) { return i < flat.cols ? flat.at<double>(0, i) : 0.0; };
+  c.k1 = coefficient(0);
+  c.k2 = coefficient(1);
+  c.p1 = coefficient(2);
+  c.p2 = coefficient(3);
+  c.k3 = coefficient(4);
+  return c;
+}
+
+Pose pose_from(const cv::Mat& rvec, const cv::Mat& tvec) {
+  cv::Mat r;
+  cv::Rodrigues(rvec, r);
+  Eigen::Matrix3d rotation;
+  for (int i = 0; i < 9; ++i) rotation(i / 3, i % 3) = r.at<double>(i / 3, i % 3);
+  return Pose(rotation, Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
+}
+
+std::vector<cv::Point3f> to_cv(const std::vector<Eigen::Vector3d>& points) {
+  std::vector<cv::Point3f> out;
+  for (const Eigen::Vector3d& p : points) out.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+  return out;
+}
+
+cv::Point2f to_cv(const Eigen::Vector2d& p) { return {static_cast<float>(p.x()), static_cast<float>(p.y())}; }
+
+Eigen::Vector2d predict(const CameraIntrinsics& c, const Eigen::Vector3d& point_camera) {
+  Vec2d pixel{};
+  project(c, Vec3d{point_camera.x(), point_camera.y(), point_camera.z()}, &pixel);
+  return {pixel.x, pixel.y};
+}
+
+double obliquity_deg(const Pose& T_camera_board) {
+  const Eigen::Vector3d normal = T_camera_board.rotation().col(2);
+  return std::acos(std::min(1.0, std::fabs(normal.z()))) / kDegree;
+}
+
+struct Subsets {
+  std::vector<std::vector<cv::Point3f>> object;
+  std::vector<std::vector<cv::Point2f>> points;
+  std::vector<std::vector<cv::Point2f>> second;  // the projector's, for the joint subsets
+};
+
+// Per used view, the corners `take(view, corner)` accepts: camera (and projector) points.
+template <typename Take>
+Subsets collect(const std::vector<ViewObservation>& views, const std::vector<ViewSolution>& solutions,
+                const std::vector<Eigen::Vector3d>& object, bool projector_points, bool with_second, Take take) {
+  Subsets out;
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    if (!solutions[v].used) continue;
+    out.object.emplace_back();
+    out.points.emplace_back();
+    out.second.emplace_back();
+    for (std::size_t c = 0; c < object.size(); ++c) {
+      if (!take(v, c)) continue;
+      out.object.back().push_back(to_cv(std::vector<Eigen::Vector3d>{object[c]}).front());
+      out.points.back().push_back(
+          to_cv(projector_points ? views[v].projector.corners[c] : views[v].camera_corners[c]));
+      if (with_second) out.second.back().push_back(to_cv(views[v].projector.corners[c]));
+    }
+  }
+  return out;
+}
+
+// Corners whose residual under a first solve exceeds kOutlierSigmas robust standard
+// deviations (σ from the median residual: for 2-D Gaussian errors the median length is
+// 1.177 σ) are mislocated (a corner in a defocused far end, a speck on the board): they are
+// dropped and the device solved again. At 5 σ a Gaussian error is dropped once in 10^5.
+constexpr double kOutlierSigmas = 5.0;
+
+int reject_outliers(const std::vector<ViewObservation>& views, std::vector<ViewSolution>* solutions,
+                    const std::vector<Eigen::Vector3d>& object, const cv::Mat& k, const cv::Mat& d,
+                    const std::vector<cv::Mat>& rvecs, const std::vector<cv::Mat>& tvecs, bool projector) {
+  std::vector<std::pair<std::size_t, std::size_t>> where;
+  std::vector<double> lengths;
+  std::size_t used = 0;
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    ViewSolution& s = (*solutions)[v];
+    if (!s.used) continue;
+    std::vector<cv::Point2f> predicted;
+    cv::projectPoints(to_cv(object), rvecs[used], tvecs[used], k, d, predicted);
+    ++used;
+    std::vector<std::uint8_t>& inlier = projector ? s.projector_inlier : s.camera_inlier;
+    for (std::size_t c = 0; c < object.size(); ++c) {
+      if (inlier[c] == 0) continue;
+      const Eigen::Vector2d observed = projector ? views[v].projector.corners[c] : views[v].camera_corners[c];
+      lengths.push_back(std::hypot(observed.x() - static_cast<double>(predicted[c].x),
+                                   observed.y() - static_cast<double>(predicted[c].y)));
+      where.emplace_back(v, c);
+    }
+  }
+  if (lengths.empty()) return 0;
+  std::vector<double> sorted = lengths;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
+  const double threshold = kOutlierSigmas * sorted[sorted.size() / 2] / 1.177;
+  int rejected = 0;
+  for (std::size_t i = 0; i < lengths.size(); ++i) {
+    if (lengths[i] <= threshold) continue;
+    ViewSolution& s = (*solutions)[where[i].first];
+    (projector ? s.projector_inlier : s.camera_inlier)[where[i].second] = 0;
+    ++rejected;
+  }
+  return rejected;
+}
+
+double rms_of(const std::vector<Eigen::Vector2d>& residuals, const std::vector<std::uint8_t>* valid) {
+  double sum = 0.0;
+  int count = 0;
+  for (std::size_t i = 0; i < residuals.size(); ++i) {
+    if (valid != nullptr && (*valid)[i] == 0) continue;
+    sum += residuals[i].squaredNorm();
+    ++count;
+  }
+  return count > 0 ? std::sqrt(sum / count) : 0.0;
+}
+
+}  // namespace
+
+void view_residuals(const ViewObservation& view, const ScannerCalibration& calibration, const BoardSpec& board,
+                    const Pose& T_camera_board, ViewSolution* solution) {
+  const std::vector<Eigen::Vector3d> object = board.object_points();
+  const Pose T_projector_board = calibration.T_camera_projector.inverse() * T_camera_board;
+  solution->camera_residuals_px.assign(object.size(), Eigen::Vector2d::Zero());
+  solution->projector_residuals_px.assign(object.size(), Eigen::Vector2d::Zero());
+  for (std::size_t c = 0; c < object.size(); ++c) {
+    solution->camera_residuals_px[c] = view.camera_corners[c] - predict(calibration.camera, T_camera_board * object[c]);
+    if (view.projector.valid[c] != 0) {
+      solution->projector_residuals_px[c] =
+          view.projector.corners[c] - predict(calibration.projector, T_projector_board * object[c]);
+    }
+  }
+  solution->camera_rms_px =
+      rms_of(solution->camera_residuals_px, solution->camera_inlier.empty() ? nullptr : &solution->camera_inlier);
+  solution->projector_rms_px = rms_of(solution->projector_residuals_px, solution->projector_inlier.empty()
+                                                                           ? &view.projector.valid
+                                                                           : &solution->projector_inlier);
+}
+
+Pose refine_board_pose(const ViewObservation& view, const ScannerCalibration& calibration, const BoardSpec& board,
+                       const Pose& initial, const ViewSolution* masks) {
+  const auto camera_used = [&](std::size_t c) { return masks == nullptr || masks->camera_inlier[c] != 0; };
+  const auto projector_used = [&](std::size_t c) {
+    return masks == nullptr ? view.projector.valid[c] != 0 : masks->projector_inlier[c] != 0;
+  };
+  const std::vector<Eigen::Vector3d> object = board.object_points();
+  const Pose T_projector_camera = calibration.T_camera_projector.inverse();
+  const auto residuals = [&](const Eigen::VectorXd& x, Eigen::VectorXd* r) {
+    const Pose T_camera_board = Pose::exp(x.head<6>()) * initial;
+    const Pose T_projector_board = T_projector_camera * T_camera_board;
+    r->resize(static_cast<Eigen::Index>(4 * object.size()));
+    for (std::size_t c = 0; c < object.size(); ++c) {
+      Eigen::Vector2d camera = Eigen::Vector2d::Zero(), projector = Eigen::Vector2d::Zero();
+      if (camera_used(c)) camera = view.camera_corners[c] - predict(calibration.camera, T_camera_board * object[c]);
+      if (projector_used(c)) {
+        projector = view.projector.corners[c] - predict(calibration.projector, T_projector_board * object[c]);
+      }
+      r->segment<2>(static_cast<Eigen::Index>(4 * c)) = camera;
+      r->segment<2>(static_cast<Eigen::Index>(4 * c + 2)) = projector;
+    }
+  };
+  const double length = board.square_m * std::max(board.inner_cols, board.inner_rows);
+  Eigen::VectorXd scale(6);
+  scale << length, length, length, 1.0, 1.0, 1.0;
+  const LeastSquaresResult fit = minimize_least_squares(residuals, Eigen::VectorXd::Zero(6), scale, 30);
+  return Pose::exp(fit.x.head<6>()) * initial;
+}
+
+ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, const ProcamSettings& settings) {
+  settings.board.validate();
+  if (settings.camera_width <= 0 || settings.camera_height <= 0 || settings.projector_width <= 0 ||
+      settings.projector_height <= 0) {
+    throw_error(ErrorCode::kInvalidArgument, "calibration: camera {}x{} or projector {}x{} size missing",
+                settings.camera_width, settings.camera_height, settings.projector_width, settings.projector_height);
+  }
+  ProcamCalibration result;
+  result.views.resize(views.size());
+  const std::vector<Eigen::Vector3d> object = settings.board.object_points();
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    ViewSolution& s = result.views[v];
+    s.used = views[v].rejected_reason.empty() && views[v].board_found;
+    s.rejected_reason = views[v].rejected_reason;
+    if (!s.used) continue;
+    s.camera_inlier.assign(object.size(), 1);
+    s.projector_inlier = views[v].projector.valid;
+  }
+  const int flags = settings.estimate_k3 ? 0 : cv::CALIB_FIX_K3;
+  const cv::Size camera_size(settings.camera_width, settings.camera_height);
+  const cv::Size projector_size(settings.projector_width, settings.projector_height);
+  const auto camera_take = [&](std::size_t v, std::size_t c) { return result.views[v].camera_inlier[c] != 0; };
+  const auto projector_take = [&](std::size_t v, std::size_t c) { return result.views[v].projector_inlier[c] != 0; };
+  const auto require_views = [&] {
+    int used = 0;
+    for (const ViewSolution& s : result.views) used += s.used ? 1 : 0;
+    if (used >= settings.min_views) return;
+    std::string reasons;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      if (!result.views[v].used) reasons += fmt::format("; {}: {}", views[v].name, result.views[v].rejected_reason);
+    }
+    throw_error(ErrorCode::kInvalidArgument, "calibration needs {} usable board views, {} of {} are usable{}",
+                settings.min_views, used, views.size(), reasons);
+  };
+
+  // The camera alone: views it sees too obliquely are dropped, then mislocated corners, each
+  // followed by a new solve.
+  cv::Mat camera_k, camera_d, projector_k, projector_d;
+  std::vector<cv::Mat> rvecs, tvecs;
+  const auto solve_camera = [&] {
+    require_views();
+    const Subsets subsets = collect(views, result.views, object, false, false, camera_take);
+    camera_k = cv::Mat();
+    camera_d = cv::Mat();
+    result.camera_rms_px =
+        cv::calibrateCamera(subsets.object, subsets.points, camera_size, camera_k, camera_d, rvecs, tvecs, flags);
+  };
+  solve_camera();
+  bool dropped = false;
+  std::size_t k = 0;
+  for (ViewSolution& s : result.views) {
+    if (!s.used) continue;
+    s.T_camera_board = pose_from(rvecs[k], tvecs[k]);
+    s.obliquity_deg = obliquity_deg(s.T_camera_board);
+    ++k;
+    if (s.obliquity_deg > settings.max_obliquity_deg) {
+      s.used = false;
+      s.rejected_reason = fmt::format("too oblique: the board is tilted {:.0f}° from the camera's axis (limit {:.0f}°)",
+                                      s.obliquity_deg, settings.max_obliquity_deg);
+      dropped = true;
+    }
+  }
+  if (dropped) solve_camera();
+  result.camera_outliers = reject_outliers(views, &result.views, object, camera_k, camera_d, rvecs, tvecs, false);
+  if (result.camera_outliers > 0) solve_camera();
+
+  const auto solve_projector = [&] {
+    const Subsets subsets = collect(views, result.views, object, true, false, projector_take);
+    projector_k = cv::Mat();
+    projector_d = cv::Mat();
+    result.projector_rms_px = cv::calibrateCamera(subsets.object, subsets.points, projector_size, projector_k,
+                                                  projector_d, rvecs, tvecs, flags);
+  };
+  solve_projector();
+  result.projector_outliers =
+      reject_outliers(views, &result.views, object, projector_k, projector_d, rvecs, tvecs, true);
+  if (result.projector_outliers > 0) solve_projector();
+
+  // One joint refinement of both devices and their pose, over the corners both kept.
+  const Subsets joint = collect(views, result.views, object, false, true, [&](std::size_t v, std::size_t c) {
+    return camera_take(v, c) && projector_take(v, c);
+  });
+  cv::Mat rotation, translation, essential, fundamental;
+  result.stereo_rms_px =
+      cv::stereoCalibrate(joint.object, joint.points, joint.second, camera_k, camera_d, projector_k, projector_d,
+                          camera_size, rotation, translation, essential, fundamental,
+                          flags | cv::CALIB_USE_INTRINSIC_GUESS,
+                          cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-9));
+
+  ScannerCalibration& calibration = result.calibration;
+  calibration.camera = intrinsics_from(camera_k, camera_d, settings.camera_width, settings.camera_height);
+  calibration.projector = intrinsics_from(projector_k, projector_d, settings.projector_width, settings.projector_height);
+  Eigen::Matrix3d r;
+  for (int i = 0; i < 9; ++i) r(i / 3, i % 3) = rotation.at<double>(i / 3, i % 3);
+  // OpenCV's stereo convention: X_projector = R X_camera + T.
+  calibration.T_camera_projector =
+      Pose(r, Eigen::Vector3d(translation.at<double>(0), translation.at<double>(1), translation.at<double>(2))).inverse();
+  calibration.reprojection_rms_px = result.stereo_rms_px;
+
+  double camera_sum = 0.0, projector_sum = 0.0;
+  int camera_count = 0, projector_count = 0;
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    ViewSolution& s = result.views[v];
+    if (!s.used) continue;
+    s.T_camera_board = refine_board_pose(views[v], calibration, settings.board, s.T_camera_board, &s);
+    s.obliquity_deg = obliquity_deg(s.T_camera_board);
+    view_residuals(views[v], calibration, settings.board, s.T_camera_board, &s);
+    for (std::size_t c = 0; c < object.size(); ++c) {
+      if (s.camera_inlier[c] != 0) {
+        camera_sum += s.camera_residuals_px[c].squaredNorm();
+        ++camera_count;
+      }
+      if (s.projector_inlier[c] != 0) {
+        projector_sum += s.projector_residuals_px[c].squaredNorm();
+        ++projector_count;
+      }
+    }
+    ++result.views_used;
+  }
+  result.joint_camera_rms_px = camera_count > 0 ? std::sqrt(camera_sum / camera_count) : 0.0;
+  result.joint_projector_rms_px = projector_count > 0 ? std::sqrt(projector_sum / projector_count) : 0.0;
+  return result;
+}
+
+}  // namespace sls::calib

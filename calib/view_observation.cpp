@@ -1,0 +1,71 @@
+#include "calib/view_observation.h"
+
+#include <fmt/format.h>
+
+#include "sdk/core/error.h"
+
+namespace sls::calib {
+namespace {
+
+int find_reference(const PatternSet& patterns, PatternKind kind) {
+  for (std::size_t i = 0; i < patterns.patterns.size(); ++i) {
+    if (patterns.patterns[i].kind == kind) return static_cast<int>(i);
+  }
+  throw_error(ErrorCode::kInvalidArgument, "pattern set '{}' has no {} image: the board is found in white − black",
+              patterns.name, kind == PatternKind::kWhite ? "white" : "black");
+}
+
+// Decoded share of the pixels in the corners' bounding box (a coarse figure for the report).
+double decoded_fraction(const DecodedFrame& frame, const std::vector<Eigen::Vector2d>& corners) {
+  Eigen::Vector2d lo = corners.front(), hi = corners.front();
+  for (const Eigen::Vector2d& c : corners) {
+    lo = lo.cwiseMin(c);
+    hi = hi.cwiseMax(c);
+  }
+  const int x0 = std::max(0, static_cast<int>(lo.x())), x1 = std::min(frame.projector_u.width() - 1, static_cast<int>(hi.x()));
+  const int y0 = std::max(0, static_cast<int>(lo.y())), y1 = std::min(frame.projector_u.height() - 1, static_cast<int>(hi.y()));
+  std::size_t total = 0, ok = 0;
+  for (int y = y0; y <= y1; y += 2) {
+    for (int x = x0; x <= x1; x += 2) {
+      ++total;
+      ok += std::isfinite(frame.projector_u(x, y)) ? 1u : 0u;
+    }
+  }
+  return total > 0 ? static_cast<double>(ok) / static_cast<double>(total) : 0.0;
+}
+
+}  // namespace
+
+ViewObservation observe_view(const std::string& name, std::optional<double> turntable_angle_deg,
+                             const std::vector<Image16u>& stack, const PatternSet& patterns,
+                             const ObservationOptions& options) {
+  if (stack.size() != patterns.size()) {
+    throw_error(ErrorCode::kInvalidArgument, "view '{}': {} images, the pattern set '{}' has {}", name, stack.size(),
+                patterns.name, patterns.size());
+  }
+  ViewObservation view;
+  view.name = name;
+  view.turntable_angle_deg = turntable_angle_deg;
+  const Image16u& white = stack[static_cast<std::size_t>(find_reference(patterns, PatternKind::kWhite))];
+  const Image16u& black = stack[static_cast<std::size_t>(find_reference(patterns, PatternKind::kBlack))];
+  const BoardDetection board = detect_chessboard(white, black, options.board);
+  if (!board.found) {
+    view.rejected_reason = board.reason;
+    return view;
+  }
+  view.board_found = true;
+  view.camera_corners = board.corners;
+  view.square_px = board.square_px;
+  const DecodedFrame decoded = decode_projector_coordinates(patterns, stack, options.decode, options.device);
+  view.decoded_fraction = decoded_fraction(decoded, board.corners);
+  view.projector = projector_corners_by_local_homography(decoded.projector_u, decoded.projector_v, board.corners,
+                                                         board.square_px, options.homography);
+  const int needed = static_cast<int>(std::ceil(options.min_projector_corner_fraction * options.board.corner_count()));
+  if (view.projector.valid_count() < needed) {
+    view.rejected_reason = fmt::format("too few decoded corners: the projector sees {} of {} (need {})",
+                                       view.projector.valid_count(), options.board.corner_count(), needed);
+  }
+  return view;
+}
+
+}  // namespace sls::calib

@@ -1,0 +1,50 @@
+// One board pose as the calibration sees it: the board's corners in the camera image and,
+// through the decoded patterns, in the projector.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "calib/board.h"
+#include "calib/projector_corners.h"
+#include "sdk/core/device.h"
+#include "sdk/core/image.h"
+#include "sdk/decode/decoder.h"
+#include "sdk/decode/pattern_set.h"
+
+namespace sls::calib {
+
+struct ViewObservation {
+  std::string name;                          // e.g. "frame 3" or the capture's subfolder
+  std::optional<double> turntable_angle_deg; // set for the turntable-axis views
+  bool board_found = false;
+  std::string rejected_reason;               // empty while the view is usable
+  std::vector<Eigen::Vector2d> camera_corners;
+  ProjectorCorners projector;
+  double square_px = 0.0;
+  double decoded_fraction = 0.0;             // of the pixels inside the board's corner hull
+};
+
+struct ObservationOptions {
+  BoardSpec board;
+  DecodeOptions decode;
+  LocalHomographyOptions homography;
+  // A view whose projector sees fewer of the corners than this is rejected ("too few decoded
+  // corners"): a partly shadowed board biases nothing, but a handful of corners adds little.
+  double min_projector_corner_fraction = 0.5;
+  Device device = Device::cpu();
+};
+
+// Detects the board in the white − black image and finds its corners in the projector.
+// `stack` in the pattern set's order (white and black included). Never throws for a bad
+// view (the reason is in rejected_reason); throws sls::Error for bad arguments (a stack
+// that does not match the set, a set without white/black or without both axes).
+ViewObservation observe_view(const std::string& name, std::optional<double> turntable_angle_deg,
+                             const std::vector<Image16u>& stack, const PatternSet& patterns,
+                             const ObservationOptions& options);
+
+}  // namespace sls::calib
