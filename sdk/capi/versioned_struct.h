@@ -1,6 +1,7 @@
 // Structs that carry their size: outputs (sls_device_info, sls_camera_info, sls_frame_info) and
-// inputs (sls_context_config, sls_scan_config, sls_capture_config), and sls_scan_summary and
-// sls_loop_closure (outputs). The caller's struct_size,
+// inputs (sls_context_config, sls_scan_config, sls_capture_config, sls_calibration_config), and
+// sls_scan_summary, sls_loop_closure, sls_calibration_summary, sls_intrinsics and
+// sls_calibration_view (outputs). The caller's struct_size,
 // set by the _init() of the headers it was compiled with, says how many bytes of the struct it
 // has, so a program built against older headers (a smaller struct) gets the fields it knows,
 // nothing is written past its struct, and the fields it lacks keep the library's defaults.

@@ -25,5 +25,6 @@
 #include "sls/sls_projector.h"
 #include "sls/sls_turntable.h"
 #include "sls/sls_scan.h"
+#include "sls/sls_calibration.h"
 
 #endif /* SLS_SLS_H */

@@ -1,0 +1,396 @@
+// sls_calibration: calib::calibrate_capture (calib/calibrate_capture.h, what `sls calibrate`
+// runs) behind the C API. A run makes an immutable result; the getters copy out of it, its
+// strings stay in it until sls_calibration_destroy(). Built with SLS_HAVE_CALIB where the
+// sls_calib target exists (OpenCV found); elsewhere every function is a stub returning
+// SLS_ERROR_UNSUPPORTED, so the header and the exported symbols are the same in every build.
+#include <cstddef>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sdk/capi/capi_guard.h"
+#include "sdk/capi/context_internal.h"
+#include "sdk/capi/versioned_struct.h"
+#include "sdk/core/error.h"
+#include "sls/sls_calibration.h"
+
+#if defined(SLS_HAVE_CALIB)
+#include <cmath>
+
+#include "calib/calibrate_capture.h"
+#include "sdk/core/calibration.h"
+#include "sdk/core/progress.h"
+#endif
+
+extern "C" {
+
+// The _init() functions work in every build: a program fills its structs the same way.
+
+SLS_API void sls_calibration_config_init(sls_calibration_config* config) {
+  if (config == nullptr) return;
+  std::memset(config, 0, sizeof(*config));
+  config->struct_size = sizeof(*config);
+  config->pattern_set = nullptr;
+  config->estimate_k3 = 0;
+  config->max_obliquity_deg = 65.0;
+  config->min_projector_corner_fraction = 0.5;
+  config->max_rms_px = 1.0;
+}
+
+SLS_API void sls_calibration_summary_init(sls_calibration_summary* summary) {
+  if (summary == nullptr) return;
+  std::memset(summary, 0, sizeof(*summary));
+  summary->struct_size = sizeof(*summary);
+  summary->pattern_set = nullptr;
+}
+
+SLS_API void sls_intrinsics_init(sls_intrinsics* intrinsics) {
+  if (intrinsics == nullptr) return;
+  std::memset(intrinsics, 0, sizeof(*intrinsics));
+  intrinsics->struct_size = sizeof(*intrinsics);
+}
+
+SLS_API void sls_calibration_view_init(sls_calibration_view* view) {
+  if (view == nullptr) return;
+  std::memset(view, 0, sizeof(*view));
+  view->struct_size = sizeof(*view);
+  view->name = nullptr;
+  view->rejected_reason = nullptr;
+}
+
+}  // extern "C"
+
+#if defined(SLS_HAVE_CALIB)
+
+struct sls_calibration {
+  sls::calib::CalibrateCaptureResult result;
+  double max_rms_px = 1.0;
+  std::vector<std::string> rejected_reasons;  // per view: the solve's reason, else the observation's
+};
+
+namespace {
+
+constexpr std::size_t kConfigFirstVersionSize = offsetof(sls_calibration_config, max_rms_px) + sizeof(double);
+constexpr std::size_t kSummaryFirstVersionSize =
+    offsetof(sls_calibration_summary, axis_point_err_um) + sizeof(double);
+constexpr std::size_t kIntrinsicsFirstVersionSize = offsetof(sls_intrinsics, p2) + sizeof(double);
+constexpr std::size_t kViewFirstVersionSize = offsetof(sls_calibration_view, decoded_fraction) + sizeof(double);
+
+sls::calib::CalibrateCaptureOptions capture_options(const sls_calibration_config& config, const std::string& input,
+                                                    const sls::Device& device) {
+  sls::calib::CalibrateCaptureOptions options;
+  options.input = input;
+  if (config.pattern_set != nullptr) options.patterns = config.pattern_set;
+  const bool board_automatic =
+      config.board_inner_cols == 0 && config.board_inner_rows == 0 && config.board_square_m == 0.0;
+  const bool board_given = config.board_inner_cols > 0 && config.board_inner_rows > 0 &&
+                           config.board_square_m > 0.0 && std::isfinite(config.board_square_m);
+  if (!board_automatic && !board_given) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "config.board_inner_cols {}, board_inner_rows {}, board_square_m {} (all three 0: from a "
+                     "simulated capture's ground truth, or all three positive)",
+                     config.board_inner_cols, config.board_inner_rows, config.board_square_m);
+  }
+  options.board = {config.board_inner_cols, config.board_inner_rows, config.board_square_m};
+  options.estimate_k3 = config.estimate_k3 != 0;
+  if (!(config.max_obliquity_deg > 0.0 && config.max_obliquity_deg <= 90.0)) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.max_obliquity_deg {} (degrees, in (0, 90])",
+                     config.max_obliquity_deg);
+  }
+  options.max_obliquity_deg = config.max_obliquity_deg;
+  if (!(config.min_projector_corner_fraction >= 0.0 && config.min_projector_corner_fraction <= 1.0)) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.min_projector_corner_fraction {} (in [0, 1])",
+                     config.min_projector_corner_fraction);
+  }
+  options.min_projector_corner_fraction = config.min_projector_corner_fraction;
+  if (!(config.max_rms_px > 0.0)) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.max_rms_px {} (pixels, positive)", config.max_rms_px);
+  }
+  options.device = device;
+  return options;
+}
+
+// The caller's callback as the calibration's: 0 from it stops the run (kCancelled).
+sls::ProgressCallback progress_callback(sls_calibration_progress_callback callback, void* user) {
+  if (callback == nullptr) return {};
+  return [callback, user](const sls::ProgressUpdate& update) {
+    sls_calibration_progress progress;
+    std::memset(&progress, 0, sizeof(progress));
+    progress.struct_size = sizeof(progress);
+    progress.stage = update.stage.c_str();
+    progress.done = update.done;
+    progress.total = update.total;
+    progress.detail = update.detail.c_str();
+    return callback(&progress, user) != 0;
+  };
+}
+
+std::vector<std::string> rejected_reasons(const sls::calib::CalibrateCaptureResult& result) {
+  std::vector<std::string> reasons;
+  for (std::size_t i = 0; i < result.views.size(); ++i) {
+    const bool used = i < result.procam.views.size() && result.procam.views[i].used;
+    std::string reason;
+    if (!used) {
+      if (i < result.procam.views.size()) reason = result.procam.views[i].rejected_reason;
+      if (reason.empty()) reason = result.views[i].rejected_reason;
+      if (reason.empty()) reason = "not used by the solve";
+    }
+    reasons.push_back(std::move(reason));
+  }
+  return reasons;
+}
+
+sls_intrinsics to_c(const sls::CameraIntrinsics& lens) {
+  sls_intrinsics out;
+  sls_intrinsics_init(&out);
+  out.width = lens.width;
+  out.height = lens.height;
+  out.fx = lens.fx;
+  out.fy = lens.fy;
+  out.cx = lens.cx;
+  out.cy = lens.cy;
+  out.k1 = lens.k1;
+  out.k2 = lens.k2;
+  out.k3 = lens.k3;
+  out.p1 = lens.p1;
+  out.p2 = lens.p2;
+  return out;
+}
+
+const char* const kNoResult = "calibration is NULL";
+
+}  // namespace
+
+extern "C" {
+
+SLS_API sls_status sls_calibration_run(sls_context* context, const char* input_path,
+                                       const sls_calibration_config* config,
+                                       sls_calibration_progress_callback progress, void* user,
+                                       sls_calibration** calibration, sls_error** error) {
+  SLS_CAPI_REQUIRE(calibration != nullptr, error, "calibration (the output pointer) is NULL");
+  *calibration = nullptr;
+  SLS_CAPI_REQUIRE(context != nullptr, error, "context is NULL");
+  SLS_CAPI_REQUIRE(input_path != nullptr, error, "input_path is NULL");
+  return sls::capi::guarded(__func__, error, [&] {
+    sls_calibration_config defaults;
+    sls_calibration_config_init(&defaults);
+    const sls_calibration_config resolved =
+        config == nullptr
+            ? defaults
+            : sls::capi::read_versioned(config, defaults, kConfigFirstVersionSize, "sls_calibration_config");
+    const sls::calib::CalibrateCaptureOptions options = capture_options(resolved, input_path, context->device);
+    auto made = std::make_unique<sls_calibration>();
+    made->result = sls::calib::calibrate_capture(options, progress_callback(progress, user));
+    made->max_rms_px = resolved.max_rms_px;
+    made->rejected_reasons = rejected_reasons(made->result);
+    *calibration = made.release();
+  });
+}
+
+SLS_API void sls_calibration_destroy(sls_calibration* calibration) { delete calibration; }
+
+SLS_API sls_status sls_calibration_get_summary(const sls_calibration* calibration, sls_calibration_summary* summary,
+                                               sls_error** error) {
+  SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
+  SLS_CAPI_REQUIRE(summary != nullptr, error, "summary (the output pointer) is NULL");
+  return sls::capi::guarded(__func__, error, [&] {
+    const sls::calib::CalibrateCaptureResult& result = calibration->result;
+    const sls::calib::ProcamCalibration& procam = result.procam;
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    sls_calibration_summary filled;
+    sls_calibration_summary_init(&filled);
+    filled.camera_rms_px = procam.camera_rms_px;
+    filled.projector_rms_px = procam.projector_rms_px;
+    filled.stereo_rms_px = procam.stereo_rms_px;
+    filled.joint_camera_rms_px = procam.joint_camera_rms_px;
+    filled.joint_projector_rms_px = procam.joint_projector_rms_px;
+    filled.views_total = result.views.size();
+    filled.views_used = static_cast<std::size_t>(procam.views_used);
+    filled.views_rejected = filled.views_total - filled.views_used;
+    filled.camera_outliers = static_cast<std::size_t>(procam.camera_outliers);
+    filled.projector_outliers = static_cast<std::size_t>(procam.projector_outliers);
+    filled.turntable_axis_fitted = result.axis.fitted ? 1 : 0;
+    filled.turntable_axis_rms_px = result.axis.fitted ? result.axis.rms_px : 0.0;
+    filled.seconds = result.seconds;
+    filled.board_inner_cols = result.board.inner_cols;
+    filled.board_inner_rows = result.board.inner_rows;
+    filled.board_square_m = result.board.square_m;
+    filled.pattern_set = result.pattern_set_name.c_str();
+    filled.has_truth = result.errors.has_value() ? 1 : 0;
+    filled.focal_rel_err = result.errors ? result.errors->focal_rel_err() : nan;
+    filled.principal_point_err_px = result.errors ? result.errors->principal_point_err_px() : nan;
+    filled.baseline_rel_err = result.errors ? result.errors->baseline_rel_err : nan;
+    filled.rotation_err_deg = result.errors ? result.errors->rotation_err_deg : nan;
+    filled.axis_direction_err_deg = result.errors ? result.errors->axis_direction_err_deg.value_or(nan) : nan;
+    filled.axis_point_err_um = result.errors ? result.errors->axis_point_err_um.value_or(nan) : nan;
+    sls::capi::write_versioned(filled, summary, kSummaryFirstVersionSize, "sls_calibration_summary");
+  });
+}
+
+SLS_API sls_status sls_calibration_get_intrinsics(const sls_calibration* calibration, sls_calibration_device device,
+                                                  sls_intrinsics* intrinsics, sls_error** error) {
+  SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
+  SLS_CAPI_REQUIRE(intrinsics != nullptr, error, "intrinsics (the output pointer) is NULL");
+  return sls::capi::guarded(__func__, error, [&] {
+    const sls::ScannerCalibration& scanner = calibration->result.procam.calibration;
+    const long long which = sls::capi::c_enum_value(device);
+    if (which != SLS_CALIBRATION_CAMERA && which != SLS_CALIBRATION_PROJECTOR) {
+      sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                       "device {} is not an sls_calibration_device (SLS_CALIBRATION_CAMERA or "
+                       "SLS_CALIBRATION_PROJECTOR)",
+                       which);
+    }
+    const sls_intrinsics lens = to_c(which == SLS_CALIBRATION_CAMERA ? scanner.camera : scanner.projector);
+    sls::capi::write_versioned(lens, intrinsics, kIntrinsicsFirstVersionSize, "sls_intrinsics");
+  });
+}
+
+SLS_API sls_status sls_calibration_get_extrinsics(const sls_calibration* calibration, double T_camera_projector[16],
+                                                  sls_error** error) {
+  SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
+  SLS_CAPI_REQUIRE(T_camera_projector != nullptr, error, "T_camera_projector (the output array) is NULL");
+  return sls::capi::guarded(__func__, error, [&] {
+    const Eigen::Matrix4d T = calibration->result.procam.calibration.T_camera_projector.matrix();
+    for (int row = 0; row < 4; ++row) {
+      for (int column = 0; column < 4; ++column) T_camera_projector[4 * row + column] = T(row, column);
+    }
+  });
+}
+
+SLS_API sls_status sls_calibration_get_turntable_axis(const sls_calibration* calibration, double point[3],
+                                                      double direction[3], sls_error** error) {
+  SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
+  SLS_CAPI_REQUIRE(point != nullptr, error, "point (the output array) is NULL");
+  SLS_CAPI_REQUIRE(direction != nullptr, error, "direction (the output array) is NULL");
+  return sls::capi::guarded(__func__, error, [&] {
+    const sls::calib::AxisFit& fit = calibration->result.axis;
+    if (!fit.fitted) {
+      sls::throw_error(sls::ErrorCode::kNotFound, "no turntable axis was fitted: {}",
+                       fit.reason.empty() ? std::string("the capture has no turntable views") : fit.reason);
+    }
+    for (int i = 0; i < 3; ++i) {
+      point[i] = fit.axis.point_camera[i];
+      direction[i] = fit.axis.direction_camera[i];
+    }
+  });
+}
+
+SLS_API sls_status sls_calibration_view_count(const sls_calibration* calibration, size_t* count, sls_error** error) {
+  SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
+  SLS_CAPI_REQUIRE(count != nullptr, error, "count (the output pointer) is NULL");
+  *count = calibration->result.views.size();
+  return SLS_OK;
+}
+
+SLS_API sls_status sls_calibration_get_view(const sls_calibration* calibration, size_t index,
+                                            sls_calibration_view* view, sls_error** error) {
+  SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
+  SLS_CAPI_REQUIRE(view != nullptr, error, "view (the output pointer) is NULL");
+  return sls::capi::guarded(__func__, error, [&] {
+    const sls::calib::CalibrateCaptureResult& result = calibration->result;
+    if (index >= result.views.size()) {
+      sls::throw_error(sls::ErrorCode::kInvalidArgument, "view index {} out of range (the calibration has {} views)",
+                       index, result.views.size());
+    }
+    const sls::calib::ViewObservation& observation = result.views[index];
+    sls_calibration_view filled;
+    sls_calibration_view_init(&filled);
+    filled.name = observation.name.c_str();
+    filled.rejected_reason = calibration->rejected_reasons[index].c_str();
+    filled.board_found = observation.board_found ? 1 : 0;
+    filled.has_turntable_angle = observation.turntable_angle_deg.has_value() ? 1 : 0;
+    filled.turntable_angle_deg = observation.turntable_angle_deg.value_or(0.0);
+    if (index < result.procam.views.size()) {
+      const sls::calib::ViewSolution& solution = result.procam.views[index];
+      filled.used = solution.used ? 1 : 0;
+      filled.camera_rms_px = solution.camera_rms_px;
+      filled.projector_rms_px = solution.projector_rms_px;
+      filled.obliquity_deg = solution.obliquity_deg;
+    }
+    filled.corners = static_cast<std::size_t>(result.board.corner_count());
+    filled.projector_corners_valid = static_cast<std::size_t>(observation.projector.valid_count());
+    filled.decoded_fraction = observation.decoded_fraction;
+    sls::capi::write_versioned(filled, view, kViewFirstVersionSize, "sls_calibration_view");
+  });
+}
+
+SLS_API sls_status sls_calibration_write(const sls_calibration* calibration, const char* path, int force,
+                                         sls_error** error) {
+  SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
+  SLS_CAPI_REQUIRE(path != nullptr, error, "path is NULL");
+  return sls::capi::guarded(__func__, error, [&] {
+    const double rms = calibration->result.procam.stereo_rms_px;
+    if (force == 0 && !(rms <= calibration->max_rms_px)) {
+      sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                       "{} not written: the stereo RMS {:.3f} px is above max_rms_px {:.3f} px (pass force to write "
+                       "it anyway)",
+                       path, rms, calibration->max_rms_px);
+    }
+    sls::write_calibration(path, calibration->result.procam.calibration);
+  });
+}
+
+}  // extern "C"
+
+#else  // !SLS_HAVE_CALIB: calibration needs OpenCV; the same functions, each unsupported.
+
+struct sls_calibration {
+  int never_made;
+};
+
+namespace {
+
+sls_status unsupported(const char* function, sls_error** error) {
+  return sls::capi::report(SLS_ERROR_UNSUPPORTED, function, "built without OpenCV: calibration is not available",
+                           error);
+}
+
+}  // namespace
+
+extern "C" {
+
+SLS_API sls_status sls_calibration_run(sls_context*, const char*, const sls_calibration_config*,
+                                       sls_calibration_progress_callback, void*, sls_calibration** calibration,
+                                       sls_error** error) {
+  if (calibration != nullptr) *calibration = nullptr;
+  return unsupported(__func__, error);
+}
+
+SLS_API void sls_calibration_destroy(sls_calibration* calibration) { delete calibration; }
+
+SLS_API sls_status sls_calibration_get_summary(const sls_calibration*, sls_calibration_summary*, sls_error** error) {
+  return unsupported(__func__, error);
+}
+
+SLS_API sls_status sls_calibration_get_intrinsics(const sls_calibration*, sls_calibration_device, sls_intrinsics*,
+                                                  sls_error** error) {
+  return unsupported(__func__, error);
+}
+
+SLS_API sls_status sls_calibration_get_extrinsics(const sls_calibration*, double*, sls_error** error) {
+  return unsupported(__func__, error);
+}
+
+SLS_API sls_status sls_calibration_get_turntable_axis(const sls_calibration*, double*, double*, sls_error** error) {
+  return unsupported(__func__, error);
+}
+
+SLS_API sls_status sls_calibration_view_count(const sls_calibration*, size_t* count, sls_error** error) {
+  if (count != nullptr) *count = 0;
+  return unsupported(__func__, error);
+}
+
+SLS_API sls_status sls_calibration_get_view(const sls_calibration*, size_t, sls_calibration_view*,
+                                            sls_error** error) {
+  return unsupported(__func__, error);
+}
+
+SLS_API sls_status sls_calibration_write(const sls_calibration*, const char*, int, sls_error** error) {
+  return unsupported(__func__, error);
+}
+
+}  // extern "C"
+
+#endif  // SLS_HAVE_CALIB
