@@ -49,7 +49,8 @@ class Renderer {
   const Scene& scene() const { return scene_; }
   const Device& device() const { return device_; }
 
-  // Traces frame `frame` (0 .. steps_per_revolution − 1, or beyond for a second turn).
+  // Traces frame `frame` (0 .. steps_per_revolution − 1, or beyond for a second turn; with
+  // rig().placements, 0 .. placements.size() − 1).
   void set_frame(int frame);
   int frame() const { return frame_; }
 

@@ -179,18 +179,41 @@ SimRig make_rig(const RigOptions& options, const Scene& scene) {
   return rig;
 }
 
+namespace {
+
+const ObjectPlacement& placement_of(const SimRig& rig, int frame) {
+  if (frame < 0 || static_cast<std::size_t>(frame) >= rig.placements.size()) {
+    throw_error(ErrorCode::kInvalidArgument, "frame {} of a capture of {} placements", frame, rig.placements.size());
+  }
+  return rig.placements[static_cast<std::size_t>(frame)];
+}
+
+Pose table_rotation(double angle_deg) {
+  return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(angle_deg * kDegree, Eigen::Vector3d::UnitZ())),
+              Eigen::Vector3d::Zero());
+}
+
+}  // namespace
+
+double SimRig::step_angle_deg(int step) const {
+  return 360.0 * static_cast<double>(step) / static_cast<double>(turntable.steps_per_revolution);
+}
+
 double SimRig::commanded_angle_deg(int frame) const {
-  return 360.0 * static_cast<double>(frame) / static_cast<double>(turntable.steps_per_revolution);
+  if (placements.empty()) return step_angle_deg(frame);
+  return placement_of(*this, frame).commanded_angle_deg.value_or(0.0);
 }
 
 double SimRig::true_angle_deg(int frame) const {
+  if (!placements.empty() && !placement_of(*this, frame).commanded_angle_deg) return 0.0;
   return commanded_angle_deg(frame) + turntable.angle_jitter_deg * jitter_draw(turntable.seed, frame);
 }
 
 Pose SimRig::T_world_object(int frame) const {
-  const Pose table(Eigen::Quaterniond(Eigen::AngleAxisd(true_angle_deg(frame) * kDegree, Eigen::Vector3d::UnitZ())),
-                   Eigen::Vector3d::Zero());
-  return table * T_table_object;
+  if (placements.empty()) return table_rotation(true_angle_deg(frame)) * T_table_object;
+  const ObjectPlacement& placement = placement_of(*this, frame);
+  if (!placement.commanded_angle_deg) return placement.mount;
+  return table_rotation(true_angle_deg(frame)) * placement.mount;
 }
 
 Pose SimRig::T_object_camera(int frame) const { return T_world_object(frame).inverse() * T_world_camera; }

@@ -12,10 +12,15 @@
 // Per frame k of a revolution of N: commanded angle θ_k = 360° k / N, true angle θ_k + jitter;
 //   T_world_object(k) = Rz(true θ_k) · T_table_object,
 //   T_object_camera(k) = T_world_object(k)⁻¹ · T_world_camera   (the ground-truth pose).
+// A calibration capture (drivers/sim/sim_calibration_capture.h) instead lists a placement
+// per frame: the board on the table at a commanded angle on a mount of its own, or held off
+// the table (by hand) at a pose in the world.
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "drivers/sim/optics_shared.h"
 #include "drivers/sim/scene.h"
@@ -34,6 +39,14 @@ struct TurntableModel {
   std::uint64_t seed = 1;          // jitter draws
 };
 
+// Where the object is in one frame of a calibration capture.
+struct ObjectPlacement {
+  // On the table at this commanded angle (jittered as a scan's steps are); nullopt: off the
+  // table, not moved by it.
+  std::optional<double> commanded_angle_deg;
+  Pose mount;  // on the table: T_table_object; off it: T_world_object
+};
+
 struct SimRig {
   std::string preset;
   RigOptics optics;            // sensor size per preset; physical parameters per the document
@@ -44,13 +57,18 @@ struct SimRig {
   TurntableModel turntable;
   Pose T_table_object;         // the mount (tilt + offset), fixed during a scan
   PatternSet patterns;
+  // Empty for a scan: frame k is turntable step k with the object on T_table_object. A
+  // calibration capture lists one placement per frame (other frames are an error).
+  std::vector<ObjectPlacement> placements;
   std::uint64_t noise_seed = 1;
   bool noise = true;           // false: noise-free renders (tests, pictures)
 
   // The calibration a perfect calibration of this rig would give (camera, projector, their
   // pose, the turntable axis in the camera frame).
   ScannerCalibration calibration() const;
-  // Commanded and true turntable angles of frame k, in degrees.
+  // The table angle of stepper position `step` (360° step / steps_per_revolution).
+  double step_angle_deg(int step) const;
+  // Commanded and true turntable angles of frame k, in degrees (0 for a frame off the table).
   double commanded_angle_deg(int frame) const;
   double true_angle_deg(int frame) const;
   // Ground truth: the object's pose in the world and the camera's pose in the object frame.

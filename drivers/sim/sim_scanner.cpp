@@ -116,7 +116,7 @@ class SimTurntable final : public drivers::Turntable {
   }
   double position_deg() const override {
     std::lock_guard<std::mutex> lock(scanner_->mutex_);
-    return scanner_->rig().commanded_angle_deg(scanner_->step_);
+    return scanner_->rig().step_angle_deg(scanner_->step_);
   }
   int steps_per_revolution() const override { return scanner_->rig().turntable.steps_per_revolution; }
 
@@ -138,6 +138,11 @@ std::shared_ptr<SimScanner> SimScanner::create(const std::string& object, const 
                     "&frames=" + std::to_string(rig.turntable.steps_per_revolution) +
                     "&seed=" + std::to_string(rig_options.seed) + "&noise=" + (rig_options.noise ? "1" : "0") +
                     "&projector=" + rig_options.projector;
+  Renderer renderer(std::move(rig), std::move(scene), device);
+  return std::shared_ptr<SimScanner>(new SimScanner(std::move(uri), std::move(renderer)));
+}
+
+std::shared_ptr<SimScanner> SimScanner::create(SimRig rig, Scene scene, const Device& device, std::string uri) {
   Renderer renderer(std::move(rig), std::move(scene), device);
   return std::shared_ptr<SimScanner>(new SimScanner(std::move(uri), std::move(renderer)));
 }
@@ -177,20 +182,47 @@ std::unique_ptr<drivers::Turntable> SimScanner::turntable() {
   return std::make_unique<SimTurntable>(shared_from_this());
 }
 
-void SimScanner::ensure_frame_traced() {
-  if (renderer_.frame() != step_) renderer_.set_frame(step_);
+void SimScanner::place_object(int frame) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (rig().placements.empty()) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: a scan's object stays on the turntable (no placements)", uri_);
+  }
+  if (frame < 0 || static_cast<std::size_t>(frame) >= rig().placements.size()) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: placement {} of {}", uri_, frame, rig().placements.size());
+  }
+  if (frame != placement_) {
+    placement_ = frame;
+    captures_in_frame_ = 0;
+  }
+}
+
+int SimScanner::ensure_frame_traced() {
+  int frame = step_;
+  if (!rig().placements.empty()) {
+    if (placement_ < 0) throw_error(ErrorCode::kInvalidArgument, "{}: capture before place_object()", uri_);
+    frame = placement_;
+    const std::optional<double>& angle = rig().placements[static_cast<std::size_t>(frame)].commanded_angle_deg;
+    // The table carries the board only where it was commanded to: compare whole steps.
+    const double steps = rig().turntable.steps_per_revolution;
+    if (angle && std::lround(*angle / 360.0 * steps) != step_) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: turntable at {}°, placement {} needs it at {}°", uri_,
+                  rig().step_angle_deg(step_), frame, *angle);
+    }
+  }
+  if (renderer_.frame() != frame) renderer_.set_frame(frame);
+  return frame;
 }
 
 drivers::CapturedImage SimScanner::capture() {
   std::lock_guard<std::mutex> lock(mutex_);
-  ensure_frame_traced();
+  const int frame = ensure_frame_traced();
   drivers::CapturedImage captured;
   PatternDesc dark;
   dark.kind = PatternKind::kBlack;
   const PatternDesc& shown = pattern_ >= 0 ? rig().patterns.patterns[static_cast<std::size_t>(pattern_)] : dark;
   captured.image = renderer_.render(shown, captures_in_frame_);
   const std::uint32_t images = static_cast<std::uint32_t>(rig().patterns.size());
-  captured.timestamp_ns = step_ * kStackPeriodNs +
+  captured.timestamp_ns = frame * kStackPeriodNs +
                           static_cast<std::int64_t>(captures_in_frame_) * (kStackPeriodNs / (images > 0 ? images : 1));
   captured.frame_id = frame_id_++;
   ++captures_in_frame_;

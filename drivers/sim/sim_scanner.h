@@ -24,6 +24,9 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   static std::shared_ptr<SimScanner> open(const std::string& uri);
   static std::shared_ptr<SimScanner> create(const std::string& object, const RigOptions& rig_options,
                                             const Device& device);
+  // A rig and scene built by the caller (a calibration capture: rig.placements, a board of
+  // its own); `uri` names the device in recordings.
+  static std::shared_ptr<SimScanner> create(SimRig rig, Scene scene, const Device& device, std::string uri);
 
   const std::string& uri() const { return uri_; }
   const SimRig& rig() const { return renderer_.rig(); }
@@ -33,7 +36,12 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   std::unique_ptr<drivers::Projector> projector();
   std::unique_ptr<drivers::Turntable> turntable();
 
-  // The ground truth of the frame the turntable is at now.
+  // Calibration captures (rig().placements): the operator puts the object at placement
+  // `frame`; the camera sees it there until the next call. A placement on the table is
+  // captured only with the turntable moved to its commanded angle.
+  void place_object(int frame);
+
+  // The ground truth of the frame the turntable (or the operator) is at now.
   GroundTruthFrame ground_truth();
   // Depth-only mode: the noisy depth map of the current frame.
   Image32f depth_map();
@@ -46,13 +54,16 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
 
   // Renders the image a trigger produces now (under the lock).
   drivers::CapturedImage capture();
-  void ensure_frame_traced();
+  // The frame the camera sees: the turntable's step in a scan, the placement in a calibration
+  // capture. Traces it when it changed.
+  int ensure_frame_traced();
 
   std::string uri_;
   std::mutex mutex_;
   Renderer renderer_;
   int pattern_ = -1;          // on the DMD; −1 = dark
   int step_ = 0;              // turntable position in steps
+  int placement_ = -1;        // calibration captures: the placement; −1 = none yet
   bool homed_ = false;
   std::uint32_t captures_in_frame_ = 0;
   std::uint64_t frame_id_ = 0;

@@ -1,0 +1,361 @@
+#include "drivers/sim/sim_calibration_capture.h"
+
+#include <cmath>
+#include <optional>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "drivers/sim/noise_shared.h"
+#include "drivers/sim/sim_capture.h"
+#include "drivers/sim/sim_scanner.h"
+#include "sdk/core/calibration.h"
+#include "sdk/core/camera_model_shared.h"
+#include "sdk/core/error.h"
+#include "sdk/core/file_util.h"
+#include "sdk/core/recording.h"
+#include "sdk/core/trajectory.h"
+
+namespace sls::sim {
+namespace {
+
+constexpr double kDegree = M_PI / 180.0;
+
+// Hand poses (docs/simulator.md). Tilts of 18° and 28° (±2°), alternating, about in-plane
+// axes whose directions go once round the circle, so views differ by up to ~50° about two
+// axes and the focal length is observable; in-plane rotation small enough that the corner
+// nearest the image's top-left stays the board's first (a 10 x 8 board is symmetric under
+// 180°); shifts that keep the 7.2 x 6.0 mm plate inside the 12 x 9 mm field; depth well
+// inside the ±5 mm depth of field.
+constexpr double kHandTiltsDeg[2] = {28.0, 18.0};
+constexpr double kHandTiltSpreadDeg = 2.0;
+constexpr double kHandAzimuthSpreadRad = 0.2;
+constexpr double kHandRollDeg = 8.0;
+constexpr double kHandShiftAcrossM = 1.6e-3;  // image x (world y)
+constexpr double kHandShiftUpM = 0.5e-3;      // image y (world z)
+constexpr double kHandShiftDepthM = 1.5e-3;   // along the camera's axis
+
+// Turntable mount: the board leans back 12° (so its plane is not parallel to the axis, and
+// the axis is not in it), turned 3° in its plane, its face 0.5 mm in front of the axis;
+// table angles spread over ±40° (it faces the camera at 0°): the projector, 25° to the side,
+// then lights it at up to 65° incidence.
+constexpr double kMountLeanBackDeg = 12.0;
+constexpr double kMountRollDeg = 3.0;
+constexpr double kMountFaceOffsetM = 0.5e-3;
+constexpr double kTableHalfRangeDeg = 40.0;
+
+// What every pose must keep (checked by make_calibration_rig): the plate at least 1 % of the
+// image (and DMD) size from its edges, faces seen at < 80° from their normal, and depth
+// within the ±5 mm usable depth of field (docs/simulator-optics.md).
+constexpr double kEdgeMarginFraction = 0.01;
+constexpr double kMaxIncidenceDeg = 80.0;
+constexpr double kDepthOfFieldM = 5e-3;
+
+Eigen::Matrix3d rotation(double angle_rad, const Eigen::Vector3d& axis) {
+  return Eigen::AngleAxisd(angle_rad, axis.normalized()).toRotationMatrix();
+}
+
+// The board frame facing the camera upright: x -> world +y (image right), y -> world −z
+// (image down), z -> world −x (away from the camera, which looks along −x).
+Eigen::Matrix3d facing_camera() {
+  Eigen::Matrix3d r;
+  r.col(0) = Eigen::Vector3d::UnitY();
+  r.col(1) = -Eigen::Vector3d::UnitZ();
+  r.col(2) = -Eigen::Vector3d::UnitX();
+  return r;
+}
+
+Eigen::Vector3d board_centre(const ChessboardParameters& board) {
+  return {0.5 * (board.inner_corners_x - 1) * board.square, 0.5 * (board.inner_corners_y - 1) * board.square, 0.0};
+}
+
+// T_world_board for a board centred at `centre_world`, turned by `turn` from facing the camera.
+Pose board_pose(const ChessboardParameters& board, const Eigen::Vector3d& centre_world, const Eigen::Matrix3d& turn) {
+  const Eigen::Matrix3d r = facing_camera() * turn;
+  return Pose(r, centre_world - r * board_centre(board));
+}
+
+Pose hand_pose(const ChessboardParameters& board, const Eigen::Vector3d& focus, std::uint64_t seed, int index,
+               int count) {
+  NoiseKey key;
+  key.seed = seed;
+  key.frame = static_cast<std::uint32_t>(index);
+  NoiseStream draws = make_noise_stream(key, kUserStream + 1);  // kUserStream: the table's jitter
+  const auto symmetric = [&draws](double half_range) { return half_range * (2.0 * draws.uniform() - 1.0); };
+  const double tilt = (kHandTiltsDeg[index % 2] + symmetric(kHandTiltSpreadDeg)) * kDegree;
+  const double azimuth = 2.0 * M_PI * index / count + symmetric(kHandAzimuthSpreadRad);
+  const double roll = symmetric(kHandRollDeg) * kDegree;
+  const Eigen::Vector3d shift(symmetric(kHandShiftDepthM), symmetric(kHandShiftAcrossM), symmetric(kHandShiftUpM));
+  const Eigen::Vector3d tilt_axis(std::cos(azimuth), std::sin(azimuth), 0.0);
+  return board_pose(board, focus + shift, rotation(tilt, tilt_axis) * rotation(roll, Eigen::Vector3d::UnitZ()));
+}
+
+// T_table_board: the fixed mount. The world origin is on the axis (world = turntable frame).
+Pose turntable_mount(const ChessboardParameters& board, const Eigen::Vector3d& focus) {
+  const Eigen::Vector3d centre(kMountFaceOffsetM, 0.0, focus.z());
+  return board_pose(board, centre,
+                    rotation(-kMountLeanBackDeg * kDegree, Eigen::Vector3d::UnitX()) *
+                        rotation(kMountRollDeg * kDegree, Eigen::Vector3d::UnitZ()));
+}
+
+// Commanded angle of turntable pose `index` of `count`: spread over ±40°, rounded to whole
+// steps and reported in [0°, 360°) as the table does.
+double turntable_angle_deg(const SimRig& rig, int index, int count) {
+  const double angle = count > 1 ? -kTableHalfRangeDeg + 2.0 * kTableHalfRangeDeg * index / (count - 1) : 0.0;
+  const int steps = rig.turntable.steps_per_revolution;
+  const long step = std::lround(angle / 360.0 * steps);
+  return rig.step_angle_deg(static_cast<int>(((step % steps) + steps) % steps));
+}
+
+struct PlateView {
+  std::vector<Eigen::Vector2d> camera_px;
+  std::vector<Eigen::Vector2d> projector_px;
+};
+
+// Exact camera and projector pixels (lens distortion included) of board-frame points.
+PlateView project_board_points(const SimRig& rig, const Pose& T_camera_board,
+                               const std::vector<Eigen::Vector3d>& points_board) {
+  const Pose T_projector_board = rig.T_camera_projector.inverse() * T_camera_board;
+  PlateView view;
+  for (const Eigen::Vector3d& p : points_board) {
+    const Eigen::Vector3d c = T_camera_board * p, q = T_projector_board * p;
+    Vec2d camera{NAN, NAN}, projector{NAN, NAN};
+    project(rig.camera, Vec3d{c.x(), c.y(), c.z()}, &camera);
+    project(rig.projector, Vec3d{q.x(), q.y(), q.z()}, &projector);
+    view.camera_px.emplace_back(camera.x, camera.y);
+    view.projector_px.emplace_back(projector.x, projector.y);
+  }
+  return view;
+}
+
+std::vector<Eigen::Vector3d> inner_corners_board(const ChessboardParameters& board) {
+  std::vector<Eigen::Vector3d> corners;
+  for (int j = 0; j < board.inner_corners_y; ++j) {
+    for (int i = 0; i < board.inner_corners_x; ++i) corners.emplace_back(i * board.square, j * board.square, 0.0);
+  }
+  return corners;
+}
+
+Pose T_camera_board(const SimRig& rig, const ChessboardParameters& board, int frame) {
+  return rig.T_world_camera.inverse() * rig.T_world_object(frame) * board_frame_in_object(board);
+}
+
+bool inside(const Eigen::Vector2d& px, int width, int height) {
+  const double mx = kEdgeMarginFraction * width, my = kEdgeMarginFraction * height;
+  return px.x() >= mx && px.y() >= my && px.x() <= width - 1 - mx && px.y() <= height - 1 - my;
+}
+
+// Throws when frame `frame` shows part of the plate outside the image or the projector's
+// light, or turns its face away from either, or leaves the depth of field.
+void check_board_in_view(const SimRig& rig, const ChessboardParameters& board, int frame) {
+  const Pose T_camera = T_camera_board(rig, board, frame);
+  // The plate's outline in the board frame, margin included.
+  const double left = -board.square - board.margin, top = -board.square - board.margin;
+  const double right = board.inner_corners_x * board.square + board.margin;
+  const double bottom = board.inner_corners_y * board.square + board.margin;
+  const std::vector<Eigen::Vector3d> outline = {{left, top, 0.0}, {right, top, 0.0}, {right, bottom, 0.0},
+                                                {left, bottom, 0.0}};
+  const PlateView view = project_board_points(rig, T_camera, outline);
+  // The printed face's normal is −z of the board frame.
+  const Eigen::Vector3d face_normal = T_camera.rotation() * -Eigen::Vector3d::UnitZ();
+  const double min_cos = std::cos(kMaxIncidenceDeg * kDegree);
+  for (std::size_t i = 0; i < outline.size(); ++i) {
+    const Eigen::Vector3d p = T_camera * outline[i];
+    const bool seen = inside(view.camera_px[i], rig.camera.width, rig.camera.height) &&
+                      face_normal.dot(-p.normalized()) > min_cos;
+    const bool lit = inside(view.projector_px[i], rig.projector.width, rig.projector.height) &&
+                     face_normal.dot((rig.T_camera_projector.translation() - p).normalized()) > min_cos;
+    const bool sharp = std::fabs(p.z() - rig.optics.working_distance_m) < kDepthOfFieldM;
+    if (!(seen && lit && sharp)) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "calibration frame {}: the {:.2f} x {:.2f} mm board leaves the camera's view, the projector's "
+                  "light or the depth of field (corner at camera pixel ({:.1f}, {:.1f}), projector pixel ({:.1f}, "
+                  "{:.1f}), {:.2f} mm from the camera)",
+                  frame, (right - left) * 1e3, (bottom - top) * 1e3, view.camera_px[i].x(), view.camera_px[i].y(),
+                  view.projector_px[i].x(), view.projector_px[i].y(), p.z() * 1e3);
+    }
+  }
+}
+
+nlohmann::json points_json(const std::vector<Eigen::Vector2d>& points) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const Eigen::Vector2d& p : points) list.push_back({p.x(), p.y()});
+  return list;
+}
+
+nlohmann::json matrix_json(const Pose& pose) {
+  const Eigen::Matrix4d m = pose.matrix();
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
+  return rows;
+}
+
+// The colour of the square between corners 0, 1, cols and cols + 1 (the scene's pattern).
+bool square_beyond_origin_is_dark(const ChessboardParameters& board) {
+  const ChessboardT<double> shape{board.inner_corners_x + 1, board.inner_corners_y + 1, board.square, board.margin,
+                                  board.albedo_dark, board.albedo_light};
+  const Eigen::Vector3d centre = board_frame_in_object(board) * Eigen::Vector3d(0.5 * board.square, 0.5 * board.square, 0.0);
+  return chessboard_square(shape, centre.x(), centre.y()) >= 0 &&
+         chessboard_albedo(shape, centre.x(), centre.y()) == board.albedo_dark;
+}
+
+std::string board_json(const ChessboardParameters& board) {
+  nlohmann::json object_points = nlohmann::json::array();
+  for (const Eigen::Vector3d& p : inner_corners_board(board)) object_points.push_back({p.x(), p.y(), p.z()});
+  const nlohmann::json json = {
+      {"inner_corners", {board.inner_corners_x, board.inner_corners_y}},
+      {"squares", {board.inner_corners_x + 1, board.inner_corners_y + 1}},
+      {"square_m", board.square},
+      {"margin_m", board.margin},
+      {"albedo_dark", board.albedo_dark},
+      {"albedo_light", board.albedo_light},
+      {"origin", "first inner corner"},
+      {"frame",
+       "OpenCV object points: origin at the inner corner top-left when the board faces the camera upright, x along "
+       "the rows (image right), y down the board (image down), z into the board (away from the printed face)"},
+      {"order", "row by row, x fastest: corner k = (i * square_m, j * square_m, 0), i = k % cols, j = k / cols"},
+      {"object_points_m", object_points},
+      {"T_object_board", matrix_json(board_frame_in_object(board))},
+      {"square_beyond_origin", square_beyond_origin_is_dark(board) ? "dark" : "light"},
+  };
+  return json.dump(2);
+}
+
+}  // namespace
+
+ChessboardParameters calibration_board() {
+  ChessboardParameters board;
+  board.inner_corners_x = 9;
+  board.inner_corners_y = 7;
+  board.square = 0.6e-3;
+  board.margin = 0.6e-3;
+  return board;
+}
+
+Pose board_frame_in_object(const ChessboardParameters& board) {
+  // Scene squares span x in [−(cols+1) s / 2, (cols+1) s / 2], y likewise; the board frame's
+  // origin is the inner corner of least x and greatest y, its y and z the scene's flipped.
+  const double s = board.square;
+  const Eigen::Vector3d origin(-0.5 * (board.inner_corners_x + 1) * s + s, 0.5 * (board.inner_corners_y + 1) * s - s,
+                               0.0);
+  const Eigen::Matrix3d flip = Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
+  return Pose(flip, origin);
+}
+
+SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& board_scene) {
+  if (options.hand_poses < 0 || options.turntable_poses < 0 || options.hand_poses + options.turntable_poses < 1 ||
+      options.hand_poses > 1000 || options.turntable_poses > 1000) {
+    throw_error(ErrorCode::kInvalidArgument, "{} hand and {} turntable poses (each 0 .. 1000, at least one view)",
+                options.hand_poses, options.turntable_poses);
+  }
+  RigOptions rig_options = options.rig;
+  rig_options.frames = kCalibrationTurntableSteps;
+  rig_options.mount_tilt_deg = 0.0;  // the board's mount is the capture's own
+  rig_options.mount_offset_m = 0.0;
+  SimRig rig = make_rig(rig_options, board_scene);
+
+  // Columns and rows: the calibration needs both projector coordinates of every corner. The
+  // row period gives the columns' fringe pitch on the object (DLP4500 rows are half a column).
+  GrayPhaseOptions patterns;
+  patterns.projector_width = rig.projector.width;
+  patterns.projector_height = rig.projector.height;
+  patterns.rows = true;
+  patterns.row_phase_period_px = static_cast<int>(std::lround(
+      patterns.phase_period_px * rig.optics.projector.pixel_pitch_x_m / rig.optics.projector.pixel_pitch_y_m));
+  rig.patterns = make_gray_phase_pattern_set(patterns);
+
+  const ChessboardParameters& board = options.board;
+  const Pose T_object_board = board_frame_in_object(board);
+  const Eigen::Vector3d focus = rig.T_world_camera * Eigen::Vector3d(0.0, 0.0, rig.optics.working_distance_m);
+  for (int i = 0; i < options.hand_poses; ++i) {
+    const Pose T_world_board = hand_pose(board, focus, options.rig.seed, i, options.hand_poses);
+    rig.placements.push_back({std::nullopt, T_world_board * T_object_board.inverse()});
+  }
+  rig.T_table_object = turntable_mount(board, focus) * T_object_board.inverse();
+  for (int i = 0; i < options.turntable_poses; ++i) {
+    rig.placements.push_back({turntable_angle_deg(rig, i, options.turntable_poses), rig.T_table_object});
+  }
+  for (int frame = 0; frame < static_cast<int>(rig.placements.size()); ++frame) check_board_in_view(rig, board, frame);
+  return rig;
+}
+
+SimRecordingSummary write_sim_calibration_recording(const std::string& folder, const SimCalibrationOptions& options,
+                                                    const Device& device, const ProgressCallback& progress) {
+  Scene board_scene = make_chessboard_scene(options.board);
+  SimRig rig_built = make_calibration_rig(options, board_scene);
+  const std::string uri = fmt::format("sim://chessboard?preset={}&seed={}&noise={}&projector={}", rig_built.preset,
+                                      options.rig.seed, options.rig.noise ? 1 : 0, options.rig.projector);
+  const std::shared_ptr<SimScanner> scanner =
+      SimScanner::create(std::move(rig_built), std::move(board_scene), device, uri);
+  const SimRig& rig = scanner->rig();
+
+  RecordingInfo info;
+  info.device = {scanner->uri(), "slscan simulated scanner (calibration capture)", "SIM-0"};
+  info.camera = {rig.camera.width, rig.camera.height, rig.optics.camera_sensor.bit_depth};
+  info.pattern_set_json = pattern_set_to_json(rig.patterns);
+  info.images_per_frame = static_cast<int>(rig.patterns.size());
+  info.has_groundtruth = true;
+  RecordingWriter writer = RecordingWriter::create(folder, info, std::nullopt);  // made uncalibrated
+  const std::string truth_folder = writer.groundtruth_folder();
+  write_calibration(truth_folder + "/calibration.yml", rig.calibration());
+  write_file_atomic(truth_folder + "/board.json", board_json(options.board));
+  write_file_atomic(truth_folder + "/scene.json", scanner->scene().to_json());
+  write_file_atomic(truth_folder + "/rig.json", rig_json(rig));
+
+  SimDevices devices = start_sim_devices(*scanner);
+  const std::vector<Eigen::Vector3d> corners = inner_corners_board(options.board);
+  const int frames = static_cast<int>(rig.placements.size());
+  std::vector<StampedPose> board_poses;
+  nlohmann::json capture = {{"hand_poses", options.hand_poses},
+                            {"turntable_poses", options.turntable_poses},
+                            {"turntable_steps_per_revolution", rig.turntable.steps_per_revolution},
+                            {"angles", "degrees as the table reports them, in [0, 360); true = commanded + jitter"},
+                            {"frames", nlohmann::json::array()}};
+  for (int frame = 0; frame < frames; ++frame) {
+    const std::optional<double>& angle = rig.placements[static_cast<std::size_t>(frame)].commanded_angle_deg;
+    scanner->place_object(frame);
+    FrameMetadata metadata;
+    if (angle) {
+      devices.turntable->move_to_deg(*angle, kSimDeviceTimeout);
+      metadata.turntable_angle_deg = devices.turntable->position_deg();
+    }
+    std::vector<Image16u> images =
+        capture_pattern_stack(devices, static_cast<int>(rig.patterns.size()), &metadata.timestamp_ns);
+
+    // Ground truth first: every frame the manifest lists has all of its own.
+    const GroundTruthFrame truth = scanner->ground_truth();
+    const std::string frame_folder = write_frame_ground_truth(truth, truth_folder);
+    const Pose T_camera = T_camera_board(rig, options.board, frame);
+    const PlateView view = project_board_points(rig, T_camera, corners);
+    const nlohmann::json frame_corners = {{"frame", frame},
+                                          {"pixel_convention", "(0, 0) is the centre of the top-left pixel"},
+                                          {"camera_px", points_json(view.camera_px)},
+                                          {"projector_px", points_json(view.projector_px)}};
+    write_file_atomic(frame_folder + "/corners.json", frame_corners.dump(1));
+    board_poses.push_back({static_cast<double>(metadata.timestamp_ns) * 1e-9, T_camera});
+    write_tum_trajectory(truth_folder + "/board_poses.txt", board_poses);
+    capture["frames"].push_back({{"index", frame},
+                                 {"kind", angle ? "turntable" : "hand"},
+                                 {"timestamp_ns", metadata.timestamp_ns},
+                                 {"commanded_angle_deg", angle ? nlohmann::json(*angle) : nlohmann::json()},
+                                 {"true_angle_deg", angle ? nlohmann::json(truth.true_angle_deg) : nlohmann::json()}});
+    write_file_atomic(truth_folder + "/capture.json", capture.dump(2));
+
+    writer.append_frame(images, metadata);
+    report_progress(progress, {"capture", static_cast<std::size_t>(frame + 1), static_cast<std::size_t>(frames), ""});
+  }
+  stop_sim_devices(devices);
+  writer.close();
+
+  SimRecordingSummary summary;
+  summary.uri = scanner->uri();
+  summary.frames = frames;
+  summary.images_per_frame = info.images_per_frame;
+  summary.width = rig.camera.width;
+  summary.height = rig.camera.height;
+  summary.groundtruth_folder = truth_folder;
+  return summary;
+}
+
+}  // namespace sls::sim

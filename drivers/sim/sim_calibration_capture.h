@@ -1,0 +1,67 @@
+// The simulator's calibration capture (issue #17): a chessboard shown to the simulated
+// scanner in varied poses "by hand" (turntable at 0°, manifest angle null), then on a fixed
+// mount on the turntable at several commanded angles (for the axis), captured through the
+// devices with a pattern set coding projector columns and rows. The recording is made
+// uncalibrated (no calibration.yml); groundtruth/ holds the exact calibration:
+//   calibration.yml    write_calibration(rig.calibration()): camera, projector, their pose,
+//                      the turntable axis in the camera frame
+//   board.json         the board and its frame (below)
+//   board_poses.txt    T_camera_board per frame (board frame -> camera frame), TUM format
+//                      (sdk/core/trajectory.h), timestamps = the frames' timestamps
+//   capture.json       per frame: index, kind (hand | turntable), commanded and true angle
+//   scene.json, rig.json   as a scan's (rig.json's T_table_object: the turntable mount)
+//   frames/NNNNNN/corners.json   exact camera and projector pixels of every inner corner
+//   frames/NNNNNN/     depth.pfm, projector_u.pfm, projector_v.pfm, valid.png,
+//                      depth_sigma.pfm, as a scan's (drivers/sim/sim_recording.h)
+//
+// Board frame (OpenCV's object points): origin at the inner corner that appears top-left
+// when the board faces the camera upright, x along the rows (image right), y down the board
+// (image down), z into the board (away from the printed face); corner k = (i s, j s, 0) with
+// i = k mod cols, j = k div cols. docs/simulator.md has the poses and the file formats.
+#pragma once
+
+#include <string>
+
+#include "drivers/sim/rig.h"
+#include "drivers/sim/scene.h"
+#include "drivers/sim/sim_recording.h"
+#include "sdk/core/device.h"
+#include "sdk/core/pose.h"
+#include "sdk/core/progress.h"
+
+namespace sls::sim {
+
+// The default target: 9 x 7 inner corners of 0.6 mm squares with a light border of one
+// square (7.2 x 6.0 mm in all), so the whole plate stays inside the 12 x 9 mm field and the
+// projector's light at every pose while a square still spans 20 camera pixels at ci.
+ChessboardParameters calibration_board();
+
+// The turntable's stepper for a calibration capture: 6400 steps (a 200-step motor at 1/32
+// microstepping, as the head controller's); commanded angles are whole steps.
+constexpr int kCalibrationTurntableSteps = 6400;
+
+struct SimCalibrationOptions {
+  // Preset, camera width, projector, bit depth, gamma, turntable jitter, seed, noise. The
+  // scan's frames per revolution and object mount (tilt, offset) do not apply.
+  RigOptions rig;
+  int hand_poses = 12;     // frames 0 .. hand_poses − 1
+  int turntable_poses = 7; // then these, at angles spread over −40° .. +40°
+  ChessboardParameters board = calibration_board();
+};
+
+// The board frame above in the scene's object frame (scene.json's frame).
+Pose board_frame_in_object(const ChessboardParameters& board);
+
+// The rig of the capture: one placement per frame (hand poses, then turntable poses), the
+// column-and-row pattern set, kCalibrationTurntableSteps. Throws sls::Error
+// (kInvalidArgument) for bad counts, or when some pose puts part of the board outside the
+// camera image or the projector's light, or turns it away from either.
+SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& board);
+
+// Writes the capture to `folder` (created; must not exist or be empty). Every frame is
+// flushed as it is captured; its ground truth is written just before it, so an interrupted
+// run leaves a valid recording whose frames all have their ground truth. Throws sls::Error.
+SimRecordingSummary write_sim_calibration_recording(const std::string& folder, const SimCalibrationOptions& options,
+                                                    const Device& device, const ProgressCallback& progress);
+
+}  // namespace sls::sim

@@ -1,0 +1,300 @@
+// The simulator's calibration capture (drivers/sim/sim_calibration_capture.h): the board in
+// view and lit at every pose and preset, the recording's files, the exact corners where the
+// images show them, the poses' tilts, and turntable views related by the exact axis.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "drivers/sim/sim_calibration_capture.h"
+#include "drivers/sim/sim_capture.h"
+#include "sdk/core/calibration.h"
+#include "sdk/core/camera_model_shared.h"
+#include "sdk/core/error.h"
+#include "sdk/core/file_util.h"
+#include "sdk/core/recording.h"
+#include "sdk/core/trajectory.h"
+#include "tests/support/test_support.h"
+
+namespace sls::sim {
+namespace {
+
+constexpr double kDegree = M_PI / 180.0;
+
+nlohmann::json read_json(const std::string& path) { return nlohmann::json::parse(read_file_text(path)); }
+
+std::vector<Eigen::Vector2d> points(const nlohmann::json& list) {
+  std::vector<Eigen::Vector2d> out;
+  for (const nlohmann::json& p : list) out.emplace_back(p[0].get<double>(), p[1].get<double>());
+  return out;
+}
+
+// The smallest distance between neighbouring corners: one square in pixels.
+double square_px(const std::vector<Eigen::Vector2d>& corners, int cols, int rows) {
+  double smallest = HUGE_VAL;
+  for (int j = 0; j < rows; ++j) {
+    for (int i = 0; i < cols; ++i) {
+      const Eigen::Vector2d& p = corners[static_cast<std::size_t>(j * cols + i)];
+      if (i + 1 < cols) smallest = std::min(smallest, (corners[static_cast<std::size_t>(j * cols + i + 1)] - p).norm());
+      if (j + 1 < rows) smallest = std::min(smallest, (corners[static_cast<std::size_t>((j + 1) * cols + i)] - p).norm());
+    }
+  }
+  return smallest;
+}
+
+// Every corner at least one square (in that view's pixels) inside a width x height image.
+void expect_inside_with_a_square_of_margin(const std::vector<Eigen::Vector2d>& corners, int cols, int rows,
+                                           int width, int height, const std::string& what) {
+  const double margin = square_px(corners, cols, rows);
+  EXPECT_GT(margin, 3.0) << what;
+  for (std::size_t k = 0; k < corners.size(); ++k) {
+    const Eigen::Vector2d& p = corners[k];
+    ASSERT_TRUE(p.x() >= margin && p.y() >= margin && p.x() <= width - 1 - margin && p.y() <= height - 1 - margin)
+        << what << ": corner " << k << " at (" << p.x() << ", " << p.y() << "), margin " << margin;
+  }
+}
+
+double bilinear(const Image16u& image, const Eigen::Vector2d& p) {
+  const int x = static_cast<int>(std::floor(p.x())), y = static_cast<int>(std::floor(p.y()));
+  const double fx = p.x() - x, fy = p.y() - y;
+  return (1 - fx) * (1 - fy) * image(x, y) + fx * (1 - fy) * image(x + 1, y) + (1 - fx) * fy * image(x, y + 1) +
+         fx * fy * image(x + 1, y + 1);
+}
+
+TEST(SimCalibrationCapture, EveryPoseKeepsTheWholeBoardInViewAndLitAtEveryPresetAndProjector) {
+  const Scene board = make_chessboard_scene(calibration_board());
+  const ChessboardParameters parameters = calibration_board();
+  const std::pair<std::string, std::string> rigs[] = {
+      {"ci", "dlpc350"}, {"demo", "dlpc350"}, {"paper", "dlpc350"}, {"ci", "1080p"}};
+  for (const auto& [preset, projector_kind] : rigs) {
+    for (std::uint64_t seed = 1; seed <= 100; ++seed) {
+      SimCalibrationOptions options;
+      options.rig.preset = preset;
+      options.rig.projector = projector_kind;
+      options.rig.seed = seed;
+      options.hand_poses = 16;
+      options.turntable_poses = 9;
+      const SimRig rig = make_calibration_rig(options, board);
+      ASSERT_EQ(rig.placements.size(), 25u);
+      for (int frame = 0; frame < 25; ++frame) {
+        // Corners from the exact poses, independently of the capture's own projection.
+        const Pose T_camera_board =
+            rig.T_world_camera.inverse() * rig.T_world_object(frame) * board_frame_in_object(parameters);
+        const Pose T_projector_board = rig.T_camera_projector.inverse() * T_camera_board;
+        std::vector<Eigen::Vector2d> camera, projector;
+        for (const Eigen::Vector3d& corner_object : board.chessboard_corners()) {
+          const Eigen::Vector3d corner = board_frame_in_object(parameters).inverse() * corner_object;
+          const Eigen::Vector3d c = T_camera_board * corner, q = T_projector_board * corner;
+          Vec2d uv, st;
+          ASSERT_TRUE(project(rig.camera, Vec3d{c.x(), c.y(), c.z()}, &uv));
+          ASSERT_TRUE(project(rig.projector, Vec3d{q.x(), q.y(), q.z()}, &st));
+          camera.emplace_back(uv.x, uv.y);
+          projector.emplace_back(st.x, st.y);
+        }
+        const std::string what = fmt::format("{} {} seed {} frame {}", preset, projector_kind, seed, frame);
+        expect_inside_with_a_square_of_margin(camera, 9, 7, rig.camera.width, rig.camera.height, what + " camera");
+        expect_inside_with_a_square_of_margin(projector, 9, 7, rig.projector.width, rig.projector.height,
+                                              what + " projector");
+      }
+    }
+  }
+  // The scans' 1.2 mm board does not fit: refused, not captured half out of view.
+  SimCalibrationOptions too_big;
+  too_big.rig.preset = "ci";
+  too_big.board = ChessboardParameters{};
+  EXPECT_THROW(make_calibration_rig(too_big, make_chessboard_scene(too_big.board)), Error);
+  SimCalibrationOptions none;
+  none.hand_poses = 0;
+  none.turntable_poses = 0;
+  EXPECT_THROW(make_calibration_rig(none, board), Error);
+}
+
+TEST(SimCalibrationCapture, TheTurntableMustBeAtAPlacementsAngle) {
+  SimCalibrationOptions options;
+  options.rig.preset = "ci";
+  options.rig.camera_width = 64;
+  options.hand_poses = 1;
+  options.turntable_poses = 2;
+  const Scene board = make_chessboard_scene(options.board);
+  const std::shared_ptr<SimScanner> scanner =
+      SimScanner::create(make_calibration_rig(options, board), board, Device::cpu(), "sim://chessboard");
+  SimDevices devices = start_sim_devices(*scanner);
+  std::int64_t timestamp = 0;
+  EXPECT_THROW(capture_pattern_stack(devices, 1, &timestamp), Error);  // nothing placed yet
+  scanner->place_object(0);
+  EXPECT_NO_THROW(capture_pattern_stack(devices, 1, &timestamp));  // by hand: any table angle
+  scanner->place_object(1);
+  EXPECT_THROW(capture_pattern_stack(devices, 1, &timestamp), Error);  // the table still at 0°
+  devices.turntable->move_to_deg(*scanner->rig().placements[1].commanded_angle_deg, kSimDeviceTimeout);
+  EXPECT_NO_THROW(capture_pattern_stack(devices, 1, &timestamp));
+  EXPECT_THROW(scanner->place_object(3), Error);
+}
+
+TEST(SimCalibrationCapture, WritesAnUncalibratedRecordingWithTheExactCalibrationAsTruth) {
+  test::TemporaryDirectory dir;
+  SimCalibrationOptions options;
+  options.rig.preset = "ci";
+  options.hand_poses = 4;
+  options.turntable_poses = 3;
+  const SimRecordingSummary summary =
+      write_sim_calibration_recording(dir.file("rec"), options, Device::cpu(), {});
+  EXPECT_EQ(summary.frames, 7);
+  EXPECT_EQ(summary.images_per_frame, 42);  // white, black, columns and rows: Gray 6 + 6 inverses, 8 phase each
+
+  const RecordingReader reader = RecordingReader::open(dir.file("rec"));
+  ASSERT_EQ(reader.frame_count(), 7u);
+  EXPECT_FALSE(reader.has_calibration());
+  EXPECT_FALSE(std::filesystem::exists(dir.file("rec/calibration.yml")));
+  const std::string truth = reader.groundtruth_folder();
+  for (const char* name : {"calibration.yml", "board.json", "board_poses.txt", "capture.json", "rig.json", "scene.json"}) {
+    EXPECT_TRUE(std::filesystem::exists(truth + "/" + name)) << name;
+  }
+  const PatternSet patterns = pattern_set_from_json(reader.info().pattern_set_json);
+  EXPECT_EQ(patterns.patterns[0].kind, PatternKind::kWhite);
+  EXPECT_EQ(patterns.patterns[1].kind, PatternKind::kBlack);
+  EXPECT_TRUE(std::any_of(patterns.patterns.begin(), patterns.patterns.end(),
+                          [](const PatternDesc& p) { return p.axis == PatternAxis::kRows; }));
+
+  const ScannerCalibration calibration = read_calibration(truth + "/calibration.yml");
+  ASSERT_TRUE(calibration.turntable.has_value());
+  const nlohmann::json board = read_json(truth + "/board.json");
+  const int cols = board["inner_corners"][0], rows = board["inner_corners"][1];
+  const double square = board["square_m"];
+  EXPECT_EQ(cols, 9);
+  EXPECT_EQ(rows, 7);
+  EXPECT_EQ(board["object_points_m"].size(), 63u);
+  const nlohmann::json capture = read_json(truth + "/capture.json");
+  const std::vector<StampedPose> poses = read_tum_trajectory(truth + "/board_poses.txt");
+  ASSERT_EQ(poses.size(), 7u);
+  ASSERT_EQ(capture["frames"].size(), 7u);
+
+  bool jittered = false;
+  for (std::size_t frame = 0; frame < 7; ++frame) {
+    SCOPED_TRACE("frame " + std::to_string(frame));
+    const nlohmann::json& entry = capture["frames"][frame];
+    const bool hand = frame < 4;
+    EXPECT_EQ(entry["kind"], hand ? "hand" : "turntable");
+    EXPECT_EQ(reader.frame(frame).turntable_angle_deg.has_value(), !hand);
+    EXPECT_EQ(entry["commanded_angle_deg"].is_null(), hand);
+    if (!hand) {
+      EXPECT_EQ(*reader.frame(frame).turntable_angle_deg, entry["commanded_angle_deg"].get<double>());
+      const double jitter = entry["true_angle_deg"].get<double>() - entry["commanded_angle_deg"].get<double>();
+      EXPECT_LT(std::fabs(jitter), 5 * options.rig.angle_jitter_deg);
+      jittered = jittered || jitter != 0.0;
+    }
+
+    // corners.json: the board's corners projected with the exact calibration.
+    const nlohmann::json corners = read_json(fmt::format("{}/frames/{:06d}/corners.json", truth, frame));
+    const std::vector<Eigen::Vector2d> camera = points(corners["camera_px"]);
+    const std::vector<Eigen::Vector2d> projector = points(corners["projector_px"]);
+    ASSERT_EQ(camera.size(), 63u);
+    ASSERT_EQ(projector.size(), 63u);
+    const Pose T_projector_camera = calibration.T_camera_projector.inverse();
+    for (std::size_t k = 0; k < 63; ++k) {
+      const Eigen::Vector3d corner(static_cast<double>(k % 9) * square, static_cast<double>(k / 9) * square, 0.0);
+      const Eigen::Vector3d c = poses[frame].T_world_camera * corner, q = T_projector_camera * c;
+      Vec2d uv, st;
+      ASSERT_TRUE(project(calibration.camera, Vec3d{c.x(), c.y(), c.z()}, &uv));
+      ASSERT_TRUE(project(calibration.projector, Vec3d{q.x(), q.y(), q.z()}, &st));
+      EXPECT_NEAR(uv.x, camera[k].x(), 1e-6);
+      EXPECT_NEAR(uv.y, camera[k].y(), 1e-6);
+      EXPECT_NEAR(st.x, projector[k].x(), 1e-6);
+      EXPECT_NEAR(st.y, projector[k].y(), 1e-6);
+    }
+    expect_inside_with_a_square_of_margin(camera, cols, rows, calibration.camera.width, calibration.camera.height,
+                                          "camera");
+    // Corner 0 is the board's corner nearest the image's top-left, as detectors order them.
+    for (const std::size_t other : {8u, 54u, 62u}) EXPECT_LT(camera[0].norm(), camera[other].norm());
+    expect_inside_with_a_square_of_margin(projector, cols, rows, calibration.projector.width,
+                                          calibration.projector.height, "projector");
+
+    // The white image shows a chessboard corner at every exact corner: around corner (i, j)
+    // the squares towards (+x, +y) and (−x, −y) share a colour, the other two the other,
+    // which alternates with i + j; board.json says which the first is.
+    const Image16u white = reader.load_image(frame, 0);
+    const double light_first = board["square_beyond_origin"] == "light" ? 1.0 : -1.0;
+    for (int j = 0; j < rows; ++j) {
+      for (int i = 0; i < cols; ++i) {
+        const std::size_t k = static_cast<std::size_t>(j * cols + i);
+        const Eigen::Vector2d p = camera[k];
+        // Along the board's axes in the image, from the neighbouring corners.
+        const Eigen::Vector2d along_x = (i + 1 < cols ? camera[k + 1] - p : p - camera[k - 1]) * 0.35;
+        const Eigen::Vector2d along_y = (j + 1 < rows ? camera[k + 9] - p : p - camera[k - 9]) * 0.35;
+        const double same = bilinear(white, p + along_x + along_y) + bilinear(white, p - along_x - along_y);
+        const double other = bilinear(white, p + along_x - along_y) + bilinear(white, p - along_x + along_y);
+        const double parity = (i + j) % 2 == 0 ? 1.0 : -1.0;
+        // Dark squares reflect 0.1, light 0.9: the difference is most of the light level.
+        EXPECT_GT(light_first * parity * (same - other), 0.5 * std::max(same, other)) << "corner " << k;
+      }
+    }
+  }
+  EXPECT_TRUE(jittered);
+
+  // Hand poses tilt the board about two axes, by more than 20° between some views.
+  double max_tilt_deg = 0.0;
+  Eigen::Vector3d low = Eigen::Vector3d::Constant(1.0), high = Eigen::Vector3d::Constant(-1.0);
+  for (std::size_t a = 0; a < 4; ++a) {
+    const Eigen::Vector3d normal = poses[a].T_world_camera.rotation().col(2);
+    low = low.cwiseMin(normal);
+    high = high.cwiseMax(normal);
+    for (std::size_t b = 0; b < a; ++b) {
+      const Eigen::Vector3d other = poses[b].T_world_camera.rotation().col(2);
+      max_tilt_deg = std::max(max_tilt_deg, std::acos(std::clamp(normal.dot(other), -1.0, 1.0)) / kDegree);
+    }
+  }
+  EXPECT_GT(max_tilt_deg, 20.0);
+  EXPECT_GT(high.x() - low.x(), std::sin(10.0 * kDegree));  // about the image's vertical axis
+  EXPECT_GT(high.y() - low.y(), std::sin(10.0 * kDegree));  // and its horizontal one
+
+  // Turntable views: each consecutive pair differs by a rotation about the exact axis, by the
+  // true angle between them (the jitter included).
+  const TurntableAxis& axis = *calibration.turntable;
+  for (std::size_t frame = 5; frame < 7; ++frame) {
+    const Pose motion = poses[frame].T_world_camera * poses[frame - 1].T_world_camera.inverse();
+    const Eigen::AngleAxisd rotation(motion.rotation());
+    double turned_deg = capture["frames"][frame]["true_angle_deg"].get<double>() -
+                        capture["frames"][frame - 1]["true_angle_deg"].get<double>();
+    turned_deg -= 360.0 * std::round(turned_deg / 360.0);
+    const double sign = rotation.axis().dot(axis.direction_camera) > 0.0 ? 1.0 : -1.0;
+    EXPECT_NEAR(sign * rotation.angle() / kDegree, turned_deg, 1e-6);
+    EXPECT_GT(std::fabs(turned_deg), 20.0);
+    EXPECT_NEAR(std::fabs(rotation.axis().dot(axis.direction_camera)), 1.0, 1e-9);
+    for (const double along : {-0.01, 0.0, 0.01}) {
+      const Eigen::Vector3d on_axis = axis.point_camera + along * axis.direction_camera;
+      EXPECT_LT((motion * on_axis - on_axis).norm(), 1e-9);
+    }
+  }
+}
+
+TEST(SimCalibrationCapture, AnInterruptedCaptureKeepsItsFramesAndTheirTruth) {
+  test::TemporaryDirectory dir;
+  SimCalibrationOptions options;
+  options.rig.preset = "ci";
+  options.rig.camera_width = 160;
+  options.hand_poses = 2;
+  options.turntable_poses = 2;
+  const ProgressCallback stop_after_three = [](const ProgressUpdate& update) { return update.done < 3; };
+  try {
+    write_sim_calibration_recording(dir.file("rec"), options, Device::cpu(), stop_after_three);
+    FAIL() << "expected a cancellation";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kCancelled);
+  }
+  const RecordingReader reader = RecordingReader::open(dir.file("rec"));
+  ASSERT_EQ(reader.frame_count(), 3u);
+  // The first table view, at −40° in whole steps of the 6400-step table: −711 steps.
+  EXPECT_DOUBLE_EQ(*reader.frame(2).turntable_angle_deg, 360.0 * (6400 - 711) / 6400);
+  EXPECT_EQ(read_tum_trajectory(reader.groundtruth_folder() + "/board_poses.txt").size(), 3u);
+  EXPECT_EQ(read_json(reader.groundtruth_folder() + "/capture.json")["frames"].size(), 3u);
+  EXPECT_TRUE(std::filesystem::exists(reader.groundtruth_folder() + "/frames/000002/corners.json"));
+}
+
+}  // namespace
+}  // namespace sls::sim
