@@ -1,10 +1,12 @@
 // sls sim: scans the simulated scanner into a recording with ground truth
-// (drivers/sim/sim_recording.h describes what is written).
+// (drivers/sim/sim_recording.h describes what is written), or with --calibration makes a
+// calibration capture (drivers/sim/sim_calibration_capture.h).
 #include <iostream>
 
 #include <nlohmann/json.hpp>
 
 #include "drivers/sim/rig.h"
+#include "drivers/sim/sim_calibration_capture.h"
 #include "drivers/sim/sim_recording.h"
 #include "samples/sls/commands.h"
 #include "sdk/core/device.h"
@@ -21,32 +23,59 @@ struct SimOptions {
   bool no_noise = false;
   double mount_offset_um = sim::RigOptions{}.mount_offset_m * 1e6;
   double reference_spacing_um = 0.0;
+  bool calibration = false;
+  int hand_poses = sim::SimCalibrationOptions{}.hand_poses;
+  int turntable_poses = sim::SimCalibrationOptions{}.turntable_poses;
 };
 
 int run_sim(const Context& context, const SimOptions& options) {
   const Device device = options.device.empty() ? default_device() : parse_device(options.device);
-  sim::SimRecordingOptions sim_options;
-  sim_options.object = options.object;
-  sim_options.rig = options.rig;
-  sim_options.rig.noise = !options.no_noise;
-  sim_options.rig.mount_offset_m = options.mount_offset_um * 1e-6;
-  sim_options.depth_mode = options.mode == "depth";
-  sim_options.reference_spacing_m = options.reference_spacing_um * 1e-6;
-  const sim::SimRecordingSummary summary =
-      sim::write_sim_recording(options.out, sim_options, device, context.progress_callback("sim"));
-  const nlohmann::json result = {{"ok", true},
-                                 {"recording", options.out},
-                                 {"object", options.object},
-                                 {"preset", options.rig.preset},
-                                 {"mode", options.mode},
-                                 {"uri", summary.uri},
-                                 {"frames", summary.frames},
-                                 {"images_per_frame", summary.images_per_frame},
-                                 {"camera", {summary.width, summary.height}},
-                                 {"device", device.to_string()}};
+  sim::RigOptions rig = options.rig;
+  rig.noise = !options.no_noise;
+  sim::SimRecordingSummary summary;
+  std::string object = options.object;
+  if (options.calibration) {
+    sim::SimCalibrationOptions calibration_options;
+    calibration_options.rig = rig;
+    calibration_options.hand_poses = options.hand_poses;
+    calibration_options.turntable_poses = options.turntable_poses;
+    summary = sim::write_sim_calibration_recording(options.out, calibration_options, device,
+                                                   context.progress_callback("sim"));
+    object = "chessboard";
+  } else {
+    sim::SimRecordingOptions sim_options;
+    sim_options.object = options.object;
+    sim_options.rig = rig;
+    sim_options.rig.mount_offset_m = options.mount_offset_um * 1e-6;
+    sim_options.depth_mode = options.mode == "depth";
+    sim_options.reference_spacing_m = options.reference_spacing_um * 1e-6;
+    summary = sim::write_sim_recording(options.out, sim_options, device, context.progress_callback("sim"));
+  }
+  nlohmann::json result = {{"ok", true},
+                           {"recording", options.out},
+                           {"object", object},
+                           {"preset", options.rig.preset},
+                           {"mode", options.mode},
+                           {"calibration", options.calibration},
+                           {"uri", summary.uri},
+                           {"frames", summary.frames},
+                           {"images_per_frame", summary.images_per_frame},
+                           {"camera", {summary.width, summary.height}},
+                           {"device", device.to_string()}};
+  if (options.calibration) {
+    result["hand_poses"] = options.hand_poses;
+    result["turntable_poses"] = options.turntable_poses;
+  }
   context.emit(result, [&] {
+    if (options.calibration) {
+      std::cout << "wrote a calibration capture of " << summary.frames << " frames (" << options.hand_poses
+                << " board poses by hand, " << options.turntable_poses << " on the turntable; "
+                << summary.images_per_frame << " images each, " << summary.width << "x" << summary.height << ") to "
+                << options.out << " (exact calibration in " << summary.groundtruth_folder << ")\n";
+      return;
+    }
     std::cout << "wrote " << summary.frames << " frames (" << summary.images_per_frame << " images each, "
-              << summary.width << "x" << summary.height << ") of the simulated " << options.object << " to "
+              << summary.width << "x" << summary.height << ") of the simulated " << object << " to "
               << options.out << " (ground truth in " << summary.groundtruth_folder << ")\n";
   });
   return kExitOk;
@@ -62,16 +91,20 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--preset", options->rig.preset, "ci, demo or paper:\n" + sim::preset_help())
       ->check(CLI::IsMember({"ci", "demo", "paper"}))
       ->capture_default_str();
-  command->add_option("--object", options->object, "The object on the turntable")
-      ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
-      ->capture_default_str();
-  command->add_option("--frames", options->rig.frames, "Frames per revolution (0: the preset's)")
-      ->check(CLI::Range(0, 100000));
-  command->add_option("--mode", options->mode,
-                      "patterns: the camera images of every pattern; depth: noisy depth maps straight from the "
-                      "geometry (for fusion tests that skip decode)")
-      ->check(CLI::IsMember({"patterns", "depth"}))
-      ->capture_default_str();
+  CLI::Option* object =
+      command->add_option("--object", options->object, "The object on the turntable")
+          ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
+          ->capture_default_str();
+  CLI::Option* frames =
+      command->add_option("--frames", options->rig.frames, "Frames per revolution (0: the preset's)")
+          ->check(CLI::Range(0, 100000));
+  CLI::Option* mode =
+      command
+          ->add_option("--mode", options->mode,
+                       "patterns: the camera images of every pattern; depth: noisy depth maps straight from the "
+                       "geometry (for fusion tests that skip decode)")
+          ->check(CLI::IsMember({"patterns", "depth"}))
+          ->capture_default_str();
   command->add_option("--projector", options->rig.projector,
                       "dlpc350: DLP4500 912x1140 (as the DLPC350 drives it); 1080p: a 1920x1080 DMD")
       ->check(CLI::IsMember({"dlpc350", "1080p"}))
@@ -83,18 +116,40 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--turntable-jitter-deg", options->rig.angle_jitter_deg,
                       "Std. dev. of the true turntable angle about the commanded one (0: exact)")
       ->capture_default_str();
-  command->add_option("--mount-tilt-deg", options->rig.mount_tilt_deg,
-                      "Tilt of the object's axis on the table: the wobble (0: none)")
-      ->capture_default_str();
-  command->add_option("--mount-offset-um", options->mount_offset_um, "Object axis off the table axis (0: none)")
-      ->capture_default_str();
+  CLI::Option* mount_tilt = command
+                                 ->add_option("--mount-tilt-deg", options->rig.mount_tilt_deg,
+                                              "Tilt of the object's axis on the table: the wobble (0: none)")
+                                 ->capture_default_str();
+  CLI::Option* mount_offset =
+      command->add_option("--mount-offset-um", options->mount_offset_um, "Object axis off the table axis (0: none)")
+          ->capture_default_str();
   command->add_option("--out", options->out, "Recording folder to create (must not exist or be empty)")->required();
   command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present)");
   command->add_option("--seed", options->rig.seed, "Noise and turntable-jitter seed")->capture_default_str();
   command->add_flag("--no-noise", options->no_noise, "Noise-free images and depth (tests, pictures)");
-  command->add_option("--reference-spacing-um", options->reference_spacing_um,
-                      "Spacing of groundtruth/reference.ply samples (0: ci 100, demo 30, paper 10)")
-      ->check(CLI::NonNegativeNumber);
+  CLI::Option* reference_spacing =
+      command->add_option("--reference-spacing-um", options->reference_spacing_um,
+                          "Spacing of groundtruth/reference.ply samples (0: ci 100, demo 30, paper 10)")
+          ->check(CLI::NonNegativeNumber);
+  CLI::Option* calibration = command->add_flag(
+      "--calibration", options->calibration,
+      "A calibration capture instead of a scan: a 9 x 7 chessboard of 0.6 mm squares moved by hand (--hand-poses, "
+      "table at 0°, manifest angle null), then on a mount on the turntable at angles over -40..+40° "
+      "(--turntable-poses); patterns code projector columns and rows. Recorded uncalibrated; groundtruth/ holds the "
+      "exact calibration, board, board poses and corners (docs/simulator.md). Not with --object, --frames, --mode, "
+      "--mount-tilt-deg, --mount-offset-um or --reference-spacing-um");
+  command->add_option("--hand-poses", options->hand_poses, "With --calibration: board poses by hand")
+      ->check(CLI::Range(0, 1000))
+      ->needs(calibration)
+      ->capture_default_str();
+  command->add_option("--turntable-poses", options->turntable_poses,
+                      "With --calibration: board views on the turntable (for its axis)")
+      ->check(CLI::Range(0, 1000))
+      ->needs(calibration)
+      ->capture_default_str();
+  for (CLI::Option* scan_only : {object, frames, mode, mount_tilt, mount_offset, reference_spacing}) {
+    scan_only->excludes(calibration);
+  }
   command->callback([&context, exit_code, options] {
     run_command(context, "sim", [&context, options] { return run_sim(context, *options); }, exit_code);
   });

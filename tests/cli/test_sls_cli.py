@@ -346,6 +346,51 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(again.returncode, 1)
         self.assertIn(str(out), again.stderr)
 
+    def test_sim_calibration_capture(self):
+        out = self.dir / "calib"
+        result = run("--json", "sim", "--calibration", "--preset", "ci", "--hand-poses", "3", "--turntable-poses", "2",
+                     "--device", "cpu", "--out", str(out))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        summary = json.loads(result.stdout)
+        self.assertTrue(summary["calibration"])
+        self.assertEqual((summary["hand_poses"], summary["turntable_poses"], summary["frames"]), (3, 2, 5))
+        self.assertEqual(summary["object"], "chessboard")
+        self.assertEqual(summary["images_per_frame"], 42)  # projector columns and rows
+        truth = out / "groundtruth"
+        inspect = json.loads(run("--json", "inspect", "--deep", str(out), str(truth / "calibration.yml"),
+                                 str(truth / "board_poses.txt")).stdout)
+        self.assertTrue(inspect["ok"], inspect)
+        recording, calibration, poses = inspect["results"]
+        # Made uncalibrated, as a calibration capture is; the exact calibration is the truth.
+        self.assertFalse(recording["calibrated"])
+        self.assertFalse((out / "calibration.yml").exists())
+        self.assertEqual(recording["frames"], 5)
+        self.assertEqual(recording["frames_with_turntable_angle"], 2)
+        self.assertAlmostEqual(calibration["projector_angle_deg"], 25.0, places=6)
+        self.assertEqual(poses["poses"], 5)
+        capture = json.load(open(truth / "capture.json"))
+        self.assertEqual([f["kind"] for f in capture["frames"]], ["hand"] * 3 + ["turntable"] * 2)
+        board = json.load(open(truth / "board.json"))
+        self.assertEqual(board["inner_corners"], [9, 7])
+        corners = json.load(open(truth / "frames/000004/corners.json"))
+        self.assertEqual((len(corners["camera_px"]), len(corners["projector_px"])), (63, 63))
+        for name in ("rig.json", "scene.json"):
+            self.assertTrue((truth / name).exists(), name)
+        # The scan's own options do not apply to a calibration capture; its own need it.
+        for args in (("--object", "plane"), ("--mode", "depth"), ("--frames", "4"), ("--mount-tilt-deg", "0"),
+                     ("--mount-offset-um", "0"), ("--reference-spacing-um", "100")):
+            bad = run("sim", "--calibration", *args, "--out", str(self.dir / "bad"))
+            self.assertEqual(bad.returncode, 2, args)
+            self.assertIn("--calibration", bad.stderr)
+        for option in ("--hand-poses", "--turntable-poses"):
+            bad = run("sim", option, "3", "--out", str(self.dir / "bad"))
+            self.assertEqual(bad.returncode, 2, option)
+            self.assertIn("--calibration", bad.stderr)
+        self.assertFalse((self.dir / "bad").exists())
+        help_text = run("sim", "--help").stdout
+        for option in ("--calibration", "--hand-poses", "--turntable-poses"):
+            self.assertIn(option, help_text)
+
     def test_decode_reports_accuracy_against_ground_truth(self):
         rec, out = self.dir / "rec", self.dir / "decoded"
         self.assertEqual(run("sim", "--preset", "ci", "--frames", "2", "--device", "cpu", "--out", str(rec)).returncode, 0)
