@@ -55,10 +55,17 @@ AxisFit fit_turntable_axis(const std::vector<ViewObservation>& views, const std:
     fit.reason = fmt::format("{} usable board views carry a turntable angle (need 3)", used.size());
     return fit;
   }
+  // Angles relative to the first view, wrapped to (−180°, 180°]: a table reports −40° as 320°.
+  std::vector<double> angles(views.size(), 0.0);
+  const double reference = *views[used[0]].turntable_angle_deg;
+  for (std::size_t v : used) {
+    const double delta = std::remainder(*views[v].turntable_angle_deg - reference, 360.0);
+    angles[v] = reference + delta;
+  }
   double lo = 1e300, hi = -1e300;
   for (std::size_t v : used) {
-    lo = std::min(lo, *views[v].turntable_angle_deg);
-    hi = std::max(hi, *views[v].turntable_angle_deg);
+    lo = std::min(lo, angles[v]);
+    hi = std::max(hi, angles[v]);
   }
   fit.angle_span_deg = hi - lo;
   if (fit.angle_span_deg < 10.0) {
@@ -68,14 +75,14 @@ AxisFit fit_turntable_axis(const std::vector<ViewObservation>& views, const std:
 
   // Closed form: each view relative to the first is a rotation by Δθ about the axis.
   const Pose& first = solutions[used[0]].T_camera_board;
-  const double first_angle = *views[used[0]].turntable_angle_deg;
+  const double first_angle = angles[used[0]];
   Eigen::Vector3d direction = Eigen::Vector3d::Zero();
   std::vector<Pose> relative;
   for (std::size_t k = 1; k < used.size(); ++k) {
     const Pose motion = solutions[used[k]].T_camera_board * first.inverse();
     relative.push_back(motion);
     const Eigen::AngleAxisd aa(motion.rotation());
-    const double delta = *views[used[k]].turntable_angle_deg - first_angle;
+    const double delta = angles[used[k]] - first_angle;
     direction += (delta >= 0.0 ? 1.0 : -1.0) * aa.angle() * aa.axis();
   }
   if (!(direction.norm() > 1e-9)) {
@@ -116,7 +123,7 @@ AxisFit fit_turntable_axis(const std::vector<ViewObservation>& views, const std:
     r->setZero(static_cast<Eigen::Index>(4 * object.size() * used.size()));
     Eigen::Index row = 0;
     for (std::size_t v : used) {
-      const Pose T_camera_board = T_camera_axis * rotation_about_z(*views[v].turntable_angle_deg) * T_axis_board;
+      const Pose T_camera_board = T_camera_axis * rotation_about_z(angles[v]) * T_axis_board;
       const Pose T_projector_board = T_projector_camera * T_camera_board;
       for (std::size_t c = 0; c < object.size(); ++c, row += 4) {
         r->segment<2>(row) = views[v].camera_corners[c] - predict(calibration.camera, T_camera_board * object[c]);

@@ -226,7 +226,11 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
     session_options.tracking.crease_angle_deg = options.icp_crease_deg;
   }
   session_options.deformation.enabled = !groundtruth && options.deformation == "on";
-  session::ScanSession session = session::make_recording_session(recording, session_options);
+  // --calibration with --input: decode with that calibration instead of the recording's.
+  std::optional<ScannerCalibration> calibration;
+  if (!options.calibration.empty() && options.camera_uri.empty()) calibration = read_calibration(options.calibration);
+  session::ScanSession session =
+      session::make_recording_session(recording, session_options, calibration ? &*calibration : nullptr);
 
   g_stop_requested.store(false);
   const auto previous_int = std::signal(SIGINT, request_stop);
@@ -313,6 +317,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   report["format_version"] = 2;
   report["input"] = recording.folder();
   report["device"] = device.to_string();
+  report["calibration"] = calibration ? options.calibration : recording.folder() + "/calibration.yml";
   report["poses"] = options.poses;
   report["turntable_prior"] = !groundtruth && options.turntable_prior;
   report["photometric_weight"] = groundtruth ? 0.0 : options.photometric_weight;
@@ -481,7 +486,8 @@ int run_scan(const Context& context, const ScanOptions& options) {
   }
 
   // The recording is read and checked (manifest, calibration), then every frame decoded.
-  const RecordingReader recording = session::open_recording_for_scan(input);
+  const RecordingReader recording =
+      session::open_recording_for_scan(input, !options.calibration.empty() && options.camera_uri.empty());
   const nlohmann::json report = scan_recording(context, recording, options, device);
   if (context.options.json) {
     std::cout << report.dump(2) << "\n";
@@ -511,7 +517,8 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                                      "Scan with devices by URI (see `sls devices`): the camera, e.g. gige://192.168.1.20");
   command->add_option("--projector", options->projector_uri, "With --camera: the projector, e.g. dlpc350://");
   command->add_option("--turntable", options->turntable_uri, "With --camera: the turntable, e.g. headctl://");
-  command->add_option("--calibration", options->calibration, "With --camera: calibration.yml of these devices");
+  command->add_option("--calibration", options->calibration, "With --camera: calibration.yml of these devices (stored in the recording); with --input: decode "
+                      "with this calibration instead of the recording's (e.g. a new calibration of the head)");
   input->excludes(sim);
   sim->excludes(input);
   camera->excludes(input);

@@ -51,21 +51,29 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
   return result;
 }
 
-RecordingReader open_recording_for_scan(const std::string& folder) {
+RecordingReader open_recording_for_scan(const std::string& folder, bool calibration_given) {
   RecordingReader recording = RecordingReader::open(folder);
   recording.verify(false);
-  if (!recording.has_calibration()) {
+  if (!calibration_given && !recording.has_calibration()) {
     throw_error(ErrorCode::kInvalidArgument, "{} has no calibration.yml: a scan needs a calibrated recording", folder);
   }
   return recording;
 }
 
-ScanSession make_recording_session(const RecordingReader& recording, ScanSessionOptions options) {
+ScanSession make_recording_session(const RecordingReader& recording, ScanSessionOptions options,
+                                   const ScannerCalibration* calibration) {
   const RecordingInfo& info = recording.info();
+  if (calibration != nullptr &&
+      (calibration->camera.width != info.camera.width || calibration->camera.height != info.camera.height)) {
+    throw_error(ErrorCode::kInvalidArgument, "the calibration is of a {}x{} camera, {} was recorded at {}x{}",
+                calibration->camera.width, calibration->camera.height, recording.folder(), info.camera.width,
+                info.camera.height);
+  }
   options.decode.bit_depth = info.camera.bit_depth;
   std::optional<PatternSet> patterns;
   if (info.images_per_frame > 0) patterns = pattern_set_from_json(info.pattern_set_json);
-  return ScanSession(recording.calibration(), patterns ? &*patterns : nullptr, options);
+  return ScanSession(calibration != nullptr ? *calibration : recording.calibration(), patterns ? &*patterns : nullptr,
+                     options);
 }
 
 double automatic_max_voxels(const Device& device) { return (device.is_cuda() ? 256.0 : 48.0) * 1e6; }

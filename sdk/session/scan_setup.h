@@ -54,13 +54,18 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
                                    const ProgressCallback& progress = {});
 
 // Opens a recording for a scan: reads and checks its manifest (RecordingReader::verify without
-// decoding images) and requires a calibration. Throws sls::Error: kNotFound for a missing
-// folder or manifest, kFormat for a corrupt one, kInvalidArgument without calibration.yml.
-RecordingReader open_recording_for_scan(const std::string& folder);
+// decoding images) and, unless the caller brings its own (`calibration_given`), requires a
+// calibration. Throws sls::Error: kNotFound for a missing folder or manifest, kFormat for a
+// corrupt one, kInvalidArgument without calibration.yml.
+RecordingReader open_recording_for_scan(const std::string& folder, bool calibration_given = false);
 
-// A scan session for the frames of `recording`: its calibration, its pattern set (none for a
-// depth-map recording) and its camera's bit depth for the decoder; the rest from `options`.
-ScanSession make_recording_session(const RecordingReader& recording, ScanSessionOptions options);
+// A scan session for the frames of `recording`: its calibration (or `calibration`, e.g. a
+// new calibration of the head, when given: its camera must have the recording's size), its
+// pattern set (none for a depth-map recording) and its camera's bit depth for the decoder;
+// the rest from `options`. Throws sls::Error(kInvalidArgument) for a calibration of another
+// camera size.
+ScanSession make_recording_session(const RecordingReader& recording, ScanSessionOptions options,
+                                   const ScannerCalibration* calibration = nullptr);
 
 // The largest volume (one buffer of a moving volume) an automatic voxel size is grown to fit:
 // 256 million voxels on a GPU, 48 million on the CPU.

@@ -240,6 +240,32 @@ class SlsCli(unittest.TestCase):
             self.assertIn(option, bad.stderr)
             self.assertFalse((self.dir / "bad").exists())
 
+    def test_scan_with_another_calibration(self):
+        # A recording decoded with a calibration other than its own (a new calibration of the
+        # head), also when the recording has none; one of another camera size is refused.
+        rec = self.dir / "rec"
+        self.assertEqual(run("sim", "--preset", "ci", "--frames", "2", "--device", "cpu", "--out", str(rec)).returncode, 0)
+        text = (rec / "calibration.yml").read_text()
+        other = self.dir / "other.yml"
+        other.write_text(text)
+        (rec / "calibration.yml").unlink()
+        manifest = json.loads((rec / "manifest.json").read_text())
+        manifest["calibration"] = None
+        (rec / "manifest.json").write_text(json.dumps(manifest))
+        without = run("scan", "--input", str(rec), "--device", "cpu", "--out", str(self.dir / "none"))
+        self.assertEqual(without.returncode, 1)
+        self.assertIn("no calibration.yml", without.stderr)
+        result = run("--json", "scan", "--input", str(rec), "--calibration", str(other), "--device", "cpu", "--out",
+                     str(self.dir / "scan"))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertEqual(json.loads(result.stdout)["calibration"], str(other))
+        wrong = self.dir / "wrong.yml"
+        wrong.write_text(text.replace("camera_width: 400", "camera_width: 404"))
+        refused = run("scan", "--input", str(rec), "--calibration", str(wrong), "--device", "cpu", "--out",
+                      str(self.dir / "wrong"))
+        self.assertEqual(refused.returncode, 1)
+        self.assertIn("was recorded at 400x300", refused.stderr)
+
     def test_scan_interrupted_leaves_a_valid_partial_model(self):
         rec = self.knob_depth_recording()
         out = self.dir / "partial"
