@@ -4,6 +4,7 @@
 #include <chrono>
 #include <ctime>
 #include <filesystem>
+#include <future>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -12,6 +13,7 @@
 #include "sdk/core/file_util.h"
 #include "sdk/core/image_io.h"
 #include "sdk/core/recording.h"
+#include "sdk/core/stopwatch.h"
 
 namespace sls::calib {
 namespace {
@@ -166,31 +168,50 @@ CalibrateCaptureResult calibrate_capture(const CalibrateCaptureOptions& options,
   observation.min_projector_corner_fraction = options.min_projector_corner_fraction;
   observation.device = options.device;
   const std::size_t count = source.names.size();
-  for (std::size_t i = 0; i < count; ++i) {
-    report_progress(progress, {"calibrate", i, count, source.names[i]});
-    // A view that cannot be read (a missing, corrupt or mis-sized image) is rejected with the
-    // reason, not fatal: the other views still calibrate.
-    std::string reason = source.skipped[i];
+  // A view that cannot be read (a missing, corrupt or mis-sized image) is rejected with the
+  // reason, not fatal: the other views still calibrate. The next view is read while this one
+  // is observed (finding the board and the local homographies run on one core).
+  struct LoadedView {
     std::vector<Image16u> stack;
-    if (reason.empty()) {
-      try {
-        stack = source.load(i);
-      } catch (const Error& error) {
-        if (error.code() == ErrorCode::kCancelled || error.code() == ErrorCode::kOutOfMemory) throw;
-        reason = error.what();
-      }
+    std::string reason;
+    double seconds = 0.0;
+  };
+  const auto load_view = [&source](std::size_t i) {
+    LoadedView loaded;
+    loaded.reason = source.skipped[i];
+    if (!loaded.reason.empty()) return loaded;
+    const auto load_start = std::chrono::steady_clock::now();
+    try {
+      loaded.stack = source.load(i);
+    } catch (const Error& error) {
+      if (error.code() == ErrorCode::kOutOfMemory) throw;
+      loaded.reason = error.what();
     }
-    if (!reason.empty()) {
+    loaded.seconds = 1e-3 * ms_since(load_start);
+    return loaded;
+  };
+  std::future<LoadedView> next;
+  if (count > 0) next = std::async(std::launch::async, load_view, std::size_t{0});
+  for (std::size_t i = 0; i < count; ++i) {
+    LoadedView loaded = next.get();
+    if (i + 1 < count) next = std::async(std::launch::async, load_view, i + 1);
+    report_progress(progress, {"calibrate", i, count, source.names[i]});
+    result.load_s += loaded.seconds;
+    if (!loaded.reason.empty()) {
       ViewObservation rejected;
       rejected.name = source.names[i];
       rejected.turntable_angle_deg = source.angles[i];
-      rejected.rejected_reason = reason;
+      rejected.rejected_reason = loaded.reason;
       result.views.push_back(std::move(rejected));
       continue;
     }
-    result.views.push_back(observe_view(source.names[i], source.angles[i], stack, source.patterns, observation));
+    result.views.push_back(observe_view(source.names[i], source.angles[i], loaded.stack, source.patterns, observation));
+    result.detect_s += result.views.back().detect_s;
+    result.decode_s += result.views.back().decode_s;
+    result.homography_s += result.views.back().homography_s;
   }
   report_progress(progress, {"calibrate", count, count, "solve"});
+  const auto solve_start = std::chrono::steady_clock::now();
 
   ProcamSettings settings;
   settings.board = result.board;
@@ -202,6 +223,7 @@ CalibrateCaptureResult calibrate_capture(const CalibrateCaptureOptions& options,
   settings.max_obliquity_deg = options.max_obliquity_deg;
   result.procam = calibrate_procam(result.views, settings);
   result.axis = fit_turntable_axis(result.views, result.procam.views, result.procam.calibration, result.board);
+  result.solve_s = 1e-3 * ms_since(solve_start);
   ScannerCalibration& calibration = result.procam.calibration;
   if (result.axis.fitted) calibration.turntable = result.axis.axis;
   calibration.camera_rms_px = result.procam.camera_rms_px;

@@ -27,6 +27,8 @@ struct ViewObservation {
   ProjectorCorners projector;
   double square_px = 0.0;
   double decoded_fraction = 0.0;             // of the pixels inside the board's corner hull
+  // Where the time went (seconds): finding the board, decoding, the local homographies.
+  double detect_s = 0.0, decode_s = 0.0, homography_s = 0.0;
 };
 
 struct ObservationOptions {
