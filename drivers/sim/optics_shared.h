@@ -122,14 +122,26 @@ SLS_HOST_DEVICE inline double lens_blur_sigma_m(const LensModel& lens, double ob
   return std::sqrt(defocus * defocus + diffraction * diffraction + lens.residual_sigma_m * lens.residual_sigma_m);
 }
 
+// The variance of a pixel's own aperture, a box one pixel wide: 1/12 px^2 along each axis.
+constexpr double kPixelApertureVariancePx2 = 1.0 / 12.0;
+
+// The camera's lens blur alone (defocus, diffraction, aberrations), in camera pixels, for a
+// surface at `object_depth_m`: what a renderer that integrates over each pixel's area itself
+// applies (the pixel's aperture is then already in the integral).
+SLS_HOST_DEVICE inline double lens_blur_sigma_px(const LensModel& lens, const SensorModel& sensor,
+                                                 double object_depth_m) {
+  return lens_blur_sigma_m(lens, object_depth_m) / sensor.pixel_pitch_m;
+}
+
 // The Gaussian sigma (camera pixels) a renderer that point-samples each pixel centre should
 // apply for a surface at `object_depth_m`: the lens blur plus the pixel's own aperture (a box
-// of one pixel, variance 1/12 px^2). At the focus distance it is the floor (diffraction and
-// pixel). A renderer that integrates over the pixel area itself should use
-// lens_blur_sigma_m() / pitch instead, or it counts the pixel twice.
+// of one pixel, variance 1/12 px^2, as the Gaussian of the same variance). At the focus
+// distance it is the floor (diffraction and pixel). A renderer that integrates over the pixel
+// area itself should use lens_blur_sigma_px() instead, or it counts the pixel twice
+// (drivers/sim/render_shared.h does either, per pixel).
 SLS_HOST_DEVICE inline double defocus_sigma_px(const LensModel& lens, const SensorModel& sensor, double object_depth_m) {
-  const double sigma = lens_blur_sigma_m(lens, object_depth_m) / sensor.pixel_pitch_m;
-  return std::sqrt(sigma * sigma + 1.0 / 12.0);
+  const double sigma = lens_blur_sigma_px(lens, sensor, object_depth_m);
+  return std::sqrt(sigma * sigma + kPixelApertureVariancePx2);
 }
 
 // The projector lens blur, in DMD pixels along the columns (x) and the rows (y), of the

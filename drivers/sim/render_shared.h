@@ -7,12 +7,14 @@
 //     whether the point is lit; the point projects into the projector (with its distortion);
 //     the camera and projector defocus blur at that depth and the irradiance per unit pattern
 //     value (albedo, foreshortening, inverse-square falloff) are stored. This is also the
-//     frame's ground truth (depth, projector coordinates, valid mask).
+//     frame's ground truth (depth, projector coordinates, valid mask). A varying albedo is
+//     integrated over the pixel's footprint (see "The pixel's footprint" below).
 //  2. pattern_electrons(): per pattern image — the DMD pattern blurred by the projector lens
 //     (an exact convolution, sls::pattern_value_blurred) times the stored irradiance, plus
 //     ambient light: the mean photo-electrons at the pixel centre.
 //  3. camera blur (defocus + pixel aperture, a Gaussian of the per-pixel sigma, applied as two
-//     1-D gathers: exact for locally constant depth), then sensor_response(): shot noise,
+//     1-D gathers: exact for locally constant depth; the lens alone where the pixel's area is
+//     integrated in step 1), then sensor_response(): shot noise,
 //     read noise, gain, quantisation (drivers/sim/noise_shared.h), keyed by (seed, frame,
 //     image, pixel) so the CPU and the GPU draw the same noise.
 // Depth-only mode replaces 2-3 by depth_noise_sigma_m(): the depth error a phase-shifting
@@ -36,6 +38,7 @@ namespace sls::sim {
 // Geometry in double: ground truth must hold to well under a micrometre at 0.1 m range.
 struct FrameRenderParams {
   SceneShapeT<double> scene;
+  CameraIntrinsics camera;     // the model of the ray map: sub-pixel rays (pixel_footprint)
   CameraIntrinsics projector;
   Rigid3d T_object_camera;     // camera frame -> object frame
   Rigid3d T_projector_object;  // object frame -> projector frame
@@ -66,13 +69,16 @@ enum PixelFlags : std::uint32_t {
 // The per-frame geometry of one pixel (step 1).
 struct PixelGeometry {
   float depth_m;               // camera-frame z of the visible point; 0 when not visible
-  float projector_u;           // projector pixel coordinates of the point (when lit)
+  float projector_u;           // projector pixel coordinates of the point (when lit): ground truth
   float projector_v;
+  float pattern_u;             // where the pattern is read for this pixel (projector pixels):
+  float pattern_v;             // projector_u/v, or the albedo-weighted centroid of the footprint
   float white_electrons;       // mean e- at pattern value 1 (full white), before ambient
   float ambient_electrons;     // mean e- from ambient light
-  float camera_sigma_px;       // camera blur: defocus + pixel aperture
-  float projector_sigma_u;     // projector blur along columns / rows, DMD pixels
-  float projector_sigma_v;
+  float camera_sigma_px;       // camera blur: lens (defocus, diffraction) + pixel aperture, or
+                               // the lens alone where the pixel's area is integrated
+  float projector_sigma_u;     // pattern blur along columns / rows, DMD pixels: the projector
+  float projector_sigma_v;     // lens (+ the pixel aperture where the pixel is integrated)
   float depth_sigma_m;         // the depth noise of a phase-shift decode here (depth-only mode)
   std::uint32_t flags;         // PixelFlags
 };
@@ -122,6 +128,119 @@ SLS_HOST_DEVICE inline DepthNoise depth_noise(const FrameRenderParams& p, const 
   return out;
 }
 
+// ---------------------------------------------------------------------------------------
+// The pixel's footprint. A camera pixel integrates the irradiance over its area. Where the
+// albedo varies (albedo_varies(): the chessboard's squares, a solid texture) the albedo at
+// the centre ray alone would put every albedo edge on the pixel grid, up to ±0.5 px from
+// where it projects (0.13 px RMS in the corners of a simulated calibration capture). So
+// there the albedo is averaged over the footprint: the pixel square mapped onto the plane
+// tangent to the surface at the centre hit through sub-pixel rays. A point δ (pixels) from the
+// centre sees the normalised ray n + A δ, A = dn/dpixel = (diag(fx, fy) · J_distortion(n))⁻¹:
+// the camera model of the ray map (sdk/core/camera_model_shared.h) linearised over the pixel;
+// the linearisation's error, of order k1 |n| δ², is below 1e-5 px for the rig's lens. Geometry
+// (depth, projector coordinates, shadow) stays the centre ray's.
+//   Chessboard: the exact area integral over the footprint quadrilateral
+//     (chessboard_mean_albedo()). A sampled average converges only as 1/N: an edge along a
+//     row of an N x N grid of samples jumps in steps of 1/N pixel (measured: up to 0.13 px
+//     at N = 4, 0.06 px at N = 8), and the board's edges run close to the image axes.
+//   Solid texture (smooth): the midpoint rule on kTextureSamplesPerAxis² sub-pixel points.
+// The pattern is then read at the footprint's albedo-weighted centroid (where the pixel's
+// light comes from on average) and blurred by the pixel's aperture mapped into the projector
+// (the box's variance, 1/12 px², through the footprint's projector Jacobian), and the camera
+// blur is the lens alone: each image gets the pixel's aperture once (docs/simulator.md).
+// Uniform albedo: the point sample at the centre, the pattern there, the aperture in the
+// camera blur, as before.
+
+// Sub-pixel samples per axis for a smooth solid texture (AlbedoT). The midpoint rule's error
+// falls as 1/N²: for the textures in use (period ≥ 1 mm, pixels of 37.5 µm seen at up to 73°
+// from the normal) it is 4e-4 of the albedo at N = 4 (about 1 DN at full white), 1e-4 at
+// N = 8 (Renderer.FootprintAlbedoConvergesWithTheSamples).
+constexpr int kTextureSamplesPerAxis = 8;
+
+struct PixelFootprint {
+  Vec3d origin;        // the camera centre, object frame
+  Vec3d ray;           // object-frame ray of the pixel centre (camera z = 1)
+  Vec3d ray_per_px_x;  // its change per pixel along the image x and y axes
+  Vec3d ray_per_px_y;
+  Vec3d normal;        // the tangent plane at the centre hit: dot(x − origin, normal) = offset
+  double offset;
+};
+
+SLS_HOST_DEVICE inline PixelFootprint pixel_footprint(const FrameRenderParams& p, Vec3d ray_camera,
+                                                      const HitT<double>& hit) {
+  const Vec2d n{ray_camera.x / ray_camera.z, ray_camera.y / ray_camera.z};
+  double j[4];
+  distortion_jacobian(p.camera, n, j);
+  // d pixel / d n = diag(fx, fy) J; its inverse's columns are dn/dx and dn/dy.
+  const double m00 = p.camera.fx * j[0], m01 = p.camera.fx * j[1];
+  const double m10 = p.camera.fy * j[2], m11 = p.camera.fy * j[3];
+  const double inverse_det = 1.0 / (m00 * m11 - m01 * m10);
+  PixelFootprint f;
+  f.origin = p.T_object_camera.translation;
+  f.ray = rotate_vector(p.T_object_camera, Vec3d{n.x, n.y, 1.0});
+  f.ray_per_px_x = rotate_vector(p.T_object_camera, Vec3d{m11 * inverse_det, -m10 * inverse_det, 0.0});
+  f.ray_per_px_y = rotate_vector(p.T_object_camera, Vec3d{-m01 * inverse_det, m00 * inverse_det, 0.0});
+  f.normal = hit.normal;
+  f.offset = dot(hit.point - f.origin, hit.normal);
+  return f;
+}
+
+// Where the ray (dx, dy) pixels from the centre meets the tangent plane; false when it
+// misses (grazing view, or the plane behind the camera).
+SLS_HOST_DEVICE inline bool footprint_point(const PixelFootprint& f, double dx, double dy, Vec3d* point) {
+  const Vec3d d = f.ray + dx * f.ray_per_px_x + dy * f.ray_per_px_y;
+  const double depth = f.offset / dot(d, f.normal);  // camera z of the point
+  if (!(depth > 0.0 && depth < 10.0)) return false;
+  *point = f.origin + depth * d;
+  return true;
+}
+
+struct FootprintAlbedo {
+  double albedo = 0.0;  // mean over the footprint
+  Vec3d centroid{0.0, 0.0, 0.0};  // albedo-weighted, object frame
+  Vec3d corner[4];      // the pixel's corners (−½,−½), (½,−½), (½,½), (−½,½) on the plane
+};
+
+// The albedo over the pixel's footprint (see above); false where the footprint is not
+// bounded (grazing view) or too large (chessboard_mean_albedo()): the caller point-samples.
+// N: sub-pixel samples per axis of a solid texture (a parameter for the convergence test).
+template <int N = kTextureSamplesPerAxis>
+SLS_HOST_DEVICE inline bool footprint_albedo(const SceneShapeT<double>& scene, const PixelFootprint& f,
+                                             FootprintAlbedo* out) {
+  const double corner_x[4] = {-0.5, 0.5, 0.5, -0.5};
+  const double corner_y[4] = {-0.5, -0.5, 0.5, 0.5};
+  for (int k = 0; k < 4; ++k) {
+    if (!footprint_point(f, corner_x[k], corner_y[k], &out->corner[k])) return false;
+  }
+  if (scene.kind == SceneKind::kChessboard) {
+    // The sheet z = 0 is its own tangent plane.
+    const Vec2d quad[4] = {{out->corner[0].x, out->corner[0].y},
+                           {out->corner[1].x, out->corner[1].y},
+                           {out->corner[2].x, out->corner[2].y},
+                           {out->corner[3].x, out->corner[3].y}};
+    Vec2d centroid{0.0, 0.0};
+    if (!chessboard_mean_albedo(scene.chessboard, quad, &out->albedo, &centroid)) return false;
+    out->centroid = {centroid.x, centroid.y, 0.0};
+    return true;
+  }
+  constexpr int n = N;
+  double sum = 0.0;
+  Vec3d weighted{0.0, 0.0, 0.0}, mean_point{0.0, 0.0, 0.0};
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      Vec3d point;
+      if (!footprint_point(f, (i + 0.5) / n - 0.5, (j + 0.5) / n - 0.5, &point)) return false;
+      const double albedo = surface_albedo(scene, point);
+      sum += albedo;
+      weighted = weighted + albedo * point;
+      mean_point = mean_point + (1.0 / (n * n)) * point;
+    }
+  }
+  out->albedo = sum / (n * n);
+  out->centroid = sum > 0.0 ? (1.0 / sum) * weighted : mean_point;
+  return true;
+}
+
 SLS_HOST_DEVICE inline PixelGeometry trace_pixel(const FrameRenderParams& p, Vec3f ray_camera, bool ray_valid) {
   PixelGeometry g{};
   if (!ray_valid) return g;
@@ -137,8 +256,18 @@ SLS_HOST_DEVICE inline PixelGeometry trace_pixel(const FrameRenderParams& p, Vec
   const double depth = hit.t / length;
   g.depth_m = static_cast<float>(depth);
   g.flags = kPixelVisible;
-  g.camera_sigma_px = static_cast<float>(defocus_sigma_px(p.camera_lens, p.camera_sensor, depth));
-  g.ambient_electrons = static_cast<float>(p.ambient_electrons * hit.albedo);
+  // The camera blur with the pixel's aperture: a point sample's (see the footprint above).
+  const double point_sampled_sigma_px = defocus_sigma_px(p.camera_lens, p.camera_sensor, depth);
+  g.camera_sigma_px = static_cast<float>(point_sampled_sigma_px);
+  double albedo = hit.albedo;
+  FootprintAlbedo footprint;
+  const bool integrated = albedo_varies(p.scene) && footprint_albedo(p.scene, pixel_footprint(p, d_camera, hit),
+                                                                     &footprint);
+  if (integrated) {
+    albedo = footprint.albedo;
+    g.camera_sigma_px = static_cast<float>(lens_blur_sigma_px(p.camera_lens, p.camera_sensor, depth));
+  }
+  g.ambient_electrons = static_cast<float>(p.ambient_electrons * albedo);
 
   // Lit: the projector's centre is in front of the surface and nothing lies between them.
   const Vec3d to_projector = p.projector_centre_object - hit.point;
@@ -164,17 +293,48 @@ SLS_HOST_DEVICE inline PixelGeometry trace_pixel(const FrameRenderParams& p, Vec
   // cosine of incidence (normalised to the reference geometry of white_electrons).
   const double falloff = (p.projector_optics.lens.focus_distance_m * p.projector_optics.lens.focus_distance_m) /
                          (point_projector.z * point_projector.z);
-  g.white_electrons = static_cast<float>(p.projector_optics.white_electrons * hit.albedo * falloff *
+  g.white_electrons = static_cast<float>(p.projector_optics.white_electrons * albedo * falloff *
                                          (cos_incidence / p.cos_reference));
   g.projector_u = static_cast<float>(projector_pixel.x);
   g.projector_v = static_cast<float>(projector_pixel.y);
+  g.pattern_u = g.projector_u;
+  g.pattern_v = g.projector_v;
   const Vec2d projector_sigma = projector_blur_sigma_px(p.projector_optics, point_projector.z);
   g.projector_sigma_u = static_cast<float>(projector_sigma.x);
   g.projector_sigma_v = static_cast<float>(projector_sigma.y);
   g.flags |= kPixelLit;
-  const DepthNoise noise = depth_noise(p, g, ray.direction, towards, point_projector.z);
+  // The depth-noise model takes the blurs of a point sample (the pixel's aperture in the
+  // camera's blur); an integrated pixel has the same blur, split differently (below).
+  PixelGeometry model = g;
+  model.camera_sigma_px = static_cast<float>(point_sampled_sigma_px);
+  const DepthNoise noise = depth_noise(p, model, ray.direction, towards, point_projector.z);
   g.depth_sigma_m = static_cast<float>(noise.sigma_m);
   if (noise.decodable) g.flags |= kPixelDecodable;
+
+  if (integrated) {
+    // The pattern where the pixel's light comes from, blurred by the pixel's aperture mapped
+    // into the projector: the variance of u over the pixel, (du/dx² + du/dy²) / 12.
+    Vec2d corner[4], centroid;
+    bool projected = project(p.projector, transform_point(p.T_projector_object, footprint.centroid), &centroid);
+    for (int k = 0; k < 4; ++k) {
+      projected = projected && project(p.projector, transform_point(p.T_projector_object, footprint.corner[k]),
+                                       &corner[k]);
+    }
+    if (projected) {
+      const double du_dx = 0.5 * ((corner[1].x + corner[2].x) - (corner[0].x + corner[3].x));
+      const double du_dy = 0.5 * ((corner[2].x + corner[3].x) - (corner[0].x + corner[1].x));
+      const double dv_dx = 0.5 * ((corner[1].y + corner[2].y) - (corner[0].y + corner[3].y));
+      const double dv_dy = 0.5 * ((corner[2].y + corner[3].y) - (corner[0].y + corner[1].y));
+      g.pattern_u = static_cast<float>(centroid.x);
+      g.pattern_v = static_cast<float>(centroid.y);
+      g.projector_sigma_u = static_cast<float>(std::sqrt(
+          projector_sigma.x * projector_sigma.x + (du_dx * du_dx + du_dy * du_dy) * kPixelApertureVariancePx2));
+      g.projector_sigma_v = static_cast<float>(std::sqrt(
+          projector_sigma.y * projector_sigma.y + (dv_dx * dv_dx + dv_dy * dv_dy) * kPixelApertureVariancePx2));
+    } else {
+      g.camera_sigma_px = static_cast<float>(point_sampled_sigma_px);  // the aperture in the camera blur
+    }
+  }
   return g;
 }
 
@@ -184,7 +344,7 @@ SLS_HOST_DEVICE inline float pattern_electrons(const PixelGeometry& g, const Pat
   if (!(g.flags & kPixelVisible)) return 0.0f;
   if (!(g.flags & kPixelLit)) return g.ambient_electrons;
   const bool columns = pattern.axis == PatternAxis::kColumns;
-  const double u = columns ? static_cast<double>(g.projector_u) : static_cast<double>(g.projector_v);
+  const double u = columns ? static_cast<double>(g.pattern_u) : static_cast<double>(g.pattern_v);
   const double sigma = columns ? static_cast<double>(g.projector_sigma_u)
                                : static_cast<double>(g.projector_sigma_v);
   const double value = pattern_value_blurred(pattern, u, sigma);

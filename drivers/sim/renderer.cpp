@@ -93,6 +93,7 @@ Rigid3d to_rigid(const Pose& pose) { return pose.to_rigid3d(); }
 FrameRenderParams frame_params(const SimRig& rig, const Scene& scene, int frame) {
   FrameRenderParams params{};
   params.scene = scene.shape();
+  params.camera = rig.camera;
   params.projector = rig.projector;
   const Pose T_object_camera = rig.T_object_camera(frame);
   const Pose T_object_projector = T_object_camera * rig.T_camera_projector;
@@ -131,7 +132,7 @@ Renderer::Renderer(SimRig rig, Scene scene, const Device& device)
     : rig_(std::move(rig)), scene_(std::move(scene)), device_(device) {
   require_device(device_);
   validate_pattern_set(rig_.patterns);
-  static_assert(sizeof(PixelGeometry) == 40, "PixelGeometry is uploaded as raw bytes");
+  static_assert(sizeof(PixelGeometry) == 48, "PixelGeometry is uploaded as raw bytes");
   rays_ = std::make_unique<RayMap>(compute_ray_map(rig_.camera, device_));
   if (device_.is_cuda()) {
 #if defined(SLS_HAVE_CUDA)

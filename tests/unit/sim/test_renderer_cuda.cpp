@@ -1,7 +1,8 @@
 // The CUDA renderer equals the CPU renderer: geometry, pattern images (same noise draws) and
-// depth-only maps. Skipped without a GPU.
+// depth-only maps, with uniform and varying albedo. Skipped without a GPU.
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -12,10 +13,21 @@
 namespace sls::sim {
 namespace {
 
+// The chessboard and the textured knob take the pixel-footprint path (the albedo integrated
+// over each pixel, render_shared.h); the plain knurled objects the point sample.
+Scene textured_knob() {
+  KnurledKnobParameters parameters;
+  parameters.albedo = {0.5, 0.3, 1e-3};
+  return make_knurled_knob_scene(parameters);
+}
+
 TEST(RendererCuda, EqualsCpu) {
   SLS_REQUIRE_CUDA_DEVICE();
-  for (const char* object : {"knurled-screw", "knurled-knob", "chessboard"}) {
-    const Scene scene = make_scene(object);
+  const std::pair<const char*, Scene> scenes[] = {{"knurled-screw", make_scene("knurled-screw")},
+                                                  {"knurled-knob", make_scene("knurled-knob")},
+                                                  {"chessboard", make_scene("chessboard")},
+                                                  {"textured knurled-knob", textured_knob()}};
+  for (const auto& [object, scene] : scenes) {
     const SimRig rig = small_rig(scene, 400);
     Renderer cpu(rig, scene, Device::cpu());
     Renderer gpu(rig, scene, Device::cuda());
