@@ -1,5 +1,6 @@
 #include "drivers/sim/sim_calibration_capture.h"
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <vector>
@@ -26,15 +27,21 @@ constexpr double kDegree = M_PI / 180.0;
 // axes whose directions go once round the circle, so views differ by up to ~50° about two
 // axes and the focal length is observable; in-plane rotation small enough that the corner
 // nearest the image's top-left stays the board's first (a 10 x 8 board is symmetric under
-// 180°); shifts that keep the 7.2 x 6.0 mm plate inside the 12 x 9 mm field; depth well
-// inside the ±5 mm depth of field.
+// 180°); depth well inside the ±5 mm depth of field. Across the field each board goes out
+// from the centre perpendicular to its tilt axis (the direction its tilt foreshortens, so it
+// gets furthest), to a corner of the field when that direction is within 30° of a diagonal,
+// else to the middle of an edge, as far as the plate stays in view and lit with
+// kHandReachMarginFraction of margin. The directions go round with the axes, so over the
+// views the corners reach out to every edge and corner of the image, as calibration wants
+// (distortion and the principal point are constrained by corners near the image's edges).
+// How far is bounded by the plate's light border, which stays in view: the 12 default poses'
+// corners span 78 % x 71 % of the image (test_calibration_capture.cpp).
 constexpr double kHandTiltsDeg[2] = {28.0, 18.0};
 constexpr double kHandTiltSpreadDeg = 2.0;
 constexpr double kHandAzimuthSpreadRad = 0.2;
 constexpr double kHandRollDeg = 8.0;
-constexpr double kHandShiftAcrossM = 1.6e-3;  // image x (world y)
-constexpr double kHandShiftUpM = 0.5e-3;      // image y (world z)
-constexpr double kHandShiftDepthM = 1.5e-3;   // along the camera's axis
+constexpr double kHandShiftDepthM = 1.5e-3;     // along the camera's axis
+constexpr double kHandReachMarginFraction = 0.012;  // of the image (and DMD) size; the check asks 0.01
 
 // Turntable mount: the board leans back 12° (so its plane is not parallel to the axis, and
 // the axis is not in it), turned 3° in its plane, its face 0.5 mm in front of the axis;
@@ -74,21 +81,6 @@ Eigen::Vector3d board_centre(const ChessboardParameters& board) {
 Pose board_pose(const ChessboardParameters& board, const Eigen::Vector3d& centre_world, const Eigen::Matrix3d& turn) {
   const Eigen::Matrix3d r = facing_camera() * turn;
   return Pose(r, centre_world - r * board_centre(board));
-}
-
-Pose hand_pose(const ChessboardParameters& board, const Eigen::Vector3d& focus, std::uint64_t seed, int index,
-               int count) {
-  NoiseKey key;
-  key.seed = seed;
-  key.frame = static_cast<std::uint32_t>(index);
-  NoiseStream draws = make_noise_stream(key, kUserStream + 1);  // kUserStream: the table's jitter
-  const auto symmetric = [&draws](double half_range) { return half_range * (2.0 * draws.uniform() - 1.0); };
-  const double tilt = (kHandTiltsDeg[index % 2] + symmetric(kHandTiltSpreadDeg)) * kDegree;
-  const double azimuth = 2.0 * M_PI * index / count + symmetric(kHandAzimuthSpreadRad);
-  const double roll = symmetric(kHandRollDeg) * kDegree;
-  const Eigen::Vector3d shift(symmetric(kHandShiftDepthM), symmetric(kHandShiftAcrossM), symmetric(kHandShiftUpM));
-  const Eigen::Vector3d tilt_axis(std::cos(azimuth), std::sin(azimuth), 0.0);
-  return board_pose(board, focus + shift, rotation(tilt, tilt_axis) * rotation(roll, Eigen::Vector3d::UnitZ()));
 }
 
 // T_table_board: the fixed mount. The world origin is on the axis (world = turntable frame).
@@ -141,15 +133,16 @@ Pose T_camera_board(const SimRig& rig, const ChessboardParameters& board, int fr
   return rig.T_world_camera.inverse() * rig.T_world_object(frame) * board_frame_in_object(board);
 }
 
-bool inside(const Eigen::Vector2d& px, int width, int height) {
-  const double mx = kEdgeMarginFraction * width, my = kEdgeMarginFraction * height;
+bool inside(const Eigen::Vector2d& px, int width, int height, double margin_fraction) {
+  const double mx = margin_fraction * width, my = margin_fraction * height;
   return px.x() >= mx && px.y() >= my && px.x() <= width - 1 - mx && px.y() <= height - 1 - my;
 }
 
-// Throws when frame `frame` shows part of the plate outside the image or the projector's
-// light, or turns its face away from either, or leaves the depth of field.
-void check_board_in_view(const SimRig& rig, const ChessboardParameters& board, int frame) {
-  const Pose T_camera = T_camera_board(rig, board, frame);
+// Whether the board at T_camera_board shows the whole plate inside the image and the
+// projector's light (by `margin_fraction` of their sizes), its face turned to both by less
+// than kMaxIncidenceDeg, within the depth of field. When not, *why (optional) says where.
+bool plate_fits(const SimRig& rig, const ChessboardParameters& board, const Pose& T_camera, double margin_fraction,
+                std::string* why) {
   // The plate's outline in the board frame, margin included.
   const double left = -board.square - board.margin, top = -board.square - board.margin;
   const double right = board.inner_corners_x * board.square + board.margin;
@@ -162,20 +155,79 @@ void check_board_in_view(const SimRig& rig, const ChessboardParameters& board, i
   const double min_cos = std::cos(kMaxIncidenceDeg * kDegree);
   for (std::size_t i = 0; i < outline.size(); ++i) {
     const Eigen::Vector3d p = T_camera * outline[i];
-    const bool seen = inside(view.camera_px[i], rig.camera.width, rig.camera.height) &&
+    const bool seen = inside(view.camera_px[i], rig.camera.width, rig.camera.height, margin_fraction) &&
                       face_normal.dot(-p.normalized()) > min_cos;
-    const bool lit = inside(view.projector_px[i], rig.projector.width, rig.projector.height) &&
+    const bool lit = inside(view.projector_px[i], rig.projector.width, rig.projector.height, margin_fraction) &&
                      face_normal.dot((rig.T_camera_projector.translation() - p).normalized()) > min_cos;
     const bool sharp = std::fabs(p.z() - rig.optics.working_distance_m) < kDepthOfFieldM;
     if (!(seen && lit && sharp)) {
-      throw_error(ErrorCode::kInvalidArgument,
-                  "calibration frame {}: the {:.2f} x {:.2f} mm board leaves the camera's view, the projector's "
-                  "light or the depth of field (corner at camera pixel ({:.1f}, {:.1f}), projector pixel ({:.1f}, "
-                  "{:.1f}), {:.2f} mm from the camera)",
-                  frame, (right - left) * 1e3, (bottom - top) * 1e3, view.camera_px[i].x(), view.camera_px[i].y(),
-                  view.projector_px[i].x(), view.projector_px[i].y(), p.z() * 1e3);
+      if (why != nullptr) {
+        *why = fmt::format(
+            "the {:.2f} x {:.2f} mm board leaves the camera's view, the projector's light or the depth of field "
+            "(corner at camera pixel ({:.1f}, {:.1f}), projector pixel ({:.1f}, {:.1f}), {:.2f} mm from the camera)",
+            (right - left) * 1e3, (bottom - top) * 1e3, view.camera_px[i].x(), view.camera_px[i].y(),
+            view.projector_px[i].x(), view.projector_px[i].y(), p.z() * 1e3);
+      }
+      return false;
     }
   }
+  return true;
+}
+
+// Throws when frame `frame` shows part of the plate outside the image or the projector's
+// light, or turns its face away from either, or leaves the depth of field.
+void check_board_in_view(const SimRig& rig, const ChessboardParameters& board, int frame) {
+  std::string why;
+  if (!plate_fits(rig, board, T_camera_board(rig, board, frame), kEdgeMarginFraction, &why)) {
+    throw_error(ErrorCode::kInvalidArgument, "calibration frame {}: {}", frame, why);
+  }
+}
+
+// Hand pose `index` of `count` (see kHandTiltsDeg): T_world_board.
+Pose hand_pose(const SimRig& rig, const ChessboardParameters& board, const Eigen::Vector3d& focus,
+               std::uint64_t seed, int index, int count) {
+  NoiseKey key;
+  key.seed = seed;
+  key.frame = static_cast<std::uint32_t>(index);
+  NoiseStream draws = make_noise_stream(key, kUserStream + 1);  // kUserStream: the table's jitter
+  const auto symmetric = [&draws](double half_range) { return half_range * (2.0 * draws.uniform() - 1.0); };
+  const double tilt = (kHandTiltsDeg[index % 2] + symmetric(kHandTiltSpreadDeg)) * kDegree;
+  const double nominal_azimuth = 2.0 * M_PI * index / count;
+  const double azimuth = nominal_azimuth + symmetric(kHandAzimuthSpreadRad);
+  const double roll = symmetric(kHandRollDeg) * kDegree;
+  const double depth = symmetric(kHandShiftDepthM);
+  const Eigen::Vector3d tilt_axis(std::cos(azimuth), std::sin(azimuth), 0.0);
+  const Eigen::Matrix3d turn = rotation(tilt, tilt_axis) * rotation(roll, Eigen::Vector3d::UnitZ());
+  // Where in the field: the direction perpendicular to the nominal tilt axis, (cos, sin) of
+  // azimuth + 90° in the image (x right, y down), stretched onto the border of a square and
+  // clipped to it, so that directions within 30° of a diagonal go to that corner of the field:
+  // every image corner gets views, every edge its middle. Then scaled to the reach in x and y
+  // (how far the plate goes towards that side and still fits), backed off until it fits.
+  const double direction = nominal_azimuth + 0.5 * M_PI;
+  const double side_x = std::clamp(2.0 * std::cos(direction), -1.0, 1.0);
+  const double side_y = std::clamp(2.0 * std::sin(direction), -1.0, 1.0);
+  const Eigen::Vector3d centre = focus + Eigen::Vector3d(depth, 0.0, 0.0);
+  // Image x is world +y, image y world −z.
+  const auto pose_at = [&](double x, double y) { return board_pose(board, centre + Eigen::Vector3d(0.0, x, -y), turn); };
+  const auto fits = [&](double x, double y) {
+    return plate_fits(rig, board, rig.T_world_camera.inverse() * pose_at(x, y), kHandReachMarginFraction, nullptr);
+  };
+  if (!fits(0.0, 0.0)) return pose_at(0.0, 0.0);  // left to check_board_in_view's report
+  // The largest t in [0, limit] with fits(t) (those that fit are an interval from 0).
+  const auto farthest = [](double limit, const auto& fits_at) {
+    double fitting = 0.0, failing = limit;
+    if (fits_at(failing)) return failing;
+    for (int i = 0; i < 40; ++i) {
+      const double mid = 0.5 * (fitting + failing);
+      (fits_at(mid) ? fitting : failing) = mid;
+    }
+    return fitting;
+  };
+  const double field = 0.02;  // beyond any field of view here
+  const double reach_x = side_x == 0.0 ? 0.0 : farthest(field, [&](double t) { return fits(side_x * t, 0.0); });
+  const double reach_y = side_y == 0.0 ? 0.0 : farthest(field, [&](double t) { return fits(0.0, side_y * t); });
+  const double scale = farthest(1.0, [&](double t) { return fits(t * side_x * reach_x, t * side_y * reach_y); });
+  return pose_at(scale * side_x * reach_x, scale * side_y * reach_y);
 }
 
 nlohmann::json points_json(const std::vector<Eigen::Vector2d>& points) {
@@ -269,7 +321,7 @@ SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& b
   const Pose T_object_board = board_frame_in_object(board);
   const Eigen::Vector3d focus = rig.T_world_camera * Eigen::Vector3d(0.0, 0.0, rig.optics.working_distance_m);
   for (int i = 0; i < options.hand_poses; ++i) {
-    const Pose T_world_board = hand_pose(board, focus, options.rig.seed, i, options.hand_poses);
+    const Pose T_world_board = hand_pose(rig, board, focus, options.rig.seed, i, options.hand_poses);
     rig.placements.push_back({std::nullopt, T_world_board * T_object_board.inverse()});
   }
   rig.T_table_object = turntable_mount(board, focus) * T_object_board.inverse();

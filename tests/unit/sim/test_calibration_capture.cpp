@@ -116,6 +116,74 @@ TEST(SimCalibrationCapture, EveryPoseKeepsTheWholeBoardInViewAndLitAtEveryPreset
   EXPECT_THROW(make_calibration_rig(none, board), Error);
 }
 
+// Over the default 12 hand poses the corners reach out over the whole image, as calibration
+// wants (distortion and the principal point are constrained by corners near the image's
+// edges): every image quadrant holds corners of several views, the corners' bounding box spans
+// most of the image, and each image corner has board corners near it. How near is bounded by
+// the plate's light border, which must stay in view (the detector's quiet zone, checked by
+// make_calibration_rig): an inner corner lies two squares (0.6 mm square + 0.6 mm border)
+// inside the plate's edge, 10 % of the 12 mm width and 13 % of the 9 mm height (less the
+// foreshortening of a tilt), so the bounding box cannot pass ~80 % x 74 %. Measured: 78 % x
+// 71 %; the nearest board corner 14 % from an image corner's edges, up to 21 % where the
+// ±8° in-plane turn of the corner views takes their outermost corner inwards.
+TEST(SimCalibrationCapture, HandPosesCoverTheWholeImage) {
+  const Scene board = make_chessboard_scene(calibration_board());
+  const ChessboardParameters parameters = calibration_board();
+  const std::pair<std::string, std::string> rigs[] = {
+      {"ci", "dlpc350"}, {"demo", "dlpc350"}, {"paper", "dlpc350"}, {"ci", "1080p"}};
+  for (const auto& [preset, projector_kind] : rigs) {
+    double least_width = 1.0, least_height = 1.0, farthest_corner = 0.0;
+    int fewest_views_per_quadrant = 1000;
+    for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+      SimCalibrationOptions options;
+      options.rig.preset = preset;
+      options.rig.projector = projector_kind;
+      options.rig.seed = seed;
+      const SimRig rig = make_calibration_rig(options, board);
+      ASSERT_EQ(options.hand_poses, 12);
+      const double width = rig.camera.width, height = rig.camera.height;
+      Eigen::Vector2d low(HUGE_VAL, HUGE_VAL), high(-HUGE_VAL, -HUGE_VAL);
+      int views_in_quadrant[4] = {};
+      double nearest[4] = {HUGE_VAL, HUGE_VAL, HUGE_VAL, HUGE_VAL};  // per image corner, as a share of the image
+      for (int frame = 0; frame < options.hand_poses; ++frame) {
+        const Pose T_camera_board =
+            rig.T_world_camera.inverse() * rig.T_world_object(frame) * board_frame_in_object(parameters);
+        bool in_quadrant[4] = {};
+        for (const Eigen::Vector3d& corner_object : board.chessboard_corners()) {
+          const Eigen::Vector3d c = T_camera_board * (board_frame_in_object(parameters).inverse() * corner_object);
+          Vec2d uv{0.0, 0.0};
+          ASSERT_TRUE(project(rig.camera, Vec3d{c.x(), c.y(), c.z()}, &uv));
+          const Eigen::Vector2d p(uv.x, uv.y);
+          low = low.cwiseMin(p);
+          high = high.cwiseMax(p);
+          const bool right = p.x() > 0.5 * (width - 1), below = p.y() > 0.5 * (height - 1);
+          in_quadrant[(below ? 2 : 0) + (right ? 1 : 0)] = true;
+          // Distance to image corner q (0 top-left, 1 top-right, 2 bottom-left, 3 bottom-right),
+          // the larger of the two edge distances, as shares of the width and height.
+          const double dx[2] = {(p.x() + 0.5) / width, (width - 0.5 - p.x()) / width};
+          const double dy[2] = {(p.y() + 0.5) / height, (height - 0.5 - p.y()) / height};
+          for (int q = 0; q < 4; ++q) nearest[q] = std::min(nearest[q], std::max(dx[q % 2], dy[q / 2]));
+        }
+        for (int q = 0; q < 4; ++q) views_in_quadrant[q] += in_quadrant[q] ? 1 : 0;
+      }
+      least_width = std::min(least_width, (high.x() - low.x()) / width);
+      least_height = std::min(least_height, (high.y() - low.y()) / height);
+      for (int q = 0; q < 4; ++q) {
+        farthest_corner = std::max(farthest_corner, nearest[q]);
+        fewest_views_per_quadrant = std::min(fewest_views_per_quadrant, views_in_quadrant[q]);
+      }
+    }
+    std::printf("%s %s: corners' bounding box at least %.1f %% of the width, %.1f %% of the height; every image "
+                "corner has a board corner within %.1f %% of both its edges; every quadrant corners of %d views\n",
+                preset.c_str(), projector_kind.c_str(), 100 * least_width, 100 * least_height,
+                100 * farthest_corner, fewest_views_per_quadrant);
+    EXPECT_GE(least_width, 0.77) << preset << " " << projector_kind;
+    EXPECT_GE(least_height, 0.70) << preset << " " << projector_kind;
+    EXPECT_LE(farthest_corner, 0.23) << preset << " " << projector_kind;
+    EXPECT_GE(fewest_views_per_quadrant, 6) << preset << " " << projector_kind;
+  }
+}
+
 TEST(SimCalibrationCapture, TheTurntableMustBeAtAPlacementsAngle) {
   SimCalibrationOptions options;
   options.rig.preset = "ci";
