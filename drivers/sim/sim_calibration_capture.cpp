@@ -84,17 +84,19 @@ Pose board_pose(const ChessboardParameters& board, const Eigen::Vector3d& centre
 }
 
 // T_table_board: the fixed mount. The world origin is on the axis (world = turntable frame).
+// The board stands where the head focuses: on the axis for a head set up for flat targets,
+// 16.1 mm in front of it for the knurled screw's (its surface).
 Pose turntable_mount(const ChessboardParameters& board, const Eigen::Vector3d& focus) {
-  const Eigen::Vector3d centre(kMountFaceOffsetM, 0.0, focus.z());
+  const Eigen::Vector3d centre(std::max(kMountFaceOffsetM, focus.x()), 0.0, focus.z());
   return board_pose(board, centre,
                     rotation(-kMountLeanBackDeg * kDegree, Eigen::Vector3d::UnitX()) *
                         rotation(kMountRollDeg * kDegree, Eigen::Vector3d::UnitZ()));
 }
 
-// Commanded angle of turntable pose `index` of `count`: spread over ±40°, rounded to whole
-// steps and reported in [0°, 360°) as the table does.
-double turntable_angle_deg(const SimRig& rig, int index, int count) {
-  const double angle = count > 1 ? -kTableHalfRangeDeg + 2.0 * kTableHalfRangeDeg * index / (count - 1) : 0.0;
+// Commanded angle of turntable pose `index` of `count`: spread over ±half_range_deg, rounded
+// to whole steps and reported in [0°, 360°) as the table does.
+double turntable_angle_deg(const SimRig& rig, int index, int count, double half_range_deg) {
+  const double angle = count > 1 ? -half_range_deg + 2.0 * half_range_deg * index / (count - 1) : 0.0;
   const int steps = rig.turntable.steps_per_revolution;
   const long step = std::lround(angle / 360.0 * steps);
   return rig.step_angle_deg(static_cast<int>(((step % steps) + steps) % steps));
@@ -305,7 +307,10 @@ SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& b
   rig_options.frames = kCalibrationTurntableSteps;
   rig_options.mount_tilt_deg = 0.0;  // the board's mount is the capture's own
   rig_options.mount_offset_m = 0.0;
-  SimRig rig = make_rig(rig_options, board_scene);
+  // The head as set up for its object: camera and projector where make_rig puts them to scan
+  // it, so the turntable axis calibrated here is the one that object's scans use.
+  (void)board_scene;
+  SimRig rig = make_rig(rig_options, make_scene(options.head_object));
 
   // Columns and rows: the calibration needs both projector coordinates of every corner. The
   // row period gives the columns' fringe pitch on the object (DLP4500 rows are half a column).
@@ -325,9 +330,34 @@ SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& b
     rig.placements.push_back({std::nullopt, T_world_board * T_object_board.inverse()});
   }
   rig.T_table_object = turntable_mount(board, focus) * T_object_board.inverse();
-  for (int i = 0; i < options.turntable_poses; ++i) {
-    rig.placements.push_back({turntable_angle_deg(rig, i, options.turntable_poses), rig.T_table_object});
+  // The widest span up to ±40° over which the board stays whole in view and lit: a board
+  // standing 16 mm off the axis swings out of the 12 mm field within a few degrees.
+  const auto table_views = [&](double half_range_deg) {
+    std::vector<ObjectPlacement> views;
+    for (int i = 0; i < options.turntable_poses; ++i) {
+      views.push_back({turntable_angle_deg(rig, i, options.turntable_poses, half_range_deg), rig.T_table_object});
+    }
+    return views;
+  };
+  const auto table_views_fit = [&](double half_range_deg) {
+    SimRig trial = rig;
+    trial.placements = table_views(half_range_deg);
+    std::string why;
+    for (int frame = 0; frame < static_cast<int>(trial.placements.size()); ++frame) {
+      if (!plate_fits(trial, board, T_camera_board(trial, board, frame), kEdgeMarginFraction * 1.2, &why)) return false;
+    }
+    return true;
+  };
+  double half_range_deg = kTableHalfRangeDeg;
+  if (options.turntable_poses > 1 && !table_views_fit(half_range_deg)) {
+    double lo = 0.0, hi = kTableHalfRangeDeg;
+    for (int iteration = 0; iteration < 30; ++iteration) {
+      const double mid = 0.5 * (lo + hi);
+      (table_views_fit(mid) ? lo : hi) = mid;
+    }
+    half_range_deg = lo;
   }
+  for (const ObjectPlacement& view : table_views(half_range_deg)) rig.placements.push_back(view);
   for (int frame = 0; frame < static_cast<int>(rig.placements.size()); ++frame) check_board_in_view(rig, board, frame);
   return rig;
 }

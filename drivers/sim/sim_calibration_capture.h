@@ -45,7 +45,12 @@ struct SimCalibrationOptions {
   // scan's frames per revolution and object mount (tilt, offset) do not apply.
   RigOptions rig;
   int hand_poses = 12;     // frames 0 .. hand_poses − 1
-  int turntable_poses = 7; // then these, at angles spread over −40° .. +40°
+  int turntable_poses = 7; // then these, at angles spread over up to −40° .. +40° (as far as
+                           // the board stays in view)
+  // The object the head is set up for: camera and projector stand where a scan of it puts
+  // them (focused on its surface), so the turntable axis calibrated here is the one its scans
+  // use; the turntable views' board stands at that focus. "chessboard": focused on the axis.
+  std::string head_object = "knurled-screw";
   ChessboardParameters board = calibration_board();
 };
 

@@ -39,9 +39,10 @@ int run_sim(const Context& context, const SimOptions& options) {
     calibration_options.rig = rig;
     calibration_options.hand_poses = options.hand_poses;
     calibration_options.turntable_poses = options.turntable_poses;
+    calibration_options.head_object = options.object;
     summary = sim::write_sim_calibration_recording(options.out, calibration_options, device,
                                                    context.progress_callback("sim"));
-    object = "chessboard";
+    object = "chessboard";  // what is imaged; the head is set up for options.object
   } else {
     sim::SimRecordingOptions sim_options;
     sim_options.object = options.object;
@@ -65,6 +66,7 @@ int run_sim(const Context& context, const SimOptions& options) {
   if (options.calibration) {
     result["hand_poses"] = options.hand_poses;
     result["turntable_poses"] = options.turntable_poses;
+    result["head_object"] = options.object;
   }
   context.emit(result, [&] {
     if (options.calibration) {
@@ -91,10 +93,10 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--preset", options->rig.preset, "ci, demo or paper:\n" + sim::preset_help())
       ->check(CLI::IsMember({"ci", "demo", "paper"}))
       ->capture_default_str();
-  CLI::Option* object =
-      command->add_option("--object", options->object, "The object on the turntable")
-          ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
-          ->capture_default_str();
+  command->add_option("--object", options->object,
+                      "The object on the turntable (with --calibration: the one the head is set up for)")
+      ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
+      ->capture_default_str();
   CLI::Option* frames =
       command->add_option("--frames", options->rig.frames, "Frames per revolution (0: the preset's)")
           ->check(CLI::Range(0, 100000));
@@ -136,7 +138,8 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       "A calibration capture instead of a scan: a 9 x 7 chessboard of 0.6 mm squares moved by hand (--hand-poses, "
       "table at 0°, manifest angle null), then on a mount on the turntable at angles over -40..+40° "
       "(--turntable-poses); patterns code projector columns and rows. Recorded uncalibrated; groundtruth/ holds the "
-      "exact calibration, board, board poses and corners (docs/simulator.md). Not with --object, --frames, --mode, "
+      "exact calibration, board, board poses and corners (docs/simulator.md). --object then names the object the "
+      "head is set up for (it focuses on its surface; the axis calibrated is its scans'). Not with --frames, --mode, "
       "--mount-tilt-deg, --mount-offset-um or --reference-spacing-um");
   command->add_option("--hand-poses", options->hand_poses, "With --calibration: board poses by hand")
       ->check(CLI::Range(0, 1000))
@@ -147,7 +150,7 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::Range(0, 1000))
       ->needs(calibration)
       ->capture_default_str();
-  for (CLI::Option* scan_only : {object, frames, mode, mount_tilt, mount_offset, reference_spacing}) {
+  for (CLI::Option* scan_only : {frames, mode, mount_tilt, mount_offset, reference_spacing}) {
     scan_only->excludes(calibration);
   }
   command->callback([&context, exit_code, options] {

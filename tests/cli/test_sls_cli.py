@@ -381,6 +381,7 @@ class SlsCli(unittest.TestCase):
         self.assertTrue(summary["calibration"])
         self.assertEqual((summary["hand_poses"], summary["turntable_poses"], summary["frames"]), (3, 2, 5))
         self.assertEqual(summary["object"], "chessboard")
+        self.assertEqual(summary["head_object"], "knurled-screw")  # the head as set up for the demo's object
         self.assertEqual(summary["images_per_frame"], 42)  # projector columns and rows
         truth = out / "groundtruth"
         inspect = json.loads(run("--json", "inspect", "--deep", str(out), str(truth / "calibration.yml"),
@@ -403,7 +404,7 @@ class SlsCli(unittest.TestCase):
         for name in ("rig.json", "scene.json"):
             self.assertTrue((truth / name).exists(), name)
         # The scan's own options do not apply to a calibration capture; its own need it.
-        for args in (("--object", "plane"), ("--mode", "depth"), ("--frames", "4"), ("--mount-tilt-deg", "0"),
+        for args in (("--mode", "depth"), ("--frames", "4"), ("--mount-tilt-deg", "0"),
                      ("--mount-offset-um", "0"), ("--reference-spacing-um", "100")):
             bad = run("sim", "--calibration", *args, "--out", str(self.dir / "bad"))
             self.assertEqual(bad.returncode, 2, args)

@@ -184,6 +184,34 @@ TEST(SimCalibrationCapture, HandPosesCoverTheWholeImage) {
   }
 }
 
+// A head set up for the knurled screw focuses on its surface, 16.1 mm in front of the axis:
+// the capture calibrates that rig (the axis its scans use), with the table views' board at
+// the focus and their span cut to what keeps it in the 12 mm field.
+TEST(SimCalibrationCapture, TheHeadIsTheOneSetUpForItsObject) {
+  SimCalibrationOptions options;
+  options.rig.preset = "demo";
+  ASSERT_EQ(options.head_object, "knurled-screw");
+  const SimRig rig = make_calibration_rig(options, make_chessboard_scene(options.board));
+  RigOptions scan_options;
+  scan_options.preset = "demo";
+  const SimRig scan = make_rig(scan_options, make_scene("knurled-screw"));
+  const ScannerCalibration exact = rig.calibration(), scanned = scan.calibration();
+  ASSERT_TRUE(exact.turntable && scanned.turntable);
+  EXPECT_LT((exact.turntable->point_camera - scanned.turntable->point_camera).norm(), 1e-12);
+  EXPECT_LT((exact.turntable->direction_camera - scanned.turntable->direction_camera).norm(), 1e-12);
+  EXPECT_LT((exact.T_camera_projector.translation() - scanned.T_camera_projector.translation()).norm(), 1e-12);
+  double lo = 360.0, hi = -360.0;
+  for (const ObjectPlacement& placement : rig.placements) {
+    if (!placement.commanded_angle_deg) continue;
+    const double angle = std::remainder(*placement.commanded_angle_deg, 360.0);
+    lo = std::min(lo, angle);
+    hi = std::max(hi, angle);
+  }
+  std::printf("table views over %.2f .. %.2f deg\n", lo, hi);
+  EXPECT_GT(hi - lo, 10.0);
+  EXPECT_LT(hi - lo, 80.0);
+}
+
 TEST(SimCalibrationCapture, TheTurntableMustBeAtAPlacementsAngle) {
   SimCalibrationOptions options;
   options.rig.preset = "ci";
@@ -211,6 +239,7 @@ TEST(SimCalibrationCapture, WritesAnUncalibratedRecordingWithTheExactCalibration
   options.rig.preset = "ci";
   options.hand_poses = 4;
   options.turntable_poses = 3;
+  options.head_object = "chessboard";  // focused on the axis: table views over ±40°
   const SimRecordingSummary summary =
       write_sim_calibration_recording(dir.file("rec"), options, Device::cpu(), {});
   EXPECT_EQ(summary.frames, 7);
@@ -348,6 +377,7 @@ TEST(SimCalibrationCapture, AnInterruptedCaptureKeepsItsFramesAndTheirTruth) {
   options.rig.camera_width = 160;
   options.hand_poses = 2;
   options.turntable_poses = 2;
+  options.head_object = "chessboard";  // focused on the axis: table views over ±40°
   const ProgressCallback stop_after_three = [](const ProgressUpdate& update) { return update.done < 3; };
   try {
     write_sim_calibration_recording(dir.file("rec"), options, Device::cpu(), stop_after_three);
