@@ -206,6 +206,9 @@ void add_eval_command(CLI::App& app, Context& context, int* exit_code) {
                       "Test every n-th frame for which reference points the recording saw")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  command->add_flag("--register", options->eval.register_to_surface,
+                    "Then register the model rigidly onto the exact surface before measuring: the shape's error "
+                    "alone, whatever frame the calibration defines (as CloudCompare's fine registration)");
   command->add_flag("--no-align", options->no_align,
                     "Do not align RESULT/trajectory.txt's first pose to the true one (compare as written)");
   command->callback([&context, exit_code, options] {

@@ -366,6 +366,54 @@ bool first_pose_alignment(const std::string& result_folder, const std::string& t
 
 }  // namespace
 
+namespace {
+
+// Rigid point-to-plane registration of points onto the scene's surface, starting at
+// `initial`: Gauss–Newton on the signed distance (its gradient by central differences),
+// over up to 20 000 of the points, those within 3 robust σ of the surface (at least two
+// voxels) counting.
+Pose register_onto_surface(const std::vector<Eigen::Vector3d>& points, const sim::Scene& scene, double voxel_m,
+                           const Pose& initial) {
+  const std::size_t stride = std::max<std::size_t>(1, points.size() / 20000);
+  std::vector<Eigen::Vector3d> sample;
+  for (std::size_t i = 0; i < points.size(); i += stride) sample.push_back(points[i]);
+  Pose T = initial;
+  const double h = 1e-6;
+  for (int iteration = 0; iteration < 30; ++iteration) {
+    std::vector<double> residuals(sample.size());
+    for (std::size_t i = 0; i < sample.size(); ++i) residuals[i] = scene.signed_distance(T * sample[i]);
+    std::vector<double> magnitudes(residuals.size());
+    for (std::size_t i = 0; i < residuals.size(); ++i) magnitudes[i] = std::fabs(residuals[i]);
+    std::nth_element(magnitudes.begin(), magnitudes.begin() + static_cast<std::ptrdiff_t>(magnitudes.size() / 2),
+                     magnitudes.end());
+    const double gate = std::max(2.0 * voxel_m, 3.0 * 1.4826 * magnitudes[magnitudes.size() / 2]);
+    Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> gradient = Eigen::Matrix<double, 6, 1>::Zero();
+    for (std::size_t i = 0; i < sample.size(); ++i) {
+      if (!(std::fabs(residuals[i]) <= gate)) continue;
+      const Eigen::Vector3d p = T * sample[i];
+      Eigen::Vector3d n;
+      for (int a = 0; a < 3; ++a) {
+        Eigen::Vector3d step = Eigen::Vector3d::Zero();
+        step[a] = h;
+        n[a] = (scene.signed_distance(p + step) - scene.signed_distance(p - step)) / (2.0 * h);
+      }
+      // d sdf / d (rho, omega) of exp(twist) * p: n · (rho + omega × p).
+      Eigen::Matrix<double, 6, 1> j;
+      j << n, p.cross(n);
+      normal += j * j.transpose();
+      gradient += j * residuals[i];
+    }
+    const Eigen::Matrix<double, 6, 1> twist = -normal.ldlt().solve(gradient);
+    if (!twist.allFinite()) break;
+    T = Pose::exp(twist) * T;
+    if (twist.head<3>().norm() < 1e-9 && twist.tail<3>().norm() < 1e-9) break;
+  }
+  return T;
+}
+
+}  // namespace
+
 EvalReport evaluate_result(const std::string& result_folder, const std::string& recording_folder,
                            const EvalOptions& options, const ProgressCallback& progress) {
   if (!(options.edge_band_voxels > 0.0) || !(options.coverage_radius_voxels > 0.0) || options.visibility_stride < 1 ||
@@ -438,6 +486,12 @@ EvalReport evaluate_result(const std::string& result_folder, const std::string& 
 
   const PointCloud cloud = read_ply_cloud(cloud_path);
   if (cloud.empty()) throw_error(ErrorCode::kInvalidArgument, "{} holds no points", cloud_path);
+  if (options.register_to_surface) {
+    report_progress(progress, {"register", 0, 1, ""});
+    report.T_object_world =
+        register_onto_surface(positions_of(cloud), scene, report.voxel_size_m, report.T_object_world);
+    report.alignment = report.alignment == "none" ? "registered" : report.alignment + "+registered";
+  }
   const std::vector<Eigen::Vector3d> points = to_object(cloud);
   report.cloud_points = points.size();
   report_progress(progress, {"c2c", 0, 1, ""});

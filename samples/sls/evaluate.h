@@ -162,6 +162,11 @@ struct EvalOptions {
   double coverage_radius_voxels = 2.0;
   int visibility_stride = 1;  // test every n-th frame's visibility (paper-size recordings)
   bool align_first_pose = true;
+  // Then register the cloud rigidly onto the exact surface (point-to-plane on its signed
+  // distance): the shape's error alone, whatever frame the result's calibration defines (a
+  // calibration's principal point traded for a small turn of the camera frame moves the whole
+  // model). As CloudCompare's fine registration before the paper's C2C.
+  bool register_to_surface = false;
   // Fill EvalReport::cloud_point_errors_m (one float per cloud point: 4 bytes a point).
   bool keep_point_errors = false;
 };
@@ -182,7 +187,7 @@ struct EvalReport {
   std::string coverage_basis;  // "visible" or "bounding-box"
   double coverage_radius_m = 0.0;
   std::size_t frames_checked = 0;  // frames whose visibility was tested
-  std::string alignment;           // "none" or "first-pose"
+  std::string alignment;           // "none", "first-pose", "registered" or "first-pose+registered"
   Pose T_object_world;             // applied to the output before comparing
   // With EvalOptions::keep_point_errors: |sdf| of each cloud.ply point after T_object_world,
   // in the file's point order (so the cloud as read, in its own world frame, can be coloured
