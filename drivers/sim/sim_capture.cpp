@@ -95,4 +95,16 @@ std::string write_frame_ground_truth(const GroundTruthFrame& truth, const std::s
   return frame_folder;
 }
 
+SimRecordingSummary recording_summary(const SimScanner& scanner, int frames, int images_per_frame,
+                                      const std::string& groundtruth_folder) {
+  SimRecordingSummary summary;
+  summary.uri = scanner.uri();
+  summary.frames = frames;
+  summary.images_per_frame = images_per_frame;
+  summary.width = scanner.rig().camera.width;
+  summary.height = scanner.rig().camera.height;
+  summary.groundtruth_folder = groundtruth_folder;
+  return summary;
+}
+
 }  // namespace sls::sim

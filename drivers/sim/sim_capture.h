@@ -13,6 +13,7 @@
 #include "drivers/interfaces/projector.h"
 #include "drivers/interfaces/turntable.h"
 #include "drivers/sim/renderer.h"
+#include "drivers/sim/sim_recording.h"
 #include "drivers/sim/sim_scanner.h"
 
 namespace sls::sim {
@@ -30,6 +31,10 @@ struct SimDevices {
 SimDevices start_sim_devices(SimScanner& scanner);
 // Stops the camera and darkens the projector.
 void stop_sim_devices(SimDevices& devices);
+
+// What a finished recording of `frames` frames from `scanner` tells its caller.
+SimRecordingSummary recording_summary(const SimScanner& scanner, int frames, int images_per_frame,
+                                      const std::string& groundtruth_folder);
 
 // One camera image per pattern (0 .. count − 1) as the projector shows it; the first image's
 // timestamp in *first_timestamp_ns.

@@ -84,14 +84,7 @@ SimRecordingSummary write_sim_recording(const std::string& folder, const SimReco
   stop_sim_devices(devices);
   writer.close();
 
-  SimRecordingSummary summary;
-  summary.uri = scanner->uri();
-  summary.frames = frames;
-  summary.images_per_frame = info.images_per_frame;
-  summary.width = rig.camera.width;
-  summary.height = rig.camera.height;
-  summary.groundtruth_folder = truth_folder;
-  return summary;
+  return recording_summary(*scanner, frames, info.images_per_frame, truth_folder);
 }
 
 }  // namespace sls::sim
