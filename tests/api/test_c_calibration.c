@@ -281,7 +281,8 @@ static void check_result(const sls_calibration* calibration, const progress_log*
   CHECK(summary.camera_rms_px > 0.0 && summary.camera_rms_px < 0.5);
   CHECK(summary.projector_rms_px > 0.0 && summary.projector_rms_px < 1.0);
   CHECK(summary.views_total == 6 && summary.views_used == 5 && summary.views_rejected == 1);
-  CHECK(summary.camera_outliers + summary.projector_outliers < 20);
+  /* Outlier rejection drops a few mislocated corners, less than a view's worth (63). */
+  CHECK(summary.camera_outliers + summary.projector_outliers < 63);
   CHECK(summary.turntable_axis_fitted == 0 && summary.turntable_axis_rms_px == 0.0);
   CHECK(summary.seconds > 0.0);
   CHECK(summary.board_inner_cols == 9 && summary.board_inner_rows == 7 && summary.board_square_m == 0.075);
