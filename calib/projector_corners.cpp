@@ -42,28 +42,29 @@ DecodedFrame decode_projector_coordinates(const PatternSet& patterns, const std:
   if (stack.empty() || stack.front().empty()) {
     throw_error(ErrorCode::kInvalidArgument, "decode for calibration: empty image stack");
   }
-  // A placeholder rig: only needed because triangulation runs after decoding. Its depth range
-  // and epipolar test are opened so every decoded coordinate survives (as OutOfRange at worst).
-  ScannerCalibration placeholder;
+  // A nominal rig (the calibration being made does not exist yet): the decoder triangulates
+  // after decoding, and needs one. Its depth range and epipolar test are opened so every
+  // decoded coordinate survives (as OutOfRange at worst); only the coordinates are used.
+  ScannerCalibration nominal;
   const int width = stack.front().width(), height = stack.front().height();
-  placeholder.camera.width = width;
-  placeholder.camera.height = height;
-  placeholder.camera.fx = placeholder.camera.fy = std::max(width, height);
-  placeholder.camera.cx = 0.5 * (width - 1);
-  placeholder.camera.cy = 0.5 * (height - 1);
-  placeholder.projector.width = patterns.projector_width;
-  placeholder.projector.height = patterns.projector_height;
-  placeholder.projector.fx = placeholder.projector.fy = std::max(patterns.projector_width, patterns.projector_height);
-  placeholder.projector.cx = 0.5 * (patterns.projector_width - 1);
-  placeholder.projector.cy = 0.5 * (patterns.projector_height - 1);
-  placeholder.T_camera_projector =
+  nominal.camera.width = width;
+  nominal.camera.height = height;
+  nominal.camera.fx = nominal.camera.fy = std::max(width, height);
+  nominal.camera.cx = 0.5 * (width - 1);
+  nominal.camera.cy = 0.5 * (height - 1);
+  nominal.projector.width = patterns.projector_width;
+  nominal.projector.height = patterns.projector_height;
+  nominal.projector.fx = nominal.projector.fy = std::max(patterns.projector_width, patterns.projector_height);
+  nominal.projector.cx = 0.5 * (patterns.projector_width - 1);
+  nominal.projector.cy = 0.5 * (patterns.projector_height - 1);
+  nominal.T_camera_projector =
       Pose(Eigen::Matrix3d(Eigen::AngleAxisd(-0.35, Eigen::Vector3d::UnitY())), Eigen::Vector3d(0.1, 0.0, 0.0));
   DecodeOptions open = options;
   open.min_triangulation_angle_deg = 0.0;
   open.min_depth_m = 1e-9;
   open.max_depth_m = 1e9;
   open.max_epipolar_error_px = 1e9;
-  Decoder decoder(patterns, placeholder, device, open);
+  Decoder decoder(patterns, nominal, device, open);
   DecodedFrame frame = decoder.decode(stack);
   for (std::size_t i = 0; i < frame.mask.pixel_count(); ++i) {
     const std::uint8_t mask = frame.mask.data()[i];

@@ -19,7 +19,7 @@
 namespace sls::calib {
 
 // Decodes projector coordinates where no calibration exists yet: the decoder's triangulation
-// needs one, so it gets a placeholder (the projector beside the camera) with the depth range
+// needs one, so it gets a nominal rig (the projector beside the camera) with the depth range
 // and the epipolar test opened; only the coordinates are kept. Both axes must be coded.
 // Returns u, v (NaN where not decoded) in a DecodedFrame; depth is meaningless.
 DecodedFrame decode_projector_coordinates(const PatternSet& patterns, const std::vector<Image16u>& stack,

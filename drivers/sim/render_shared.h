@@ -24,6 +24,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "drivers/sim/albedo_footprint_shared.h"
 #include "drivers/sim/noise_shared.h"
 #include "drivers/sim/optics_shared.h"
 #include "drivers/sim/scene_shared.h"

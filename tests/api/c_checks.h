@@ -5,6 +5,7 @@
 #define SLS_TESTS_API_C_CHECKS_H
 
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include <sls/sls.h>
@@ -43,5 +44,30 @@ static void check_error(sls_status got, sls_status expected, sls_error* error, c
     sls_status status_ = (call);                                  \
     check_error(status_, (expected), error_, (part), __LINE__);  \
   } while (0)
+
+/* A call that must succeed; prints its error otherwise. */
+static inline int succeeded(sls_status status, sls_error* error, int line) {
+  if (status == SLS_OK) return 1;
+  fprintf(stderr, "%s:%d: %s: %s\n", __FILE__, line, sls_status_str(status), sls_error_message(error));
+  sls_error_free(error);
+  ++failures;
+  return 0;
+}
+/* `call` must use `&error_` as its sls_error** argument. */
+#define CHECK_OK(call)                    \
+  do {                                    \
+    sls_error* error_ = NULL;             \
+    sls_status status_ = (call);          \
+    succeeded(status_, error_, __LINE__); \
+  } while (0)
+
+/* folder/name in a new malloc'ed string (the caller frees it). */
+static inline char* path_join(const char* folder, const char* name) {
+  size_t length = strlen(folder) + strlen(name) + 2;
+  char* path = (char*)malloc(length);
+  if (path == NULL) exit(2);
+  sprintf(path, "%s/%s", folder, name);
+  return path;
+}
 
 #endif /* SLS_TESTS_API_C_CHECKS_H */

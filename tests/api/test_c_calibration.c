@@ -35,30 +35,6 @@
 
 #define UNSUPPORTED_MESSAGE "built without OpenCV: calibration is not available"
 
-/* A call that must succeed; prints its error otherwise. */
-static int succeeded(sls_status status, sls_error* error, int line) {
-  if (status == SLS_OK) return 1;
-  fprintf(stderr, "%s:%d: %s: %s\n", __FILE__, line, sls_status_str(status), sls_error_message(error));
-  sls_error_free(error);
-  ++failures;
-  return 0;
-}
-/* `call` must use `&error_` as its sls_error** argument. */
-#define CHECK_OK(call)                    \
-  do {                                    \
-    sls_error* error_ = NULL;             \
-    sls_status status_ = (call);          \
-    succeeded(status_, error_, __LINE__); \
-  } while (0)
-
-static char* path_join(const char* folder, const char* name) {
-  size_t length = strlen(folder) + strlen(name) + 2;
-  char* path = (char*)malloc(length);
-  if (path == NULL) exit(2);
-  sprintf(path, "%s/%s", folder, name);
-  return path;
-}
-
 static int file_exists(const char* path) {
   FILE* file = fopen(path, "rb");
   if (file == NULL) return 0;

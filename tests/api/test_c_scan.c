@@ -33,29 +33,6 @@
 #include "c_checks.h"
 #include "c_scan_files.h"
 
-/* A call that must succeed; prints its error otherwise. */
-static int succeeded(sls_status status, sls_error* error, int line) {
-  if (status == SLS_OK) return 1;
-  fprintf(stderr, "%s:%d: %s: %s\n", __FILE__, line, sls_status_str(status), sls_error_message(error));
-  sls_error_free(error);
-  ++failures;
-  return 0;
-}
-#define CHECK_OK(call)                         \
-  do {                                         \
-    sls_error* error_ = NULL;                  \
-    sls_status status_ = (call);               \
-    succeeded(status_, error_, __LINE__);      \
-  } while (0)
-
-static char* path_join(const char* folder, const char* name) {
-  size_t length = strlen(folder) + strlen(name) + 2;
-  char* path = (char*)malloc(length);
-  if (path == NULL) exit(2);
-  sprintf(path, "%s/%s", folder, name);
-  return path;
-}
-
 /* ---- The frame callback's record. ---- */
 
 #define MAX_FRAMES 64
