@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "samples/sls/commands.h"
+#include "sdk/core/calibration.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
@@ -27,6 +28,7 @@ struct DecodeCommandOptions {
   std::string input;
   std::string out;
   std::string device;
+  std::string calibration;  // decode with this calibration instead of the recording's
   bool no_clouds = false;
 };
 
@@ -60,13 +62,21 @@ int run_decode(const Context& context, const DecodeCommandOptions& options) {
     throw_error(ErrorCode::kInvalidArgument, "{} is a depth-only recording: there are no pattern images to decode",
                 options.input);
   }
-  if (!recording.has_calibration()) {
-    throw_error(ErrorCode::kInvalidArgument, "{} has no calibration.yml: decoding needs the calibration",
+  if (options.calibration.empty() && !recording.has_calibration()) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "{} has no calibration.yml: decoding needs the calibration (give one with --calibration)",
                 options.input);
+  }
+  const ScannerCalibration calibration =
+      options.calibration.empty() ? recording.calibration() : read_calibration(options.calibration);
+  if (calibration.camera.width != info.camera.width || calibration.camera.height != info.camera.height) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: a calibration of a {}x{} camera for {}'s {}x{} images",
+                options.calibration, calibration.camera.width, calibration.camera.height, options.input,
+                info.camera.width, info.camera.height);
   }
   DecodeOptions decode_options;
   decode_options.bit_depth = info.camera.bit_depth;
-  Decoder decoder(pattern_set_from_json(info.pattern_set_json), recording.calibration(), device, decode_options);
+  Decoder decoder(pattern_set_from_json(info.pattern_set_json), calibration, device, decode_options);
   create_directories(options.out);
 
   nlohmann::json frames = nlohmann::json::array();
@@ -108,6 +118,8 @@ int run_decode(const Context& context, const DecodeCommandOptions& options) {
   }
   const std::size_t decoded_frames = recording.frame_count() - skipped;
   nlohmann::json report = {{"recording", options.input},
+                           {"calibration", options.calibration.empty() ? recording.folder() + "/calibration.yml"
+                                                                       : options.calibration},
                            {"device", device.to_string()},
                            {"frames_decoded", decoded_frames},
                            {"frames_skipped", skipped},
@@ -146,6 +158,8 @@ void add_decode_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--out", options->out, "Output folder (decode.json, frames/NNNNNN/depth.pfm, cloud.ply)")
       ->required();
   command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present)");
+  command->add_option("--calibration", options->calibration,
+                      "Decode with this calibration.yml instead of the recording's (e.g. a new calibration of the head)");
   command->add_flag("--no-clouds", options->no_clouds, "Write depth maps and decode.json only");
   command->callback([&context, exit_code, options] {
     run_command(context, "decode", [&context, options] { return run_decode(context, *options); }, exit_code);

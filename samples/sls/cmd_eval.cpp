@@ -18,6 +18,7 @@
 
 #include "samples/sls/commands.h"
 #include "samples/sls/evaluate.h"
+#include "samples/sls/evaluate_regions.h"
 #include "sdk/core/error.h"
 
 namespace sls::cli {
@@ -29,6 +30,8 @@ struct EvalCommandOptions {
   double voxel_um = 0.0;
   eval::EvalOptions eval;
   bool no_align = false;
+  std::string raw_scan;    // the paper's Table I: a view's raw depth map ...
+  int raw_scan_frame = 0;  // ... of this frame
 };
 
 constexpr double kUm = 1e6;
@@ -46,6 +49,14 @@ nlohmann::json errors_json(const eval::SurfaceErrors& errors) {
           {"c2c_edge_mean_um", um_or_null(errors.edge, &eval::DistanceStats::mean_m)},
           {"c2c_edge_rms_um", um_or_null(errors.edge, &eval::DistanceStats::rms_m)},
           {"edge_points", errors.edge.count}};
+}
+
+nlohmann::json region_json(const eval::RegionErrors& region) {
+  return {{"points", region.to_raw_scan.count},
+          {"to_raw_scan_mean_um", um_or_null(region.to_raw_scan, &eval::DistanceStats::mean_m)},
+          {"to_raw_scan_rms_um", um_or_null(region.to_raw_scan, &eval::DistanceStats::rms_m)},
+          {"to_surface_mean_um", um_or_null(region.to_surface, &eval::DistanceStats::mean_m)},
+          {"to_surface_rms_um", um_or_null(region.to_surface, &eval::DistanceStats::rms_m)}};
 }
 
 }  // namespace
@@ -119,6 +130,17 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
         eval::evaluate_result(undeformed_folder, options.truth, undeformed_options, context.progress_callback("eval")));
     out["undeformed"] = *undeformed;
   }
+  std::optional<eval::ViewRegionErrors> regions;
+  if (!options.raw_scan.empty()) {
+    regions = eval::result_region_errors(report, options.raw_scan, options.raw_scan_frame);
+    nlohmann::json json = {{"raw_scan", options.raw_scan},
+                           {"frame", options.raw_scan_frame},
+                           {"model_points", regions->model_points},
+                           {"visible_points", regions->visible_points},
+                           {"all", region_json(regions->all)}};
+    for (const eval::RegionErrors& region : regions->regions) json[region.name] = region_json(region);
+    out["regions"] = json;
+  }
 
   context.emit(out, [&] {
     auto um = [](const eval::DistanceStats& stats, double eval::DistanceStats::*field) {
@@ -161,6 +183,19 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
       std::cout << fmt::format("aligned by the first pose: {:.2f} um, {:.4f} deg\n",
                                report.T_object_world.translation().norm() * kUm,
                                report.T_object_world.angle_rad() * 180.0 / M_PI);
+    }
+    if (regions) {
+      std::cout << fmt::format("\nC2C in the four quadrants of frame {}'s view ({} of {} points seen), against its "
+                               "raw scan {} and the exact surface:\n",
+                               options.raw_scan_frame, regions->visible_points, regions->model_points, options.raw_scan);
+      std::cout << fmt::format("  {:<14}{:>10}{:>18}{:>18}\n", "region", "points", "to raw scan", "to surface");
+      auto row = [&](const eval::RegionErrors& region) {
+        std::cout << fmt::format("  {:<14}{:>10}{:>18}{:>18}\n", region.name, region.to_raw_scan.count,
+                                 um(region.to_raw_scan, &eval::DistanceStats::mean_m),
+                                 um(region.to_surface, &eval::DistanceStats::mean_m));
+      };
+      for (const eval::RegionErrors& region : regions->regions) row(region);
+      row(regions->all);
     }
     if (undeformed) {
       std::cout << fmt::format("\nonline deformation: {} (deformed) beside {} (as tracked, {} points), voxel {:.2f} um\n",
@@ -211,6 +246,13 @@ void add_eval_command(CLI::App& app, Context& context, int* exit_code) {
                     "alone, whatever frame the calibration defines (as CloudCompare's fine registration)");
   command->add_flag("--no-align", options->no_align,
                     "Do not align RESULT/trajectory.txt's first pose to the true one (compare as written)");
+  command->add_option("--raw-scan", options->raw_scan,
+                      "The paper's Table I: also the C2C mean in the four image quadrants of one view against that "
+                      "view's raw scan (its depth map, e.g. frames/NNNNNN/depth.pfm of `sls decode`, registered by "
+                      "the result's pose of the view) and against the exact surface");
+  command->add_option("--raw-scan-frame", options->raw_scan_frame, "With --raw-scan: the recording frame it is of")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   command->callback([&context, exit_code, options] {
     run_command(context, "eval", [&context, options] { return run_eval(context, *options); }, exit_code);
   });

@@ -52,6 +52,11 @@ struct ScanOptions {
   std::string out;
   std::string device = "cuda";
   std::string fusion = "gtsdf";
+  // --fusion gtsdf: the anisotropic term's parameters (unset: IntegrationOptions::gtsdf()'s)
+  std::optional<double> gtsdf_lambda;
+  std::optional<double> gtsdf_kappa;
+  std::string gtsdf_penalty;
+  std::optional<int> gtsdf_iterations;
   std::string poses = "track";
   double voxel_um = 0.0;          // 0: twice the camera's pixel footprint, grown to fit max_voxels
   double max_voxels_million = 0;  // 0: 256 on a GPU, 48 on the CPU
@@ -202,6 +207,11 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   session::ScanSessionOptions session_options;
   session_options.device = device;
   session_options.integration = fusion::parse_fusion_method(options.fusion);
+  fusion::IntegrationOptions& integration = session_options.integration;
+  if (options.gtsdf_lambda) integration.lambda = *options.gtsdf_lambda;
+  if (options.gtsdf_kappa) integration.kappa = *options.gtsdf_kappa;
+  if (!options.gtsdf_penalty.empty()) integration.penalty = fusion::parse_penalty(options.gtsdf_penalty);
+  if (options.gtsdf_iterations) integration.iterations = *options.gtsdf_iterations;
   std::vector<StampedPose> truth;
   if (groundtruth) {
     const std::string trajectory_path = recording.groundtruth_folder() + "/trajectory.txt";
@@ -536,6 +546,23 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--fusion", options->fusion, "Fusion: tsdf or gtsdf")
       ->check(CLI::IsMember({"tsdf", "gtsdf"}))
       ->capture_default_str();
+  const fusion::IntegrationOptions gtsdf_defaults = fusion::IntegrationOptions::gtsdf();
+  command->add_option("--gtsdf-lambda", options->gtsdf_lambda,
+                      fmt::format("With --fusion gtsdf: lambda, the anisotropic term's weight (alpha = lambda * beta, "
+                                  "beta = 1/6; default {:g})", gtsdf_defaults.lambda))
+      ->check(CLI::Range(1e-3, 1e3));
+  command->add_option("--gtsdf-kappa", options->gtsdf_kappa,
+                      fmt::format("With --fusion gtsdf: kappa, the edge-stopping scale of the penalty in units of the "
+                                  "truncated SDF (default {:g})", gtsdf_defaults.kappa))
+      ->check(CLI::Range(1e-4, 10.0));
+  command->add_option("--gtsdf-penalty", options->gtsdf_penalty,
+                      fmt::format("With --fusion gtsdf: the penalty phi (default {})",
+                                  fusion::penalty_name(gtsdf_defaults.penalty)))
+      ->check(CLI::IsMember({"perona-malik", "charbonnier", "geman-mcclure"}));
+  command->add_option("--gtsdf-iterations", options->gtsdf_iterations,
+                      fmt::format("With --fusion gtsdf: Gauss-Seidel sweeps per frame (default {})",
+                                  gtsdf_defaults.iterations))
+      ->check(CLI::Range(1, 100));
   command->add_option("--poses", options->poses, "Camera poses: track (ICP) or groundtruth (simulated recordings)")
       ->check(CLI::IsMember({"track", "groundtruth"}))
       ->capture_default_str();
@@ -575,6 +602,11 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                       "size (0: 256 on a GPU, 48 on the CPU)")
       ->check(CLI::NonNegativeNumber);
   command->callback([&context, exit_code, options, command] {
+    const bool gtsdf_parameters = options->gtsdf_lambda || options->gtsdf_kappa || !options->gtsdf_penalty.empty() ||
+                                  options->gtsdf_iterations;
+    if (gtsdf_parameters && options->fusion != "gtsdf") {
+      throw CLI::ValidationError("--gtsdf-lambda/-kappa/-penalty/-iterations", "they need --fusion gtsdf");
+    }
     run_command(context, "scan", [&context, options, command] {
       if (options->input.empty() && options->sim_preset.empty() && options->camera_uri.empty()) {
         throw_error(ErrorCode::kInvalidArgument, "give --input REC, --sim PRESET or --camera URI --projector URI");

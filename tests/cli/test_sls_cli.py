@@ -266,6 +266,57 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(refused.returncode, 1)
         self.assertIn("was recorded at 400x300", refused.stderr)
 
+    def test_gtsdf_parameters_decode_calibration_and_table_one_regions(self):
+        # The GTSDF parameters reach the integrator (report.json), only with --fusion gtsdf; a
+        # recording decoded with another calibration; the model's C2C in the four quadrants of
+        # frame 0's view against that view's raw scan (the paper's Table I).
+        out, rec = self.dir / "gt", self.dir / "gt" / "recording"
+        result = run("--json", "scan", "--sim", "ci", "--frames", "4", "--device", "cpu", "--poses", "groundtruth",
+                     "--gtsdf-lambda", "2", "--gtsdf-kappa", "0.3", "--gtsdf-penalty", "charbonnier",
+                     "--gtsdf-iterations", "2", "--out", str(out))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        fusion = json.loads((out / "report.json").read_text())["fusion"]
+        self.assertEqual((fusion["lambda"], fusion["kappa"], fusion["penalty"], fusion["iterations"]),
+                         (2.0, 0.3, "charbonnier", 2))
+        refused = run("scan", "--sim", "ci", "--fusion", "tsdf", "--gtsdf-lambda", "2", "--out", str(self.dir / "t"))
+        self.assertEqual(refused.returncode, 2)
+        self.assertIn("--fusion gtsdf", refused.stderr)
+        self.assertEqual(run("scan", "--sim", "ci", "--gtsdf-penalty", "huber", "--out",
+                             str(self.dir / "t")).returncode, 2)
+
+        other = self.dir / "other.yml"
+        other.write_text((rec / "calibration.yml").read_text())
+        decoded = run("--json", "decode", "--input", str(rec), "--calibration", str(other), "--no-clouds",
+                      "--device", "cpu", "--out", str(self.dir / "decoded"))
+        self.assertEqual(decoded.returncode, 0, decoded.stderr)
+        self.assertEqual(json.loads((self.dir / "decoded" / "decode.json").read_text())["calibration"], str(other))
+        wrong = self.dir / "wrong.yml"
+        wrong.write_text(other.read_text().replace("camera_width: 400", "camera_width: 404"))
+        refused = run("decode", "--input", str(rec), "--calibration", str(wrong), "--device", "cpu",
+                      "--out", str(self.dir / "wrong"))
+        self.assertEqual(refused.returncode, 1)
+        self.assertIn("404x300", refused.stderr)
+
+        raw = self.dir / "decoded" / "frames" / "000000" / "depth.pfm"
+        evaluation = json.loads(run("--json", "eval", "--result", str(out), "--truth", str(rec), "--raw-scan",
+                                    str(raw)).stdout)
+        regions = evaluation["regions"]
+        self.assertEqual(regions["frame"], 0)
+        names = ("upper-left", "upper-right", "lower-left", "lower-right")
+        self.assertEqual(sum(regions[n]["points"] for n in names), regions["visible_points"])
+        self.assertGreater(regions["visible_points"], 0.2 * regions["model_points"])
+        for name in names + ("all",):
+            # 4 exact views of 30 um pixels: within a fraction of a voxel of the surface; the raw
+            # scan is one noisy view, so farther.
+            self.assertLess(regions[name]["to_surface_mean_um"], 15.0, name)
+            self.assertGreater(regions[name]["to_raw_scan_mean_um"], regions[name]["to_surface_mean_um"], name)
+        self.assertIn("C2C in the four quadrants", run("eval", "--result", str(out), "--truth", str(rec),
+                                                       "--raw-scan", str(raw)).stdout)
+        missing = run("eval", "--result", str(out), "--truth", str(rec), "--raw-scan", str(raw),
+                      "--raw-scan-frame", "9")
+        self.assertEqual(missing.returncode, 1)
+        self.assertIn("frames 0..3", missing.stderr)
+
     def test_scan_interrupted_leaves_a_valid_partial_model(self):
         rec = self.knob_depth_recording()
         out = self.dir / "partial"
