@@ -35,7 +35,7 @@ struct IntegrationParams {
   float eta_m = 0.0f;         // η > δ: voxels farther than η behind the surface are not updated
   float weight_max = 255.0f;  // W cap (255 for the compact format's uint8 weights)
   float alpha = 0.0f;         // λβ; 0 = standard TSDF
-  float kappa = 0.1f;         // κ, in units of U
+  float kappa = 0.03f;        // κ, in units of U
   Penalty penalty = Penalty::kPeronaMalik;
 };
 

@@ -36,7 +36,7 @@ struct IntegrationOptions {
   std::size_t active_capacity = 0;
 
   static IntegrationOptions tsdf();   // λ = 0
-  static IntegrationOptions gtsdf();  // λ = 4, β = 1/6 (α = 2/3), κ = 0.1, Geman-McClure, T = 3
+  static IntegrationOptions gtsdf();  // λ = 4, β = 1/6 (α = 2/3), κ = 0.03, Geman-McClure, T = 3
   bool is_gtsdf() const { return lambda > 0.0 && iterations > 0; }
   // The volumes these options need: GTSDF keeps the running average apart from U (TSDF
   // integrates into either kind).

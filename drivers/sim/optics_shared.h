@@ -56,6 +56,9 @@ struct ProjectorModel {
   double pixel_pitch_y_m = 0;      // row pitch (half the column pitch on the diamond DLP4500)
   LensModel lens;
   double contrast_ratio = 0;       // full-on / full-off; <= 1 means no black level
+  // Light emitted for DMD level L: 255 (L / 255)^gamma. 1: linear, as a DLP in pattern mode
+  // (bit planes weighted by time); a projector fed video applies its display gamma (~2.2).
+  double gamma = 1.0;
   // Exposure scale: mean e- one camera pixel collects from full white (level 255) on a white
   // Lambertian target (albedo 1) at the focus distance, facing the camera. The renderer scales
   // it by albedo, foreshortening and projector_relative_irradiance().
@@ -172,6 +175,15 @@ SLS_HOST_DEVICE inline double gaussian_mtf(double sigma, double period) {
   const double r = sigma / period;
   return std::exp(-19.739208802178717 * r * r);  // 2 pi^2
 }
+
+// The projector's response to its DMD levels (ProjectorModel::gamma), for
+// sls::pattern_value_blurred(desc, u, sigma, response).
+struct ProjectorGammaResponse {
+  double gamma;
+  SLS_HOST_DEVICE double operator()(int level) const {
+    return 255.0 * std::pow(static_cast<double>(level) / 255.0, gamma);
+  }
+};
 
 // Relative irradiance the projector puts on the scene for a pattern value in [0, 1]
 // (sls::pattern_value_blurred): the DMD's off-state light sets a floor of 1/contrast.

@@ -348,7 +348,9 @@ SLS_HOST_DEVICE inline float pattern_electrons(const PixelGeometry& g, const Pat
   const double u = columns ? static_cast<double>(g.pattern_u) : static_cast<double>(g.pattern_v);
   const double sigma = columns ? static_cast<double>(g.projector_sigma_u)
                                : static_cast<double>(g.projector_sigma_v);
-  const double value = pattern_value_blurred(pattern, u, sigma);
+  const double value = projector.gamma == 1.0
+                           ? pattern_value_blurred(pattern, u, sigma)
+                           : pattern_value_blurred(pattern, u, sigma, ProjectorGammaResponse{projector.gamma});
   return static_cast<float>(static_cast<double>(g.ambient_electrons) +
                             static_cast<double>(g.white_electrons) * projector_relative_irradiance(projector, value));
 }

@@ -131,6 +131,10 @@ SimRig make_rig(const RigOptions& options, const Scene& scene) {
     throw_error(ErrorCode::kInvalidArgument, "unknown simulated projector '{}' (expected dlpc350 or 1080p)",
                 options.projector);
   }
+  if (!(options.projector_gamma > 0.1 && options.projector_gamma < 10.0)) {
+    throw_error(ErrorCode::kInvalidArgument, "projector gamma {} outside 0.1 .. 10", options.projector_gamma);
+  }
+  rig.optics.projector.gamma = options.projector_gamma;
   rig.camera = camera_intrinsics(rig.optics.camera_lens, sensor);
   // A well-corrected macro lens: 0.2 % barrel distortion in the corners, slight decentring.
   rig.camera.k1 = -0.3;

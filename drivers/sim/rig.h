@@ -83,6 +83,7 @@ struct RigOptions {
   std::string projector = "dlpc350";  // dlpc350 (DLP4500, 912x1140) or 1080p (1920x1080)
   int bit_depth = 12;           // ADC: 8, 10, 12 or 16 bits; gain and black level scale with it
   double gamma = 1.0;           // sensor response exponent (1: linear, as machine vision)
+  double projector_gamma = 1.0; // projector response exponent (1: linear, a DLP in pattern mode)
   // Turntable imperfections (TurntableModel); 0 turns each off.
   double angle_jitter_deg = TurntableModel{}.angle_jitter_deg;
   double mount_tilt_deg = TurntableModel{}.mount_tilt_deg;

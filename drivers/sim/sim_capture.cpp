@@ -65,6 +65,7 @@ std::string rig_json(const SimRig& rig) {
         {"pixel_pitch_x_m", o.projector.pixel_pitch_x_m}, {"pixel_pitch_y_m", o.projector.pixel_pitch_y_m},
         {"focal_length_m", o.projector.lens.focal_length_m}, {"f_number", o.projector.lens.f_number},
         {"focus_distance_m", o.projector.lens.focus_distance_m}, {"contrast_ratio", o.projector.contrast_ratio},
+        {"gamma", o.projector.gamma},
         {"white_electrons", o.projector.white_electrons}}},
       {"triangulation_angle_deg", o.triangulation_angle_rad * 180.0 / M_PI},
       {"baseline_m", o.baseline_m},

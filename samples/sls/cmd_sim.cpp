@@ -115,6 +115,11 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::IsMember({8, 10, 12, 16}))
       ->capture_default_str();
   command->add_option("--gamma", options->rig.gamma, "Camera response exponent (1: linear)")->capture_default_str();
+  command->add_option("--projector-gamma", options->rig.projector_gamma,
+                      "Projector response exponent: light = level^gamma per DMD pixel (1: linear, a DLP in pattern "
+                      "mode; ~2.2: a projector fed video without linearisation)")
+      ->check(CLI::Range(0.1, 10.0))
+      ->capture_default_str();
   command->add_option("--turntable-jitter-deg", options->rig.angle_jitter_deg,
                       "Std. dev. of the true turntable angle about the commanded one (0: exact)")
       ->capture_default_str();

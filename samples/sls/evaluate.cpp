@@ -366,12 +366,6 @@ bool first_pose_alignment(const std::string& result_folder, const std::string& t
 
 }  // namespace
 
-namespace {
-
-// Rigid point-to-plane registration of points onto the scene's surface, starting at
-// `initial`: Gauss–Newton on the signed distance (its gradient by central differences),
-// over up to 20 000 of the points, those within 3 robust σ of the surface (at least two
-// voxels) counting.
 Pose register_onto_surface(const std::vector<Eigen::Vector3d>& points, const sim::Scene& scene, double voxel_m,
                            const Pose& initial) {
   const std::size_t stride = std::max<std::size_t>(1, points.size() / 20000);
@@ -384,6 +378,7 @@ Pose register_onto_surface(const std::vector<Eigen::Vector3d>& points, const sim
     for (std::size_t i = 0; i < sample.size(); ++i) residuals[i] = scene.signed_distance(T * sample[i]);
     std::vector<double> magnitudes(residuals.size());
     for (std::size_t i = 0; i < residuals.size(); ++i) magnitudes[i] = std::fabs(residuals[i]);
+    if (magnitudes.empty()) return initial;  // nothing to register
     std::nth_element(magnitudes.begin(), magnitudes.begin() + static_cast<std::ptrdiff_t>(magnitudes.size() / 2),
                      magnitudes.end());
     const double gate = std::max(2.0 * voxel_m, 3.0 * 1.4826 * magnitudes[magnitudes.size() / 2]);
@@ -411,8 +406,6 @@ Pose register_onto_surface(const std::vector<Eigen::Vector3d>& points, const sim
   }
   return T;
 }
-
-}  // namespace
 
 EvalReport evaluate_result(const std::string& result_folder, const std::string& recording_folder,
                            const EvalOptions& options, const ProgressCallback& progress) {

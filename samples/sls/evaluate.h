@@ -96,6 +96,13 @@ struct SurfaceErrors {
 SurfaceErrors surface_errors(const std::vector<Eigen::Vector3d>& points_object, const sim::Scene& scene,
                              double edge_band_m, std::vector<float>* point_errors_m = nullptr);
 
+// Rigid point-to-plane registration of points onto the scene's surface, starting at
+// `initial` (T_object_points): Gauss–Newton on the signed distance (its gradient by central
+// differences), over up to 20 000 of the points, those within 3 robust σ of the surface (at
+// least two voxels) counting. `sls eval --register`.
+Pose register_onto_surface(const std::vector<Eigen::Vector3d>& points, const sim::Scene& scene, double voxel_m,
+                           const Pose& initial);
+
 // ATE and loop-closure error of an estimated trajectory against the truth (see above).
 struct TrajectoryErrors {
   std::size_t matched_frames = 0;    // estimated poses with a true pose at the same timestamp

@@ -122,6 +122,15 @@ struct DescLevels {
   SLS_HOST_DEVICE int operator()(int k) const { return pattern_pixel_value(*desc, k); }
 };
 
+// The light a projector emits for each DMD level: response(level) in [0, 255] (a projector
+// that is not linear in its levels, e.g. video gamma).
+template <typename Response>
+struct ResponseLevels {
+  const PatternDesc* desc;
+  Response response;
+  SLS_HOST_DEVICE double operator()(int k) const { return response(pattern_pixel_value(*desc, k)); }
+};
+
 struct TableLevels {
   PatternLevelTable table;
   SLS_HOST_DEVICE int operator()(int k) const {
@@ -167,10 +176,10 @@ SLS_HOST_DEVICE inline T blurred_value(const Levels& level, int extent, T u, T s
   const int k0 = static_cast<int>(lo);
   const int k1 = static_cast<int>(hi);
   const T scale = T(1) / (sigma * T(1.41421356237309504880));
-  int current = level(k0);
+  auto current = level(k0);  // int levels, or the light of a non-linear projector
   T sum = T(0);
   for (int k = k0; k <= k1; ++k) {
-    const int next = level(k + 1);
+    const auto next = level(k + 1);
     if (next != current) {
       // Phi(z) = erfc(-z / sqrt(2)) / 2, accurate in both tails.
       const T z = (static_cast<T>(k) + T(0.5) - u) * scale;
@@ -196,6 +205,13 @@ SLS_HOST_DEVICE inline T pattern_value_sharp(const PatternDesc& d, T u) {
 template <typename T>
 SLS_HOST_DEVICE inline T pattern_value_blurred(const PatternDesc& d, T u, T sigma_px) {
   return detail::blurred_value(detail::DescLevels{&d}, d.extent, u, sigma_px);
+}
+
+// The same for a projector whose emitted light is response(level) (in [0, 255]) rather than
+// the level itself: the response applies to each DMD pixel, before the lens blurs them.
+template <typename T, typename Response>
+SLS_HOST_DEVICE inline T pattern_value_blurred(const PatternDesc& d, T u, T sigma_px, const Response& response) {
+  return detail::blurred_value(detail::ResponseLevels<Response>{&d, response}, d.extent, u, sigma_px);
 }
 
 // The same over a precomputed level table (identical result: the levels are the same).

@@ -11,8 +11,13 @@
 // deformation (1: online deformation beside the frame loop, then the loop closure; 0: off),
 // input (0: depth maps with the decoder's noise model; 1: the 22-image pattern stacks rendered
 // by the simulator, decoded by the session on the GPU — rendering is not timed, decoding is).
+// fusion (0: GTSDF, the default; 1: TSDF; 2: GTSDF with κ 0.1, the default before the study of
+// bench_fusion_conditions).
 // The model is measured against the exact object as `sls eval` does (C2C, edge C2C within 3
-// voxels of a crease; aligned at the first pose), deformed and as tracked; not timed.
+// voxels of a crease; aligned at the first pose), deformed and as tracked; and as the paper's
+// Table I (`sls eval --raw-scan`): in the four image quadrants of frame 0's view against that
+// view's raw scan (frame 0 decoded by a decoder of its own, or its depth map) and against the
+// exact surface (counters t1_<region>_raw_um / _surface_um, region ul, ur, ll, lr, all); not timed.
 // The headline is the revolution as the user waits for it: every add_frame (uploads, host
 // work, moves, the deformation's share), the loop closure and the final (deformed) surface's
 // extraction, summed wall time (`revolution_s`), with the per-stage medians beside it; the
@@ -30,6 +35,7 @@
 
 #include "drivers/sim/renderer.h"
 #include "samples/sls/evaluate.h"
+#include "samples/sls/evaluate_regions.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/session/scan_session.h"
@@ -60,7 +66,9 @@ void BM_ScanPipeline(benchmark::State& state) {
 
   session::ScanSessionOptions options;
   options.device = device;
-  options.integration = fusion::IntegrationOptions::gtsdf();
+  options.integration =
+      state.range(5) == 1 ? fusion::IntegrationOptions::tsdf() : fusion::IntegrationOptions::gtsdf();
+  if (state.range(5) == 2) options.integration.kappa = 0.1;  // the default before the conditions study
   options.voxel_size_m = 10.4e-6;
   options.volume_size_m = Eigen::Vector3d::Constant(960 * options.voxel_size_m * (1.0 - 1e-9));
   if (state.range(2) > 0) options.tracking.max_model_width = static_cast<int>(state.range(2));
@@ -79,6 +87,7 @@ void BM_ScanPipeline(benchmark::State& state) {
     double degenerate = 0.0;
     int lost = 0;
     std::string first_lost;
+    Image32f raw_scan;  // frame 0's depth map, for Table I
     for (int k = 0; k < frames; ++k) {
       renderer.set_frame(k);
       session::ScanFrame frame;
@@ -90,6 +99,10 @@ void BM_ScanPipeline(benchmark::State& state) {
         frame.depth_m = renderer.render_depth();
       }
       truth.push_back({static_cast<double>(frame.timestamp_ns) * 1e-9, rig.T_object_camera(k)});
+      if (k == 0) {
+        raw_scan = patterns ? Decoder(rig.patterns, rig.calibration(), device, options.decode).decode(frame.images).depth_m
+                            : *frame.depth_m;
+      }
       const Clock::time_point start = Clock::now();
       const session::FrameReport report = scan.add_frame(frame);
       frames_s += seconds_since(start);
@@ -205,6 +218,15 @@ void BM_ScanPipeline(benchmark::State& state) {
         state.counters[std::string("c2c_p95_um") + suffix] = e.all.p95_m * 1e6;
         state.counters[std::string("c2c_max_um") + suffix] = e.all.max_m * 1e6;
         state.counters[std::string("c2c_edge_um") + suffix] = e.edge.mean_m * 1e6;
+        const eval::ViewRegionErrors t1 = eval::view_region_errors(
+            model.cloud, raw_scan, rig.calibration().camera, trajectory.front().T_world_camera, &scene, T_object_world);
+        const char* const names[4] = {"ul", "ur", "ll", "lr"};
+        for (std::size_t q = 0; q <= 4; ++q) {
+          const eval::RegionErrors& region = q < 4 ? t1.regions[q] : t1.all;
+          const std::string key = std::string("t1_") + (q < 4 ? names[q] : "all");
+          state.counters[key + "_raw_um" + suffix] = region.to_raw_scan.mean_m * 1e6;
+          state.counters[key + "_surface_um" + suffix] = region.to_surface.mean_m * 1e6;
+        }
       };
       if (scan.deformation_enabled()) {
         c2c(surface, scan.trajectory(), "_closed");
@@ -216,15 +238,19 @@ void BM_ScanPipeline(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ScanPipeline)
-    ->Args({0, 0, 0, 1, 0})
-    ->Args({0, 1, 0, 1, 0})
-    ->Args({0, 0, 0, 0, 0})
-    ->Args({0, 1, 0, 0, 0})
-    ->Args({0, 0, 2048, 1, 0})
-    ->Args({0, 1, 2048, 1, 0})
-    ->Args({0, 0, 0, 1, 1})
-    ->Args({0, 1, 0, 1, 1})
-    ->ArgNames({"frames", "object", "model_width", "deformation", "input"})
+    ->Args({0, 0, 0, 1, 0, 0})
+    ->Args({0, 1, 0, 1, 0, 0})
+    ->Args({0, 0, 0, 0, 0, 0})
+    ->Args({0, 1, 0, 0, 0, 0})
+    ->Args({0, 0, 2048, 1, 0, 0})
+    ->Args({0, 1, 2048, 1, 0, 0})
+    ->Args({0, 0, 0, 1, 1, 0})
+    ->Args({0, 1, 0, 1, 1, 0})
+    // Table I: TSDF against GTSDF from pattern stacks, without deformation as the paper's.
+    ->Args({0, 0, 0, 0, 1, 0})
+    ->Args({0, 0, 0, 0, 1, 1})
+    ->Args({0, 0, 0, 0, 1, 2})
+    ->ArgNames({"frames", "object", "model_width", "deformation", "input", "fusion"})
     ->Iterations(1)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);

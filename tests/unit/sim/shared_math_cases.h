@@ -19,6 +19,7 @@ struct CaseResult {
   double blurred;        // pattern_value_blurred, double, from the descriptor
   double blurred_table;  // the same from a level table
   float blurred_float;   // float, from the table
+  double blurred_gamma;  // double, from the descriptor, through a projector gamma of 2.2
   double camera_sigma_px;
   double projector_sigma_cols;
 };
@@ -46,6 +47,7 @@ SLS_HOST_DEVICE inline void evaluate_case(int i, int count, const PatternDesc& p
   out->blurred = pattern_value_blurred(pattern, u, sigma);
   out->blurred_table = pattern_value_blurred(table, u, sigma);
   out->blurred_float = pattern_value_blurred(table, static_cast<float>(u), static_cast<float>(sigma));
+  out->blurred_gamma = pattern_value_blurred(pattern, u, sigma, ProjectorGammaResponse{2.2});
   const RigOptics rig = default_rig_optics();
   const double depth = 0.09 + 2e-5 * static_cast<double>(i % 1000);
   out->camera_sigma_px = defocus_sigma_px(rig.camera_lens, rig.camera_sensor, depth);

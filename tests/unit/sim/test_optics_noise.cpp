@@ -14,6 +14,7 @@
 
 #include "drivers/sim/noise_shared.h"
 #include "drivers/sim/optics_shared.h"
+#include "sdk/decode/pattern_shared.h"
 
 namespace sls::sim {
 namespace {
@@ -470,6 +471,38 @@ TEST(Optics, ProjectorBlurInDmdPixels) {
   ProjectorModel ideal = projector;
   ideal.contrast_ratio = 0;
   EXPECT_EQ(projector_relative_irradiance(ideal, 0.0), 0.0);
+}
+
+// A projector's gamma applies to each DMD pixel's light before the lens blurs it: sharp, the
+// value is (L/255)^gamma; blurred, the convolution of those per-pixel values (checked against a
+// direct numerical integral); gamma 1 is the linear projector exactly.
+TEST(Optics, ProjectorGammaAppliesPerDmdPixelBeforeTheBlur) {
+  PatternDesc phase;
+  phase.kind = PatternKind::kPhaseShift;
+  phase.extent = 912;
+  phase.steps = 8;
+  phase.step = 3;
+  phase.period_px = 32;
+  const ProjectorGammaResponse gamma{2.2};
+  for (int k = 100; k < 140; ++k) {
+    const double level = pattern_pixel_value(phase, k);
+    EXPECT_NEAR(pattern_value_blurred(phase, static_cast<double>(k), 0.0, gamma), std::pow(level / 255.0, 2.2), 1e-15);
+  }
+  for (const double sigma : {0.3, 1.0, 2.5}) {
+    for (double u = 100.0; u < 140.0; u += 0.37) {
+      EXPECT_EQ(pattern_value_blurred(phase, u, sigma, ProjectorGammaResponse{1.0}), pattern_value_blurred(phase, u, sigma));
+      // Midpoint rule over +-10 sigma, 200 samples a DMD pixel.
+      double integral = 0.0;
+      const double step = 1.0 / 200.0;
+      for (double x = u - 10.0 * sigma; x < u + 10.0 * sigma; x += step) {
+        const double at = x + 0.5 * step;
+        const double level = pattern_pixel_value(phase, static_cast<int>(std::floor(at + 0.5)));
+        integral += std::pow(level / 255.0, 2.2) * std::exp(-0.5 * (at - u) * (at - u) / (sigma * sigma)) * step;
+      }
+      integral /= sigma * std::sqrt(2.0 * kPi);
+      EXPECT_NEAR(pattern_value_blurred(phase, u, sigma, gamma), integral, 2e-4) << u << " " << sigma;
+    }
+  }
 }
 
 // The numbers docs/simulator-optics.md states; if one changes, the document changes with it.

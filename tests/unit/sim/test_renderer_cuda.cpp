@@ -1,7 +1,8 @@
 // The CUDA renderer equals the CPU renderer: geometry, pattern images (same noise draws) and
-// depth-only maps, with uniform and varying albedo. Skipped without a GPU.
+// depth-only maps, with uniform and varying albedo and a non-linear projector. Skipped without a GPU.
 #include <cmath>
 #include <cstdio>
+#include <string>
 #include <utility>
 
 #include <gtest/gtest.h>
@@ -26,9 +27,11 @@ TEST(RendererCuda, EqualsCpu) {
   const std::pair<const char*, Scene> scenes[] = {{"knurled-screw", make_scene("knurled-screw")},
                                                   {"knurled-knob", make_scene("knurled-knob")},
                                                   {"chessboard", make_scene("chessboard")},
-                                                  {"textured knurled-knob", textured_knob()}};
+                                                  {"textured knurled-knob", textured_knob()},
+                                                  {"knurled-screw, projector gamma 2.2", make_scene("knurled-screw")}};
   for (const auto& [object, scene] : scenes) {
-    const SimRig rig = small_rig(scene, 400);
+    SimRig rig = small_rig(scene, 400);
+    if (std::string(object).find("gamma") != std::string::npos) rig.optics.projector.gamma = 2.2;
     Renderer cpu(rig, scene, Device::cpu());
     Renderer gpu(rig, scene, Device::cuda());
     cpu.set_frame(3);

@@ -36,6 +36,7 @@ TEST(SimSharedCuda, CudaEqualsCpu) {
       if (cpu.dn != g.dn || cpu.dn_noiseless != g.dn_noiseless) ++dn_mismatches;
       if (cpu.poisson != g.poisson) ++poisson_mismatches;
       blurred = std::fmax(blurred, std::fmax(std::fabs(cpu.blurred - g.blurred), std::fabs(cpu.blurred_table - g.blurred_table)));
+      blurred = std::fmax(blurred, std::fabs(cpu.blurred_gamma - g.blurred_gamma));
       blurred_float = std::fmax(blurred_float, std::fabs(static_cast<double>(cpu.blurred_float - g.blurred_float)));
       sigma = std::fmax(sigma, std::fmax(std::fabs(cpu.camera_sigma_px - g.camera_sigma_px) / cpu.camera_sigma_px,
                                          std::fabs(cpu.projector_sigma_cols - g.projector_sigma_cols) /
