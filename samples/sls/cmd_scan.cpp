@@ -305,7 +305,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   const fusion::ExtractedSurface surface = session.final_surface();
   const double extract_ms = ms_since(start);
   const std::vector<StampedPose> trajectory = session.trajectory();
-  std::filesystem::create_directories(options.out);
+  create_directories(options.out);
   // With deformation, the model and trajectory as tracked too (OUT/undeformed), so `sls eval`
   // can put the two side by side.
   if (session.deformation_enabled()) {
@@ -451,6 +451,15 @@ int run_scan(const Context& context, const ScanOptions& options) {
   // An explicit --device cuda without a GPU is an error, not a silent fallback.
   const Device device = options.device_given ? parse_device(options.device) : default_device();
   require_device(device);
+
+  // The output is checked before any work: a scan that cannot be written, or that would
+  // overwrite the recording it reads, is refused before it decodes a frame.
+  if (!options.input.empty() && path_is_within(options.out, options.input)) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "--out {} is inside the recording {}: the scan would overwrite it; choose a folder outside it",
+                options.out, options.input);
+  }
+  ensure_writable_directory(options.out);
 
   std::string input = options.input;
   if (!options.camera_uri.empty()) {

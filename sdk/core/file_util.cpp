@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 
@@ -100,6 +101,33 @@ void create_directories(const std::string& path) {
   std::error_code error;
   std::filesystem::create_directories(path, error);
   if (error) throw_error(ErrorCode::kIo, "cannot create directory {}: {}", path, error.message());
+}
+
+void ensure_writable_directory(const std::string& path) {
+  std::error_code error;
+  if (std::filesystem::exists(path, error) && !std::filesystem::is_directory(path, error)) {
+    throw_error(ErrorCode::kIo, "output folder {} is not a directory (a file of that name is in the way)", path);
+  }
+  create_directories(path);
+  std::string probe = (std::filesystem::path(path) / ".sls-write-test-XXXXXX").string();
+  const int fd = ::mkstemp(probe.data());
+  if (fd < 0) throw_error(ErrorCode::kIo, "output folder {} is not writable: {}", path, std::strerror(errno));
+  ::close(fd);
+  ::unlink(probe.c_str());
+}
+
+bool path_is_within(const std::string& path, const std::string& folder) {
+  std::error_code inner_error, outer_error;
+  const std::filesystem::path inner = std::filesystem::weakly_canonical(std::filesystem::absolute(path), inner_error);
+  const std::filesystem::path outer =
+      std::filesystem::weakly_canonical(std::filesystem::absolute(folder), outer_error);
+  if (inner_error || outer_error) return false;
+  auto a = inner.begin();
+  for (auto b = outer.begin(); b != outer.end(); ++b, ++a) {
+    if (b->empty()) continue;  // a trailing separator
+    if (a == inner.end() || *a != *b) return false;
+  }
+  return true;
 }
 
 void sync_directory(const std::string& path) {

@@ -317,6 +317,36 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(missing.returncode, 1)
         self.assertIn("frames 0..3", missing.stderr)
 
+    def test_scan_refuses_an_output_it_cannot_write_or_inside_its_input_before_any_work(self):
+        rec = self.dir / "rec"
+        self.assertEqual(run("sim", "--preset", "ci", "--frames", "2", "--device", "cpu", "--out", str(rec)).returncode, 0)
+        truth = (rec / "groundtruth" / "trajectory.txt").read_bytes()
+        for out in (rec / "groundtruth", rec, self.dir / "link" / "x"):
+            if out.parent.name == "link":
+                (self.dir / "link").symlink_to(rec)
+            result = run("--json", "scan", "--input", str(rec), "--poses", "groundtruth", "--device", "cpu",
+                         "--out", str(out))
+            self.assertEqual(result.returncode, 1, result.stderr)
+            self.assertIn("inside the recording", result.stderr)
+            self.assertEqual(json.loads(result.stdout)["ok"], False)
+        self.assertEqual((rec / "groundtruth" / "trajectory.txt").read_bytes(), truth)
+        blocker = self.dir / "a-file"
+        blocker.write_text("x")
+        for out in (blocker, blocker / "below"):
+            result = run("scan", "--input", str(rec), "--device", "cpu", "--out", str(out))
+            self.assertEqual(result.returncode, 1, result.stderr)
+            self.assertIn(str(blocker), result.stderr)
+            self.assertNotIn("internal error", result.stderr)
+            self.assertNotIn("decode", result.stderr)  # refused before any frame
+        if os.geteuid() != 0:  # root writes into read-only folders
+            locked = self.dir / "locked"
+            locked.mkdir()
+            locked.chmod(0o555)
+            result = run("scan", "--input", str(rec), "--device", "cpu", "--out", str(locked))
+            locked.chmod(0o755)
+            self.assertEqual(result.returncode, 1, result.stderr)
+            self.assertIn("not writable", result.stderr)
+
     def test_scan_interrupted_leaves_a_valid_partial_model(self):
         rec = self.knob_depth_recording()
         out = self.dir / "partial"
