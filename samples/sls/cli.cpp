@@ -1,7 +1,11 @@
 #include "samples/sls/cli.h"
 
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
+
+#include <fmt/format.h>
 
 #include "sdk/core/error.h"
 
@@ -39,6 +43,19 @@ void run_command(const Context& context, const std::string& name, const std::fun
     *exit_code = kExitError;
     std::cerr << "sls " << name << ": internal error: " << error.what() << std::endl;
   }
+}
+
+CLI::Validator finite_range(double lo, double hi, bool zero_allowed) {
+  const std::string description = fmt::format("{}{:g} .. {:g}", zero_allowed ? "0 or " : "", lo, hi);
+  return CLI::Validator(
+      [lo, hi, zero_allowed, description](std::string& text) {
+        char* end = nullptr;
+        const double value = std::strtod(text.c_str(), &end);
+        const bool ok = end != text.c_str() && *end == '\0' && std::isfinite(value) &&
+                        ((zero_allowed && value == 0.0) || (value >= lo && value <= hi));
+        return ok ? std::string() : fmt::format("{} is not a number in {}", text.substr(0, 40), description);
+      },
+      description);
 }
 
 }  // namespace sls::cli

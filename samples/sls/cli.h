@@ -36,6 +36,10 @@ struct Context {
   void emit(const nlohmann::json& result, const std::function<void()>& human) const;
 };
 
+// A number in [lo, hi], or 0 too with zero_allowed ("0: automatic"). NaN and infinities are
+// refused, which CLI::Range lets through.
+CLI::Validator finite_range(double lo, double hi, bool zero_allowed = false);
+
 // Runs a subcommand body: sls::Error -> message on stderr (and a JSON error object on
 // stdout with --json) and the matching exit status. Sets *exit_code.
 void run_command(const Context& context, const std::string& name, const std::function<int()>& body, int* exit_code);

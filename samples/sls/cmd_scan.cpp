@@ -603,14 +603,17 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                       "(default: on for a full turntable revolution, else off)")
       ->check(CLI::IsMember({"on", "off"}));
   command->add_option("--voxel-um", options->voxel_um,
-                      "Voxel size in um (0: twice the pixel footprint, grown to fit --max-voxels)")
-      ->check(CLI::NonNegativeNumber)
+                      "Voxel size in um (0: twice the pixel footprint, grown to fit --max-voxels; else 0.1 .. 100000)")
+      ->check(finite_range(0.1, 1e5, true))
       ->capture_default_str();
   command->add_option("--max-voxels", options->max_voxels_million,
                       "Largest volume (one buffer of a moving volume) in millions of voxels for the automatic voxel "
                       "size (0: 256 on a GPU, 48 on the CPU)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(finite_range(0.0, 1e6));
   command->callback([&context, exit_code, options, command] {
+    if (!options->input.empty() && options->frames > 0) {
+      throw CLI::ValidationError("--frames", "not with --input: a recording's frames are all scanned");
+    }
     const bool gtsdf_parameters = options->gtsdf_lambda || options->gtsdf_kappa || !options->gtsdf_penalty.empty() ||
                                   options->gtsdf_iterations;
     if (gtsdf_parameters && options->fusion != "gtsdf") {

@@ -37,6 +37,23 @@ int main(int argc, char** argv) {
                       : context.options.verbosity == 1 ? spdlog::level::info
                                                        : spdlog::level::warn);
   });
+  // The first word that is not a global option names the command: say so when it names none
+  // (CLI11 alone would say "A subcommand is required").
+  for (int i = 1; i < argc; ++i) {
+    const std::string word = argv[i];
+    if (!word.empty() && word[0] == '-') continue;
+    std::string known;
+    bool found = false;
+    for (const CLI::App* command : app.get_subcommands({})) {
+      known += (known.empty() ? "" : ", ") + command->get_name();
+      found = found || command->get_name() == word;
+    }
+    if (!found) {
+      std::cerr << "sls: unknown command '" << word << "' (commands: " << known << "; sls --help)\n";
+      return kExitUsage;
+    }
+    break;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {

@@ -55,7 +55,22 @@ class SlsCli(unittest.TestCase):
 
     def test_bad_command_line_is_exit_2(self):
         self.assertEqual(run("scan", "--sim", "nonsense", "--out", str(self.dir)).returncode, 2)
-        self.assertEqual(run("no-such-command").returncode, 2)
+        unknown = run("no-such-command")
+        self.assertEqual(unknown.returncode, 2)
+        self.assertIn("unknown command 'no-such-command'", unknown.stderr)
+        self.assertIn("scan", unknown.stderr)
+        # Numbers out of range, NaN and a flag that would be ignored are refused (exit 2)
+        # before any work.
+        out = str(self.dir / "never")
+        for args in (("--voxel-um", "1e-20"), ("--voxel-um", "1e9"), ("--voxel-um", "nan"),
+                     ("--max-voxels", "nan"), ("--max-voxels", "inf"), ("--max-voxels", "-1")):
+            result = run("scan", "--sim", "ci", *args, "--out", out)
+            self.assertEqual(result.returncode, 2, args)
+            self.assertIn(args[0], result.stderr)
+        ignored = run("scan", "--input", str(self.dir), "--frames", "3", "--out", out)
+        self.assertEqual(ignored.returncode, 2)
+        self.assertIn("not with --input", ignored.stderr)
+        self.assertFalse(os.path.exists(out))
 
     def test_info_json(self):
         result = run("--json", "info")
