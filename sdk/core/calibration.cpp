@@ -4,6 +4,7 @@
 #include <cmath>
 #include <initializer_list>
 #include <iterator>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -40,6 +41,17 @@ void validate_intrinsics(const CameraIntrinsics& c, const DeviceKeys& keys) {
   if (!std::isfinite(c.fx) || !std::isfinite(c.fy) || !(c.fx > 0.0) || !(c.fy > 0.0)) {
     throw_error(ErrorCode::kInvalidArgument, "{}: {} focal length (fx {}, fy {}) must be positive and finite",
                 keys.matrix, keys.name, c.fx, c.fy);
+  }
+  // The field of view a focal length gives: below 0.01° or above 170° across the image it is a
+  // unit mix-up (metres for pixels) or garbage, not a lens.
+  for (const auto& [axis, focal, size] : {std::tuple<const char*, double, int>{"fx", c.fx, c.width},
+                                          std::tuple<const char*, double, int>{"fy", c.fy, c.height}}) {
+    const double fov_deg = 2.0 * std::atan(0.5 * static_cast<double>(size) / focal) * 180.0 / M_PI;
+    if (!(fov_deg >= 0.01 && fov_deg <= 170.0)) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "{}: {} {} = {:g} px gives a field of view of {:.3g}° across {} px (expected 0.01°..170°)",
+                  keys.matrix, keys.name, axis, focal, fov_deg, size);
+    }
   }
   // A principal point more than an image size outside the image is a unit or order mix-up,
   // not a lens.
@@ -258,6 +270,12 @@ void ScannerCalibration::validate() const {
   validate_intrinsics(projector, kProjectorKeys);
   if (!T_camera_projector.translation().allFinite() || !T_camera_projector.quaternion().coeffs().allFinite()) {
     throw_error(ErrorCode::kInvalidArgument, "T_camera_projector: the pose is not finite");
+  }
+  // Triangulation needs a baseline: camera and projector in one place is no calibration.
+  if (!(T_camera_projector.translation().norm() >= 1e-6)) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "T_camera_projector: a baseline of {:g} m (camera and projector must be apart to triangulate)",
+                T_camera_projector.translation().norm());
   }
   if (turntable) {
     if (!all_finite(turntable->point_camera)) {

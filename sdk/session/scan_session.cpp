@@ -118,6 +118,13 @@ ScanSession::ScanSession(const ScannerCalibration& calibration, const PatternSet
                          const ScanSessionOptions& options) {
   options.validate();
   calibration.validate();
+  // The prior turns the last pose about the calibrated axis: without an axis it would be
+  // silently off while the caller believes it on.
+  if (options.turntable_prior && !calibration.turntable) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "the turntable prior needs the calibration's turntable axis, and this calibration has none "
+                "(calibrate with board views on the turntable, or scan without the prior)");
+  }
   require_device(options.device);
   impl_ = std::make_unique<Impl>(calibration, options);
   if (patterns != nullptr) impl_->decoder.emplace(*patterns, calibration, options.device, options.decode);

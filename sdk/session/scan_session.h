@@ -56,7 +56,8 @@ struct ScanSessionOptions {
   fusion::MovingVolumeOptions moving;  // focus_distance_m <= 0: the first frame's median depth
   // Instead, one fixed volume (e.g. around a known object for ground-truth poses): no moves.
   std::optional<fusion::VolumeGeometry> fixed_volume;
-  // Use the recording's turntable angles with the calibration's axis as the pose guess.
+  // Use the recording's turntable angles with the calibration's axis as the pose guess (the
+  // constructor refuses it for a calibration without an axis).
   bool turntable_prior = false;
   // Online deformation (paper section IV, scan_deformation.h) of tracked scans into a moving
   // volume; with it, close_loop(). Off for known poses or a fixed volume (no drift to correct).

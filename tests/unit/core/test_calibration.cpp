@@ -321,6 +321,18 @@ TEST(CalibrationValidate, AcceptsGoodAndRejectsBad) {
   c = simple_calibration();
   c.reprojection_rms_px = HUGE_VAL;
   expect_invalid(c, "reprojection_rms_px");
+  // Focal lengths no lens has (a field of view outside 0.01°..170°), and no baseline.
+  for (const double focal : {1e300, 1e-300, 1e9, 1.0}) {
+    c = simple_calibration();
+    c.camera.fx = focal;
+    expect_invalid(c, "field of view");
+    c = simple_calibration();
+    c.projector.fy = focal;
+    expect_invalid(c, "field of view");
+  }
+  c = simple_calibration();
+  c.T_camera_projector = Pose(c.T_camera_projector.quaternion(), Eigen::Vector3d::Zero());
+  expect_invalid(c, "baseline");
 }
 
 TEST(CalibrationFile, InvalidCalibrationIsNotWritten) {

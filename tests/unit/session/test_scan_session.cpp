@@ -296,6 +296,19 @@ TEST(ScanSession, OptionsAreChecked) {
   options = small_options(Device::cpu());
   options.tracking.photometric_weight = -1.0;
   EXPECT_THROW(ScanSession(sim.calibration(), nullptr, options), Error);
+  // The turntable prior with a calibration that has no axis: refused, not silently off.
+  options = small_options(Device::cpu());
+  options.turntable_prior = true;
+  ScannerCalibration no_axis = sim.calibration();
+  no_axis.turntable.reset();
+  try {
+    ScanSession session(no_axis, nullptr, options);
+    ADD_FAILURE() << "a prior without an axis was accepted";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(error.what()).find("turntable axis"), std::string::npos) << error.what();
+  }
+  EXPECT_NO_THROW(ScanSession(sim.calibration(), nullptr, options));
 }
 
 }  // namespace
