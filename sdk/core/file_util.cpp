@@ -109,6 +109,7 @@ void ensure_writable_directory(const std::string& path) {
     throw_error(ErrorCode::kIo, "output folder {} is not a directory (a file of that name is in the way)", path);
   }
   create_directories(path);
+  // mkstemp's template: it replaces the trailing six X with a unique suffix.
   std::string probe = (std::filesystem::path(path) / ".sls-write-test-XXXXXX").string();
   const int fd = ::mkstemp(probe.data());
   if (fd < 0) throw_error(ErrorCode::kIo, "output folder {} is not writable: {}", path, std::strerror(errno));
