@@ -86,6 +86,9 @@ std::string rig_json(const SimRig& rig) {
 std::string write_frame_ground_truth(const GroundTruthFrame& truth, const std::string& groundtruth_folder) {
   const std::string frame_folder = fmt::format("{}/frames/{:06d}", groundtruth_folder, truth.frame);
   create_directories(frame_folder);
+  // The new folder's entry is on disk before the files in it count (each is fsynced and
+  // renamed into place by write_pfm / write_png).
+  sync_directory(groundtruth_folder + "/frames");
   write_pfm(frame_folder + "/depth.pfm", truth.depth_m);
   write_pfm(frame_folder + "/projector_u.pfm", truth.projector_u);
   write_pfm(frame_folder + "/projector_v.pfm", truth.projector_v);

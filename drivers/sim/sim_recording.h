@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 
 #include "drivers/sim/rig.h"
@@ -19,16 +20,31 @@
 
 namespace sls::sim {
 
+// The steps of writing one frame, in order (SimRecordingOptions::step_hook).
+enum class SimFrameStep {
+  kCaptured,            // images (or depth map) in memory, nothing of the frame on disk
+  kImagesWritten,       // images on disk, not listed
+  kGroundTruthWritten,  // and groundtruth/frames/NNNNNN/ on disk
+  kTrajectoryWritten,   // and groundtruth/trajectory.txt holds its pose; next: the manifest
+  kListed,              // the manifest lists the frame
+};
+
 struct SimRecordingOptions {
   std::string object = "knurled-screw";
   RigOptions rig;                     // preset, frames, projector, sensor, turntable, seed, noise
   bool depth_mode = false;            // depth maps instead of pattern images
   double reference_spacing_m = 0.0;   // 0: per preset (ci 100 µm, demo 30 µm, paper 10 µm)
+  // Continue a recording of these same options that was cut off (see write_sim_recording).
+  bool resume = false;
+  // Tests: called at each step of each frame; one that throws there stops the writer as a
+  // crash or a full disk would at that point.
+  std::function<void(SimFrameStep step, int frame)> step_hook;
 };
 
 struct SimRecordingSummary {
   std::string uri;
-  int frames = 0;
+  int frames = 0;          // in the recording
+  int resumed_from = 0;    // frames it held already when resumed (0: a new recording)
   int images_per_frame = 0;
   int width = 0;
   int height = 0;
@@ -37,7 +53,21 @@ struct SimRecordingSummary {
 
 // Writes the recording to `folder` (created; must not exist or be empty). Every frame is
 // flushed as it is captured, so an interrupted run (an error, or the progress callback
-// asking to stop) leaves a valid recording of the frames done. Throws sls::Error.
+// asking to stop: kCancelled after the current frame) leaves a valid recording of the frames
+// done. Crash consistency: a frame's images, its groundtruth/frames/NNNNNN/ files and its
+// pose in trajectory.txt are all on disk (fsynced, renamed into place) before the manifest
+// lists it, so a kill or a full disk at any moment leaves every listed frame with its ground
+// truth. trajectory.txt may then hold one pose more than the manifest lists (a kill between
+// its write and the manifest's): the pose of a frame not listed, which readers ignore; a
+// failure the writer sees trims it.
+//
+// options.resume: `folder` holds such a cut-off recording, made with the same options; the
+// capture goes on from the first frame not listed. Frames are a pure function of the options
+// and the frame index (noise keyed by seed, frame, pattern; turntable jitter by seed, step),
+// so the result equals an uninterrupted run's file for file. Ground truth the listed frames
+// lack (a recording of an older writer) is written again, trajectory.txt rewritten for the
+// listed frames. Throws kNotFound without a recording there, kInvalidArgument when the
+// options differ from the recording's (the message names what differs).
 SimRecordingSummary write_sim_recording(const std::string& folder, const SimRecordingOptions& options,
                                         const Device& device, const ProgressCallback& progress);
 

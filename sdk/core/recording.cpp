@@ -344,6 +344,42 @@ RecordingWriter RecordingWriter::create(const std::string& folder, const Recordi
   return writer;
 }
 
+RecordingWriter RecordingWriter::append_to(const std::string& folder, const RecordingWriterOptions& options) {
+  if (options.png_compression_level < 0 || options.png_compression_level > 9) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: PNG compression level {} is outside 0..9", folder,
+                options.png_compression_level);
+  }
+  const RecordingReader reader = RecordingReader::open(folder);
+  RecordingWriter writer;
+  writer.folder_ = reader.folder();
+  writer.info_ = reader.info();
+  writer.has_calibration_ = reader.has_calibration();
+  writer.options_ = options;
+  // The manifest is rewritten with the names this writer gives: a recording that names its
+  // calibration or ground truth otherwise would silently change meaning.
+  const Json root = Json::parse(read_file_text(writer.folder_ + "/" + kManifestName));
+  const auto calibration = root.find("calibration");
+  if (calibration != root.end() && !calibration->is_null() && *calibration != kCalibrationName) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: its calibration is {}, not {}; cannot append to it",
+                writer.folder_, calibration->dump(), kCalibrationName);
+  }
+  if (writer.info_.has_groundtruth && root.at("groundtruth") != kGroundtruthName) {
+    throw_error(ErrorCode::kInvalidArgument, "recording {}: its ground truth is {}, not {}; cannot append to it",
+                writer.folder_, root.at("groundtruth").dump(), kGroundtruthName);
+  }
+  for (std::size_t i = 0; i < reader.frame_count(); ++i) {
+    // Appending numbers frames by position, as create() did.
+    if (reader.frame(i).index != static_cast<int>(i)) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "recording {}: frames[{}] has index {}; appending needs frames numbered 0..{} in order",
+                  writer.folder_, i, reader.frame(i).index, reader.frame_count() - 1);
+    }
+    writer.frames_.push_back(reader.frame(i));
+  }
+  create_directories(writer.folder_ + "/" + kFramesName);
+  return writer;
+}
+
 const FrameInfo& RecordingWriter::frame(std::size_t position) const {
   if (position >= frames_.size()) {
     throw_error(ErrorCode::kInvalidArgument, "recording {}: frame {} does not exist ({} frames)", folder_, position,
@@ -359,18 +395,18 @@ std::string RecordingWriter::groundtruth_folder() const {
 void RecordingWriter::close() { closed_ = true; }
 
 int RecordingWriter::append_frame(const std::vector<Image16u>& images, const FrameMetadata& metadata,
-                                  const Image32f* depth_m) {
-  return append_any(images, metadata, depth_m);
+                                  const Image32f* depth_m, const BeforeListing& before_listing) {
+  return append_any(images, metadata, depth_m, before_listing);
 }
 
 int RecordingWriter::append_frame(const std::vector<Image8u>& images, const FrameMetadata& metadata,
-                                  const Image32f* depth_m) {
-  return append_any(images, metadata, depth_m);
+                                  const Image32f* depth_m, const BeforeListing& before_listing) {
+  return append_any(images, metadata, depth_m, before_listing);
 }
 
 template <typename T>
 int RecordingWriter::append_any(const std::vector<Image<T>>& images, const FrameMetadata& metadata,
-                                const Image32f* depth_m) {
+                                const Image32f* depth_m, const BeforeListing& before_listing) {
   if (closed_) throw_error(ErrorCode::kInvalidArgument, "recording {}: append_frame after close()", folder_);
   const RecordingCamera& camera = info_.camera;
   const std::size_t expected = static_cast<std::size_t>(info_.images_per_frame);
@@ -467,6 +503,7 @@ int RecordingWriter::append_any(const std::vector<Image<T>>& images, const Frame
     sync_directory(frame_folder);
     sync_directory(folder_ + "/" + kFramesName);
   }
+  if (before_listing) before_listing(frame.index);
   // Only now does the frame become part of the recording.
   frames_.push_back(std::move(frame));
   try {

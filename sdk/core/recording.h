@@ -37,6 +37,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -116,6 +117,14 @@ class RecordingWriter {
                                 const std::optional<ScannerCalibration>& calibration,
                                 const RecordingWriterOptions& options = {});
 
+  // Continues a recording this writer made that was cut off (a signal, kill -9, a device
+  // error): its manifest is read and checked as RecordingReader::open does, and frames are
+  // appended after the listed ones (files an unlisted frame left behind are overwritten).
+  // Throws RecordingReader::open's errors (kNotFound, kFormat, kVersionMismatch), and
+  // kInvalidArgument for a recording it cannot continue: frame indices other than 0..n-1, a
+  // calibration or ground truth under another name than the writer gives them.
+  static RecordingWriter append_to(const std::string& folder, const RecordingWriterOptions& options = {});
+
   // Appends one frame: writes its images (and depth map), then the manifest listing it.
   // Images must match the camera size; 16-bit images for bit_depth > 8, 8-bit images (or
   // 16-bit ones holding values <= 255) for bit_depth <= 8; values must fit bit_depth.
@@ -123,10 +132,15 @@ class RecordingWriter {
   // `depth_m` (metres, 0 or non-finite = invalid) must match the camera size.
   // Returns the frame's index. On failure (kInvalidArgument, kIo) nothing is listed and
   // the recording stays valid; the next append reuses the index.
+  // `before_listing`, when given, is called with the frame's index once its files are on
+  // disk and before the manifest lists it: where a caller writes files of its own that
+  // belong to the frame (the simulator's ground truth), so a listed frame always has them.
+  // An exception from it leaves the frame unlisted and propagates.
+  using BeforeListing = std::function<void(int index)>;
   int append_frame(const std::vector<Image16u>& images, const FrameMetadata& metadata,
-                   const Image32f* depth_m = nullptr);
+                   const Image32f* depth_m = nullptr, const BeforeListing& before_listing = {});
   int append_frame(const std::vector<Image8u>& images, const FrameMetadata& metadata,
-                   const Image32f* depth_m = nullptr);
+                   const Image32f* depth_m = nullptr, const BeforeListing& before_listing = {});
 
   const std::string& folder() const { return folder_; }
   const RecordingInfo& info() const { return info_; }
@@ -143,7 +157,8 @@ class RecordingWriter {
  private:
   RecordingWriter() = default;
   template <typename T>
-  int append_any(const std::vector<Image<T>>& images, const FrameMetadata& metadata, const Image32f* depth_m);
+  int append_any(const std::vector<Image<T>>& images, const FrameMetadata& metadata, const Image32f* depth_m,
+                 const BeforeListing& before_listing);
   void write_manifest() const;
 
   std::string folder_;
