@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -17,40 +18,113 @@ std::string describe_errno(const std::string& path, int error_number) {
   return path + ": " + std::strerror(error_number);
 }
 
-std::vector<std::uint8_t> read_file_bytes(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) {
+namespace {
+
+// What a non-regular file is, for "cannot read X: it is ..., not a regular file".
+const char* describe_file_type(mode_t mode) {
+  if (S_ISDIR(mode)) return "a directory";
+  if (S_ISFIFO(mode)) return "a FIFO (named pipe)";
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISSOCK(mode)) return "a socket";
+  return "not a plain file";
+}
+
+// "1048576 bytes (1.0 MiB)": exact, and readable when large.
+std::string describe_size(std::uint64_t bytes) {
+  if (bytes < (std::uint64_t{1} << 20)) return fmt::format("{} bytes", bytes);
+  return fmt::format("{} bytes ({:.1f} MiB)", bytes,
+                     static_cast<double>(bytes) / static_cast<double>(std::uint64_t{1} << 20));
+}
+
+// `size` is what was found: the file's size, or how far a growing file was read.
+[[noreturn]] void throw_too_large(const std::string& path, std::uint64_t size, std::uint64_t max_bytes) {
+  throw_error(ErrorCode::kFormat, "{}: the file holds {}, more than the {} a file of this kind may hold", path,
+              describe_size(size), describe_size(max_bytes));
+}
+
+}  // namespace
+
+RegularFile::RegularFile(const std::string& path) : path_(path) {
+  // O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer, forever.
+  fd_ = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd_ < 0) {
     const int error_number = errno;
+    struct stat status {};
+    // A socket cannot be opened at all (ENXIO); say what it is rather than the OS's words.
+    if (error_number == ENXIO && ::stat(path.c_str(), &status) == 0 && !S_ISREG(status.st_mode)) {
+      throw_error(ErrorCode::kIo, "cannot read {}: it is {}, not a regular file", path,
+                  describe_file_type(status.st_mode));
+    }
     throw Error(error_number == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
                 "cannot open " + describe_errno(path, error_number));
   }
   struct stat status {};
-  if (::fstat(fd, &status) != 0 || !S_ISREG(status.st_mode)) {
-    ::close(fd);
-    throw_error(ErrorCode::kIo, "cannot read {}: not a regular file", path);
+  if (::fstat(fd_, &status) != 0) {
+    const int error_number = errno;
+    ::close(fd_);
+    throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path, error_number));
   }
-  // One sized read (files are tens of MB: images, clouds), then whatever a growing file adds.
-  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(status.st_size));
+  if (!S_ISREG(status.st_mode)) {
+    ::close(fd_);
+    throw_error(ErrorCode::kIo, "cannot read {}: it is {}, not a regular file", path,
+                describe_file_type(status.st_mode));
+  }
+  // Back to ordinary reads (O_NONBLOCK means nothing for a regular file, but say what we mean).
+  const int flags = ::fcntl(fd_, F_GETFL);
+  if (flags >= 0) (void)::fcntl(fd_, F_SETFL, flags & ~O_NONBLOCK);
+  size_ = static_cast<std::uint64_t>(status.st_size);
+}
+
+RegularFile::~RegularFile() { ::close(fd_); }
+
+std::size_t RegularFile::read_at(std::uint64_t offset, void* out, std::size_t count) const {
+  auto* bytes = static_cast<std::uint8_t*>(out);
   std::size_t filled = 0;
-  for (;;) {
-    if (filled == bytes.size()) bytes.resize(bytes.size() + 65536);
-    const ssize_t n = ::read(fd, bytes.data() + filled, bytes.size() - filled);
+  while (filled < count) {
+    const ssize_t n = ::pread(fd_, bytes + filled, count - filled, static_cast<off_t>(offset + filled));
     if (n < 0) {
       if (errno == EINTR) continue;
-      const int error_number = errno;
-      ::close(fd);
-      throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path, error_number));
+      throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path_, errno));
     }
     if (n == 0) break;
     filled += static_cast<std::size_t>(n);
   }
-  ::close(fd);
+  return filled;
+}
+
+void RegularFile::check_size(std::uint64_t max_bytes) const {
+  if (size_ > max_bytes) throw_too_large(path_, size_, max_bytes);
+}
+
+std::vector<std::uint8_t> RegularFile::read_all(std::uint64_t max_bytes) const {
+  check_size(max_bytes);
+  // One sized read, then whatever a growing file adds, up to one byte past the limit to
+  // tell "exactly the limit" from "more".
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size_));
+  std::size_t filled = read_at(0, bytes.data(), bytes.size());
+  if (filled == bytes.size()) {
+    for (;;) {
+      const std::uint64_t room = max_bytes + 1 - filled;
+      const std::size_t chunk = static_cast<std::size_t>(std::min<std::uint64_t>(room, 65536));
+      if (chunk == 0) throw_too_large(path_, filled, max_bytes);
+      bytes.resize(filled + chunk);
+      const std::size_t n = read_at(filled, bytes.data() + filled, chunk);
+      filled += n;
+      if (n < chunk) break;
+    }
+    if (filled > max_bytes) throw_too_large(path_, filled, max_bytes);
+  }
   bytes.resize(filled);
   return bytes;
 }
 
-std::string read_file_text(const std::string& path) {
-  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
+std::vector<std::uint8_t> read_file_bytes(const std::string& path, std::uint64_t max_bytes) {
+  return RegularFile(path).read_all(max_bytes);
+}
+
+std::string read_file_text(const std::string& path, std::uint64_t max_bytes) {
+  const std::vector<std::uint8_t> bytes = read_file_bytes(path, max_bytes);
   return std::string(bytes.begin(), bytes.end());
 }
 

@@ -273,36 +273,6 @@ std::vector<std::uint8_t> encode_rgb(const std::uint8_t* rgb, int width, int hei
   return encode_job(job, width, height, 3, options, "encode_png_rgb");
 }
 
-// Reads a whole file with one allocation (large scans: 24 MB per image).
-std::vector<std::uint8_t> read_whole_file(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) {
-    const int error_number = errno;
-    throw Error(error_number == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
-                "cannot open " + describe_errno(path, error_number));
-  }
-  struct FdCloser {
-    int fd;
-    ~FdCloser() { ::close(fd); }
-  } closer{fd};
-  struct stat status {};
-  if (::fstat(fd, &status) != 0) throw Error(ErrorCode::kIo, "cannot stat " + describe_errno(path, errno));
-  if (!S_ISREG(status.st_mode)) throw_error(ErrorCode::kIo, "{}: not a regular file", path);
-  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(status.st_size));
-  std::size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::read(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path, errno));
-    }
-    if (n == 0) break;  // shrank while reading: decode what is there, it will say truncated
-    done += static_cast<std::size_t>(n);
-  }
-  bytes.resize(done);
-  return bytes;
-}
-
 std::uint32_t big_endian_u32(const std::uint8_t* p) {
   return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | std::uint32_t{p[3]};
 }
@@ -318,27 +288,9 @@ bool has_png_signature(const std::uint8_t* data, std::size_t size) {
   throw_error(ErrorCode::kFormat, "{}: not a PNG file (bad signature)", name);
 }
 
-}  // namespace
-
-PngHeader read_png_header(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) {
-    const int error_number = errno;
-    throw Error(error_number == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
-                "cannot open " + describe_errno(path, error_number));
-  }
-  std::uint8_t bytes[kHeaderBytes] = {};
-  std::size_t size = 0;
-  int read_errno = 0;
-  while (size < kHeaderBytes) {
-    const ssize_t n = ::read(fd, bytes + size, kHeaderBytes - size);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) read_errno = errno;
-    if (n <= 0) break;
-    size += static_cast<std::size_t>(n);
-  }
-  ::close(fd);
-  if (read_errno != 0) throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path, read_errno));
+// Parses the signature and IHDR chunk of a file's first bytes (`size` may be fewer than
+// kHeaderBytes: a truncated file).
+PngHeader parse_png_header(const std::uint8_t* bytes, std::size_t size, const std::string& path) {
   if (!has_png_signature(bytes, size)) throw_not_png(path, size);
   if (size < kHeaderBytes) throw_error(ErrorCode::kFormat, "{}: corrupt PNG: file is truncated inside the header", path);
   const std::uint8_t* chunk = bytes + kSignatureSize;
@@ -389,6 +341,27 @@ PngHeader read_png_header(const std::string& path) {
   return header;
 }
 
+// The most a PNG file of this header can reasonably hold, so that a corrupt or hostile file
+// is refused before it is read into memory: the filtered rows (plus a filter byte per row
+// of each interlace pass), an eighth more for deflate blocks and chunk framing, and 64 MiB
+// of ancillary chunks (text, ICC profiles, EXIF).
+std::uint64_t max_png_file_bytes(const PngHeader& header) {
+  const std::uint64_t samples = header.palette ? 1 : static_cast<std::uint64_t>(header.channels);
+  const std::uint64_t row_bytes =
+      (static_cast<std::uint64_t>(header.width) * samples * static_cast<std::uint64_t>(header.bit_depth) + 7) / 8;
+  const std::uint64_t height = static_cast<std::uint64_t>(header.height);
+  const std::uint64_t raw = height * (row_bytes + 1) + (header.interlaced ? 2 * height + 64 : 0);
+  return kHeaderBytes + raw + raw / 8 + (std::uint64_t{64} << 20);
+}
+
+}  // namespace
+
+PngHeader read_png_header(const std::string& path) {
+  const RegularFile file(path);
+  std::uint8_t bytes[kHeaderBytes] = {};
+  return parse_png_header(bytes, file.read_at(0, bytes, kHeaderBytes), path);
+}
+
 AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name) {
   if (data == nullptr || !has_png_signature(data, size)) throw_not_png(name, data == nullptr ? 0 : size);
   ReadContext context;
@@ -423,7 +396,10 @@ AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::strin
 }
 
 AnyImage read_png(const std::string& path) {
-  const std::vector<std::uint8_t> bytes = read_whole_file(path);
+  const RegularFile file(path);
+  std::uint8_t header_bytes[kHeaderBytes] = {};
+  const PngHeader header = parse_png_header(header_bytes, file.read_at(0, header_bytes, kHeaderBytes), path);
+  const std::vector<std::uint8_t> bytes = file.read_all(max_png_file_bytes(header));
   return decode_png(bytes.data(), bytes.size(), path);
 }
 
@@ -492,6 +468,10 @@ void write_png_rgb(const std::string& path, const std::uint8_t* rgb, int width, 
 // PFM
 
 namespace {
+
+// read_pfm looks for the header in the file's first bytes: "Pf", two sides and a scale are a
+// few dozen characters; this leaves room for odd whitespace.
+constexpr std::size_t kMaxPfmHeaderBytes = 4096;
 
 bool is_pfm_space(std::uint8_t c) {
   return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\v' || c == '\f';
@@ -626,7 +606,20 @@ void write_pfm(const std::string& path, ImageView<const float> image) {
 }
 
 Image32f read_pfm(const std::string& path) {
-  const std::vector<std::uint8_t> bytes = read_whole_file(path);
+  const RegularFile file(path);
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(std::min<std::uint64_t>(file.size(), kMaxPfmHeaderBytes)));
+  bytes.resize(file.read_at(0, bytes.data(), bytes.size()));
+  const PfmLayout layout = parse_pfm_header(bytes.data(), bytes.size(), path);
+  const std::uint64_t pixel_bytes = std::uint64_t{layout.width} * layout.height * sizeof(float);
+  if (pixel_bytes > kMaxImageBytes) {
+    throw_error(ErrorCode::kFormat, "{}: unsupported PFM: {}x{} pixels is too large", path, layout.width,
+                layout.height);
+  }
+  // Only what the header says: bytes after the pixels are ignored, so they are not read.
+  const std::uint64_t wanted = std::min<std::uint64_t>(layout.data_offset + pixel_bytes, file.size());
+  const std::size_t have = bytes.size();
+  bytes.resize(static_cast<std::size_t>(std::max<std::uint64_t>(wanted, have)));
+  bytes.resize(have + file.read_at(have, bytes.data() + have, bytes.size() - have));
   return decode_pfm(bytes.data(), bytes.size(), path);
 }
 

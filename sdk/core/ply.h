@@ -23,10 +23,15 @@
 // (or "vertex_index") with any integer count and index types; polygons with more than three
 // vertices are triangulated as a fan, faces with fewer than three are dropped.
 //
+// A position (x, y, z) that is NaN or infinite (also a double too large for float) makes the
+// file invalid; other properties, normals included, are taken as they are.
+//
 // Errors: sls::Error whose message names the file: kNotFound / kIo when the file cannot be
-// opened or read, kFormat for corrupt or unsupported content (bad magic, truncated header or
-// data, counts the file cannot hold, face indices out of range, missing x/y/z), kInvalidArgument
-// for an inconsistent cloud or mesh given to a writer.
+// opened or read or is not a regular file (a FIFO, a device, a directory: refused without
+// reading), kFormat for corrupt or unsupported content (bad magic, truncated header or data,
+// counts the file cannot hold, face indices out of range, missing x/y/z, a non-finite
+// position, a file over 64 GiB), kInvalidArgument for an inconsistent cloud or mesh given to
+// a writer.
 #pragma once
 
 #include <string>

@@ -58,6 +58,7 @@ std::vector<StampedPose> parse_tum_trajectory(std::string_view text, const std::
   std::vector<StampedPose> poses;
   std::size_t line_start = 0;
   int line_number = 0;
+  int previous_line_number = 0;
   while (line_start < text.size()) {
     std::size_t line_end = text.find('\n', line_start);
     if (line_end == std::string_view::npos) line_end = text.size();
@@ -99,7 +100,15 @@ std::vector<StampedPose> parse_tum_trajectory(std::string_view text, const std::
       throw_error(ErrorCode::kFormat, "{}:{}: quaternion (qx qy qz qw) has norm {}, expected 1 (tolerance {})",
                   source, line_number, norm, kTumQuaternionNormTolerance);
     }
+    // Poses are associated by time (evaluation, interpolation): a clock that goes backwards
+    // means lines out of order or a corrupt value. Equal timestamps are left to the reader.
+    if (!poses.empty() && values[0] < poses.back().timestamp_s) {
+      throw_error(ErrorCode::kFormat,
+                  "{}:{}: timestamp {} is earlier than {} on line {}: timestamps must not go backwards", source,
+                  line_number, fields[0], poses.back().timestamp_s, previous_line_number);
+    }
     poses.push_back({values[0], Pose(q, Eigen::Vector3d(values[1], values[2], values[3]))});
+    previous_line_number = line_number;
   }
   return poses;
 }

@@ -30,13 +30,15 @@ std::string format_tum_trajectory(const std::vector<StampedPose>& poses);
 // Parses TUM text; `source` (a path) only names the input in errors. Blank lines and
 // comments are skipped. Throws sls::Error (format) naming the source and line: wrong number
 // of fields, a field that is not a number, a non-finite value, a quaternion that is not unit
-// within kTumQuaternionNormTolerance.
+// within kTumQuaternionNormTolerance, a timestamp earlier than the previous pose's (equal
+// ones are accepted).
 std::vector<StampedPose> parse_tum_trajectory(std::string_view text, const std::string& source);
 
 // Writes atomically (temporary file + rename); throws sls::Error (I/O) naming the path.
 void write_tum_trajectory(const std::string& path, const std::vector<StampedPose>& poses);
 
-// Reads a trajectory; throws sls::Error (not found / I/O / format) naming the path.
+// Reads a trajectory (a regular file of at most kMaxMetadataFileBytes); throws sls::Error
+// (not found / I/O / format) naming the path.
 std::vector<StampedPose> read_tum_trajectory(const std::string& path);
 
 }  // namespace sls

@@ -1,5 +1,7 @@
 // PNG I/O: exact round trips, byte order, the conversions on reading, and that every kind of
 // broken file gives an sls::Error naming the file (never a crash).
+#include <unistd.h>
+
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -353,6 +355,20 @@ TEST(Png, RejectsUnwritableInput) {
   options.compression_level = 12;
   expect_error([&] { write_png(dir.file("l.png"), Image8u(2, 2), options); }, ErrorCode::kInvalidArgument, "level");
   expect_error([&] { write_png(dir.file("no/such/dir/x.png"), Image8u(2, 2)); }, ErrorCode::kIo, "x.png");
+}
+
+// A PNG file far larger than its header's image can be (here 1 GiB, sparse) is refused from
+// its size before anything is read into memory; a normal one with a little trailing data is not.
+TEST(Png, AFileLargerThanItsHeaderAllowsIsRefusedBeforeReading) {
+  test::TemporaryDirectory dir;
+  const std::string path = dir.file("huge.png");
+  const Bytes small = encode_png(random_image<std::uint16_t>(8, 8, 3));
+  write_file_atomic(path, std::string(small.begin(), small.end()));
+  ASSERT_EQ(::truncate(path.c_str(), off_t{1} << 30), 0);
+  expect_error([&] { read_png(path); }, ErrorCode::kFormat, path + ": the file holds 1073741824 bytes (1024.0 MiB)");
+  EXPECT_EQ(read_png_header(path).width, 8);  // the header alone is still readable
+  ASSERT_EQ(::truncate(path.c_str(), static_cast<off_t>(small.size() + 4096)), 0);
+  EXPECT_EQ(std::get<Image16u>(read_png(path)).width(), 8);
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 // PFM (Portable Float Map): bit-exact round trips, the on-disk layout (header, bottom-to-top
 // rows, byte order), and every kind of broken file giving an sls::Error that names it.
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -203,6 +205,18 @@ TEST(Pfm, FileErrorsNameThePath) {
   EXPECT_FALSE(std::filesystem::exists(empty));
   const std::string unwritable = dir.file("no/such/folder/x.pfm");
   EXPECT_THROW(write_pfm(unwritable, awkward_image(8, 2)), Error);
+}
+
+// Only the bytes the header announces are read: a file with a huge (sparse) tail after the
+// pixels reads at once, with no allocation of the tail.
+TEST(Pfm, BytesAfterThePixelsAreNotRead) {
+  test::TemporaryDirectory dir;
+  const std::string path = dir.file("tail.pfm");
+  write_bytes(path, with_header("Pf\n2 3\n-1.0\n", {1, 2, 3, 4, 5, 6}));
+  ASSERT_EQ(::truncate(path.c_str(), off_t{8} << 30), 0);
+  const Image32f image = read_pfm(path);
+  ASSERT_EQ(image.width(), 2);
+  EXPECT_EQ(image(0, 0), 5.0f);  // rows are stored bottom first
 }
 
 }  // namespace

@@ -2,11 +2,13 @@
 
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -504,6 +506,58 @@ TEST(Ply, SurvivesCorruptInput) {
       attempt(bytes);
     }
   }
+}
+
+// A NaN or infinite position is refused, naming the file and the vertex; by every path of
+// the reader: ASCII, binary in bulk (fixed-size records) and binary record by record (a list
+// in the vertex element), either byte order, and a double too large for a float.
+TEST(Ply, RejectsNonFinitePositions) {
+  test::TemporaryDirectory dir;
+  const std::string path = dir.file("nan.ply");
+  const std::string ascii_header =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+  for (const char* bad : {"nan", "-inf", "inf", "NaN"}) {
+    write_bytes(path, ascii_header + "0 0 0\n1 1 1\n2 " + bad + " 2\n");
+    expect_error([&] { read_ply_cloud(path); }, path, ErrorCode::kFormat, "vertex 2 (counting from 0) has a non-finite position");
+  }
+  write_bytes(path, "ply\nformat ascii 1.0\nelement vertex 1\nproperty double x\nproperty double y\n"
+                    "property double z\nend_header\n1e300 0 0\n");
+  expect_error([&] { read_ply_cloud(path); }, path, ErrorCode::kFormat, "vertex 0 (counting from 0) has a non-finite");
+  for (const bool big_endian : {false, true}) {
+    for (const bool with_list : {false, true}) {
+      Bytes bytes(big_endian);
+      bytes.text(std::string("ply\nformat ") + (big_endian ? "binary_big_endian" : "binary_little_endian") +
+                 " 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty double z\n" +
+                 (with_list ? "property list uchar int extra\n" : "") + "end_header\n");
+      bytes.put(1.0f).put(2.0f).put(3.0);
+      if (with_list) bytes.put<std::uint8_t>(0);
+      bytes.put(1.0f).put(std::numeric_limits<float>::quiet_NaN()).put(3.0);
+      if (with_list) bytes.put<std::uint8_t>(0);
+      write_bytes(path, bytes.str());
+      expect_error([&] { read_ply_mesh(path); }, path, ErrorCode::kFormat,
+                   "vertex 1 (counting from 0) has a non-finite position (1, nan, 3)");
+    }
+  }
+  // What encode_ply writes is refused the same way when read back from memory.
+  PointCloud cloud = make_cloud(4, false);
+  cloud.positions[3].z() = std::numeric_limits<float>::infinity();
+  expect_error([&] { decode_ply_cloud(encode_ply(cloud), "memory.ply"); }, "memory.ply", ErrorCode::kFormat,
+               "vertex 3 (counting from 0)");
+}
+
+// Only positions must be finite: NaN in normals and other properties ("no value") is kept.
+TEST(Ply, KeepsNonFiniteValuesOfOtherProperties) {
+  test::TemporaryDirectory dir;
+  const std::string path = dir.file("nan_properties.ply");
+  write_bytes(path, "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                    "property float z\nproperty float nx\nproperty float ny\nproperty float nz\n"
+                    "property float quality\nend_header\n0 0 0 nan nan nan inf\n1 2 3 0 0 1 nan\n");
+  const PointCloud cloud = read_ply_cloud(path);
+  ASSERT_EQ(cloud.size(), 2u);
+  EXPECT_TRUE(std::isnan(cloud.normals[0].x()));
+  EXPECT_TRUE(std::isinf(cloud.properties[0].values[0]));
+  EXPECT_TRUE(std::isnan(cloud.properties[0].values[1]));
+  EXPECT_EQ(cloud.positions[1], Eigen::Vector3f(1, 2, 3));
 }
 
 }  // namespace

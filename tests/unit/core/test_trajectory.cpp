@@ -141,5 +141,16 @@ TEST(Trajectory, NonFinitePosesAreNotWritten) {
   EXPECT_THROW(write_tum_trajectory(directory.file("t.txt"), poses), Error);
 }
 
+TEST(Trajectory, TimestampsGoingBackwardsAreRefused) {
+  test::TemporaryDirectory directory;
+  const std::string path = directory.file("backwards.txt");
+  const std::string good = "# header\n1 0 0 0 0 0 0 1\n\n2.5 0 0 0 0 0 0 1\n";
+  expect_format_error(path, good + "2.25 0 0 0 0 0 0 1\n", "5:",
+                      "timestamp 2.25 is earlier than 2.5 on line 4: timestamps must not go backwards");
+  expect_format_error(path, good + "-1 0 0 0 0 0 0 1\n", "5:", "timestamp -1 is earlier than 2.5 on line 4");
+  // Equal timestamps are not backwards.
+  EXPECT_EQ(parse_tum_trajectory(good + "2.5 1 0 0 0 0 0 1\n", "inline").size(), 3u);
+}
+
 }  // namespace
 }  // namespace sls

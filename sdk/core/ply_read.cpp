@@ -1,134 +1,27 @@
-#include "sdk/core/ply.h"
-
-#include <fcntl.h>
+// PLY reading (the format: ply.h): the data section of ASCII and binary files, from memory
+// or from a file.
 #include <sys/mman.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <array>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
 #include <new>
-#include <set>
 #include <type_traits>
 #include <vector>
 
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
+#include "sdk/core/ply.h"
+#include "sdk/core/ply_format.h"
 
 namespace sls {
 namespace {
 
-constexpr bool kHostBigEndian = __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__;
-
-// ---------------------------------------------------------------------------------------------
-// Scalar types and byte access
-
-enum class Type : std::uint8_t { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
-
-std::size_t type_size(Type type) {
-  switch (type) {
-    case Type::kInt8:
-    case Type::kUint8: return 1;
-    case Type::kInt16:
-    case Type::kUint16: return 2;
-    case Type::kInt32:
-    case Type::kUint32:
-    case Type::kFloat32: return 4;
-    case Type::kFloat64: return 8;
-  }
-  return 0;
-}
-
-bool is_integer(Type type) { return type != Type::kFloat32 && type != Type::kFloat64; }
-
-bool parse_type(std::string_view name, Type& type) {
-  struct Entry {
-    std::string_view name;
-    Type type;
-  };
-  static constexpr Entry kTypes[] = {
-      {"char", Type::kInt8},     {"int8", Type::kInt8},     {"uchar", Type::kUint8},   {"uint8", Type::kUint8},
-      {"short", Type::kInt16},   {"int16", Type::kInt16},   {"ushort", Type::kUint16}, {"uint16", Type::kUint16},
-      {"int", Type::kInt32},     {"int32", Type::kInt32},   {"uint", Type::kUint32},   {"uint32", Type::kUint32},
-      {"float", Type::kFloat32}, {"float32", Type::kFloat32}, {"double", Type::kFloat64}, {"float64", Type::kFloat64},
-  };
-  for (const Entry& entry : kTypes) {
-    if (entry.name == name) {
-      type = entry.type;
-      return true;
-    }
-  }
-  return false;
-}
-
-// Calls f with a value of the C++ type for `type`, so one template body serves all eight.
-template <typename F>
-decltype(auto) visit_type(Type type, F&& f) {
-  switch (type) {
-    case Type::kInt8: return f(std::int8_t{});
-    case Type::kUint8: return f(std::uint8_t{});
-    case Type::kInt16: return f(std::int16_t{});
-    case Type::kUint16: return f(std::uint16_t{});
-    case Type::kInt32: return f(std::int32_t{});
-    case Type::kUint32: return f(std::uint32_t{});
-    case Type::kFloat32: return f(float{});
-    case Type::kFloat64: return f(double{});
-  }
-  throw_error(ErrorCode::kInternal, "invalid PLY scalar type {}", static_cast<int>(type));
-}
-
-// memcpy, not a cast: PLY records are packed, so values are unaligned.
-template <typename T, bool Swap>
-T load(const char* p) {
-  T value;
-  if constexpr (Swap) {
-    char bytes[sizeof(T)];
-    for (std::size_t i = 0; i < sizeof(T); ++i) bytes[i] = p[sizeof(T) - 1 - i];
-    std::memcpy(&value, bytes, sizeof(T));
-  } else {
-    std::memcpy(&value, p, sizeof(T));
-  }
-  return value;
-}
-
-template <typename T>
-T load(const char* p, bool swap) {
-  return swap ? load<T, true>(p) : load<T, false>(p);
-}
-
-double load_as_double(const char* p, Type type, bool swap) {
-  return visit_type(type, [&](auto tag) { return static_cast<double>(load<decltype(tag)>(p, swap)); });
-}
-
-// Integer types only (checked when the header is read); uint32 fits in int64.
-std::int64_t load_as_integer(const char* p, Type type, bool swap) {
-  return visit_type(type, [&](auto tag) -> std::int64_t {
-    using T = decltype(tag);
-    if constexpr (std::is_integral_v<T>) {
-      return static_cast<std::int64_t>(load<T>(p, swap));
-    } else {
-      throw_error(ErrorCode::kInternal, "PLY integer read of a floating-point value");
-    }
-  });
-}
-
-template <typename T>
-void store(char*& p, T value) {
-  if constexpr (kHostBigEndian) {
-    char bytes[sizeof(T)];
-    std::memcpy(bytes, &value, sizeof(T));
-    for (std::size_t i = 0; i < sizeof(T); ++i) p[i] = bytes[sizeof(T) - 1 - i];
-  } else {
-    std::memcpy(p, &value, sizeof(T));
-  }
-  p += sizeof(T);
-}
+using namespace ply_detail;
 
 // Integer colors are clamped to [0, 255]; floating-point colors are taken as [0, 1], the
 // convention of the writers that use them.
@@ -151,175 +44,6 @@ std::uint8_t to_color(double value, Type declared) {
     return static_cast<std::uint8_t>(std::lround(value));
   }
   return to_color(value);
-}
-
-// ---------------------------------------------------------------------------------------------
-// Header
-
-enum class Format { kAscii, kBinaryLittleEndian, kBinaryBigEndian };
-
-struct Property {
-  std::string name;
-  Type type = Type::kFloat32;  // the scalar's type, or the type of a list's items
-  bool is_list = false;
-  Type count_type = Type::kUint8;  // lists only
-  std::size_t offset = 0;          // byte offset in a fixed-size binary record
-};
-
-struct Element {
-  std::string name;
-  std::uint64_t count = 0;
-  std::vector<Property> properties;
-  bool fixed_size = true;         // no lists: every binary record has record_bytes bytes
-  std::size_t record_bytes = 0;   // fixed size, or the smallest record (all lists empty)
-
-  const Property* find(std::string_view property_name) const {
-    for (const Property& property : properties) {
-      if (property.name == property_name) return &property;
-    }
-    return nullptr;
-  }
-  std::size_t index_of(const Property* property) const {
-    return static_cast<std::size_t>(property - properties.data());
-  }
-};
-
-struct Header {
-  Format format = Format::kBinaryLittleEndian;
-  std::vector<Element> elements;
-  std::size_t data_offset = 0;
-};
-
-bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f'; }
-
-std::vector<std::string_view> split(std::string_view line) {
-  std::vector<std::string_view> tokens;
-  std::size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && is_space(line[i])) ++i;
-    const std::size_t start = i;
-    while (i < line.size() && !is_space(line[i])) ++i;
-    if (i > start) tokens.push_back(line.substr(start, i - start));
-  }
-  return tokens;
-}
-
-// For messages: a token from a corrupt file may be long or binary.
-std::string printable(std::string_view text) {
-  std::string out;
-  for (const char c : text.substr(0, 40)) out += (c >= 0x20 && c < 0x7f) ? c : '?';
-  if (text.size() > 40) out += "...";
-  return out;
-}
-
-std::string plural(const Element& element) {
-  if (element.name == "vertex") return "vertices";
-  if (element.name == "face") return "faces";
-  return fmt::format("'{}' elements", element.name);
-}
-
-Header parse_header(std::string_view bytes, const std::string& source) {
-  // Checked before looking for a newline, so a large non-PLY file is rejected at once.
-  if (bytes.size() < 3 || bytes.substr(0, 3) != "ply") {
-    throw_error(ErrorCode::kFormat, "{}: not a PLY file (bad magic: it does not start with 'ply')", source);
-  }
-  Header header;
-  bool have_format = false;
-  std::set<std::string_view> element_names;
-  std::set<std::string_view> property_names;  // of the current element
-  std::size_t position = 0;
-  for (int line_number = 1;; ++line_number) {
-    if (position >= bytes.size()) {
-      throw_error(ErrorCode::kFormat, "{}: truncated header: the file ends before 'end_header' (line {})", source,
-                  line_number);
-    }
-    const std::size_t newline = bytes.find('\n', position);
-    const std::size_t line_end = newline == std::string_view::npos ? bytes.size() : newline;
-    const std::string_view line = bytes.substr(position, line_end - position);
-    position = newline == std::string_view::npos ? bytes.size() : newline + 1;
-    const std::vector<std::string_view> tokens = split(line);
-
-    auto fail = [&](const std::string& problem) {
-      throw_error(ErrorCode::kFormat, "{}: header line {}: {}", source, line_number, problem);
-    };
-    if (line_number == 1) {
-      if (tokens.size() != 1 || tokens[0] != "ply") {
-        throw_error(ErrorCode::kFormat, "{}: not a PLY file (bad magic: the first line is not 'ply')", source);
-      }
-      continue;
-    }
-    // The last line of a cut header has no newline (and cannot be a whole end_header line).
-    if (newline == std::string_view::npos && (tokens.size() != 1 || tokens[0] != "end_header")) {
-      throw_error(ErrorCode::kFormat, "{}: truncated header: the file ends before 'end_header' (line {})", source,
-                  line_number);
-    }
-    if (tokens.empty()) continue;
-    const std::string_view keyword = tokens[0];
-    if (keyword == "comment" || keyword == "obj_info") continue;
-    if (keyword == "end_header") break;
-    if (keyword == "format") {
-      if (have_format) fail("more than one format line");
-      if (tokens.size() != 3) fail("expected 'format <type> 1.0'");
-      if (tokens[1] == "ascii") {
-        header.format = Format::kAscii;
-      } else if (tokens[1] == "binary_little_endian") {
-        header.format = Format::kBinaryLittleEndian;
-      } else if (tokens[1] == "binary_big_endian") {
-        header.format = Format::kBinaryBigEndian;
-      } else {
-        fail(fmt::format("unknown format '{}'", printable(tokens[1])));
-      }
-      if (tokens[2] != "1.0" && tokens[2] != "1") {
-        throw_error(ErrorCode::kVersionMismatch, "{}: unsupported PLY version '{}' (only 1.0 is known)", source,
-                    printable(tokens[2]));
-      }
-      have_format = true;
-    } else if (keyword == "element") {
-      if (tokens.size() != 3) fail("expected 'element <name> <count>'");
-      Element element;
-      element.name = std::string(tokens[1]);
-      const std::string_view count = tokens[2];
-      const auto [end, error] = std::from_chars(count.data(), count.data() + count.size(), element.count);
-      if (error != std::errc() || end != count.data() + count.size()) {
-        fail(fmt::format("bad count '{}' for element '{}'", printable(count), printable(element.name)));
-      }
-      if ((element.name == "vertex" || element.name == "face") && element_names.count(tokens[1]) != 0) {
-        fail(fmt::format("more than one '{}' element", element.name));
-      }
-      element_names.insert(tokens[1]);
-      property_names.clear();
-      header.elements.push_back(std::move(element));
-    } else if (keyword == "property") {
-      if (header.elements.empty()) fail("property before any element");
-      Element& element = header.elements.back();
-      Property property;
-      if (tokens.size() == 3) {
-        if (!parse_type(tokens[1], property.type)) fail(fmt::format("unknown type '{}'", printable(tokens[1])));
-        property.name = std::string(tokens[2]);
-      } else if (tokens.size() == 5 && tokens[1] == "list") {
-        property.is_list = true;
-        if (!parse_type(tokens[2], property.count_type) || !is_integer(property.count_type)) {
-          fail(fmt::format("bad list count type '{}'", printable(tokens[2])));
-        }
-        if (!parse_type(tokens[3], property.type)) fail(fmt::format("unknown type '{}'", printable(tokens[3])));
-        property.name = std::string(tokens[4]);
-      } else {
-        fail("expected 'property <type> <name>' or 'property list <count type> <item type> <name>'");
-      }
-      if (!property_names.insert(tokens.back()).second) {
-        fail(fmt::format("property '{}' appears twice in element '{}'", printable(property.name), element.name));
-      }
-      property.offset = element.record_bytes;
-      element.record_bytes += type_size(property.is_list ? property.count_type : property.type);
-      element.fixed_size = element.fixed_size && !property.is_list;
-      element.properties.push_back(std::move(property));
-    } else {
-      fail(fmt::format("unknown keyword '{}'", printable(keyword)));
-    }
-  }
-  if (!have_format) throw_error(ErrorCode::kFormat, "{}: the header has no format line", source);
-  header.data_offset = position;
-  return header;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -756,6 +480,19 @@ class Parser {
   const std::string& source_;
 };
 
+// A NaN or infinite position is no point: every consumer (bounds, distances, fusion) would
+// turn it into garbage, so the file is refused. Other properties, normals included, may
+// hold NaN by convention (e.g. "no value") and are left alone.
+void check_positions_finite(const PointCloud& cloud, const std::string& source) {
+  for (std::size_t i = 0; i < cloud.positions.size(); ++i) {
+    const Eigen::Vector3f& p = cloud.positions[i];
+    if (!p.allFinite()) {
+      throw_error(ErrorCode::kFormat, "{}: vertex {} (counting from 0) has a non-finite position ({}, {}, {})",
+                  source, i, p.x(), p.y(), p.z());
+    }
+  }
+}
+
 void decode(std::string_view bytes, const std::string& source, PointCloud& cloud, Faces* faces) {
   const Header header = parse_header(bytes, source);
   const Element* vertex = nullptr;
@@ -774,6 +511,7 @@ void decode(std::string_view bytes, const std::string& source, PointCloud& cloud
       if (vertices_done && faces_done) break;  // what follows is not needed
       if (&element == vertex) {
         parser.read_vertices(element, cloud);
+        check_positions_finite(cloud, source);
         vertices_done = true;
       } else if (faces != nullptr && element.name == "face") {
         parser.read_faces(element, vertex->count, *faces);
@@ -788,104 +526,22 @@ void decode(std::string_view bytes, const std::string& source, PointCloud& cloud
 }
 
 // ---------------------------------------------------------------------------------------------
-// Writing
+// Reading files: mapped, not copied, since clouds reach gigabytes; decoding then touches only
+// the elements the header announces. (A file truncated by someone else while it is mapped
+// would fault; our writers replace files by rename instead.)
 
-void check_property_names(const PointCloud& cloud) {
-  static constexpr std::string_view kReserved[] = {"x",   "y",     "z",    "nx",        "ny",
-                                                   "nz",  "red",   "green", "blue",     "confidence"};
-  std::set<std::string_view> names;
-  for (const PointProperty& property : cloud.properties) {
-    for (const char c : property.name) {
-      if (c <= 0x20 || c >= 0x7f) {
-        throw_error(ErrorCode::kInvalidArgument, "point property name '{}' is not printable ASCII without spaces",
-                    printable(property.name));
-      }
-    }
-    if (std::find(std::begin(kReserved), std::end(kReserved), property.name) != std::end(kReserved)) {
-      throw_error(ErrorCode::kInvalidArgument, "point property name '{}' is reserved for a PLY standard property",
-                  property.name);
-    }
-    if (!names.insert(property.name).second) {
-      throw_error(ErrorCode::kInvalidArgument, "point property name '{}' appears twice", property.name);
-    }
-  }
-}
-
-std::string encode(const PointCloud& cloud, const Faces* faces) {
-  cloud.validate();
-  check_property_names(cloud);
-  std::string header = "ply\nformat binary_little_endian 1.0\ncomment written by slscan\n";
-  header += fmt::format("element vertex {}\nproperty float x\nproperty float y\nproperty float z\n", cloud.size());
-  std::size_t record_bytes = 3 * sizeof(float);
-  if (cloud.has_normals()) {
-    header += "property float nx\nproperty float ny\nproperty float nz\n";
-    record_bytes += 3 * sizeof(float);
-  }
-  if (cloud.has_confidence()) {
-    header += "property float confidence\n";
-    record_bytes += sizeof(float);
-  }
-  if (cloud.has_colors()) {
-    header += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-    record_bytes += 3;
-  }
-  for (const PointProperty& property : cloud.properties) {
-    header += fmt::format("property float {}\n", property.name);
-    record_bytes += sizeof(float);
-  }
-  constexpr std::size_t kFaceBytes = 1 + 3 * sizeof(std::int32_t);
-  if (faces != nullptr) {
-    header += fmt::format("element face {}\nproperty list uchar int vertex_indices\n", faces->size());
-  }
-  header += "end_header\n";
-
-  const std::size_t n = cloud.size();
-  std::string out(header.size() + n * record_bytes + (faces != nullptr ? faces->size() * kFaceBytes : 0), '\0');
-  std::memcpy(out.data(), header.data(), header.size());
-  char* p = out.data() + header.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    for (Eigen::Index k = 0; k < 3; ++k) store(p, cloud.positions[i][k]);
-    if (cloud.has_normals()) {
-      for (Eigen::Index k = 0; k < 3; ++k) store(p, cloud.normals[i][k]);
-    }
-    if (cloud.has_confidence()) store(p, cloud.confidence[i]);
-    if (cloud.has_colors()) {
-      for (const std::uint8_t c : cloud.colors[i]) store(p, c);
-    }
-    for (const PointProperty& property : cloud.properties) store(p, property.values[i]);
-  }
-  if (faces != nullptr) {
-    for (const std::array<std::int32_t, 3>& face : *faces) {
-      store(p, std::uint8_t{3});
-      for (const std::int32_t index : face) store(p, index);
-    }
-  }
-  return out;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Reading files: mapped, not copied, since clouds reach gigabytes. (A file truncated by
-// someone else while it is mapped would fault; our writers replace files by rename instead.)
+// A bound on a PLY file, far above any cloud this SDK makes or reads (hundreds of millions of
+// points), so that a sparse or absurd file is refused before anything is mapped or read.
+constexpr std::uint64_t kMaxPlyFileBytes = std::uint64_t{64} << 30;
 
 class FileBytes {
  public:
   explicit FileBytes(const std::string& path) {
-    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) {
-      const int error_number = errno;
-      throw Error(error_number == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
-                  "cannot open " + describe_errno(path, error_number));
-    }
-    struct Closer {
-      int fd;
-      ~Closer() { ::close(fd); }
-    } closer{fd};
-    struct stat info {};
-    if (::fstat(fd, &info) != 0) throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path, errno));
-    if (S_ISDIR(info.st_mode)) throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path, EISDIR));
-    if (S_ISREG(info.st_mode) && info.st_size > 0) {
-      const auto size = static_cast<std::size_t>(info.st_size);
-      void* map = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
+    const RegularFile file(path);  // refuses FIFOs, devices, directories without blocking
+    file.check_size(kMaxPlyFileBytes);
+    if (file.size() > 0) {
+      const auto size = static_cast<std::size_t>(file.size());
+      void* map = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, file.fd(), 0);
       if (map != MAP_FAILED) {
         (void)::madvise(map, size, MADV_SEQUENTIAL);  // a hint only
         map_ = map;
@@ -893,17 +549,8 @@ class FileBytes {
         return;
       }
     }
-    // Pipes, empty files, filesystems that cannot map: read it all.
-    char chunk[1 << 16];
-    for (;;) {
-      const ssize_t n = ::read(fd, chunk, sizeof(chunk));
-      if (n == 0) break;
-      if (n < 0) {
-        if (errno == EINTR) continue;
-        throw Error(ErrorCode::kIo, "cannot read " + describe_errno(path, errno));
-      }
-      buffer_.insert(buffer_.end(), chunk, chunk + n);
-    }
+    // Empty files, filesystems that cannot map: read it all.
+    buffer_ = file.read_all(kMaxPlyFileBytes);
   }
   ~FileBytes() {
     if (map_ != nullptr) ::munmap(map_, size_);
@@ -913,23 +560,16 @@ class FileBytes {
 
   std::string_view view() const {
     return map_ != nullptr ? std::string_view(static_cast<const char*>(map_), size_)
-                           : std::string_view(buffer_.data(), buffer_.size());
+                           : std::string_view(reinterpret_cast<const char*>(buffer_.data()), buffer_.size());
   }
 
  private:
   void* map_ = nullptr;
   std::size_t size_ = 0;
-  std::vector<char> buffer_;
+  std::vector<std::uint8_t> buffer_;
 };
 
 }  // namespace
-
-std::string encode_ply(const PointCloud& cloud) { return encode(cloud, nullptr); }
-
-std::string encode_ply(const TriangleMesh& mesh) {
-  mesh.validate();
-  return encode(mesh.vertices, &mesh.faces);
-}
 
 PointCloud decode_ply_cloud(std::string_view bytes, const std::string& source) {
   PointCloud cloud;
@@ -941,26 +581,6 @@ TriangleMesh decode_ply_mesh(std::string_view bytes, const std::string& source) 
   TriangleMesh mesh;
   decode(bytes, source, mesh.vertices, &mesh.faces);
   return mesh;
-}
-
-void write_ply(const std::string& path, const PointCloud& cloud) {
-  std::string bytes;
-  try {
-    bytes = encode_ply(cloud);
-  } catch (const Error& error) {
-    throw Error(error.code(), path + ": " + error.what());
-  }
-  write_file_atomic(path, bytes);
-}
-
-void write_ply(const std::string& path, const TriangleMesh& mesh) {
-  std::string bytes;
-  try {
-    bytes = encode_ply(mesh);
-  } catch (const Error& error) {
-    throw Error(error.code(), path + ": " + error.what());
-  }
-  write_file_atomic(path, bytes);
 }
 
 PointCloud read_ply_cloud(const std::string& path) {
