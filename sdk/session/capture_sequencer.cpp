@@ -52,6 +52,11 @@ void CaptureOptions::validate() const {
                 image_timeout.count(), turntable_timeout.count());
   }
   if (max_retries < 0) throw_error(ErrorCode::kInvalidArgument, "capture: max_retries = {} must be >= 0", max_retries);
+  const int count = frames > 0 ? frames : frames_per_revolution;
+  if (first_frame < 0 || first_frame > count) {
+    throw_error(ErrorCode::kInvalidArgument, "capture: first_frame = {} must be in 0..{} (the frames to capture)",
+                first_frame, count);
+  }
 }
 
 std::int64_t CapturedFrame::timestamp_ns() const {
@@ -134,16 +139,22 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
                   writer->folder(), recording.camera.width, recording.camera.height, recording.images_per_frame,
                   writer->is_closed() ? ", closed" : "", camera_name(c), info.width, info.height, patterns_.size());
     }
+    if (writer->frame_count() != static_cast<std::size_t>(options_.first_frame)) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "capture: recording {} holds {} frame(s); the capture {} at frame {}", writer->folder(),
+                  writer->frame_count(), options_.first_frame > 0 ? "resumes" : "starts", options_.first_frame);
+    }
   }
 
   const Clock::time_point start = Clock::now();
   statistics_ = CaptureStatistics{};
   failed_device_.clear();
   angle_deg_.reset();
+  const int frames = frame_count();
+  if (options_.first_frame >= frames) return statistics_;  // all captured already
   try {
     prepare();
-    const int frames = frame_count();
-    for (int frame = 0; frame < frames; ++frame) {
+    for (int frame = options_.first_frame; frame < frames; ++frame) {
       CapturedFrame captured = capture_frame(frame);
       for (std::size_t c = 0; c < recordings.size(); ++c) {
         FrameMetadata metadata;

@@ -65,6 +65,10 @@ struct CaptureOptions {
   // into the next revolution).
   int frames_per_revolution = 36;
   double start_angle_deg = 0.0;
+  // Resuming a capture that was cut off: the first stack to capture (0 .. frames); stacks
+  // before it are in the recordings already, which must hold exactly that many frames. The
+  // turntable goes on to where stack first_frame is taken, as in an uninterrupted run.
+  int first_frame = 0;
   bool home_turntable = true;  // home before the first stack (ignored without a turntable)
   // > 0: set on every camera before capturing; 0 leaves the cameras' exposure as it is.
   double exposure_us = 0.0;
@@ -100,7 +104,7 @@ struct CameraStack {
 };
 
 struct CapturedFrame {
-  int index = 0;  // frame of this run, 0 .. frames − 1
+  int index = 0;  // frame of the scan, first_frame .. frames − 1
   std::optional<double> turntable_angle_deg;  // as the turntable reports it; none without one
   int attempts = 1;                           // 1 + re-captures
   bool complete = true;
@@ -145,8 +149,9 @@ class CaptureSequencer {
                    drivers::Turntable* turntable, PatternSet patterns, CaptureOptions options);
 
   // Captures the scan (see the file comment). `recordings` is empty (callbacks only) or holds one
-  // writer per camera, each with images_per_frame = the set's size and the camera's image size
-  // (kInvalidArgument otherwise, before any device is touched). Returns what happened; throws
+  // writer per camera, each with images_per_frame = the set's size, the camera's image size and
+  // options.first_frame frames (kInvalidArgument otherwise, before any device is touched). With
+  // first_frame = the frame count there is nothing to capture and no device is touched. Returns what happened; throws
   // sls::Error as the file comment says. Cameras are stopped and the projector goes dark before
   // it returns or throws (a device that just failed is left alone).
   CaptureStatistics run(const std::vector<RecordingWriter*>& recordings, const FrameCallback& on_frame = {},
