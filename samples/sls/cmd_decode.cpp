@@ -56,7 +56,14 @@ bool load_ground_truth(const RecordingReader& recording, int index, Image32f* u,
 
 int run_decode(const Context& context, const DecodeCommandOptions& options) {
   const Device device = options.device.empty() ? default_device() : parse_device(options.device);
+  // The output is checked before any work, as the scan's is.
+  if (path_is_within(options.out, options.input)) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "--out {} is inside the recording {}: decoding would overwrite it; choose a folder outside it",
+                options.out, options.input);
+  }
   const RecordingReader recording = RecordingReader::open(options.input);
+  ensure_writable_directory(options.out);
   const RecordingInfo& info = recording.info();
   if (info.images_per_frame == 0) {
     throw_error(ErrorCode::kInvalidArgument, "{} is a depth-only recording: there are no pattern images to decode",
@@ -90,14 +97,28 @@ int run_decode(const Context& context, const DecodeCommandOptions& options) {
     nlohmann::json entry = {{"index", frame.index}};
     if (!frame.complete) {
       // An incomplete stack (a capture cut short) cannot be decoded: reported, not guessed.
-      entry["status"] = "skipped: incomplete stack";
+      entry["status"] = "skipped";
+      entry["reason"] = "incomplete pattern stack";
       ++skipped;
       frames.push_back(entry);
       continue;
     }
-    const std::vector<Image16u> stack = recording.load_images(i);
+    // A frame that cannot be read (a missing, empty, corrupt or mis-sized image) or decoded (a
+    // stack that does not behave as the pattern set says) is reported and skipped, as the
+    // scan does; faults of the machine (memory, the GPU) still stop the command.
+    DecodedFrame decoded;
     const auto start = std::chrono::steady_clock::now();
-    const DecodedFrame decoded = decoder.decode(stack);
+    try {
+      decoded = decoder.decode(recording.load_images(i));
+    } catch (const Error& error) {
+      if (!is_frame_problem(error)) throw;
+      entry["status"] = "skipped";
+      entry["reason"] = error.what();
+      if (!context.options.json) std::cerr << fmt::format("\nframe {} skipped: {}\n", frame.index, error.what());
+      ++skipped;
+      frames.push_back(entry);
+      continue;
+    }
     decode_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const std::string folder = fmt::format("{}/frames/{:06d}", options.out, frame.index);
     create_directories(folder);
@@ -136,7 +157,7 @@ int run_decode(const Context& context, const DecodeCommandOptions& options) {
   summary["ok"] = true;
   context.emit(summary, [&] {
     std::cout << "decoded " << decoded_frames << " frame(s) of " << options.input << " into " << options.out;
-    if (skipped > 0) std::cout << " (" << skipped << " incomplete frame(s) skipped)";
+    if (skipped > 0) std::cout << " (" << skipped << " frame(s) skipped: see decode.json)";
     std::cout << "\n";
     if (has_truth) {
       std::cout << fmt::format("against ground truth: projector RMS {:.4f} px (max {:.3f}), depth RMS {:.2f} um, "

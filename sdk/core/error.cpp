@@ -20,4 +20,16 @@ const char* error_code_name(ErrorCode code) {
   return "unknown error";
 }
 
+bool is_frame_problem(const Error& error) {
+  switch (error.code()) {
+    case ErrorCode::kInvalidArgument:
+    case ErrorCode::kIo:
+    case ErrorCode::kFormat:
+    case ErrorCode::kNotFound:
+      return true;
+    default:
+      return false;
+  }
+}
+
 }  // namespace sls

@@ -36,6 +36,11 @@ class Error : public std::runtime_error {
   ErrorCode code_;
 };
 
+// Whether an error is about one piece of input (a file missing, unreadable or corrupt, data
+// that does not make sense) rather than the machine (memory, a device, a bug, a cancel): a
+// scan or decode skips the frame for the first and stops for the second.
+bool is_frame_problem(const Error& error);
+
 // Throws sls::Error with a fmt-formatted message.
 template <typename... Args>
 [[noreturn]] void throw_error(ErrorCode code, fmt::format_string<Args...> format, Args&&... args) {

@@ -673,6 +673,16 @@ Image16u RecordingReader::load_image(std::size_t position, std::size_t image) co
   const std::string path = file_path(info.image_files[image]);
   Image16u pixels = read_png_u16(path);
   check_size(pixels, info_.camera, path, "image");
+  // Values beyond the camera's bit depth (an image scaled to 16 bits, another camera's) would
+  // decode to wrong stripes, not to no data: the image is refused instead.
+  if (info_.camera.bit_depth > 0 && info_.camera.bit_depth < 16) {
+    const std::uint16_t largest = *std::max_element(pixels.data(), pixels.data() + pixels.pixel_count());
+    const int limit = (1 << info_.camera.bit_depth) - 1;
+    if (largest > limit) {
+      throw_error(ErrorCode::kFormat, "{}: pixel values up to {}, beyond the recording's {}-bit camera (at most {})",
+                  path, largest, info_.camera.bit_depth, limit);
+    }
+  }
   return pixels;
 }
 

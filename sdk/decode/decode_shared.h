@@ -112,6 +112,13 @@ SLS_HOST_DEVICE inline float sample_variance(const DecodeThresholds& t, float va
   return (signal > 0.0f ? signal * t.inverse_gain : 0.0f) + t.read_noise_variance;
 }
 
+// The shadow test: a contrast between a bright and a dark sample that stands out of their
+// noise (and above the floor for cameras whose noise model is unknown).
+SLS_HOST_DEVICE inline bool contrast_above_noise(const DecodeThresholds& t, float bright, float dark, float contrast) {
+  const float sigma = std::sqrt(sample_variance(t, bright) + sample_variance(t, dark));
+  return contrast >= t.shadow_min_contrast_dn && contrast >= t.shadow_contrast_sigma * sigma;
+}
+
 struct AxisDecode {
   float coordinate;  // projector pixels; NaN when flags != 0
   float sigma_px;    // predicted 1-sigma noise of the coordinate
@@ -241,9 +248,7 @@ SLS_HOST_DEVICE inline PixelDecode decode_pixel(const DecodeParams& p, const Sam
     if (white >= t.saturation_dn) flags |= kDecodeSaturated;
     reference = 0.5f * (white + black);
     contrast = white - black;
-    const float sigma = std::sqrt(sample_variance(t, white) + sample_variance(t, black));
-    const float minimum = t.shadow_contrast_sigma * sigma;
-    if (!(contrast >= t.shadow_min_contrast_dn && contrast >= minimum)) flags |= kDecodeShadow;
+    if (!contrast_above_noise(t, white, black, contrast)) flags |= kDecodeShadow;
   } else {
     // No references: the contrast of the first complementary Gray pair stands in, since away
     // from its edges |pattern - inverse| is the full white - black contrast.
@@ -253,10 +258,7 @@ SLS_HOST_DEVICE inline PixelDecode decode_pixel(const DecodeParams& p, const Sam
       const float q0 = samples(a.gray_inverse_index[a.gray_count - 1]);
       reference = 0.5f * (p0 + q0);
       contrast = std::fabs(p0 - q0);
-      const float sigma = std::sqrt(sample_variance(t, p0) + sample_variance(t, q0));
-      if (!(contrast >= t.shadow_min_contrast_dn && contrast >= t.shadow_contrast_sigma * sigma)) {
-        flags |= kDecodeShadow;
-      }
+      if (!contrast_above_noise(t, p0, q0, contrast)) flags |= kDecodeShadow;
     }
   }
   float worst_sigma = 0.0f;

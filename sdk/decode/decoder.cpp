@@ -7,6 +7,8 @@
 
 #include "sdk/core/error.h"
 
+#include "sdk/decode/stack_check.h"
+
 #if defined(SLS_HAVE_CUDA)
 #include "sdk/decode/cuda/decoder_cuda.h"
 #endif
@@ -397,6 +399,10 @@ DecodedFrame Decoder::decode(const std::vector<Image16u>& stack) {
       throw_error(ErrorCode::kInvalidArgument, "decode: all-dark stack: no pixel above {} DN", brightest);
     }
   }
+
+  // One pattern image wrong everywhere (a stuck projector, images out of order) passes every
+  // per-pixel test yet moves whole stripes: refused here with the image named.
+  if (impl_->options.check_stack) check_stack_behaves(set, impl_->params, stack);
 
   DecodedFrame frame;
   frame.projector_u.resize(width, height);

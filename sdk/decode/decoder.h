@@ -57,6 +57,10 @@ struct DecodeOptions {
   // Columns and rows coded: largest distance (projector px) of the decoded (u, v) from the
   // pixel's epipolar curve; farther is inconsistent (a misdecode, or a miscalibration).
   double max_epipolar_error_px = 1.5;
+  // Refuse a stack whose images do not behave as the pattern set says (stack_check.h): a
+  // complementary Gray pair that does not add up to white + black, a phase step off the
+  // others' sinusoid.
+  bool check_stack = true;
 
   // Throws sls::Error(kInvalidArgument) naming the first bad value.
   void validate() const;
@@ -95,7 +99,8 @@ class Decoder {
   // Decodes one frame: `stack` holds one image per pattern, in the set's order, each of the
   // calibrated camera's size. Throws sls::Error(kInvalidArgument) naming the problem: wrong
   // image count, an empty or mis-sized image, a size that differs from the calibration's
-  // camera, an all-dark stack (no pixel with white - black contrast: projector off?).
+  // camera, an all-dark stack (no pixel with white - black contrast: projector off?);
+  // sls::Error(kFormat) for a stack whose images do not behave as the set says (stack_check.h).
   DecodedFrame decode(const std::vector<Image16u>& stack);
 
   const PatternSet& pattern_set() const;

@@ -169,7 +169,7 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     try {
       decoded = s.decoder->decode(frame.images);
     } catch (const Error& error) {
-      if (error.code() != ErrorCode::kInvalidArgument && error.code() != ErrorCode::kFormat) throw;
+      if (!is_frame_problem(error)) throw;
       report.times.decode_ms = ms_since(start);
       return finish(FrameStatus::kSkipped, fmt::format("cannot decode: {}", error.what()));
     }
@@ -404,7 +404,7 @@ ReplayOutcome run_recording(ScanSession& session, const RecordingReader& recordi
           if (!frame.depth_m) frame.problem = "no depth map";
         }
       } catch (const Error& error) {
-        if (error.code() == ErrorCode::kCancelled) throw;
+        if (!is_frame_problem(error)) throw;
         frame.problem = fmt::format("cannot read: {}", error.what());
       }
       frame.read_ms = ms_since(start);

@@ -52,8 +52,9 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
 }
 
 RecordingReader open_recording_for_scan(const std::string& folder, bool calibration_given) {
+  // Its frames are not checked here: one bad image must not refuse the whole recording. Each
+  // frame is read when it is scanned, and one that cannot be read is reported and skipped.
   RecordingReader recording = RecordingReader::open(folder);
-  recording.verify(false);
   if (!calibration_given && !recording.has_calibration()) {
     throw_error(ErrorCode::kInvalidArgument, "{} has no calibration.yml: a scan needs a calibrated recording", folder);
   }

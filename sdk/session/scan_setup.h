@@ -53,9 +53,9 @@ PatternSet scan_pattern_set(const drivers::Projector& projector);
 DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptureRequest& request,
                                    const ProgressCallback& progress = {});
 
-// Opens a recording for a scan: reads and checks its manifest (RecordingReader::verify without
-// decoding images) and, unless the caller brings its own (`calibration_given`), requires a
-// calibration. Throws sls::Error: kNotFound for a missing folder or manifest, kFormat for a
+// Opens a recording for a scan: reads and checks its manifest and, unless the caller brings its
+// own (`calibration_given`), requires a calibration. The frames' images are read (and a bad one
+// reported and skipped) as the scan reaches them. Throws sls::Error: kNotFound for a missing folder or manifest, kFormat for a
 // corrupt one, kInvalidArgument without calibration.yml.
 RecordingReader open_recording_for_scan(const std::string& folder, bool calibration_given = false);
 

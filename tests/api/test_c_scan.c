@@ -561,12 +561,14 @@ static void check_devices_scan(sls_context* context, const char* recording, cons
   CHECK_ERROR(sls_scan_write_mesh(scan, "mesh.ply", &error_), SLS_ERROR_INVALID_ARGUMENT, "no frame");
   CHECK_ERROR(sls_scan_close_loop(scan, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "before any frame was fused");
 
-  /* An image that is no PNG at all, or a corrupt manifest: the recording fails its check
-   * before any frame, with FORMAT naming the file. */
+  /* An image that is no PNG at all is one more unreadable frame, skipped with the reason; a
+   * corrupt manifest fails the recording before any frame, with FORMAT naming the file. */
   CHECK(overwrite(pattern0, "not a png"));
   frame_log_init(&log, scan, -1);
-  CHECK_ERROR(sls_scan_run_recording(scan, captured, &error_), SLS_ERROR_FORMAT, "000000/pattern_000.png");
-  CHECK(log.count == 0);
+  CHECK_ERROR(sls_scan_run_recording(scan, captured, &error_), SLS_ERROR_INVALID_ARGUMENT, "not a PNG");
+  CHECK(log.count == 2 && log.status[0] == SLS_FRAME_SKIPPED && log.status[1] == SLS_FRAME_SKIPPED);
+  CHECK(strstr(log.first_reason, "000000/pattern_000.png") != NULL);
+  frame_log_init(&log, scan, -1);
   CHECK(overwrite(manifest, "{\"format\": \"slscan-rec"));
   CHECK_ERROR(sls_scan_run_recording(scan, captured, &error_), SLS_ERROR_FORMAT, "manifest.json");
   CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));

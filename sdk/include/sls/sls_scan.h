@@ -174,14 +174,16 @@ SLS_API sls_status sls_scan_set_frame_callback(sls_scan* scan, sls_frame_callbac
  * Returns SLS_OK when every frame was processed and at least one fused;
  * SLS_ERROR_CANCELLED when sls_scan_cancel() stopped it: after the frame in progress, the model
  * keeps every frame fused before;
- * SLS_ERROR_NOT_FOUND for a missing folder, manifest or frame file, SLS_ERROR_FORMAT (or
- * SLS_ERROR_VERSION_MISMATCH) for a corrupt (or newer) manifest or a frame file that is no PNG
- * at all: the recording's check finds these before any frame;
+ * SLS_ERROR_NOT_FOUND for a missing folder or manifest, SLS_ERROR_FORMAT (or
+ * SLS_ERROR_VERSION_MISMATCH) for a corrupt (or newer) manifest: these are found before any
+ * frame;
  * SLS_ERROR_INVALID_ARGUMENT for a recording without calibration, or when no frame could be
  * fused (the summary and the callback's reasons say why);
  * SLS_ERROR_OUT_OF_MEMORY when the volume does not fit; SLS_ERROR_BUSY when the scan is already
- * running. A frame that passes the check but cannot be read (an image cut short), an incomplete
- * stack and a frame that cannot be decoded do not fail the run: they are reported as skipped. */
+ * running. A frame that cannot be read (an image missing, empty, cut short, no PNG at all or of
+ * another size), an incomplete stack and a frame that cannot be decoded (a stack whose images do
+ * not behave as the pattern set says: a pattern stuck) do not fail the run: they are reported as
+ * skipped, with the reason. */
 SLS_API sls_status sls_scan_run_recording(sls_scan* scan, const char* recording_path, sls_error** error);
 
 /* What sls_scan_run_devices() captures. Versioned like sls_scan_config

@@ -1,0 +1,137 @@
+#include "sdk/decode/stack_check.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "sdk/core/error.h"
+
+namespace sls {
+namespace {
+
+double median_of(std::vector<double>& values) {
+  if (values.empty()) return 0.0;
+  auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+// Pixels on a regular grid whose white - black contrast stands out of the noise and that no
+// image saturates: where every pattern should show what the set says.
+std::vector<std::size_t> lit_samples(const DecodeParams& params, const std::vector<Image16u>& stack,
+                                     std::size_t max_samples) {
+  const DecodeLayout& layout = params.layout;
+  const DecodeThresholds& t = params.thresholds;
+  const std::size_t count = stack[0].pixel_count();
+  const auto stride = static_cast<std::size_t>(
+      std::max(1.0, std::ceil(static_cast<double>(count) / static_cast<double>(max_samples))));
+  const std::uint16_t* white = stack[static_cast<std::size_t>(layout.white_index)].data();
+  const std::uint16_t* black = stack[static_cast<std::size_t>(layout.black_index)].data();
+  std::vector<std::size_t> pixels;
+  for (std::size_t i = 0; i < count; i += stride) {
+    const float w = white[i];
+    const float b = black[i];
+    if (!contrast_above_noise(t, w, b, w - b)) continue;
+    bool saturated = false;
+    for (const Image16u& image : stack) saturated = saturated || image.data()[i] >= t.saturation_dn;
+    if (!saturated) pixels.push_back(i);
+  }
+  return pixels;
+}
+
+}  // namespace
+
+void check_stack_behaves(const PatternSet& set, const DecodeParams& params, const std::vector<Image16u>& stack,
+                         const StackCheckLimits& limits) {
+  const DecodeLayout& layout = params.layout;
+  if (layout.white_index < 0 || layout.black_index < 0) return;
+  const std::vector<std::size_t> pixels = lit_samples(params, stack, limits.max_samples);
+  if (pixels.size() < limits.min_lit_samples) return;
+  const std::uint16_t* white = stack[static_cast<std::size_t>(layout.white_index)].data();
+  const std::uint16_t* black = stack[static_cast<std::size_t>(layout.black_index)].data();
+  const auto sample = [&](int k, std::size_t n) {
+    return static_cast<double>(stack[static_cast<std::size_t>(k)].data()[pixels[n]]);
+  };
+  // The complementary Gray pairs: each adds up to the all-on light (white + black). With two
+  // or more, their per-pixel median is that light even when one pair, or the white image
+  // itself, is wrong; each pair is judged against it.
+  std::vector<std::pair<int, int>> pairs;
+  for (const AxisCode& axis : layout.axes) {
+    for (int g = 0; axis.extent > 0 && g < axis.gray_count; ++g) {
+      if (axis.gray_inverse_index[g] >= 0) pairs.emplace_back(axis.gray_index[g], axis.gray_inverse_index[g]);
+    }
+  }
+  std::vector<double> all_on(pixels.size()), sums(pairs.size());
+  for (std::size_t n = 0; n < pixels.size(); ++n) {
+    for (std::size_t p = 0; p < pairs.size(); ++p) sums[p] = sample(pairs[p].first, n) + sample(pairs[p].second, n);
+    all_on[n] = pairs.size() >= 2 ? median_of(sums) : static_cast<double>(white[pixels[n]]) + black[pixels[n]];
+  }
+  const auto contrast = [&](std::size_t n) { return std::max(all_on[n] - 2.0 * black[pixels[n]], 1.0); };
+  const auto level = [&](int k, std::size_t n) { return (sample(k, n) - black[pixels[n]]) / contrast(n); };
+  std::vector<double> errors(pixels.size());
+  for (const auto& [pattern, inverse] : pairs) {
+    for (std::size_t n = 0; n < pixels.size(); ++n) {
+      errors[n] = std::abs(sample(pattern, n) + sample(inverse, n) - all_on[n]) / contrast(n);
+    }
+    const double error = median_of(errors);
+    if (error > limits.max_pair_sum_error) {
+      throw_error(ErrorCode::kFormat,
+                  "pattern images {} ({}) and {} ({}) do not add up to the all-on light ({}): off by {:.0f} % of "
+                  "the contrast on the median lit pixel (at most {:.0f} %); a pattern stuck or images out of order?",
+                  pattern, pattern_label(set.patterns[static_cast<std::size_t>(pattern)]), inverse,
+                  pattern_label(set.patterns[static_cast<std::size_t>(inverse)]),
+                  pairs.size() >= 2 ? "what the other complementary pairs add up to" : "white + black",
+                  100.0 * error, 100.0 * limits.max_pair_sum_error);
+    }
+  }
+  for (const AxisCode& axis : layout.axes) {
+    if (axis.extent <= 0) continue;
+    const int steps = axis.phase_count;
+    if (steps < 4) continue;  // three steps fit any three values: nothing to check
+    // Least-squares sinusoid per pixel (steps equally spaced: the sums are the fit), then each
+    // image's misfit.
+    std::vector<std::vector<double>> misfits(static_cast<std::size_t>(steps), std::vector<double>(pixels.size()));
+    std::vector<double> x(static_cast<std::size_t>(steps)), cosines(x.size()), sines(x.size());
+    for (int j = 0; j < steps; ++j) {
+      cosines[static_cast<std::size_t>(j)] = static_cast<double>(axis.phase_cos[j]);
+      sines[static_cast<std::size_t>(j)] = static_cast<double>(axis.phase_sin[j]);
+    }
+    for (std::size_t n = 0; n < pixels.size(); ++n) {
+      double mean = 0.0, c = 0.0, s = 0.0;
+      for (int j = 0; j < steps; ++j) {
+        x[static_cast<std::size_t>(j)] = level(axis.phase_index[j], n);
+        mean += x[static_cast<std::size_t>(j)];
+        c += x[static_cast<std::size_t>(j)] * cosines[static_cast<std::size_t>(j)];
+        s += x[static_cast<std::size_t>(j)] * sines[static_cast<std::size_t>(j)];
+      }
+      mean /= steps;
+      c *= 2.0 / steps;
+      s *= 2.0 / steps;
+      for (int j = 0; j < steps; ++j) {
+        const double fitted =
+            mean + c * cosines[static_cast<std::size_t>(j)] + s * sines[static_cast<std::size_t>(j)];
+        misfits[static_cast<std::size_t>(j)][n] = std::abs(x[static_cast<std::size_t>(j)] - fitted);
+      }
+    }
+    std::vector<double> medians(static_cast<std::size_t>(steps));
+    for (int j = 0; j < steps; ++j) medians[static_cast<std::size_t>(j)] = median_of(misfits[static_cast<std::size_t>(j)]);
+    for (int j = 0; j < steps; ++j) {
+      std::vector<double> others;
+      for (int k = 0; k < steps; ++k) {
+        if (k != j) others.push_back(medians[static_cast<std::size_t>(k)]);
+      }
+      const double typical = median_of(others);
+      const double misfit = medians[static_cast<std::size_t>(j)];
+      if (misfit > limits.min_phase_misfit && misfit > limits.outlier_ratio * typical) {
+        const int pattern = axis.phase_index[j];
+        throw_error(ErrorCode::kFormat,
+                    "pattern image {} ({}) is off the sinusoid of the other phase steps by {:.0f} % of the contrast "
+                    "on the median lit pixel (the others: {:.1f} %); a pattern stuck or images out of order?",
+                    pattern, pattern_label(set.patterns[static_cast<std::size_t>(pattern)]), 100.0 * misfit,
+                    100.0 * typical);
+      }
+    }
+  }
+}
+
+}  // namespace sls

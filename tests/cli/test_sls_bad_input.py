@@ -1,0 +1,111 @@
+#!/usr/bin/env python3
+"""`sls scan` and `sls decode` on recordings with bad frames (issue 19): a frame whose image is
+missing, empty, no PNG, of another size, beyond the camera's bit depth, or a stack with a
+pattern stuck is reported with its reason and skipped; the other frames are scanned and
+decoded. Usage: test_sls_bad_input.py PATH_TO_SLS (stdlib only)."""
+import json
+import os
+import pathlib
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+import unittest
+import zlib
+
+SLS = None
+
+
+def run(*args, timeout=300):
+    return subprocess.run([SLS, *args], capture_output=True, text=True, timeout=timeout)
+
+
+def write_png16(path, width, height, value):
+    """A 16-bit grey PNG of one constant value."""
+    row = b"\x00" + struct.pack(">H", value) * width
+    raw = row * height
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    header = struct.pack(">IIBBBBB", width, height, 16, 0, 0, 0, 0)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw)) +
+                     chunk(b"IEND", b""))
+
+
+class BadFrames(unittest.TestCase):
+    """One 10-frame simulated recording, frames 1..7 each broken in another way."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dir = pathlib.Path(cls.tmp.name)
+        rec = cls.dir / "rec"
+        result = run("sim", "--preset", "ci", "--frames", "10", "--device", "cpu", "--out", str(rec))
+        assert result.returncode == 0, result.stderr
+        manifest = json.loads((rec / "manifest.json").read_text())
+        width, height = manifest["camera"]["width"], manifest["camera"]["height"]
+
+        def image(frame, k):
+            return rec / "frames" / f"{frame:06d}" / f"pattern_{k:03d}.png"
+
+        image(1, 5).unlink()
+        image(2, 5).write_bytes(b"")
+        image(3, 5).write_bytes(b"not a png at all")
+        write_png16(image(4, 5), width // 2, height // 2, 1000)
+        write_png16(image(5, 2), width, height, 2048)   # Gray bit 9 stuck at a mid-grey
+        write_png16(image(6, 17), width, height, 2048)  # a phase step stuck
+        write_png16(image(7, 9), width, height, 5000)   # beyond the 12-bit camera
+        cls.rec = rec
+        # What each broken frame's reason must name.
+        cls.expected = {1: "pattern_005.png", 2: "pattern_005.png", 3: "pattern_005.png", 4: "pattern_005.png",
+                        5: "pattern images 2 (gray_c9) and 3 (gray_c9_inv)", 6: "pattern image 17",
+                        7: "beyond the recording's 12-bit camera"}
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_scan_skips_each_bad_frame_with_its_reason_and_fuses_the_rest(self):
+        out = self.dir / "scan"
+        result = run("--json", "scan", "--input", str(self.rec), "--poses", "groundtruth", "--device", "cpu",
+                     "--out", str(out))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        report = json.loads(result.stdout)
+        self.assertEqual(report["frames_fused"], 3)
+        lost = {f["frame"]: f for f in report["lost_frames"]}
+        self.assertEqual(sorted(lost), sorted(self.expected))
+        for frame, needle in self.expected.items():
+            self.assertEqual(lost[frame]["status"], "skipped")
+            self.assertIn(needle, lost[frame]["reason"])
+        for name in ("cloud.ply", "mesh.ply", "trajectory.txt", "report.json"):
+            self.assertTrue((out / name).exists(), name)
+
+    def test_decode_skips_each_bad_frame_with_its_reason_and_decodes_the_rest(self):
+        out = self.dir / "decode"
+        result = run("--json", "decode", "--input", str(self.rec), "--device", "cpu", "--no-clouds",
+                     "--out", str(out))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        summary = json.loads(result.stdout)
+        self.assertEqual((summary["frames_decoded"], summary["frames_skipped"]), (3, 7))
+        # The decoded frames are the good ones: their error against the truth is small.
+        self.assertLess(summary["depth_rms_um"], 50.0)
+        frames = {f["index"]: f for f in json.loads((out / "decode.json").read_text())["frames"]}
+        for frame, needle in self.expected.items():
+            self.assertEqual(frames[frame]["status"], "skipped")
+            self.assertIn(needle, frames[frame]["reason"])
+        for frame in (0, 8, 9):
+            self.assertEqual(frames[frame]["status"], "decoded")
+            self.assertTrue((out / "frames" / f"{frame:06d}" / "depth.pfm").exists())
+
+    def test_decode_refuses_an_output_inside_the_recording_before_any_work(self):
+        result = run("decode", "--input", str(self.rec), "--device", "cpu", "--out", str(self.rec / "decoded"))
+        self.assertEqual(result.returncode, 1)
+        self.assertIn("inside the recording", result.stderr)
+        self.assertFalse((self.rec / "decoded").exists())
+
+
+if __name__ == "__main__":
+    SLS = os.path.abspath(sys.argv.pop(1))
+    unittest.main(verbosity=2)
