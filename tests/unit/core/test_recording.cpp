@@ -16,6 +16,7 @@
 #include "sdk/core/file_util.h"
 #include "sdk/core/image_io.h"
 #include "sdk/core/recording.h"
+#include "sdk/core/recording_manifest.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -521,6 +522,16 @@ TEST_F(DamagedRecording, MistypedOrMissingKeysNameTheKey) {
   expect_error([&] { RecordingReader::open(folder); }, ErrorCode::kFormat, "frames[0].status");
   write_file_atomic(file("manifest.json"), manifest);
   EXPECT_NO_THROW(RecordingReader::open(folder));
+}
+
+// Found by fuzz_recording_manifest: well-formed JSON holding a number beyond a double made
+// nlohmann throw out_of_range, which escaped as an internal error.
+TEST_F(DamagedRecording, ANumberBeyondADoubleIsAFormatError) {
+  replace_in_file(file("manifest.json"), "\"timestamp_ns\": 1001", "\"timestamp_ns\": 1e999");
+  expect_error([&] { RecordingReader::open(folder); }, ErrorCode::kFormat, "manifest.json: corrupt manifest");
+  // The fuzzer's input, parsed on its own.
+  expect_error([&] { parse_recording_manifest("333.057173333330000e0000571>33336\nrmi}", "fuzzed.json"); },
+               ErrorCode::kFormat, "fuzzed.json: corrupt manifest");
 }
 
 }  // namespace
