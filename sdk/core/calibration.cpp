@@ -326,8 +326,10 @@ void write_calibration(const std::string& path, const ScannerCalibration& calibr
   write_file_atomic(path, out);
 }
 
-ScannerCalibration read_calibration(const std::string& path) {
-  const std::string text = strip_opencv_directive(read_file_text(path));
+ScannerCalibration read_calibration(const std::string& path) { return parse_calibration(read_file_text(path), path); }
+
+ScannerCalibration parse_calibration(const std::string& file_text, const std::string& path) {
+  const std::string text = strip_opencv_directive(file_text);
   YAML::Node root;
   try {
     root = YAML::Load(text);

@@ -46,5 +46,7 @@ void write_calibration(const std::string& path, const ScannerCalibration& calibr
 // Reads and validates a calibration; throws sls::Error naming the file and the problem
 // (missing key, wrong matrix size, unparsable YAML with its line, invalid values).
 ScannerCalibration read_calibration(const std::string& path);
+// The same from a file's text; `path` only names it in errors.
+ScannerCalibration parse_calibration(const std::string& text, const std::string& path);
 
 }  // namespace sls
