@@ -106,6 +106,7 @@ struct DecodedLayout {
   int bit_depth = 0;
   int channels = 0;
   std::size_t row_bytes = 0;
+  int stored_bits_per_pixel = 0;  // as in the file, before the transforms
 };
 
 void set_up_transforms(png_structp png, png_infop info, DecodedLayout* layout) {
@@ -113,6 +114,7 @@ void set_up_transforms(png_structp png, png_infop info, DecodedLayout* layout) {
   png_read_info(png, info);
   const int color_type = png_get_color_type(png, info);
   const int bit_depth = png_get_bit_depth(png, info);
+  layout->stored_bits_per_pixel = bit_depth * png_get_channels(png, info);
   if (color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
   if (color_type == PNG_COLOR_TYPE_GRAY && bit_depth < 8) png_set_expand_gray_1_2_4_to_8(png);
   // Transparency carries no intensity: drop alpha channels and tRNS.
@@ -384,6 +386,15 @@ AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::strin
   if (layout.channels != 1 || (layout.bit_depth != 8 && layout.bit_depth != 16)) {
     throw_error(ErrorCode::kFormat, "{}: unsupported PNG layout ({} channels of {} bits after conversion to gray)",
                 name, layout.channels, layout.bit_depth);
+  }
+  // Deflate compresses at most 1032:1, so a file this short cannot hold the image its header
+  // announces: refused before the image is allocated (a 100-byte PNG claiming 1M x 1M pixels).
+  constexpr std::uint64_t kMaxDeflateRatio = 1032;
+  const std::uint64_t stored_bytes = std::uint64_t{layout.width} * layout.height *
+                                     static_cast<std::uint64_t>(layout.stored_bits_per_pixel) / 8;
+  if (stored_bytes / kMaxDeflateRatio > size) {
+    throw_error(ErrorCode::kFormat, "{}: corrupt PNG: {} bytes cannot hold the {}x{} image its header announces "
+                "(truncated?)", name, size, layout.width, layout.height);
   }
   const std::size_t bytes_per_pixel = layout.bit_depth == 16 ? 2 : 1;
   if (layout.row_bytes != std::size_t{layout.width} * bytes_per_pixel ||

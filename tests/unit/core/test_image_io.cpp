@@ -371,5 +371,20 @@ TEST(Png, AFileLargerThanItsHeaderAllowsIsRefusedBeforeReading) {
   EXPECT_EQ(std::get<Image16u>(read_png(path)).width(), 8);
 }
 
+// A decompression bomb: a file of a hundred bytes whose header announces 1M x 1M pixels (and a
+// 1 GiB image of 16-bit RGBA) is refused before the image is allocated, since deflate cannot
+// expand 1032-fold; a highly compressible real image is not.
+TEST(Png, AHeaderAnnouncingMoreThanTheFileCanHoldIsRefusedBeforeAllocating) {
+  const Bytes bomb = make_png(1u << 20, 1u << 20, 8, 0, Bytes(10, 0));
+  expect_error([&] { (void)decode_png(bomb.data(), bomb.size(), "bomb.png"); }, ErrorCode::kFormat,
+               "bomb.png: corrupt PNG: " + std::to_string(bomb.size()) +
+                   " bytes cannot hold the 1048576x1048576 image its header announces");
+  const Bytes rgba = make_png(16384, 4096, 16, 6, Bytes(10, 0));
+  expect_error([&] { (void)decode_png(rgba.data(), rgba.size(), "rgba.png"); }, ErrorCode::kFormat,
+               "bytes cannot hold the 16384x4096 image");
+  const Bytes flat = encode_png(Image16u(4000, 3000, 0));
+  EXPECT_EQ(std::get<Image16u>(decode_png(flat.data(), flat.size(), "flat.png")).width(), 4000);
+}
+
 }  // namespace
 }  // namespace sls
