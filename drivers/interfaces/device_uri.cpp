@@ -3,6 +3,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cstdlib>
+#include <cstring>
 
 #include "sdk/core/error.h"
 
@@ -30,6 +31,24 @@ std::string percent_decode(const std::string& text, const std::string& uri) {
       i += 2;
     } else {
       out.push_back(text[i] == '+' ? ' ' : text[i]);
+    }
+  }
+  return out;
+}
+
+// Escapes the characters in `special` (and '%' itself), so that parse_device_uri reads back
+// exactly `text`: '+' would become a space, '?', '&' and '=' would split the URI.
+std::string percent_encode(const std::string& text, const char* special) {
+  static constexpr char kHex[] = "0123456789ABCDEF";
+  std::string out;
+  for (const char c : text) {
+    if (c == '%' || c == '+' || std::strchr(special, c) != nullptr) {
+      const auto byte = static_cast<unsigned char>(c);
+      out += '%';
+      out += kHex[byte >> 4];
+      out += kHex[byte & 15];
+    } else {
+      out += c;
     }
   }
   return out;
@@ -107,12 +126,15 @@ double DeviceUri::get_double(const std::string& key, double fallback) const {
   return value;
 }
 
+// parse_device_uri(to_string()) gives this URI back: the text is used as a key and parsed
+// again (shared simulated scanners), so a decoded '&' or '+' must not change its meaning.
 std::string DeviceUri::to_string() const {
-  if (scheme == "file" && query.empty()) return target;
-  std::string text = scheme + "://" + target;
+  // A plain path is read verbatim, unless it would look like a URI or be empty.
+  if (scheme == "file" && query.empty() && !target.empty() && target.find("://") == std::string::npos) return target;
+  std::string text = scheme + "://" + percent_encode(target, "?");
   char separator = '?';
   for (const auto& [key, value] : query) {
-    text += separator + key + "=" + value;
+    text += separator + percent_encode(key, "&=") + "=" + percent_encode(value, "&");
     separator = '&';
   }
   return text;

@@ -45,5 +45,20 @@ TEST(DeviceUri, MalformedIsAClearError) {
   EXPECT_THROW((void)uri.get_double("scale", 0.0), Error);
 }
 
+// Found by fuzz_device_uri: to_string did not escape what it had decoded, so its text parsed
+// back to another URI ("file://tfile://x" gave "tfile://x", of scheme "tfile").
+TEST(DeviceUri, TextFormParsesBackToTheSameUri) {
+  for (const char* text : {"file://tfile://x", "sim://a%3Fb?name=x%26y%3Dz&k%3D=%2B%25", "file://?a=1", "file://",
+                           "sim://x+y?q=a+b", "/plain/path with space", "gige://10.0.0.1"}) {
+    const DeviceUri uri = parse_device_uri(text);
+    const DeviceUri again = parse_device_uri(uri.to_string());
+    EXPECT_EQ(again.scheme, uri.scheme) << text << " -> " << uri.to_string();
+    EXPECT_EQ(again.target, uri.target) << text << " -> " << uri.to_string();
+    EXPECT_EQ(again.query, uri.query) << text << " -> " << uri.to_string();
+  }
+  EXPECT_EQ(parse_device_uri("sim://x?name=a%26b").to_string(), "sim://x?name=a%26b");
+  EXPECT_EQ(parse_device_uri("/data/scan 1").to_string(), "/data/scan 1");
+}
+
 }  // namespace
 }  // namespace sls::drivers
