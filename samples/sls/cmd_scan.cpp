@@ -22,6 +22,7 @@
 #include "fusion/integrator.h"
 #include "fusion/raycaster.h"
 #include "fusion/tracker.h"
+#include "samples/sls/capture.h"
 #include "samples/sls/commands.h"
 #include "samples/sls/evaluate.h"
 #include "samples/sls/scan_report.h"
@@ -66,6 +67,8 @@ struct ScanOptions {
   double icp_crease_deg = fusion::TrackingOptions{}.crease_angle_deg;  // --poses track: the crease test (0: off)
   std::string deformation = "on";   // --poses track: online deformation (the graph)
   std::string loop_closure;         // on | off; empty: on for a full turntable revolution
+  bool resume = false;              // continue the capture in OUT/recording, then fuse it all
+  bool object_given = false;
   bool device_given = false;
 };
 
@@ -221,6 +224,9 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
                   recording.folder());
     }
     truth = read_tum_trajectory(trajectory_path);
+    // A capture killed between writing a frame's pose and listing the frame leaves the pose
+    // of that unlisted frame last (drivers/sim/sim_recording.h): not one of the recording's.
+    if (truth.size() == recording.frame_count() + 1) truth.pop_back();
     if (truth.size() != recording.frame_count()) {
       throw_error(ErrorCode::kFormat, "{}: {} poses for {} frames", trajectory_path, truth.size(),
                   recording.frame_count());
@@ -447,6 +453,83 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   return report;
 }
 
+// Captures into `folder` (OUT/recording): the simulator (--sim), devices by URI (--camera),
+// or with --resume the rest of the capture there (the simulator's options read from its
+// manifest unless given). A SIGINT/SIGTERM stops it after the current frame: the recording is
+// kept and said, with how to resume, and the scan stops there (false) instead of fusing a
+// part of the object. A capture resumed when it was complete already captures nothing.
+bool capture_for_scan(const Context& context, const ScanOptions& options, const Device& device,
+                      const std::string& folder) {
+  const StopOnSignal stop;
+  CaptureOutcome outcome;
+  if (!options.camera_uri.empty()) {
+    // Devices by URI (hardware or sim://): the capture sequencer scans into OUT/recording,
+    // appending every stack as it arrives, so an interrupted scan keeps what it captured.
+    if (options.projector_uri.empty()) {
+      throw_error(ErrorCode::kInvalidArgument, "--camera needs --projector (the device that shows the patterns)");
+    }
+    session::DeviceCaptureRequest request;
+    request.camera_uri = options.camera_uri;
+    request.projector_uri = options.projector_uri;
+    request.turntable_uri = options.turntable_uri;
+    request.calibration_path = options.calibration;
+    request.frames = options.frames;
+    request.sim_device = device;
+    outcome = capture_devices(folder, request, options.resume, context.progress_callback("capture"), stop);
+  } else {
+    // The simulated scanner, as a hardware scan would record.
+    SimCaptureRequest request;
+    request.preset = options.sim_preset;
+    request.object = options.object_given || !options.resume ? options.object : std::string();
+    request.frames = options.frames;
+    outcome = capture_sim(folder, request, options.resume, device, context.progress_callback("capture"), stop);
+  }
+  const bool interrupted = outcome.interrupted || stop.requested();
+  std::string resume_command = "sls scan --resume";
+  if (!options.camera_uri.empty()) {
+    resume_command += " --camera " + options.camera_uri + " --projector " + options.projector_uri;
+    if (!options.turntable_uri.empty()) resume_command += " --turntable " + options.turntable_uri;
+    if (options.frames > 0) resume_command += fmt::format(" --frames {}", options.frames);
+  }
+  resume_command += " --out " + options.out;
+  if (interrupted) {
+    const nlohmann::json result = {{"ok", false},
+                                   {"interrupted", true},
+                                   {"stage", "capture"},
+                                   {"signal", stop.signal_name()},
+                                   {"recording", folder},
+                                   {"frames_captured", outcome.frames},
+                                   {"frames_planned", outcome.planned},
+                                   {"resume", resume_command}};
+    if (context.options.json) {
+      std::cout << result.dump(2) << "\n";
+    }
+    std::cerr << fmt::format("\ninterrupted by {} during the capture: {} of {} frame(s) captured into {} (a valid "
+                             "recording, nothing fused).\nResume the capture and fuse with the same options and "
+                             "--resume: {}\n",
+                             stop.signal_name(), outcome.frames, outcome.planned, folder, resume_command);
+    return false;
+  }
+  if (!context.options.json && options.resume && outcome.resumed_from == outcome.frames) {
+    std::cerr << fmt::format("{} is complete ({} frames): fusing it (fusion keeps no checkpoint; it runs from the "
+                             "first frame)\n", folder, outcome.frames);
+  } else if (!context.options.json) {
+    std::string how = outcome.resumed_from > 0 ? fmt::format(" (resumed at frame {})", outcome.resumed_from) : "";
+    if (!options.camera_uri.empty()) {
+      const session::CaptureStatistics& stats = outcome.statistics;
+      how += fmt::format(" ({} incomplete, {} re-captured stacks this run)", stats.incomplete_frames, stats.retries);
+    }
+    std::cerr << fmt::format("captured {} frame(s){} x {} images from {} into {}\n", outcome.frames, how,
+                             outcome.images_per_frame, outcome.source, folder);
+  }
+  if (!outcome.calibrated) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "captured {} frame(s) into {}; without --calibration they cannot be decoded (the recording is kept)",
+                outcome.frames, folder);
+  }
+  return true;
+}
+
 int run_scan(const Context& context, const ScanOptions& options) {
   // An explicit --device cuda without a GPU is an error, not a silent fallback.
   const Device device = options.device_given ? parse_device(options.device) : default_device();
@@ -462,46 +545,9 @@ int run_scan(const Context& context, const ScanOptions& options) {
   ensure_writable_directory(options.out);
 
   std::string input = options.input;
-  if (!options.camera_uri.empty()) {
-    // Devices by URI (hardware or sim://): the capture sequencer scans into OUT/recording,
-    // appending every stack as it arrives, so an interrupted scan keeps what it captured.
-    if (options.projector_uri.empty()) {
-      throw_error(ErrorCode::kInvalidArgument, "--camera needs --projector (the device that shows the patterns)");
-    }
-    session::DeviceCaptureRequest request;
-    request.camera_uri = options.camera_uri;
-    request.projector_uri = options.projector_uri;
-    request.turntable_uri = options.turntable_uri;
-    request.calibration_path = options.calibration;
-    request.frames = options.frames;
-    request.sim_device = device;
+  if (!options.camera_uri.empty() || !options.sim_preset.empty() || options.resume) {
     input = options.out + "/recording";
-    const session::DeviceCapture captured =
-        session::capture_from_devices(input, request, context.progress_callback("capture"));
-    const session::CaptureStatistics& stats = captured.statistics;
-    if (!context.options.json) {
-      std::cerr << fmt::format("captured {} frame(s) ({} incomplete, {} re-captured stacks) x {} images from {} into {}\n",
-                               stats.frames, stats.incomplete_frames, stats.retries, captured.images_per_frame,
-                               options.camera_uri, input);
-    }
-    if (!captured.calibrated) {
-      throw_error(ErrorCode::kInvalidArgument,
-                  "captured {} frame(s) into {}; without --calibration they cannot be decoded (the recording is kept)",
-                  stats.frames, input);
-    }
-  } else if (!options.sim_preset.empty()) {
-    // Capture: scan the simulated scanner into OUT/recording, as a hardware scan would record.
-    sim::SimRecordingOptions sim_options;
-    sim_options.rig.preset = options.sim_preset;
-    sim_options.object = options.object;
-    sim_options.rig.frames = options.frames;
-    input = options.out + "/recording";
-    const sim::SimRecordingSummary summary =
-        sim::write_sim_recording(input, sim_options, device, context.progress_callback("capture"));
-    if (!context.options.json) {
-      std::cerr << "captured " << summary.frames << " frames x " << summary.images_per_frame << " images ("
-                << summary.width << "x" << summary.height << ") from " << summary.uri << " into " << input << "\n";
-    }
+    if (!capture_for_scan(context, options, device, input)) return kExitInterrupted;
   }
 
   // The recording is read and checked (manifest, calibration), then every frame decoded.
@@ -528,6 +574,11 @@ int run_scan(const Context& context, const ScanOptions& options) {
 
 void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   CLI::App* command = app.add_subcommand("scan", "Scan an object: recording or simulator -> decode -> track -> fuse -> model");
+  command->footer(
+      "SIGINT/SIGTERM during the capture (--sim, --camera) stops it after the current frame: OUT/recording is kept "
+      "(valid, every frame flushed), nothing is fused, exit status 4, and --resume continues it (a second signal "
+      "ends at once; the recording stays valid). During fusion: the frames fused so far are written as a valid "
+      "partial model, exit status 4.");
   auto options = std::make_shared<ScanOptions>();
   auto* input = command->add_option("--input", options->input, "Recording folder to scan");
   auto* sim = command->add_option("--sim", options->sim_preset, "Scan the simulated scanner with this preset")
@@ -542,6 +593,13 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   sim->excludes(input);
   camera->excludes(input);
   camera->excludes(sim);
+  command->add_flag("--resume", options->resume,
+                    "Continue a scan that was cut off (a signal, kill -9, a device error) in --out: the capture goes "
+                    "on from the first frame OUT/recording lacks (the simulator: the options its manifest names, "
+                    "unless given; devices: give the same --camera/--projector/--turntable/--frames), then the whole "
+                    "recording is fused. Fusion keeps no checkpoint: a fusion cut off is run again from the complete "
+                    "recording. Refused when OUT holds no recording or the options contradict it")
+      ->excludes(input);
   command->add_option("--object", options->object, "Simulated object (with --sim)")
       ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
       ->capture_default_str();
@@ -620,10 +678,12 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
       throw CLI::ValidationError("--gtsdf-lambda/-kappa/-penalty/-iterations", "they need --fusion gtsdf");
     }
     run_command(context, "scan", [&context, options, command] {
-      if (options->input.empty() && options->sim_preset.empty() && options->camera_uri.empty()) {
-        throw_error(ErrorCode::kInvalidArgument, "give --input REC, --sim PRESET or --camera URI --projector URI");
+      if (options->input.empty() && options->sim_preset.empty() && options->camera_uri.empty() && !options->resume) {
+        throw_error(ErrorCode::kInvalidArgument,
+                    "give --input REC, --sim PRESET, --camera URI --projector URI, or --resume (a scan cut off in --out)");
       }
       options->device_given = command->count("--device") > 0;
+      options->object_given = command->count("--object") > 0;
       return run_scan(context, *options);
     }, exit_code);
   });

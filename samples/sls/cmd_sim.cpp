@@ -8,8 +8,11 @@
 #include "drivers/sim/rig.h"
 #include "drivers/sim/sim_calibration_capture.h"
 #include "drivers/sim/sim_recording.h"
+#include "samples/sls/capture.h"
 #include "samples/sls/commands.h"
 #include "sdk/core/device.h"
+#include "sdk/core/error.h"
+#include "sdk/core/recording.h"
 
 namespace sls::cli {
 namespace {
@@ -22,8 +25,10 @@ struct SimOptions {
   std::string device;
   bool no_noise = false;
   double mount_offset_um = sim::RigOptions{}.mount_offset_m * 1e6;
+  bool mount_offset_given = false;
   double reference_spacing_um = 0.0;
   bool calibration = false;
+  bool resume = false;
   int hand_poses = sim::SimCalibrationOptions{}.hand_poses;
   int turntable_poses = sim::SimCalibrationOptions{}.turntable_poses;
 };
@@ -34,23 +39,54 @@ int run_sim(const Context& context, const SimOptions& options) {
   rig.noise = !options.no_noise;
   sim::SimRecordingSummary summary;
   std::string object = options.object;
-  if (options.calibration) {
-    sim::SimCalibrationOptions calibration_options;
-    calibration_options.rig = rig;
-    calibration_options.hand_poses = options.hand_poses;
-    calibration_options.turntable_poses = options.turntable_poses;
-    calibration_options.head_object = options.object;
-    summary = sim::write_sim_calibration_recording(options.out, calibration_options, device,
-                                                   context.progress_callback("sim"));
-    object = "chessboard";  // what is imaged; the head is set up for options.object
-  } else {
-    sim::SimRecordingOptions sim_options;
-    sim_options.object = options.object;
-    sim_options.rig = rig;
-    sim_options.rig.mount_offset_m = options.mount_offset_um * 1e-6;
-    sim_options.depth_mode = options.mode == "depth";
-    sim_options.reference_spacing_m = options.reference_spacing_um * 1e-6;
-    summary = sim::write_sim_recording(options.out, sim_options, device, context.progress_callback("sim"));
+  // A signal stops the capture after the current frame; the recording so far is kept.
+  const StopOnSignal stop;
+  const ProgressCallback progress = stop.wrap(context.progress_callback("sim"));
+  std::size_t planned = 0;
+  const ProgressCallback counting = [&planned, &progress](const ProgressUpdate& update) {
+    planned = update.total;
+    return progress(update);
+  };
+  try {
+    if (options.calibration) {
+      sim::SimCalibrationOptions calibration_options;
+      calibration_options.rig = rig;
+      calibration_options.hand_poses = options.hand_poses;
+      calibration_options.turntable_poses = options.turntable_poses;
+      calibration_options.head_object = options.object;
+      summary = sim::write_sim_calibration_recording(options.out, calibration_options, device, counting);
+      object = "chessboard";  // what is imaged; the head is set up for options.object
+    } else {
+      sim::SimRecordingOptions sim_options;
+      sim_options.object = options.object;
+      sim_options.rig = rig;
+      // Only when given: the default through µm and back is not the same double, and the rig
+      // would differ from `sls scan --sim`'s (a recording of one would not resume with the other).
+      if (options.mount_offset_given) sim_options.rig.mount_offset_m = options.mount_offset_um * 1e-6;
+      sim_options.depth_mode = options.mode == "depth";
+      sim_options.reference_spacing_m = options.reference_spacing_um * 1e-6;
+      sim_options.resume = options.resume;
+      summary = sim::write_sim_recording(options.out, sim_options, device, counting);
+    }
+  } catch (const Error& error) {
+    if (error.code() != ErrorCode::kCancelled || !stop.requested()) throw;
+    const std::size_t frames = RecordingReader::open(options.out).frame_count();
+    const std::string resume = options.calibration ? std::string("run it again into an empty folder")
+                                                   : "resume with the same command and --resume";
+    if (context.options.json) {
+      std::cout << nlohmann::json({{"ok", false},
+                                   {"interrupted", true},
+                                   {"signal", stop.signal_name()},
+                                   {"recording", options.out},
+                                   {"frames", frames},
+                                   {"frames_planned", planned}})
+                       .dump(2)
+                << "\n";
+    }
+    std::cerr << "\ninterrupted by " << stop.signal_name() << ": wrote " << frames
+              << (planned > 0 ? " of " + std::to_string(planned) : std::string()) << " frames to " << options.out
+              << " (a valid recording); " << resume << "\n";
+    return kExitInterrupted;
   }
   nlohmann::json result = {{"ok", true},
                            {"recording", options.out},
@@ -60,6 +96,7 @@ int run_sim(const Context& context, const SimOptions& options) {
                            {"calibration", options.calibration},
                            {"uri", summary.uri},
                            {"frames", summary.frames},
+                           {"resumed_from", summary.resumed_from},
                            {"images_per_frame", summary.images_per_frame},
                            {"camera", {summary.width, summary.height}},
                            {"device", device.to_string()}};
@@ -76,7 +113,9 @@ int run_sim(const Context& context, const SimOptions& options) {
                 << options.out << " (exact calibration in " << summary.groundtruth_folder << ")\n";
       return;
     }
-    std::cout << "wrote " << summary.frames << " frames (" << summary.images_per_frame << " images each, "
+    std::cout << "wrote " << summary.frames << " frames"
+              << (summary.resumed_from > 0 ? " (resumed at frame " + std::to_string(summary.resumed_from) + ")" : "")
+              << " (" << summary.images_per_frame << " images each, "
               << summary.width << "x" << summary.height << ") of the simulated " << object << " to "
               << options.out << " (ground truth in " << summary.groundtruth_folder << ")\n";
   });
@@ -131,6 +170,11 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       command->add_option("--mount-offset-um", options->mount_offset_um, "Object axis off the table axis (0: none)")
           ->capture_default_str();
   command->add_option("--out", options->out, "Recording folder to create (must not exist or be empty)")->required();
+  CLI::Option* resume = command->add_flag(
+      "--resume", options->resume,
+      "Continue the recording in --out that was cut off (SIGINT/SIGTERM: exit status 4; kill -9; a full disk) "
+      "from its first missing frame; the options must be those it was made with (refused, naming the difference, "
+      "if not). The result equals an uninterrupted run's");
   command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present)");
   command->add_option("--seed", options->rig.seed, "Noise and turntable-jitter seed")->capture_default_str();
   command->add_flag("--no-noise", options->no_noise, "Noise-free images and depth (tests, pictures)");
@@ -155,10 +199,11 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::Range(0, 1000))
       ->needs(calibration)
       ->capture_default_str();
-  for (CLI::Option* scan_only : {frames, mode, mount_tilt, mount_offset, reference_spacing}) {
+  for (CLI::Option* scan_only : {frames, mode, mount_tilt, mount_offset, reference_spacing, resume}) {
     scan_only->excludes(calibration);
   }
-  command->callback([&context, exit_code, options] {
+  command->callback([&context, exit_code, options, mount_offset] {
+    options->mount_offset_given = mount_offset->count() > 0;
     run_command(context, "sim", [&context, options] { return run_sim(context, *options); }, exit_code);
   });
 }

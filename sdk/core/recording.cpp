@@ -274,6 +274,13 @@ RecordingWriter RecordingWriter::append_to(const std::string& folder, const Reco
     }
     writer.frames_.push_back(reader.frame(i));
   }
+  // Temporaries of write_file_atomic (NAME.tmp-PID) that the run cut off left behind: never
+  // read, but the recording is to be as an uninterrupted run leaves it.
+  std::error_code error;
+  for (fs::recursive_directory_iterator it(writer.folder_, error), end; !error && it != end; it.increment(error)) {
+    const std::string name = it->path().filename().string();
+    if (name.find(".tmp-") != std::string::npos && it->is_regular_file(error)) fs::remove(it->path(), error);
+  }
   create_directories(writer.folder_ + "/" + kFramesName);
   return writer;
 }
