@@ -409,7 +409,10 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
     return result;
   };
   if (frame.live_pixels == 0) return lost("the live depth map has no valid depth");
-  if (frame.model_points == 0) return lost("the model raycast shows no surface");
+  if (frame.model_points == 0) {
+    result.too_little_overlap = true;
+    return lost("the model raycast shows no surface");
+  }
 
   Pose T_model_live = T_world_model.inverse() * guess;
   TrackParams params;
@@ -494,6 +497,7 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
   const std::size_t usable = frame.live_pixels - std::min(result.crease_pixels, frame.live_pixels);
   result.inlier_fraction = usable > 0 ? static_cast<double>(result.inliers) / static_cast<double>(usable) : 0.0;
   if (result.inlier_fraction < options.min_inlier_fraction) {
+    result.too_little_overlap = true;
     return lost(fmt::format("only {} of {} live pixels ({}) match the model within {:.0f} um and {:.0f} deg "
                             "({} more fell on creases); at least {} must",
                             result.inliers, usable, percent(result.inlier_fraction), options.max_distance_m * 1e6,

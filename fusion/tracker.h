@@ -130,6 +130,10 @@ struct TrackingResult {
   Pose T_world_camera;          // the registered pose (the guess when lost)
   bool lost = false;
   std::string reason;           // why it is lost (empty otherwise)
+  // Lost because too little of the view matches the model (the model does not reach it, or too
+  // few inliers), not because the fit is bad: the pose is unverified rather than wrong, and a
+  // prior the caller trusts (a turntable's angle) may stand in for it.
+  bool too_little_overlap = false;
   std::size_t live_pixels = 0;  // finest level pixels with a depth
   std::size_t inliers = 0;      // of those, matched at the last iteration
   std::size_t crease_pixels = 0;  // of those, set aside at the last iteration: their match is on a crease

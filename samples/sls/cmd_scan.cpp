@@ -200,6 +200,33 @@ nlohmann::json deformation_json(const session::ScanSession& session) {
   return out;
 }
 
+// What a user must know about a scan that finished: fused frames whose pose tracking could not
+// verify, or that kept the guess along a direction the geometry leaves free while no turntable
+// (angles and a calibrated axis) gave or checked that guess.
+nlohmann::json scan_warnings(const std::vector<session::FrameReport>& frames, bool turntable_known) {
+  std::vector<int> unverified, degenerate;
+  std::size_t tracked = 0;
+  for (const session::FrameReport& frame : frames) {
+    if (frame.status != session::FrameStatus::kFused || !frame.tracking) continue;
+    ++tracked;
+    if (frame.unverified) unverified.push_back(frame.index);
+    if (frame.tracking->degenerate_directions > 0) degenerate.push_back(frame.index);
+  }
+  nlohmann::json warnings = nlohmann::json::array();
+  if (!unverified.empty()) {
+    warnings.push_back(fmt::format("{} frame(s) fused at the turntable prior without verification (too little overlap "
+                                   "with the model), first frame {}: their poses are the turntable's",
+                                   unverified.size(), unverified.front()));
+  }
+  if (!degenerate.empty() && !turntable_known) {
+    warnings.push_back(fmt::format("{} of {} tracked frames registered with direction(s) the geometry does not "
+                                   "constrain (first frame {}), where they keep the guess{}",
+                                   degenerate.size(), tracked, degenerate.front(),
+                                   degenerate.size() == tracked ? ": the motion along them is the guess's alone" : ""));
+  }
+  return warnings;
+}
+
 // Decodes, tracks (or takes the true poses) and fuses every frame of the recording through a
 // scan session, then writes the model, the trajectory and the report; returns the report.
 // A frame that cannot be read, decoded or registered is reported and skipped; a SIGINT stops
@@ -267,7 +294,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
                                groundtruth ? "fixed" : "moving", options.fusion, device.to_string(), options.poses);
       printed_volume = true;
     }
-    if (frame.status != session::FrameStatus::kFused) {
+    if (frame.status != session::FrameStatus::kFused || frame.unverified) {
       std::cerr << fmt::format("\nframe {} {}: {}\n", frame.index, session::frame_status_name(frame.status),
                                frame.reason);
     }
@@ -369,6 +396,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
     nlohmann::json entry = {{"frame", frame.index}, {"status", session::frame_status_name(frame.status)},
                             {"ms", stage_json(frame.times)}};
     if (!frame.reason.empty()) entry["reason"] = frame.reason;
+    if (frame.unverified) entry["unverified"] = true;
     if (frame.tracking) {
       entry["tracking"] = {{"inlier_fraction", frame.tracking->inlier_fraction},
                            {"crease_pixels", frame.tracking->crease_pixels},
@@ -398,6 +426,10 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
                           frame.times.raycast_ms);
   }
   report["lost_frames"] = lost;
+  const ScannerCalibration& used_calibration = calibration ? *calibration : recording.calibration();
+  const bool turntable_known = used_calibration.turntable.has_value() && recording.frame_count() > 0 &&
+                               recording.frame(0).turntable_angle_deg.has_value();
+  report["warnings"] = scan_warnings(session.frames(), turntable_known);
   report["active_voxels_per_frame"] =
       static_cast<double>(active) / static_cast<double>(std::max<std::size_t>(session.fused_count(), 1));
   session::StageTimes totals = session.totals();
@@ -566,6 +598,7 @@ int run_scan(const Context& context, const ScanOptions& options) {
                              report["outputs"]["cloud"].get<std::string>(), report["outputs"]["mesh"].get<std::string>(),
                              report["outputs"]["trajectory"].get<std::string>(),
                              report["outputs"]["report"].get<std::string>());
+    for (const auto& warning : report["warnings"]) std::cerr << "warning: " << warning.get<std::string>() << "\n";
   }
   return report["interrupted"].get<bool>() ? kExitInterrupted : kExitOk;
 }

@@ -148,6 +148,7 @@ sls_frame_report to_c(const sls::session::FrameReport& frame, std::size_t record
   report.deformation_nodes = frame.deformation.nodes;
   report.deformation_constraints = frame.deformation.constraints;
   report.deformation_solve_ms = frame.deformation.solve_ms;
+  report.unverified = frame.unverified ? 1 : 0;
   return report;
 }
 

@@ -254,17 +254,38 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence);
 #endif
     report.times.track_ms = ms_since(start);
+    if (!tracked.lost && s.options.verify_with_turntable) {
+      // A registration that converged may still be wrong: the turntable says how far it turned.
+      if (const auto check = s.turntable_disagreement_deg(frame, tracked.T_world_camera)) {
+        const auto [off_deg, step_deg] = *check;
+        const double allowed_deg = std::clamp(0.25 * std::abs(step_deg), 0.1, 2.0);
+        if (off_deg > allowed_deg) {
+          tracked.lost = true;
+          tracked.reason = fmt::format(
+              "the tracked motion disagrees with the turntable by {:.3f} deg (the turntable turned {:.3f} deg, at "
+              "most {:.3f} deg allowed): tracking slid along a symmetry or locked onto the wrong surface{}",
+              off_deg, step_deg, allowed_deg, s.options.turntable_prior ? "" : "; try --turntable-prior");
+        }
+      }
+    }
     report.tracking = tracked;
-    if (tracked.lost) {
+    if (tracked.lost && tracked.too_little_overlap && s.turntable_guess(frame)) {
+      // Too little overlap to verify, and a turntable to trust: fused at its pose and flagged,
+      // so the model reaches the next views and the scan goes on.
+      T_world_camera = guess;
+      report.unverified = true;
+      report.reason = fmt::format("fused at the turntable prior, unverified: {}", tracked.reason);
+    } else if (tracked.lost) {
       report.T_world_camera = guess;
       return finish(FrameStatus::kLost, tracked.reason);
+    } else {
+      T_world_camera = tracked.T_world_camera;
     }
-    T_world_camera = tracked.T_world_camera;
   }
   report.T_world_camera = T_world_camera;
   // A frame fused without tracking is the photometric term's next reference (the tracker
   // keeps a tracked one itself).
-  if (texture != nullptr && !report.tracking) {
+  if (texture != nullptr && (!report.tracking || report.unverified)) {
     const Clock::time_point start = Clock::now();  // the reference's pyramid: tracking work
 #if defined(SLS_HAVE_CUDA)
     if (texture_device != nullptr) {
@@ -339,7 +360,7 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   }
   s.before_last = s.last;
   s.last = Impl::Fused{frame.index, T_world_camera, frame.turntable_angle_deg};
-  return finish(FrameStatus::kFused, "");
+  return finish(FrameStatus::kFused, report.reason);  // empty unless fused unverified
 }
 
 const std::vector<FrameReport>& ScanSession::frames() const { return impl_->frames; }

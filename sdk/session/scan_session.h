@@ -59,6 +59,12 @@ struct ScanSessionOptions {
   // Use the recording's turntable angles with the calibration's axis as the pose guess (the
   // constructor refuses it for a calibration without an axis).
   bool turntable_prior = false;
+  // Check each tracked motion against the turntable's (the recording's angles about the
+  // calibration's axis, when both exist; with or without the prior): a frame whose tracked
+  // rotation since the last fused frame differs from the turntable's by more than a quarter of
+  // the step (at least 0.1°, at most 2°) is lost: the tracker slid along a symmetry (a surface
+  // of revolution turning about its own axis) or locked onto the wrong surface.
+  bool verify_with_turntable = true;
   // Online deformation (paper section IV, scan_deformation.h) of tracked scans into a moving
   // volume; with it, close_loop(). Off for known poses or a fixed volume (no drift to correct).
   DeformationOptions deformation;
@@ -116,7 +122,11 @@ struct FrameReport {
   int index = 0;
   std::int64_t timestamp_ns = 0;
   FrameStatus status = FrameStatus::kSkipped;
-  std::string reason;                  // why skipped or lost
+  std::string reason;                  // why skipped or lost (or fused unverified)
+  // Fused at the turntable prior because tracking could not verify the pose: too little of the
+  // view overlaps the model (after a skipped frame, say). Without it the scan would lose every
+  // later frame too, as the model would no longer reach the next views.
+  bool unverified = false;
   Pose T_world_camera;                 // fused pose (the guess for a lost frame)
   std::size_t depth_pixels = 0;        // valid depth pixels
   std::optional<fusion::TrackingResult> tracking;  // absent for the first frame and known poses

@@ -3,8 +3,10 @@
 // deformed model and trajectory, the loop closure). Internal to sdk/session.
 #pragma once
 
+#include <cmath>
 #include <memory>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "sdk/session/scan_session.h"
@@ -108,6 +110,22 @@ struct ScanSession::Impl {
     const double frames_ahead = static_cast<double>(frame.index - last->index);
     if (!(frames_between > 0.0) || !(frames_ahead > 0.0)) return base;
     return base * Pose::exp(step.log() * (frames_ahead / frames_between));
+  }
+
+  // Whether predict() gives the turntable's pose for this frame.
+  bool turntable_guess(const ScanFrame& frame) const {
+    return options.turntable_prior && calibration.turntable && frame.turntable_angle_deg && last && last->angle_deg;
+  }
+
+  // How far (degrees) the rotation from the last fused frame to `T_world_camera` differs from
+  // the turntable's between the two, and the turntable's step; nullopt without angles or axis.
+  std::optional<std::pair<double, double>> turntable_disagreement_deg(const ScanFrame& frame,
+                                                                     const Pose& T_world_camera) const {
+    if (!calibration.turntable || !frame.turntable_angle_deg || !last || !last->angle_deg) return std::nullopt;
+    const double step_deg = *frame.turntable_angle_deg - *last->angle_deg;
+    const Pose expected = turntable_camera_motion(*calibration.turntable, step_deg);
+    const Pose tracked = last->T_world_camera.inverse() * T_world_camera;
+    return std::pair{(expected.inverse() * tracked).angle_rad() * 180.0 / M_PI, step_deg};
   }
 
   void place_volume(const Pose& T_world_camera, const Image32f& depth_m) {

@@ -127,7 +127,8 @@ typedef struct sls_frame_report {
   size_t recording_frames;   /* frames in the recording: index + 1 of recording_frames done */
   int64_t timestamp_ns;      /* the recording's timestamp of the frame */
   sls_frame_status status;
-  const char* reason;        /* why lost or skipped, "" when fused; valid during the callback only */
+  const char* reason;        /* why lost or skipped, "" when fused (except `unverified` frames:
+                              * why tracking could not verify them); valid during the callback only */
   double T_world_camera[16]; /* 4x4 row-major, metres: the fused pose (a lost frame: the guess it
                               * was tracked from; a skipped frame: identity) */
   size_t depth_pixels;       /* valid depth pixels of the decoded frame */
@@ -154,6 +155,10 @@ typedef struct sls_frame_report {
                                    * in its own thread: not part of total_ms */
   double deform_ms;               /* the frame loop's share of online deformation (surface
                                    * samples, queueing for the worker), part of total_ms */
+  /* Appended later: 1 when the frame was fused at the turntable prior because tracking could
+   * not verify its pose (too little of the view overlaps the model, e.g. after a skipped
+   * frame); `reason` says why. */
+  int unverified;
 } sls_frame_report;
 
 /* Called after each frame of a run, in frame order, on the thread running sls_scan_run_*().
