@@ -10,6 +10,7 @@
 #include "fusion/extract_shared.h"
 #include "fusion/resample_shared.h"
 #include "sdk/core/error.h"
+#include "sdk/core/host_memory.h"
 
 #if defined(SLS_HAVE_CUDA)
 #include <cuda_runtime_api.h>
@@ -210,6 +211,14 @@ MovingVolume::MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFor
   geometry.nz = nz;
   geometry.voxel_size_m = voxel_size_m;
   impl_->buffers.reserve(2);
+  if (!device.is_cuda()) {
+    // Both buffers admitted together: the second must not be the one that does not fit.
+    const std::size_t bytes = geometry.voxel_count() * bytes_per_voxel(format, average);
+    admit_host_allocation(2 * bytes,
+                          fmt::format("a moving volume of two {} x {} x {} buffers ({})", nx, ny, nz,
+                                      voxel_format_name(format)),
+                          "use fewer or larger voxels");
+  }
   impl_->buffers.emplace_back(geometry, format, device, average);
   impl_->buffers.emplace_back(geometry, format, device, average);
 #if defined(SLS_HAVE_CUDA)

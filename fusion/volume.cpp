@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "sdk/core/error.h"
+#include "sdk/core/host_memory.h"
 
 #if defined(SLS_HAVE_CUDA)
 #include <cuda_runtime_api.h>
@@ -123,6 +124,13 @@ Volume::Volume(const VolumeGeometry& geometry, VoxelFormat format, const Device&
   const std::size_t count = geometry.voxel_count();
   const bool separate = average == AverageStorage::kSeparate;
   if (!device.is_cuda()) {
+    // Say what does not fit before trying: with overcommit, an allocation too large for the
+    // machine "succeeds" and the process is killed later, without a word.
+    admit_host_allocation(count * bytes_per_voxel(format, average),
+                          fmt::format("volume {} x {} x {} ({}{})", geometry.nx, geometry.ny, geometry.nz,
+                                      voxel_format_name(format), separate ? " with GTSDF's running average" : ""),
+                          format == VoxelFormat::kFloat32 ? "use fewer or larger voxels, or the compact format"
+                                                          : "use fewer or larger voxels");
     if (format == VoxelFormat::kFloat32) {
       allocate_host(&impl_->u32, count, geometry, format, average);
       allocate_host(&impl_->w32, count, geometry, format, average);

@@ -300,8 +300,24 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
     }
   };
   session::ReplayOutcome outcome;
+  // A fault of the machine part-way (memory, the GPU, a disk) after frames were fused: what was
+  // fused is written as a partial model, and the scan then fails naming the fault and where the
+  // model is.
+  std::optional<Error> failure;
   try {
     outcome = session::run_recording(session, recording, groundtruth ? &truth : nullptr, on_frame, progress);
+  } catch (const Error& error) {
+    std::signal(SIGINT, previous_int);
+    std::signal(SIGTERM, previous_term);
+    if (error.code() == ErrorCode::kOutOfMemory && session.fused_count() == 0) {
+      throw Error(error.code(), fmt::format("{}; sls scan: a larger --voxel-um, or a smaller --max-voxels for the "
+                                            "automatic voxel size",
+                                            error.what()));
+    }
+    if (session.fused_count() == 0) throw;
+    failure = error;
+    outcome.interrupted = true;
+    outcome.interruption = fmt::format("stopped by an error: {}", error.what());
   } catch (...) {
     std::signal(SIGINT, previous_int);
     std::signal(SIGTERM, previous_term);
@@ -452,7 +468,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   // report's heat map; the report.json written above is complete without them.
   sls::report::ScanReportInputs html;
   std::optional<eval::EvalReport> evaluation;
-  if (recording.info().has_groundtruth) {
+  if (recording.info().has_groundtruth && !failure) try {
     start = Clock::now();
     eval::EvalOptions eval_options;
     eval_options.keep_point_errors = true;
@@ -475,6 +491,17 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
           read_tum_trajectory(recording.groundtruth_folder() + "/trajectory.txt"), *evaluation->trajectory);
     }
     write_file_atomic(options.out + "/report.json", report.dump(2) + "\n");
+  } catch (const Error& error) {
+    // A broken ground truth spoils the evaluation, not the scan: the model, trajectory and
+    // reports stand, and the report says what could not be measured.
+    if (!is_frame_problem(error)) throw;
+    const std::string warning = fmt::format("the scan is written, but it could not be evaluated against the "
+                                            "recording's ground truth: {}", error.what());
+    report["evaluation_error"] = error.what();
+    report["warnings"].push_back(warning);
+    html.evaluation = nullptr;
+    html.point_errors_m.clear();
+    write_file_atomic(options.out + "/report.json", report.dump(2) + "\n");
   }
   html.report = report;
   html.cloud = &surface.cloud;
@@ -482,6 +509,12 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   if (session.deformation_enabled()) html.trajectory_undeformed = session.trajectory_undeformed();
   html.title = fmt::format("Scan of {}", recording.folder());
   sls::report::write_scan_report_html(options.out, html);
+  if (failure) {
+    throw Error(failure->code(),
+                fmt::format("{}; the {} frame(s) fused before it are written as a valid partial model: {}/cloud.ply, "
+                            "mesh.ply, trajectory.txt, report.json",
+                            failure->what(), session.fused_count(), options.out));
+  }
   return report;
 }
 

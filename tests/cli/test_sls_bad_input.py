@@ -105,6 +105,23 @@ class BadFrames(unittest.TestCase):
         self.assertIn("inside the recording", result.stderr)
         self.assertFalse((self.rec / "decoded").exists())
 
+    def test_a_volume_beyond_the_memory_limit_is_refused_naming_sizes_and_the_flag(self):
+        # ulimit -v 3 GB, as on a small machine: 18 um voxels around the screw would need ~13 GB.
+        if b"__asan_init" in pathlib.Path(SLS).read_bytes():
+            self.skipTest("AddressSanitizer reserves the address space ulimit -v would limit")
+        import resource
+
+        def limit_memory():
+            resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+
+        out = self.dir / "too-big"
+        result = subprocess.run([SLS, "scan", "--input", str(self.rec), "--poses", "groundtruth", "--voxel-um", "18",
+                                 "--device", "cpu", "--out", str(out)], capture_output=True, text=True, timeout=300,
+                                preexec_fn=limit_memory)
+        self.assertEqual(result.returncode, 1, result.stderr)
+        for needle in ("MiB of host memory", "MiB are available (limited by ulimit -v)", "--voxel-um", "--max-voxels"):
+            self.assertIn(needle, result.stderr)
+
 
 class TurntableScan(unittest.TestCase):
     """A 24-frame turntable revolution of the knurled screw (15 degree steps)."""
@@ -155,6 +172,19 @@ class TurntableScan(unittest.TestCase):
         self.assertGreater(len(disagreeing), 0, report["lost_frames"])
         self.assertIn("--turntable-prior", disagreeing[0]["reason"])
         self.assertEqual(disagreeing[0]["status"], "lost")
+
+    def test_a_broken_ground_truth_spoils_the_evaluation_not_the_scan(self):
+        rec = self.dir / "broken-truth"
+        shutil.copytree(self.rec, rec)
+        (rec / "groundtruth" / "trajectory.txt").write_text("garbage\n")
+        out = self.dir / "scan-broken-truth"
+        result = run("--json", "scan", "--input", str(rec), "--turntable-prior", "--device", "cpu", "--out", str(out))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        report = json.loads(result.stdout)
+        self.assertIn("trajectory.txt", report["evaluation_error"])
+        self.assertTrue(any("could not be evaluated" in w for w in report["warnings"]), report["warnings"])
+        for name in ("cloud.ply", "mesh.ply", "trajectory.txt", "report.json", "report.html"):
+            self.assertTrue((out / name).exists(), name)
 
 
 if __name__ == "__main__":

@@ -6,6 +6,10 @@
 // without a gap or an overlap; follow() must move exactly when its rule says; the brick flags
 // must let a raycast of the moved volume see what a freshly filled one shows; a GTSDF
 // volume's running average must move exactly as its U does.
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -529,6 +533,57 @@ TEST(MovingVolumeResample, SupportRuleAndWeightsOnOneVoxel) {
   EXPECT_EQ(resample_at(-3.0f).second, 0.0f);
   EXPECT_EQ(resample_at(std::numeric_limits<float>::quiet_NaN()).second, 0.0f);
 }
+
+// --- Host memory admission ------------------------------------------------------------------
+
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)  // they need the address space
+// In a child limited to its size plus 256 MiB (ulimit -v): a 1 GiB volume and a moving volume
+// of two 512 MiB buffers are refused before allocating, naming the limit; a small one fits.
+TEST(HostMemoryAdmission, VolumesBeyondUlimitAreRefusedBeforeAllocating) {
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    const auto refused = [](auto&& make) {
+      try {
+        make();
+      } catch (const Error& error) {
+        return error.code() == ErrorCode::kOutOfMemory && std::strstr(error.what(), "ulimit -v") != nullptr;
+      }
+      return false;
+    };
+    rlimit limit{};
+    getrlimit(RLIMIT_AS, &limit);
+    std::FILE* status = std::fopen("/proc/self/status", "r");
+    unsigned long vm_kb = 0;
+    char line[256];
+    while (status != nullptr && std::fgets(line, sizeof line, status) != nullptr) {
+      if (std::sscanf(line, "VmSize: %lu kB", &vm_kb) == 1) break;
+    }
+    if (status != nullptr) std::fclose(status);
+    limit.rlim_cur = static_cast<rlim_t>(vm_kb * 1024ul + (256ul << 20));
+    if (vm_kb == 0 || setrlimit(RLIMIT_AS, &limit) != 0) _exit(3);
+    const bool volume = refused([] {
+      Volume big(VolumeGeometry::centred(Eigen::Vector3d::Zero(), 512, 512, 512, 1e-4), VoxelFormat::kFloat32,
+                 Device::cpu());
+    });
+    const bool moving = refused([] {
+      MovingVolume big(512, 512, 256, 1e-4, VoxelFormat::kFloat32, Device::cpu(), MovingVolumeOptions{});
+    });
+    bool small = true;
+    try {
+      Volume fits(VolumeGeometry::centred(Eigen::Vector3d::Zero(), 64, 64, 64, 1e-4), VoxelFormat::kFloat32,
+                  Device::cpu());
+    } catch (const Error&) {
+      small = false;
+    }
+    _exit(volume && moving && small ? 0 : 1);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "1: a volume beyond the limit was not refused (or a small one was); 3: no limit set";
+}
+#endif
 
 }  // namespace
 }  // namespace sls::fusion

@@ -1,0 +1,86 @@
+#include "sdk/core/host_memory.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "sdk/core/error.h"
+
+namespace sls {
+namespace {
+
+constexpr std::uint64_t kUnlimited = std::numeric_limits<std::uint64_t>::max();
+
+// "Key:   123 kB" of /proc/meminfo and /proc/self/status, in bytes; kUnlimited when absent.
+std::uint64_t proc_kilobytes(const char* path, const std::string& key) {
+  std::ifstream file(path);
+  std::string line;
+  while (std::getline(file, line)) {
+    if (line.compare(0, key.size(), key) != 0 || line.size() <= key.size() || line[key.size()] != ':') continue;
+    std::istringstream fields(line.substr(key.size() + 1));
+    std::uint64_t kilobytes = 0;
+    if (fields >> kilobytes) return kilobytes * 1024u;
+  }
+  return kUnlimited;
+}
+
+// A number in a one-line control-group file; kUnlimited for "max", a missing file or garbage.
+std::uint64_t cgroup_value(const std::string& path) {
+  std::ifstream file(path);
+  std::string text;
+  if (!(file >> text) || text == "max") return kUnlimited;
+  try {
+    return std::stoull(text);
+  } catch (const std::exception&) {
+    return kUnlimited;
+  }
+}
+
+// The cgroup limit less usage (v2, then v1); kUnlimited without one. v1 reports "no limit"
+// as a huge number, which min() below handles the same way.
+std::uint64_t cgroup_headroom() {
+  for (const auto& [limit_file, usage_file] :
+       {std::pair{"/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"},
+        std::pair{"/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"}}) {
+    const std::uint64_t limit = cgroup_value(limit_file);
+    if (limit == kUnlimited) continue;
+    const std::uint64_t usage = cgroup_value(usage_file);
+    return usage == kUnlimited || usage >= limit ? 0 : limit - usage;
+  }
+  return kUnlimited;
+}
+
+std::uint64_t address_space_headroom() {
+  rlimit limit{};
+  if (getrlimit(RLIMIT_AS, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return kUnlimited;
+  const std::uint64_t size = proc_kilobytes("/proc/self/status", "VmSize");
+  if (size == kUnlimited) return kUnlimited;
+  return size >= limit.rlim_cur ? 0 : static_cast<std::uint64_t>(limit.rlim_cur) - size;
+}
+
+double mib(std::uint64_t bytes) { return static_cast<double>(bytes) / 1048576.0; }
+
+}  // namespace
+
+HostMemoryAvailable host_memory_available() {
+  HostMemoryAvailable available{kUnlimited, "unknown"};
+  const auto consider = [&](std::uint64_t bytes, const char* name) {
+    if (bytes < available.bytes) available = {bytes, name};
+  };
+  consider(proc_kilobytes("/proc/meminfo", "MemAvailable"), "MemAvailable");
+  consider(cgroup_headroom(), "the cgroup's memory limit");
+  consider(address_space_headroom(), "ulimit -v");
+  return available;
+}
+
+void admit_host_allocation(std::uint64_t bytes, const std::string& what, const std::string& hint) {
+  const HostMemoryAvailable available = host_memory_available();
+  if (bytes <= available.bytes) return;
+  throw_error(ErrorCode::kOutOfMemory, "{} needs {:.1f} MiB of host memory; {:.1f} MiB are available (limited by {}){}",
+              what, mib(bytes), mib(available.bytes), available.limited_by, hint.empty() ? "" : ": " + hint);
+}
+
+}  // namespace sls
