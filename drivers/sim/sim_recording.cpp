@@ -163,7 +163,7 @@ void trim_trajectory(const std::string& path, const std::vector<StampedPose>& li
   }
   // Best effort: the failure being reported matters more than this one.
   if (current.size() > text.size() && current.compare(0, text.size(), text) == 0) {
-    (void)::truncate(path.c_str(), static_cast<off_t>(text.size()));
+    if (::truncate(path.c_str(), static_cast<off_t>(text.size())) != 0) return;  // readers ignore the extra pose
   }
 }
 
