@@ -203,6 +203,11 @@ struct AravisCamera::Impl {
   DiscoveredCamera identity;
   std::string uri;
   std::string name;  // how messages name the camera
+  // `name` as the heartbeat thread may read it: that thread runs from arv_camera_new() on,
+  // before `name` is written, and only GLib's signal lock (a futex, invisible to
+  // ThreadSanitizer, which reported the read in on_control_lost as a race) ordered the write
+  // before the read. Published with release once written; read with acquire.
+  std::atomic<const std::string*> heartbeat_name{nullptr};
   AravisCameraOptions options;
   const MonoLayout* layout = nullptr;
   ArvPixelFormat pixel_format = 0;
@@ -235,7 +240,9 @@ struct AravisCamera::Impl {
   static void on_control_lost(ArvDevice* /*device*/, gpointer user) {
     // Runs on Aravis's heartbeat thread: only flag it; the next call reports it.
     auto* impl = static_cast<Impl*>(user);
-    if (!impl->control_lost.exchange(true)) spdlog::warn("{}: control connection lost", impl->name);
+    if (impl->control_lost.exchange(true)) return;
+    const std::string* name = impl->heartbeat_name.load(std::memory_order_acquire);
+    spdlog::warn("{}: control connection lost", name != nullptr ? *name : std::string("camera"));
   }
 
   void ensure_connected() const {
@@ -584,6 +591,7 @@ std::unique_ptr<AravisCamera> AravisCamera::open(const std::string& id_or_addres
   }
   camera.uri = identity.uri();
   camera.name = fmt::format("camera {} {} '{}' ({})", identity.vendor, identity.model, identity.serial, camera.uri);
+  camera.heartbeat_name.store(&camera.name, std::memory_order_release);
   g_signal_connect(camera.device, "control-lost", G_CALLBACK(&Impl::on_control_lost), &camera);
   camera.configure();
   return std::unique_ptr<AravisCamera>(new AravisCamera(std::move(impl)));
