@@ -162,7 +162,13 @@ FakeGigeCamera::FakeGigeCamera(FakeGigeCameraOptions options) : impl_(std::make_
                 "fake GigE camera cannot listen on {} (no such local address, or port 3956 taken there)",
                 o.address);
   }
-  impl.fake = arv_gv_fake_camera_get_fake_camera(impl.gv_camera);
+  {
+    // The fake's thread is already running and fill() reads `fake`: set it under the mutex
+    // fill() takes. Aravis orders it too (the fill callback is installed below, under its own
+    // GMutex), but GLib's futex locks are invisible to ThreadSanitizer, which reported this.
+    std::lock_guard<std::mutex> lock(impl.mutex);
+    impl.fake = arv_gv_fake_camera_get_fake_camera(impl.gv_camera);
+  }
   arv_fake_camera_set_trigger_frequency(impl.fake, o.trigger_poll_hz);
   arv_fake_camera_set_fill_pattern(impl.fake, &Impl::fill, &impl);
 }
