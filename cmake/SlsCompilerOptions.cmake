@@ -12,6 +12,30 @@ if(SLS_SANITIZE)
   add_link_options(-fsanitize=address,undefined)
 endif()
 
+# ThreadSanitizer: the code that runs threads (capture, the recording writer's encoders, the
+# online-deformation worker, the Aravis and USB event threads), tested by the `threads` label.
+# - It cannot be combined with ASan (each owns the shadow memory).
+# - CPU only: the CUDA runtime's own threads and driver mappings are not instrumented and
+#   TSan reports noise in them; the GPU code is checked by compute-sanitizer (scripts/gpu-check).
+# - OpenMP stays compiled in (the code under test is the code we ship) but the tests run with
+#   OMP_NUM_THREADS=1 (scripts/test): libgomp is not built with TSan, so its barriers and
+#   futex-based locks are invisible to it and every parallel region would be reported as a
+#   race between its workers. One OpenMP thread per region keeps those reports out without a
+#   suppression that could also hide one of ours; the OpenMP loops themselves are data-parallel
+#   over disjoint output and are covered by the ASan pass.
+if(SLS_SANITIZE_THREAD)
+  if(SLS_SANITIZE)
+    message(FATAL_ERROR "SLS_SANITIZE (ASan+UBSan) and SLS_SANITIZE_THREAD (TSan) cannot be combined: use two build folders")
+  endif()
+  if(SLS_WITH_CUDA)
+    message(STATUS "SLS_SANITIZE_THREAD: CUDA backends off (compute-sanitizer checks them: scripts/gpu-check)")
+    set(SLS_WITH_CUDA OFF CACHE BOOL "Build CUDA backends when nvcc is found" FORCE)
+  endif()
+  add_compile_options($<$<COMPILE_LANGUAGE:C,CXX>:-fsanitize=thread>
+                      $<$<COMPILE_LANGUAGE:C,CXX>:-fno-omit-frame-pointer>)
+  add_link_options(-fsanitize=thread)
+endif()
+
 # Applies the project's warnings (and -Werror when SLS_WERROR) to one of our targets.
 # Third-party headers come in as SYSTEM includes so their warnings never fail our build.
 function(sls_target_defaults target)
