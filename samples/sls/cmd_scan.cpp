@@ -206,13 +206,22 @@ nlohmann::json deformation_json(const session::ScanSession& session) {
 nlohmann::json scan_warnings(const std::vector<session::FrameReport>& frames, bool turntable_known) {
   std::vector<int> unverified, degenerate;
   std::size_t tracked = 0;
+  const session::FrameReport* first_lost = nullptr;
+  std::size_t lost = 0;
   for (const session::FrameReport& frame : frames) {
+    if (frame.status == session::FrameStatus::kLost && lost++ == 0) first_lost = &frame;
     if (frame.status != session::FrameStatus::kFused || !frame.tracking) continue;
     ++tracked;
     if (frame.unverified) unverified.push_back(frame.index);
     if (frame.tracking->degenerate_directions > 0) degenerate.push_back(frame.index);
   }
   nlohmann::json warnings = nlohmann::json::array();
+  if (first_lost != nullptr) {
+    // A scan that lost frames is not the model of the whole object: said at the end, not only
+    // in the per-frame lines that scrolled by.
+    warnings.push_back(fmt::format("{} of {} frames lost by tracking (not in the model); the first, frame {}: {}", lost,
+                                   frames.size(), first_lost->index, first_lost->reason));
+  }
   if (!unverified.empty()) {
     warnings.push_back(fmt::format("{} frame(s) fused at the turntable prior without verification (too little overlap "
                                    "with the model), first frame {}: their poses are the turntable's",
@@ -683,11 +692,11 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--gtsdf-lambda", options->gtsdf_lambda,
                       fmt::format("With --fusion gtsdf: lambda, the anisotropic term's weight (alpha = lambda * beta, "
                                   "beta = 1/6; default {:g})", gtsdf_defaults.lambda))
-      ->check(CLI::Range(1e-3, 1e3));
+      ->check(finite_range(1e-3, 1e3));
   command->add_option("--gtsdf-kappa", options->gtsdf_kappa,
                       fmt::format("With --fusion gtsdf: kappa, the edge-stopping scale of the penalty in units of the "
                                   "truncated SDF (default {:g})", gtsdf_defaults.kappa))
-      ->check(CLI::Range(1e-4, 10.0));
+      ->check(finite_range(1e-4, 10.0));
   command->add_option("--gtsdf-penalty", options->gtsdf_penalty,
                       fmt::format("With --fusion gtsdf: the penalty phi (default {})",
                                   fusion::penalty_name(gtsdf_defaults.penalty)))
@@ -705,7 +714,7 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--photometric-weight", options->photometric_weight,
                       "With --poses track: weight of the tracker's photometric term on each pattern stack's white - "
                       "black texture, relative to ICP's (0: off; frames given as depth maps have no texture)")
-      ->check(CLI::Range(0.0, 1e6))
+      ->check(finite_range(0.0, 1e6))
       ->capture_default_str();
   command->add_option("--icp-weights", options->icp_weights,
                       "With --poses track: ICP's per-pixel weights: confidence (the decoder's confidence, an inverse "
@@ -715,7 +724,7 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--icp-crease-deg", options->icp_crease_deg,
                       "With --poses track: ICP sets aside matches within 60 um of a model crease, where the "
                       "surface turns by more than this angle (0: off)")
-      ->check(CLI::Range(0.0, 179.0))
+      ->check(finite_range(0.0, 179.0))
       ->capture_default_str();
   command->add_option("--deformation", options->deformation,
                       "With --poses track: online deformation, the graph that corrects drift beside the frame loop "

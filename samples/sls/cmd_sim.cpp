@@ -153,21 +153,26 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--bit-depth", options->rig.bit_depth, "Camera ADC bits")
       ->check(CLI::IsMember({8, 10, 12, 16}))
       ->capture_default_str();
-  command->add_option("--gamma", options->rig.gamma, "Camera response exponent (1: linear)")->capture_default_str();
+  command->add_option("--gamma", options->rig.gamma, "Camera response exponent (1: linear)")
+      ->check(finite_range(0.1, 10.0))
+      ->capture_default_str();
   command->add_option("--projector-gamma", options->rig.projector_gamma,
                       "Projector response exponent: light = level^gamma per DMD pixel (1: linear, a DLP in pattern "
                       "mode; ~2.2: a projector fed video without linearisation)")
-      ->check(CLI::Range(0.1, 10.0))
+      ->check(finite_range(0.1, 10.0))
       ->capture_default_str();
   command->add_option("--turntable-jitter-deg", options->rig.angle_jitter_deg,
                       "Std. dev. of the true turntable angle about the commanded one (0: exact)")
+      ->check(finite_range(0.0, 1.0))
       ->capture_default_str();
   CLI::Option* mount_tilt = command
                                  ->add_option("--mount-tilt-deg", options->rig.mount_tilt_deg,
                                               "Tilt of the object's axis on the table: the wobble (0: none)")
+                                 ->check(finite_range(-4.999, 4.999))
                                  ->capture_default_str();
   CLI::Option* mount_offset =
       command->add_option("--mount-offset-um", options->mount_offset_um, "Object axis off the table axis (0: none)")
+          ->check(finite_range(-4999.0, 4999.0))
           ->capture_default_str();
   command->add_option("--out", options->out, "Recording folder to create (must not exist or be empty)")->required();
   CLI::Option* resume = command->add_flag(
@@ -181,7 +186,7 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
   CLI::Option* reference_spacing =
       command->add_option("--reference-spacing-um", options->reference_spacing_um,
                           "Spacing of groundtruth/reference.ply samples (0: ci 100, demo 30, paper 10)")
-          ->check(CLI::NonNegativeNumber);
+          ->check(finite_range(0.0, 1e4));
   CLI::Option* calibration = command->add_flag(
       "--calibration", options->calibration,
       "A calibration capture instead of a scan: a 9 x 7 chessboard of 0.6 mm squares moved by hand (--hand-poses, "

@@ -34,6 +34,25 @@ def write_png16(path, width, height, value):
                      chunk(b"IEND", b""))
 
 
+class BadNumbers(unittest.TestCase):
+    def test_numbers_out_of_range_nan_or_infinite_are_usage_errors_with_a_short_message(self):
+        cases = [("scan", "--photometric-weight", "nan"), ("scan", "--photometric-weight", "1e300"),
+                 ("scan", "--icp-crease-deg", "inf"), ("scan", "--voxel-um", "1e-20"), ("scan", "--max-voxels", "nan"),
+                 ("sim", "--gamma", "1e300"), ("sim", "--turntable-jitter-deg", "nan"),
+                 ("sim", "--mount-tilt-deg", "1e300"), ("sim", "--mount-offset-um", "-inf"),
+                 ("sim", "--projector-gamma", "nan"), ("sim", "--reference-spacing-um", "nan")]
+        with tempfile.TemporaryDirectory() as tmp:
+            for command, flag, value in cases:
+                args = [command, flag, value, "--out", os.path.join(tmp, "out")]
+                if command == "scan":
+                    args += ["--sim", "ci"]
+                result = run(*args, timeout=30)
+                self.assertEqual(result.returncode, 2, (args, result.stderr))
+                self.assertIn(flag, result.stderr)
+                self.assertLess(len(result.stderr.splitlines()[0]), 160, result.stderr)
+                self.assertFalse(os.path.exists(os.path.join(tmp, "out")), args)
+
+
 class BadFrames(unittest.TestCase):
     """One 10-frame simulated recording, frames 1..7 each broken in another way."""
 
@@ -172,6 +191,7 @@ class TurntableScan(unittest.TestCase):
         self.assertGreater(len(disagreeing), 0, report["lost_frames"])
         self.assertIn("--turntable-prior", disagreeing[0]["reason"])
         self.assertEqual(disagreeing[0]["status"], "lost")
+        self.assertTrue(any("lost by tracking" in w for w in report["warnings"]), report["warnings"])
 
     def test_a_broken_ground_truth_spoils_the_evaluation_not_the_scan(self):
         rec = self.dir / "broken-truth"
