@@ -1,0 +1,409 @@
+// Issue 19's fault-injection suite, through the real stacks (test_scan_through_real_stacks.cpp
+// has the bench: the DLPC350 and head-controller drivers over libusb to the emulated firmware,
+// the Aravis driver over GigE Vision to a fake camera rendering the simulator). Each fault must
+// end the capture with a clear error naming the device or file, keep the frames captured
+// before (RecordingReader::open + verify), and leave a recording that a resumed capture
+// (RecordingWriter::append_to, CaptureOptions::first_frame) completes to the uninterrupted one.
+//   - a turntable that never finishes its move (the board answers, its clock stands still);
+//   - a turntable whose motor stalls (the board reports MOTOR_STALL);
+//   - a full disk while a frame's images are written, and while its manifest is written.
+// Camera gone, projector and controller stalled or silent, and random packet loss are in
+// test_scan_through_real_stacks.cpp.
+//
+// Runs under run_in_netns.sh (a user namespace) and umockdev-wrapper; the disk-full cases mount
+// a small tmpfs in a private mount namespace taken before main(), and skip where that fails.
+#include <gtest/gtest.h>
+#include <sched.h>
+#include <sys/mount.h>
+#include <sys/statvfs.h>
+
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <mutex>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "drivers/aravis/aravis_camera.h"
+#include "drivers/dlpc350/dlpc350_projector.h"
+#include "drivers/headctl/head_controller.h"
+#include "drivers/sim/renderer.h"
+#include "drivers/sim/sim_recording.h"
+#include "sdk/core/recording.h"
+#include "sdk/session/capture_sequencer.h"
+#include "tests/hardware-free/aravis/fake_gige_camera.h"
+#include "tests/hardware-free/usb_test_bench.h"
+#include "tests/support/test_support.h"
+
+namespace sls::test {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+using std::chrono::milliseconds;
+
+constexpr int kFrames = 4;         // turntable positions: 0, 90, 180, 270 degrees
+constexpr int kCameraWidth = 96;   // small images keep the suite short
+const milliseconds kUsbCommandTimeout(300);
+constexpr const char* kTurntableName = "turntable: head controller 1209:5ca1 on bus 1 address 3";
+
+// A private mount namespace for the whole process, taken before main() while it has one thread
+// (a mount namespace is per thread; threads started later inherit it). Empty when it worked.
+const std::string& mount_namespace_error() {
+  static const std::string error = [] {
+    if (::unshare(CLONE_NEWNS) != 0) return std::string("unshare(CLONE_NEWNS): ") + std::strerror(errno);
+    if (::mount(nullptr, "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0) {
+      return std::string("making / private: ") + std::strerror(errno);
+    }
+    return std::string();
+  }();
+  return error;
+}
+const bool kMountNamespaceTaken = mount_namespace_error().empty();
+
+sim::RigOptions rig_options() {
+  sim::RigOptions options;
+  options.preset = "ci";
+  options.frames = kFrames;
+  options.camera_width = kCameraWidth;
+  return options;
+}
+
+// A device clock that can stand still: a stepper that never reaches its target while the board
+// still answers every command. Thawed, it goes on from where it stopped.
+class FreezableClock {
+ public:
+  std::int64_t now() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return frozen_ ? frozen_at_ : steady() - offset_;
+  }
+  void freeze() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    frozen_at_ = steady() - offset_;
+    frozen_ = true;
+  }
+  void thaw() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    offset_ = steady() - frozen_at_;
+    frozen_ = false;
+  }
+
+ private:
+  static std::int64_t steady() {
+    return std::chrono::duration_cast<std::chrono::microseconds>(Clock::now().time_since_epoch()).count();
+  }
+  std::mutex mutex_;
+  bool frozen_ = false;
+  std::int64_t frozen_at_ = 0;
+  std::int64_t offset_ = 0;
+};
+
+// What the fake camera sees: the simulator's image of the pattern on the emulated DMD at the
+// frame the emulated turntable stands at (as in test_scan_through_real_stacks.cpp).
+class SimulatedView {
+ public:
+  SimulatedView(std::shared_ptr<fwif::models::Dlpc350Model> projector,
+                std::shared_ptr<fwif::models::HeadctlModel> head)
+      : projector_(std::move(projector)),
+        head_(std::move(head)),
+        scene_(sim::make_scene("knurled-screw")),
+        renderer_(sim::make_rig(rig_options(), scene_), scene_, Device::cpu()) {}
+
+  void render(const FakeFrameRequest& request, ImageView<std::uint16_t> pixels) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const fwif::headctl::TurntableStatusReply table = head_->turntable();
+    const double turns = static_cast<double>(table.position_step) / table.steps_per_revolution;
+    const int frame = static_cast<int>(std::lround(turns * kFrames) % kFrames);
+    if (renderer_.frame() != frame) renderer_.set_frame(frame);
+    const std::optional<fwif::models::DisplayedPattern> shown = projector_->displayed_pattern();
+    const int pattern = shown ? drivers::dlpc350_pattern_index({shown->flash_image, shown->pattern_number}, 0) : -1;
+    Image16u image;
+    if (pattern >= 0) {
+      image = renderer_.render_pattern(pattern);
+    } else {
+      PatternDesc dark;
+      dark.kind = PatternKind::kBlack;
+      image = renderer_.render(dark, 1000);
+    }
+    if (image.width() != request.width || image.height() != request.height) {
+      throw_error(ErrorCode::kInternal, "simulated {}x{} image for a {}x{} camera", image.width(), image.height(),
+                  request.width, request.height);
+    }
+    for (int y = 0; y < pixels.height; ++y) {
+      for (int x = 0; x < pixels.width; ++x) pixels(x, y) = image(x, y);
+    }
+  }
+
+ private:
+  std::shared_ptr<fwif::models::Dlpc350Model> projector_;
+  std::shared_ptr<fwif::models::HeadctlModel> head_;
+  std::mutex mutex_;
+  sim::Scene scene_;
+  sim::Renderer renderer_;
+};
+
+class CaptureFaults : public UsbDevicesTest {
+ protected:
+  static void SetUpTestSuite() {
+    if (std::getenv("SLS_TEST_NETNS") == nullptr) return;
+    direct_dir_ = new TemporaryDirectory();
+    sim::SimRecordingOptions options;
+    options.rig = rig_options();
+    options.reference_spacing_m = 2e-3;
+    sim::write_sim_recording(direct_dir_->file("direct"), options, Device::cpu(), {});
+  }
+  static void TearDownTestSuite() {
+    delete direct_dir_;
+    direct_dir_ = nullptr;
+  }
+
+  void SetUp() override {
+    if (std::getenv("SLS_TEST_NETNS") == nullptr) {
+      GTEST_SKIP() << "needs a private network namespace: run through run_in_netns.sh (unshare -rn)";
+    }
+  }
+
+  static std::string direct_folder() { return direct_dir_->file("direct"); }
+
+  // The bench of test_scan_through_real_stacks.cpp, with the head controller on `clock_`.
+  void start_scanner(const std::string& recording_folder) {
+    ASSERT_TRUE(fwif::models::umockdev_preload_active()) << "run under umockdev-wrapper";
+    bus_ = std::make_unique<fwif::models::EmulatedUsbBus>();
+    projector_model_ = std::make_shared<fwif::models::Dlpc350Model>();
+    fwif::models::HeadctlModelOptions head;
+    head.default_speed_steps_per_s = 64000;  // 90 degrees in 25 ms
+    head_model_ = std::make_shared<fwif::models::HeadctlModel>(head, [clock = clock_] { return clock->now(); });
+    bus_->plug(projector_model_, 1, 2);
+    bus_->plug(head_model_, 1, 3);
+
+    view_ = std::make_shared<SimulatedView>(projector_model_, head_model_);
+    FakeGigeCameraOptions camera_options;
+    camera_options.serial = "SLS-SIM-CAM";
+    camera_options.image_source = [view = view_](const FakeFrameRequest& request, ImageView<std::uint16_t> pixels) {
+      view->render(request, pixels);
+    };
+    fake_camera_ = std::make_unique<FakeGigeCamera>(camera_options);
+
+    drivers::Dlpc350Options projector_options;
+    projector_options.retry = {kUsbCommandTimeout, 3};
+    projector_ = drivers::Dlpc350Projector::open("dlpc350://", projector_options);
+    drivers::HeadControllerOptions head_options;
+    head_options.retry = {kUsbCommandTimeout, 3};
+    turntable_ = drivers::HeadController::open("headctl://", head_options);
+    drivers::AravisCameraOptions aravis;
+    aravis.pixel_format = "Mono16";
+    aravis.width = kCameraWidth;
+    aravis.height = kCameraWidth * 3 / 4;
+    camera_ = drivers::AravisCamera::open(fake_camera_->address(), aravis);
+
+    const sim::Scene scene = sim::make_scene("knurled-screw");
+    rig_ = std::make_unique<sim::SimRig>(sim::make_rig(rig_options(), scene));
+    recording_ = recording_folder;
+    writer_ = std::make_unique<RecordingWriter>(RecordingWriter::create(
+        recording_, session::make_recording_info(*projector_, *camera_, rig_->patterns), rig_->calibration(),
+        writer_options()));
+  }
+
+  static RecordingWriterOptions writer_options() {
+    RecordingWriterOptions options;
+    options.sync = false;  // tmpfs or scratch: nothing to flush
+    return options;
+  }
+
+  session::CaptureOptions capture_options(int first_frame = 0) const {
+    session::CaptureOptions options;
+    options.frames_per_revolution = kFrames;
+    options.first_frame = first_frame;
+    options.image_timeout = milliseconds(1000);
+    options.turntable_timeout = milliseconds(1000);
+    return options;
+  }
+
+  // Runs the capture; `after_frame_one` injects the fault once frame 1 is recorded. Returns
+  // the error's message (a test failure when there is none or it has another code).
+  std::string capture_with_fault(const std::function<void()>& after_frame_one, ErrorCode expected) {
+    session::CaptureSequencer scan(*projector_, {camera_.get()}, turntable_.get(), rig_->patterns, capture_options());
+    const auto on_frame = [&](const session::CapturedFrame& frame) {
+      if (frame.index == 1) after_frame_one();
+    };
+    const std::string message = error_message([&] { scan.run({writer_.get()}, on_frame); }, expected);
+    writer_.reset();
+    return message;
+  }
+
+  // The frames captured before the fault are listed, whole and readable; the capture resumed
+  // (a new writer and sequencer, the same devices) completes the recording, every image the
+  // simulator's.
+  void expect_kept_and_resumable(std::size_t kept) {
+    {
+      const RecordingReader partial = RecordingReader::open(recording_);
+      partial.verify(true);
+      ASSERT_EQ(partial.frame_count(), kept);
+      for (std::size_t f = 0; f < kept; ++f) EXPECT_TRUE(partial.frame(f).complete) << "frame " << f;
+    }
+    RecordingWriter writer = RecordingWriter::append_to(recording_, writer_options());
+    ASSERT_EQ(writer.frame_count(), kept);
+    session::CaptureSequencer resumed(*projector_, {camera_.get()}, turntable_.get(), rig_->patterns,
+                                      capture_options(static_cast<int>(kept)));
+    const session::CaptureStatistics stats = resumed.run({&writer});
+    EXPECT_EQ(stats.frames, kFrames - static_cast<int>(kept));
+    writer.close();
+
+    const RecordingReader scanned = RecordingReader::open(recording_);
+    scanned.verify(true);
+    const RecordingReader direct = RecordingReader::open(direct_folder());
+    ASSERT_EQ(scanned.frame_count(), static_cast<std::size_t>(kFrames));
+    for (std::size_t f = 0; f < scanned.frame_count(); ++f) {
+      EXPECT_EQ(scanned.frame(f).index, static_cast<int>(f));
+      EXPECT_TRUE(scanned.frame(f).complete) << "frame " << f;
+      EXPECT_EQ(scanned.frame(f).turntable_angle_deg, direct.frame(f).turntable_angle_deg) << "frame " << f;
+      const std::vector<Image16u> ours = scanned.load_images(f);
+      const std::vector<Image16u> theirs = direct.load_images(f);
+      ASSERT_EQ(ours.size(), theirs.size()) << "frame " << f;
+      for (std::size_t k = 0; k < ours.size(); ++k) {
+        EXPECT_TRUE(ours[k] == theirs[k]) << "frame " << f << " pattern " << k << " differs from the simulator's";
+      }
+    }
+    EXPECT_EQ(fake_camera_->source_error(), "");
+  }
+
+  static TemporaryDirectory* direct_dir_;
+  TemporaryDirectory dir_;
+  std::shared_ptr<FreezableClock> clock_ = std::make_shared<FreezableClock>();
+  std::shared_ptr<SimulatedView> view_;
+  std::unique_ptr<FakeGigeCamera> fake_camera_;
+  std::unique_ptr<drivers::Dlpc350Projector> projector_;
+  std::unique_ptr<drivers::HeadController> turntable_;
+  std::unique_ptr<drivers::AravisCamera> camera_;
+  std::unique_ptr<sim::SimRig> rig_;
+  std::string recording_;
+  std::unique_ptr<RecordingWriter> writer_;
+};
+
+TemporaryDirectory* CaptureFaults::direct_dir_ = nullptr;
+
+// The board answers every command, but the table never gets to 180 degrees: the move times out
+// within the turntable timeout, named, and the table is told to stop.
+TEST_F(CaptureFaults, ATurntableThatNeverArrivesTimesOutNamedAndTheCaptureResumes) {
+  start_scanner(dir_.file("scan"));
+  Clock::time_point stuck_at{};
+  const std::string message = capture_with_fault(
+      [&] {
+        clock_->freeze();
+        stuck_at = Clock::now();
+      },
+      ErrorCode::kTimeout);
+  const double latency_ms = elapsed_ms(stuck_at);
+  std::printf("[ measured ] stuck turntable: kTimeout after %.0f ms (turntable timeout 1000 ms)\n", latency_ms);
+  EXPECT_GE(latency_ms, 1000.0);
+  EXPECT_LT(latency_ms, 1000.0 + 1500.0);
+  EXPECT_NE(message.find("capture frame 2 of 4 (turntable at 90.000 deg), moving to 180.000 deg"), std::string::npos)
+      << message;
+  EXPECT_NE(message.find(kTurntableName), std::string::npos) << message;
+  EXPECT_NE(message.find("moving to 180.000 deg (step 3200) not done within 1000 ms"), std::string::npos) << message;
+  EXPECT_EQ(head_model_->turntable().state, fwif::headctl::TurntableState::kIdle) << "the driver stopped the table";
+  EXPECT_FALSE(projector_model_->displayed_pattern().has_value()) << "the projector went dark";
+  clock_->thaw();  // the mechanism freed: the same devices resume the capture
+  expect_kept_and_resumable(2);
+}
+
+// The motor stalls on the way to 180 degrees and the board says so: a device error naming the
+// turntable and the board's MOTOR_STALL, at once rather than after the timeout.
+TEST_F(CaptureFaults, AStalledTurntableMotorIsNamedAndTheCaptureResumes) {
+  start_scanner(dir_.file("scan"));
+  const auto start = Clock::now();
+  const std::string message =
+      capture_with_fault([&] { head_model_->stall_next_move_after(100); }, ErrorCode::kDevice);
+  EXPECT_NE(message.find(kTurntableName), std::string::npos) << message;
+  EXPECT_NE(message.find("MOTOR_STALL"), std::string::npos) << message;
+  EXPECT_NE(message.find("moving to 180.000 deg"), std::string::npos) << message;
+  EXPECT_LT(elapsed_ms(start), 30000.0);
+  expect_kept_and_resumable(2);
+}
+
+// Where the disk fills up while frame 2 is written: the byte budget left free after frame 1.
+struct DiskFull {
+  const char* name;
+  int images_that_fit;   // of frame 2's images; all of them: the manifest is what fails
+  const char* file_in_message;
+};
+
+void PrintTo(const DiskFull& full, std::ostream* out) { *out << full.name; }
+
+class CaptureOnAFullDisk : public CaptureFaults, public ::testing::WithParamInterface<DiskFull> {
+ protected:
+  void SetUp() override {
+    CaptureFaults::SetUp();
+    if (IsSkipped()) return;
+    if (!kMountNamespaceTaken) GTEST_SKIP() << "no private mount namespace: " << mount_namespace_error();
+    mount_point_ = dir_.file("small-disk");
+    fs::create_directories(mount_point_);
+    if (::mount("tmpfs", mount_point_.c_str(), "tmpfs", 0, "size=4m") != 0) {
+      GTEST_SKIP() << "cannot mount a tmpfs here: " << std::strerror(errno);
+    }
+    mounted_ = true;
+  }
+  void TearDown() override {
+    if (mounted_) ::umount2(mount_point_.c_str(), MNT_DETACH);
+  }
+
+  // Fills the disk so that `bytes` stay free (rounded down to its blocks).
+  void leave_free(std::uintmax_t bytes) {
+    struct statvfs st {};
+    ASSERT_EQ(::statvfs(mount_point_.c_str(), &st), 0);
+    const std::uintmax_t block = st.f_frsize;
+    const std::uintmax_t keep_blocks = bytes / block;
+    ASSERT_GE(st.f_bavail, keep_blocks) << "the tmpfs is too small for the case";
+    const std::uintmax_t filler = (st.f_bavail - keep_blocks) * block;
+    std::ofstream out(mount_point_ + "/filler", std::ios::binary);
+    const std::vector<char> chunk(block, 'x');
+    for (std::uintmax_t written = 0; written < filler; written += block) out.write(chunk.data(), static_cast<std::streamsize>(block));
+    out.close();
+    ASSERT_TRUE(out) << "writing the filler";
+    ASSERT_EQ(::statvfs(mount_point_.c_str(), &st), 0);
+    ASSERT_EQ(st.f_bavail, keep_blocks);
+  }
+
+  std::string mount_point_;
+  bool mounted_ = false;
+};
+
+TEST_P(CaptureOnAFullDisk, StopsWithTheFileAndNoSpaceNamedKeepsTheFramesAndResumes) {
+  const DiskFull full = GetParam();
+  start_scanner(mount_point_ + "/scan");
+  // Frame 2's image files as the capture writes them: byte for byte the simulator's (the images
+  // are identical, PNG encoding deterministic), so the budget lands where the case says.
+  std::uintmax_t budget = 0;
+  const RecordingReader direct = RecordingReader::open(direct_folder());
+  const std::size_t block = 4096;
+  for (int k = 0; k < full.images_that_fit; ++k) {
+    const std::uintmax_t size = fs::file_size(direct.file_path(direct.frame(2).image_files[static_cast<std::size_t>(k)]));
+    budget += (size + block - 1) / block * block;
+  }
+  const std::string message = capture_with_fault([&] { leave_free(budget); }, ErrorCode::kIo);
+  EXPECT_NE(message.find("capture frame 2 of 4 (turntable at 180.000 deg)"), std::string::npos) << message;
+  EXPECT_NE(message.find("recording " + mount_point_ + "/scan"), std::string::npos) << message;
+  EXPECT_NE(message.find(full.file_in_message), std::string::npos) << message;
+  EXPECT_NE(message.find("No space left on device"), std::string::npos) << message;
+  EXPECT_FALSE(projector_model_->displayed_pattern().has_value()) << "the projector went dark";
+  fs::remove(mount_point_ + "/filler");  // space freed: the capture goes on where it stopped
+  expect_kept_and_resumable(2);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    EachStage, CaptureOnAFullDisk,
+    ::testing::Values(DiskFull{"at_the_first_image", 0, "frames/000002/pattern_000.png"},
+                      DiskFull{"mid_frame", 10, "frames/000002/pattern_01"},
+                      DiskFull{"at_the_manifest", 22, "manifest.json.tmp-"}),
+    [](const ::testing::TestParamInfo<DiskFull>& param) { return std::string(param.param.name); });
+
+}  // namespace
+}  // namespace sls::test
