@@ -1,7 +1,6 @@
 #include "samples/sls/capture.h"
 
 #include <atomic>
-#include <cmath>
 #include <csignal>
 #include <filesystem>
 #include <iostream>
@@ -9,14 +8,12 @@
 #include <optional>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 
 #include "drivers/device_registry.h"
 #include "drivers/interfaces/device_uri.h"
 #include "drivers/sim/sim_recording.h"
 #include "sdk/core/error.h"
 #include "sdk/core/recording.h"
-#include "sdk/session/capture_sequencer.h"
 
 namespace sls::cli {
 namespace {
@@ -145,83 +142,19 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
   return outcome;
 }
 
-namespace {
-
-// The rest of a device capture cut off: the same devices, from the first missing frame.
-session::CaptureStatistics resume_device_capture(const std::string& folder, const session::DeviceCaptureRequest& request,
-                                                 const ProgressCallback& progress, int* resumed_from) {
-  drivers::OpenOptions open_options;
-  open_options.sim_device = request.sim_device;
-  const std::unique_ptr<drivers::Projector> projector = drivers::open_projector(request.projector_uri, open_options);
-  const std::unique_ptr<drivers::Camera> camera = drivers::open_camera(request.camera_uri, open_options);
-  const std::unique_ptr<drivers::Turntable> turntable =
-      request.turntable_uri.empty() ? nullptr : drivers::open_turntable(request.turntable_uri, open_options);
-  const PatternSet patterns = session::scan_pattern_set(*projector);
-  RecordingWriter writer = RecordingWriter::append_to(folder);
-  const RecordingInfo& recorded = writer.info();
-  const RecordingInfo now = session::make_recording_info(*projector, *camera, patterns);
-  if (recorded.device.uri != now.device.uri) {
-    throw_error(ErrorCode::kInvalidArgument, "--resume: {} was captured with projector {}, not {}", folder,
-                recorded.device.uri, now.device.uri);
-  }
-  if (recorded.camera.width != now.camera.width || recorded.camera.height != now.camera.height ||
-      recorded.camera.bit_depth != now.camera.bit_depth || recorded.images_per_frame != now.images_per_frame ||
-      nlohmann::json::parse(recorded.pattern_set_json) != nlohmann::json::parse(now.pattern_set_json)) {
-    throw_error(ErrorCode::kInvalidArgument,
-                "--resume: {} holds {}x{} {}-bit frames of {} patterns; camera {} gives {}x{} {}-bit with {} patterns",
-                folder, recorded.camera.width, recorded.camera.height, recorded.camera.bit_depth,
-                recorded.images_per_frame, request.camera_uri, now.camera.width, now.camera.height,
-                now.camera.bit_depth, now.images_per_frame);
-  }
-  session::CaptureOptions capture;
-  capture.frames_per_revolution = request.frames > 0 ? request.frames : (turntable ? 36 : 1);
-  capture.frames = capture.frames_per_revolution;
-  const int listed = static_cast<int>(writer.frame_count());
-  if (listed > capture.frames) {
-    throw_error(ErrorCode::kInvalidArgument, "--resume: {} holds {} frames, more than the {} of --frames", folder,
-                listed, capture.frames);
-  }
-  // Each recorded angle must be where this frame count puts that frame: another --frames or
-  // another turntable would fill the revolution with frames at the wrong angles.
-  const double step_deg = 360.0 / capture.frames_per_revolution;
-  for (int i = 0; i < listed; ++i) {
-    const std::optional<double>& angle = writer.frame(static_cast<std::size_t>(i)).turntable_angle_deg;
-    if (angle.has_value() != (turntable != nullptr)) {
-      throw_error(ErrorCode::kInvalidArgument, "--resume: {} was captured {} a turntable; give {} --turntable", folder,
-                  angle ? "with" : "without", angle ? "the same" : "no");
-    }
-    if (angle && std::abs(*angle - step_deg * i) > 0.5 * step_deg) {
-      throw_error(ErrorCode::kInvalidArgument,
-                  "--resume: frame {} of {} is at {:.3f} deg; {} frames per revolution put it at {:.3f} deg (another "
-                  "--frames?)",
-                  i, folder, *angle, capture.frames_per_revolution, step_deg * i);
-    }
-  }
-  capture.first_frame = listed;
-  *resumed_from = listed;
-  session::CaptureSequencer sequencer(*projector, {camera.get()}, turntable.get(), patterns, capture);
-  return sequencer.run({&writer}, {}, progress);
-}
-
-}  // namespace
-
 CaptureOutcome capture_devices(const std::string& folder, const session::DeviceCaptureRequest& request, bool resume,
                                const ProgressCallback& display, const StopOnSignal& stop) {
   check_folder(folder, resume);
-  if (resume && !request.calibration_path.empty()) {
-    throw_error(ErrorCode::kInvalidArgument,
-                "--resume keeps the calibration {} was captured with; leave --calibration out", folder);
-  }
   CaptureOutcome outcome;
   outcome.recording = folder;
   outcome.source = request.camera_uri;
   const ProgressCallback progress = stop.wrap(display);
   try {
-    if (resume) {
-      outcome.statistics = resume_device_capture(folder, request, progress, &outcome.resumed_from);
-    } else {
-      outcome.statistics = session::capture_from_devices(folder, request, progress).statistics;
-    }
+    session::DeviceCaptureRequest resumable = request;
+    resumable.resume = resume;
+    const session::DeviceCapture captured = session::capture_from_devices(folder, resumable, progress);
+    outcome.statistics = captured.statistics;
+    outcome.resumed_from = captured.resumed_from;
   } catch (const Error& error) {
     if (!stopped_by_signal(error, stop)) throw;
     outcome.interrupted = true;

@@ -1,8 +1,12 @@
 #include "sdk/session/scan_setup.h"
 
+#include <cmath>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <utility>
+
+#include <nlohmann/json.hpp>
 
 #include "drivers/device_registry.h"
 #include "sdk/core/calibration.h"
@@ -18,6 +22,57 @@ PatternSet scan_pattern_set(const drivers::Projector& projector) {
   return make_gray_phase_pattern_set(options);
 }
 
+namespace {
+
+// The writer that continues `folder` (request.resume): its recording must be what these devices
+// capture (camera size and depth, pattern set, projector) and its frames where this frame count
+// puts them; `capture` then starts at its first missing frame.
+RecordingWriter resume_writer(const std::string& folder, const drivers::Projector& projector,
+                              const drivers::Camera& camera, const drivers::Turntable* turntable,
+                              const PatternSet& patterns, CaptureOptions* capture) {
+  RecordingWriter writer = RecordingWriter::append_to(folder);
+  const RecordingInfo& recorded = writer.info();
+  const RecordingInfo now = make_recording_info(projector, camera, patterns);
+  if (recorded.device.uri != now.device.uri) {
+    throw_error(ErrorCode::kInvalidArgument, "resume: {} was captured with projector {}, not {}", folder,
+                recorded.device.uri, now.device.uri);
+  }
+  if (recorded.camera.width != now.camera.width || recorded.camera.height != now.camera.height ||
+      recorded.camera.bit_depth != now.camera.bit_depth || recorded.images_per_frame != now.images_per_frame ||
+      nlohmann::json::parse(recorded.pattern_set_json) != nlohmann::json::parse(now.pattern_set_json)) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "resume: {} holds {}x{} {}-bit frames of {} patterns; this camera gives {}x{} {}-bit with {} patterns",
+                folder, recorded.camera.width, recorded.camera.height, recorded.camera.bit_depth,
+                recorded.images_per_frame, now.camera.width, now.camera.height, now.camera.bit_depth,
+                now.images_per_frame);
+  }
+  const int listed = static_cast<int>(writer.frame_count());
+  if (listed > capture->frames) {
+    throw_error(ErrorCode::kInvalidArgument, "resume: {} holds {} frames, more than the {} asked for", folder, listed,
+                capture->frames);
+  }
+  // Each recorded angle must be where this frame count puts that frame: another frame count
+  // or another turntable would fill the revolution with frames at the wrong angles.
+  const double step_deg = 360.0 / capture->frames_per_revolution;
+  for (int i = 0; i < listed; ++i) {
+    const std::optional<double>& angle = writer.frame(static_cast<std::size_t>(i)).turntable_angle_deg;
+    if (angle.has_value() != (turntable != nullptr)) {
+      throw_error(ErrorCode::kInvalidArgument, "resume: {} was captured {} a turntable; give {} turntable", folder,
+                  angle ? "with" : "without", angle ? "the same" : "no");
+    }
+    if (angle && std::abs(*angle - step_deg * i) > 0.5 * step_deg) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "resume: frame {} of {} is at {:.3f} deg; {} frames per revolution put it at {:.3f} deg (another "
+                  "frame count?)",
+                  i, folder, *angle, capture->frames_per_revolution, step_deg * i);
+    }
+  }
+  capture->first_frame = listed;
+  return writer;
+}
+
+}  // namespace
+
 DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptureRequest& request,
                                    const ProgressCallback& progress) {
   if (request.camera_uri.empty()) throw_error(ErrorCode::kInvalidArgument, "capture: no camera URI");
@@ -26,6 +81,10 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
                 request.camera_uri);
   }
   if (request.frames < 0) throw_error(ErrorCode::kInvalidArgument, "capture: {} frames (0 or more)", request.frames);
+  if (request.resume && !request.calibration_path.empty()) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "resume keeps the calibration {} was captured with; leave the calibration out", folder);
+  }
   // Read before any device is touched: a bad calibration file fails at once.
   std::optional<ScannerCalibration> calibration;
   if (!request.calibration_path.empty()) calibration = read_calibration(request.calibration_path);
@@ -40,14 +99,17 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
   CaptureOptions capture;
   capture.frames_per_revolution = request.frames > 0 ? request.frames : (turntable ? 36 : 1);
   capture.frames = capture.frames_per_revolution;
+  RecordingWriter writer =
+      request.resume ? resume_writer(folder, *projector, *camera, turntable.get(), patterns, &capture)
+                     : RecordingWriter::create(folder, make_recording_info(*projector, *camera, patterns), calibration);
   CaptureSequencer sequencer(*projector, {camera.get()}, turntable.get(), patterns, capture);
-  RecordingWriter writer = RecordingWriter::create(folder, make_recording_info(*projector, *camera, patterns), calibration);
 
   DeviceCapture result;
   result.recording_folder = folder;
   result.images_per_frame = patterns.size();
-  result.calibrated = calibration.has_value();
+  result.resumed_from = capture.first_frame;
   result.statistics = sequencer.run({&writer}, {}, progress);
+  result.calibrated = std::filesystem::exists(folder + "/calibration.yml");  // given now, or when first captured
   return result;
 }
 

@@ -30,6 +30,11 @@ struct DeviceCaptureRequest {
   // Frames per revolution; one revolution is captured. 0: 36 with a turntable, else 1.
   int frames = 0;
   Device sim_device = Device::cpu();  // where sim:// devices render (unless their URI says device=)
+  // Continue the recording at the folder, cut off by a signal, a kill or a device error, from
+  // its first missing frame with the same devices (the turntable from that frame's angle). It
+  // keeps the calibration it was captured with (calibration_path must be empty) and is refused,
+  // naming the difference, when the devices or the frame count contradict it.
+  bool resume = false;
 };
 
 struct DeviceCapture {
@@ -37,6 +42,7 @@ struct DeviceCapture {
   CaptureStatistics statistics;
   std::size_t images_per_frame = 0;
   bool calibrated = false;  // the recording holds a calibration (a scan can decode it)
+  int resumed_from = 0;     // with resume: the frames the recording held before
 };
 
 // The pattern set a scan projects with `projector`: the Gray code + phase-shift set at the
@@ -45,7 +51,8 @@ PatternSet scan_pattern_set(const drivers::Projector& projector);
 
 // Opens the devices, loads scan_pattern_set() and captures one revolution through the capture
 // sequencer into a new recording at `folder` (RecordingWriter::create: it must not exist or be
-// empty), with the calibration when the request names one. Every stack is appended as it
+// empty), with the calibration when the request names one, or with request.resume the rest of
+// the recording there (RecordingWriter::append_to). Every stack is appended as it
 // arrives, so an error or a cancel keeps a valid recording of the stacks captured. Throws
 // sls::Error: the device registry's codes for a URI that opens nothing (the message names it),
 // kInvalidArgument without a camera or projector URI, the sequencer's codes for a device that
