@@ -214,7 +214,8 @@ class CaptureFaults : public UsbDevicesTest {
 
   static RecordingWriterOptions writer_options() {
     RecordingWriterOptions options;
-    options.sync = false;  // tmpfs or scratch: nothing to flush
+    options.sync = false;       // tmpfs or scratch: nothing to flush
+    options.encode_threads = 1;  // images written in order: the disk fills at the image the case says
     return options;
   }
 
@@ -401,7 +402,7 @@ TEST_P(CaptureOnAFullDisk, StopsWithTheFileAndNoSpaceNamedKeepsTheFramesAndResum
 INSTANTIATE_TEST_SUITE_P(
     EachStage, CaptureOnAFullDisk,
     ::testing::Values(DiskFull{"at_the_first_image", 0, "frames/000002/pattern_000.png"},
-                      DiskFull{"mid_frame", 10, "frames/000002/pattern_01"},
+                      DiskFull{"mid_frame", 10, "frames/000002/pattern_010.png"},
                       DiskFull{"at_the_manifest", 22, "manifest.json.tmp-"}),
     [](const ::testing::TestParamInfo<DiskFull>& param) { return std::string(param.param.name); });
 
