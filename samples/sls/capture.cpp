@@ -54,6 +54,20 @@ void check_folder(const std::string& folder, bool resume) {
 }
 
 // kCancelled after a signal: the capture stopped where it was asked to.
+// A capture that failed part-way (a full disk, a device that stopped answering): its frames
+// are kept, and the error says how many, where, and how to go on.
+[[noreturn]] void rethrow_keeping(const Error& error, const std::string& folder) {
+  std::size_t frames = 0;
+  try {
+    if (holds_recording(folder)) frames = RecordingReader::open(folder).frame_count();
+  } catch (const Error&) {
+  }
+  if (frames == 0) throw error;
+  throw Error(error.code(), fmt::format("{}; the {} frame(s) captured before are kept in {}: fix the cause (free "
+                                        "space, reconnect the device) and continue the capture with --resume",
+                                        error.what(), frames, folder));
+}
+
 bool stopped_by_signal(const Error& error, const StopOnSignal& stop) {
   return error.code() == ErrorCode::kCancelled && stop.requested();
 }
@@ -129,7 +143,7 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
     outcome.images_per_frame = summary.images_per_frame;
     return outcome;
   } catch (const Error& error) {
-    if (!stopped_by_signal(error, stop)) throw;
+    if (!stopped_by_signal(error, stop)) rethrow_keeping(error, folder);
   }
   const RecordingReader recorded = RecordingReader::open(folder);
   outcome.interrupted = true;
@@ -156,7 +170,7 @@ CaptureOutcome capture_devices(const std::string& folder, const session::DeviceC
     outcome.statistics = captured.statistics;
     outcome.resumed_from = captured.resumed_from;
   } catch (const Error& error) {
-    if (!stopped_by_signal(error, stop)) throw;
+    if (!stopped_by_signal(error, stop)) rethrow_keeping(error, folder);
     outcome.interrupted = true;
   }
   const RecordingReader recorded = RecordingReader::open(folder);

@@ -2,6 +2,7 @@
 // the guard that turns sls::Error into a message and an exit status.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <string>
 
@@ -20,6 +21,12 @@ enum ExitCode : int {
   kExitUnavailable = 3,  // the feature is not in this build (e.g. CUDA asked of a build without it)
   kExitInterrupted = 4,  // stopped by a signal; what was done is written and valid (sls scan)
 };
+
+// Free space an output folder must have before a command starts work in it: a report, a
+// trajectory and a model or a frame's depth maps, or the first frames of a capture (a 12 MP
+// stack of 22 PNGs is ~300 MB, so a capture may still fill the disk later: it then stops with
+// the frames before kept).
+constexpr std::uint64_t kFirstOutputsBytes = 64ull << 20;
 
 struct GlobalOptions {
   bool json = false;   // machine-readable JSON on stdout, nothing else there

@@ -63,7 +63,7 @@ int run_decode(const Context& context, const DecodeCommandOptions& options) {
                 options.out, options.input);
   }
   const RecordingReader recording = RecordingReader::open(options.input);
-  ensure_writable_directory(options.out);
+  ensure_writable_directory(options.out, kFirstOutputsBytes);
   const RecordingInfo& info = recording.info();
   if (info.images_per_frame == 0) {
     throw_error(ErrorCode::kInvalidArgument, "{} is a depth-only recording: there are no pattern images to decode",

@@ -616,7 +616,7 @@ int run_scan(const Context& context, const ScanOptions& options) {
                 "--out {} is inside the recording {}: the scan would overwrite it; choose a folder outside it",
                 options.out, options.input);
   }
-  ensure_writable_directory(options.out);
+  ensure_writable_directory(options.out, kFirstOutputsBytes);
 
   std::string input = options.input;
   if (!options.camera_uri.empty() || !options.sim_preset.empty() || options.resume) {

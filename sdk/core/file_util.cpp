@@ -177,7 +177,7 @@ void create_directories(const std::string& path) {
   if (error) throw_error(ErrorCode::kIo, "cannot create directory {}: {}", path, error.message());
 }
 
-void ensure_writable_directory(const std::string& path) {
+void ensure_writable_directory(const std::string& path, std::uint64_t min_free_bytes) {
   std::error_code error;
   if (std::filesystem::exists(path, error) && !std::filesystem::is_directory(path, error)) {
     throw_error(ErrorCode::kIo, "output folder {} is not a directory (a file of that name is in the way)", path);
@@ -189,6 +189,13 @@ void ensure_writable_directory(const std::string& path) {
   if (fd < 0) throw_error(ErrorCode::kIo, "output folder {} is not writable: {}", path, std::strerror(errno));
   ::close(fd);
   ::unlink(probe.c_str());
+  std::error_code space_error;
+  const std::filesystem::space_info space = std::filesystem::space(path, space_error);
+  if (!space_error && space.available < min_free_bytes) {
+    throw_error(ErrorCode::kIo, "output folder {} has {:.1f} MiB free, less than the {:.0f} MiB its first outputs need "
+                "(no space left on the device): free some or choose another folder",
+                path, static_cast<double>(space.available) / 1048576.0, static_cast<double>(min_free_bytes) / 1048576.0);
+  }
 }
 
 bool path_is_within(const std::string& path, const std::string& folder) {

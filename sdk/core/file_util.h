@@ -56,9 +56,10 @@ void write_file_atomic(const std::string& path, std::string_view bytes);
 void create_directories(const std::string& path);
 
 // An output folder before any work goes into it: created if missing, then proven writable by
-// creating and removing a file in it. Throws sls::Error(kIo) naming the path and the OS reason
-// (a regular file in the way, no permission, a read-only filesystem).
-void ensure_writable_directory(const std::string& path);
+// creating and removing a file in it, and holding at least `min_free_bytes` free for an
+// unprivileged writer. Throws sls::Error(kIo) naming the path and the OS reason (a regular file
+// in the way, no permission, a read-only filesystem) or the space free and needed.
+void ensure_writable_directory(const std::string& path, std::uint64_t min_free_bytes = 0);
 
 // Whether `path` is `folder` or lies inside it, comparing their absolute, normalised forms
 // with symbolic links of the existing parts resolved (neither needs to exist).

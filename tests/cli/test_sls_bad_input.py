@@ -53,6 +53,52 @@ class BadNumbers(unittest.TestCase):
                 self.assertFalse(os.path.exists(os.path.join(tmp, "out")), args)
 
 
+class FullDisk(unittest.TestCase):
+    """A small tmpfs as the output's filesystem (needs root and a kernel that lets it mount)."""
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.mount = pathlib.Path(self.tmp.name) / "disk"
+        self.mount.mkdir()
+        mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(self.mount)],
+                                 capture_output=True, text=True)
+        if mounted.returncode != 0:
+            self.tmp.cleanup()
+            self.skipTest(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
+
+    def tearDown(self):
+        subprocess.run(["umount", str(self.mount)], capture_output=True)
+        self.tmp.cleanup()
+
+    def resize(self, size):
+        subprocess.run(["mount", "-o", f"remount,size={size}", str(self.mount)], check=True)
+
+    def test_a_scan_needs_room_for_its_first_outputs_before_any_work(self):
+        result = run("scan", "--sim", "ci", "--frames", "4", "--device", "cpu", "--out", str(self.mount / "out"))
+        self.assertEqual(result.returncode, 1, result.stderr)
+        self.assertIn("MiB free, less than the 64 MiB its first outputs need", result.stderr)
+        self.assertFalse((self.mount / "out" / "recording").exists())
+
+    def test_a_disk_that_fills_during_the_capture_keeps_the_frames_and_resume_completes_the_scan(self):
+        self.resize("70m")  # room for the check and ~9 of 24 frames of the ci preset
+        out = self.mount / "out"
+        result = run("scan", "--sim", "ci", "--frames", "24", "--turntable-prior", "--device", "cpu",
+                     "--out", str(out))
+        self.assertEqual(result.returncode, 1, result.stderr)
+        self.assertIn("No space left on device", result.stderr)
+        self.assertRegex(result.stderr, r"the \d+ frame\(s\) captured before are kept in .*continue the capture with --resume")
+        inspected = run("--json", "inspect", "--deep", str(out / "recording"))
+        self.assertEqual(inspected.returncode, 0, inspected.stdout + inspected.stderr)
+        kept = json.loads((out / "recording" / "manifest.json").read_text())["frames"]
+        self.assertGreater(len(kept), 0)
+        self.assertLess(len(kept), 24)
+        self.resize("400m")  # space freed: the capture goes on and the whole recording is fused
+        resumed = run("--json", "scan", "--resume", "--turntable-prior", "--device", "cpu", "--out", str(out))
+        self.assertEqual(resumed.returncode, 0, resumed.stderr)
+        report = json.loads(resumed.stdout)
+        self.assertEqual((report["frames"], report["frames_fused"]), (24, 24))
+
+
 class BadFrames(unittest.TestCase):
     """One 10-frame simulated recording, frames 1..7 each broken in another way."""
 
