@@ -1,0 +1,283 @@
+// Long runs (issue 19): a simulated turntable revolution replayed back to back, host (and, with
+// a device, GPU) memory sampled after each revolution and the time per frame kept.
+//  - ManyScansInOneProcess: a new ScanSession per revolution (an application scanning object
+//    after object): nothing may be left behind by a finished scan.
+//  - OneLongScan: revolution after revolution into ONE session (a long scan): the moving
+//    volume's moves, the tracker and the turntable checks must not slow down or leak.
+// Revolutions: SLS_SOAK_REVOLUTIONS (default 5: CI, ASan included; bench_soak runs 20).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define SLS_SOAK_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__) && !defined(SLS_SOAK_ASAN)
+#define SLS_SOAK_ASAN 1
+#endif
+#if defined(SLS_SOAK_ASAN)
+#include <sanitizer/allocator_interface.h>
+#else
+#include <malloc.h>
+#endif
+#if defined(SLS_HAVE_CUDA)
+#include <cuda_runtime_api.h>
+#endif
+
+#include "drivers/sim/sim_recording.h"
+#include "sdk/core/recording.h"
+#include "sdk/session/scan_session.h"
+#include "tests/support/test_support.h"
+#include "tests/unit/session/sim_frames.h"
+
+namespace sls::session {
+namespace {
+
+constexpr double kMiB = 1048576.0;
+// 24 steps of 15°: the views overlap enough to track with the prior (45° do not, issue 19
+// item 11), and a revolution costs ~24 small frames.
+constexpr int kFramesPerRevolution = 24;
+
+int soak_revolutions() {
+  const char* value = std::getenv("SLS_SOAK_REVOLUTIONS");
+  const int n = value != nullptr ? std::atoi(value) : 5;
+  return std::max(n, 4);  // the first is warm-up, and a trend needs at least three after it
+}
+
+double rss_mib() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmRSS:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;  // kB
+  }
+  return 0.0;
+}
+
+// Bytes the program holds on the heap (freed ones excluded): exact for leaks, unlike RSS, which
+// keeps pages the allocator has not returned (and, under ASan, its quarantine of freed blocks).
+double heap_mib() {
+#if defined(SLS_SOAK_ASAN)
+  return static_cast<double>(__sanitizer_get_current_allocated_bytes()) / kMiB;
+#else
+  const struct mallinfo2 info = mallinfo2();
+  return static_cast<double>(info.uordblks + info.hblkhd) / kMiB;
+#endif
+}
+
+double gpu_used_mib() {
+#if defined(SLS_HAVE_CUDA)
+  std::size_t free_bytes = 0, total_bytes = 0;
+  if (cudaMemGetInfo(&free_bytes, &total_bytes) != cudaSuccess) return 0.0;
+  return static_cast<double>(total_bytes - free_bytes) / kMiB;
+#else
+  return 0.0;
+#endif
+}
+
+template <typename T>
+double bytes(const std::vector<T>& v) {
+  return static_cast<double>(v.size() * sizeof(T));
+}
+double cloud_mib(const PointCloud& c) {
+  return (bytes(c.positions) + bytes(c.normals) + bytes(c.confidence) + bytes(c.colors)) / kMiB;
+}
+// What the model holds: the shipped parts and the current volume's surface, cloud and mesh.
+double model_mib(const fusion::ExtractedSurface& s) {
+  return cloud_mib(s.cloud) + cloud_mib(s.mesh.vertices) + bytes(s.mesh.faces) / kMiB;
+}
+
+double median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+  return values[values.size() / 2];
+}
+
+struct Revolution {
+  double rss_mib = 0.0, heap_mib = 0.0, gpu_mib = 0.0;
+  double volume_mib = 0.0;  // the session's volume buffers
+  double model_mib = 0.0;   // the long scan's model (model_mib())
+  double median_ms = 0.0;   // per frame, the session's stages (read included)
+  double fastest_ms = 0.0;  // the revolution's fastest frame: what load on the machine cannot inflate
+  std::size_t fused = 0;
+};
+
+// One recording for the whole suite (writing it is the slow part).
+class ScanSoak : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new test::TemporaryDirectory();
+    sim::SimRecordingOptions sim_options;
+    sim_options.object = "knurled-knob";
+    sim_options.rig.preset = "ci";
+    sim_options.rig.frames = kFramesPerRevolution;
+    sim_options.rig.camera_width = 240;  // 240 x 180: the CI budget (~60 s on 2 cores)
+    sim_options.depth_mode = true;       // the session, not the decoder, is soaked here
+    sim::write_sim_recording(dir_->file("rec"), sim_options, Device::cpu(), {});
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+  static RecordingReader recording() { return RecordingReader::open(dir_->file("rec")); }
+  static ScanSessionOptions options(const Device& device) {
+    ScanSessionOptions o = small_options(device);
+    o.turntable_prior = true;  // depth alone turns the knob wrong (test_scan_session.cpp)
+    o.max_voxels = 1e6;        // the CI budget; the volume still moves every frame
+    return o;
+  }
+
+  // A new session per revolution; memory sampled after each scan and its model are gone.
+  static std::vector<Revolution> many_scans(const Device& device, int revolutions) {
+    const RecordingReader rec = recording();
+    std::vector<Revolution> out;
+    for (int r = 0; r < revolutions; ++r) {
+      Revolution rev;
+      std::vector<double> ms;
+      {
+        ScanSession session(rec.calibration(), nullptr, options(device));
+        run_recording(session, rec, nullptr, [&](const FrameReport& report) { ms.push_back(report.times.total_ms()); });
+        rev.fused = session.fused_count();
+        rev.volume_mib = static_cast<double>(session.volume_bytes()) / kMiB;
+        const fusion::ExtractedSurface model = session.final_surface();  // what a scan ends with
+        EXPECT_GT(model.cloud.size(), 1000u);
+      }
+      rev.median_ms = median(ms);
+      rev.fastest_ms = *std::min_element(ms.begin(), ms.end());
+      rev.rss_mib = rss_mib();
+      rev.heap_mib = heap_mib();
+      rev.gpu_mib = gpu_used_mib();
+      out.push_back(rev);
+      std::printf(
+          "[ measured ] scan %d: %zu of %d fused, %.2f ms/frame (fastest %.2f), RSS %.1f MiB, heap %.2f MiB, GPU %.1f "
+          "MiB, volume %.1f MiB\n",
+          r, rev.fused, kFramesPerRevolution, rev.median_ms, rev.fastest_ms, rev.rss_mib, rev.heap_mib, rev.gpu_mib,
+          rev.volume_mib);
+    }
+    return out;
+  }
+
+  static test::TemporaryDirectory* dir_;
+};
+test::TemporaryDirectory* ScanSoak::dir_ = nullptr;
+
+// Bounds. Warm-up (first-use caches, thread pools, the allocator's arenas) happens in the first
+// revolution, so trends are taken from the second on. The heap between scans holds ~0.2 MiB and
+// moved by 0.01 MiB over 5 scans (measured); a leak of one 240 x 180 depth map per scan (0.16
+// MiB) exceeds the 0.25 MiB bound within the default run's three compared scans. RSS is
+// looser, as the allocator keeps freed pages (it moved by up to 4 MiB between scans here):
+// 8 MiB, less than one leaked session's volume buffers (volume MiB, printed).
+// Time: the fastest frame of the last revolution within 2x of the first two's (the larger of
+// their fastest frames: one lucky frame does not set the bar). A ratio, not an absolute: the
+// machine may be slow. The fastest frame, not the median: other work on a shared 2-core machine
+// more than doubled medians here (measured), but a per-frame cost that grows with the run
+// raises every frame, the fastest too.
+constexpr double kHeapGrowthMiB = 0.25;
+constexpr double kRssGrowthMiB = 8.0;
+constexpr double kTimeRatio = 2.0;
+
+void expect_flat(const std::vector<Revolution>& revs, bool check_rss) {
+  const Revolution& first = revs[1];
+  const Revolution& last = revs.back();
+  EXPECT_LT(last.heap_mib - first.heap_mib, kHeapGrowthMiB)
+      << "heap grew from " << first.heap_mib << " to " << last.heap_mib << " MiB";
+  if (check_rss) {
+    EXPECT_LT(last.rss_mib - first.rss_mib, kRssGrowthMiB)
+        << "RSS grew from " << first.rss_mib << " to " << last.rss_mib << " MiB";
+  }
+  const double early_ms = std::max(revs[0].fastest_ms, revs[1].fastest_ms);
+  EXPECT_LT(last.fastest_ms, kTimeRatio * early_ms) << "fastest ms/frame " << early_ms << " -> " << last.fastest_ms;
+  for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);  // every scan the same
+}
+
+#if defined(SLS_SOAK_ASAN)
+constexpr bool kCheckRss = false;  // ASan's quarantine holds freed blocks: RSS climbs by design
+#else
+constexpr bool kCheckRss = true;
+#endif
+
+TEST_F(ScanSoak, ManyScansInOneProcessLeaveNothingBehind) {
+  const std::vector<Revolution> revs = many_scans(Device::cpu(), soak_revolutions());
+  EXPECT_GE(revs[0].fused, static_cast<std::size_t>(kFramesPerRevolution - 2));
+  expect_flat(revs, kCheckRss);
+}
+
+// Revolution after revolution into one session, the turntable's angle counting on (as a real
+// turntable's encoder would) and timestamps continuing. Online deformation off: its graph gains
+// a node per keyframe by design (a scan is one revolution, then close_loop()), so over 20
+// revolutions it grows without bound and its solves with it; with it off, what must stay flat is
+// the session itself: volume moves, tracker, raycaster.
+TEST_F(ScanSoak, OneLongScanGrowsOnlyByItsModel) {
+  const RecordingReader rec = recording();
+  ScanSessionOptions o = options(Device::cpu());
+  o.deformation.enabled = false;
+  ScanSession session(rec.calibration(), nullptr, o);
+  const std::int64_t period_ns = rec.frame(rec.frame_count() - 1).timestamp_ns - rec.frame(0).timestamp_ns +
+                                 (rec.frame(1).timestamp_ns - rec.frame(0).timestamp_ns);
+  const int revolutions = soak_revolutions();
+  std::vector<Revolution> revs;
+  for (int r = 0; r < revolutions; ++r) {
+    std::vector<double> ms;
+    const std::size_t fused_before = session.fused_count();
+    for (std::size_t i = 0; i < rec.frame_count(); ++i) {
+      const FrameInfo& info = rec.frame(i);
+      ScanFrame frame;
+      frame.index = info.index + r * static_cast<int>(rec.frame_count());
+      frame.timestamp_ns = info.timestamp_ns + r * period_ns;
+      if (info.turntable_angle_deg) frame.turntable_angle_deg = *info.turntable_angle_deg + 360.0 * r;
+      frame.depth_m = rec.load_depth_m(i);
+      const FrameReport report = session.add_frame(frame);
+      ms.push_back(report.times.total_ms());
+    }
+    Revolution rev;
+    rev.fused = session.fused_count() - fused_before;
+    rev.median_ms = median(ms);
+    rev.fastest_ms = *std::min_element(ms.begin(), ms.end());
+    rev.rss_mib = rss_mib();
+    rev.heap_mib = heap_mib();
+    rev.model_mib = model_mib(session.final_surface_undeformed());
+    revs.push_back(rev);
+    std::printf(
+        "[ measured ] long scan, revolution %d: %zu of %d fused, %.2f ms/frame (fastest %.2f), RSS %.1f MiB, heap %.2f "
+        "MiB, "
+        "model %.2f MiB, %zu moves\n",
+        r, rev.fused, kFramesPerRevolution, rev.median_ms, rev.fastest_ms, rev.rss_mib, rev.heap_mib, rev.model_mib,
+        session.moves());
+  }
+  const Revolution& first = revs[1];
+  const Revolution& last = revs.back();
+  // Memory is not flat here, by design: every move ships the surface leaving the volume, and a
+  // revisited surface is shipped again, so the model grows by about a revolution's surface per
+  // revolution. What must hold: the heap's growth is the model's. The shipped arrays grow by
+  // doubling (capacity up to twice the size), hence 2 x the last model less the first, plus
+  // 4 MiB for the per-frame reports (~1 KiB each) and the allocator.
+  const double allowed_mib = 2.0 * last.model_mib - first.model_mib + 4.0;
+  EXPECT_LT(last.heap_mib - first.heap_mib, allowed_mib)
+      << "heap " << first.heap_mib << " -> " << last.heap_mib << " MiB, model " << first.model_mib << " -> "
+      << last.model_mib << " MiB";
+  EXPECT_GT(last.model_mib, first.model_mib);  // the model does grow: the bound above is not vacuous
+  const double early_ms = std::max(revs[0].fastest_ms, revs[1].fastest_ms);
+  EXPECT_LT(last.fastest_ms, kTimeRatio * early_ms) << "fastest ms/frame " << early_ms << " -> " << last.fastest_ms;
+  for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);
+}
+
+#if defined(SLS_HAVE_CUDA)
+TEST_F(ScanSoak, ManyScansOnTheGpuLeaveNoDeviceMemoryBehind) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const std::vector<Revolution> revs = many_scans(Device::cuda(0), soak_revolutions());
+  // Device memory is allocated in whole buffers: a leaked volume or depth buffer is whole
+  // MiB; the driver's own pools move by less than 2 MiB.
+  EXPECT_LT(revs.back().gpu_mib - revs[1].gpu_mib, 2.0) << revs[1].gpu_mib << " -> " << revs.back().gpu_mib << " MiB";
+  expect_flat(revs, kCheckRss);
+}
+#endif
+
+}  // namespace
+}  // namespace sls::session
