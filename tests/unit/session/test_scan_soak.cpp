@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstddef>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -24,7 +25,8 @@
 #define SLS_SOAK_ASAN 1
 #endif
 #if defined(SLS_SOAK_ASAN)
-#include <sanitizer/allocator_interface.h>
+// The ASan runtime's (sanitizer/allocator_interface.h, which gcc does not install everywhere).
+extern "C" std::size_t __sanitizer_get_current_allocated_bytes();
 #else
 #include <malloc.h>
 #endif
