@@ -46,6 +46,9 @@ struct FakeGigeCamera::Impl {
   std::string source_error;
   Image16u scratch;
   std::atomic<std::uint64_t> frames_sent{0};
+  int burst_frames_left = 0;    // frames still to send with burst_loss_ratio
+  double burst_loss_ratio = 0.0;
+  double applied_loss_ratio = 0.0;  // what the fake's "gvsp-lost-ratio" is now
 
   Impl() = default;
   Impl(const Impl&) = delete;
@@ -77,6 +80,14 @@ struct FakeGigeCamera::Impl {
       bit_depth = 16;
     }
     std::lock_guard<std::mutex> lock(mutex);
+    // A burst of loss: set on this thread, the one that reads the ratio as it sends this
+    // frame's packets (the property is writable at any time, but read without a lock).
+    const double loss = burst_frames_left > 0 ? burst_loss_ratio : options.packet_loss_ratio;
+    if (burst_frames_left > 0) --burst_frames_left;
+    if (loss != applied_loss_ratio) {
+      g_object_set(gv_camera, "gvsp-lost-ratio", loss, nullptr);
+      applied_loss_ratio = loss;
+    }
     if (bit_depth == 0) {
       record_error("the fake camera was set to a pixel format that is not Mono8/12/16");
       return;
@@ -168,6 +179,7 @@ FakeGigeCamera::FakeGigeCamera(FakeGigeCameraOptions options) : impl_(std::make_
     // GMutex), but GLib's futex locks are invisible to ThreadSanitizer, which reported this.
     std::lock_guard<std::mutex> lock(impl.mutex);
     impl.fake = arv_gv_fake_camera_get_fake_camera(impl.gv_camera);
+    impl.applied_loss_ratio = o.packet_loss_ratio;
   }
   arv_fake_camera_set_trigger_frequency(impl.fake, o.trigger_poll_hz);
   arv_fake_camera_set_fill_pattern(impl.fake, &Impl::fill, &impl);
@@ -183,6 +195,16 @@ const std::string& FakeGigeCamera::serial() const { return impl_->options.serial
 void FakeGigeCamera::set_image_source(FakeImageSource source) {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   impl_->source = std::move(source);
+}
+
+void FakeGigeCamera::lose_packets(double ratio, int frames) {
+  if (!(ratio >= 0.0 && ratio <= 1.0) || frames < 0) {
+    throw_error(ErrorCode::kInvalidArgument, "fake camera: burst loss {} must be in 0..1, frames {} >= 0", ratio,
+                frames);
+  }
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  impl_->burst_loss_ratio = ratio;
+  impl_->burst_frames_left = frames;
 }
 
 std::uint64_t FakeGigeCamera::frames_sent() const { return impl_->frames_sent.load(); }

@@ -69,6 +69,9 @@ class FakeGigeCamera {
   const std::string& serial() const;
 
   void set_image_source(FakeImageSource source);
+  // A burst of loss: the next `frames` frames sent lose this fraction of their GVSP packets
+  // (1.0: all, the frames never arrive), then the loss is packet_loss_ratio again.
+  void lose_packets(double ratio, int frames);
   std::uint64_t frames_sent() const;
   std::string source_error() const;  // the first exception of the image source, "" if none
 

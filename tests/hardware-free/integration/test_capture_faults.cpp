@@ -7,6 +7,7 @@
 //   - a turntable that never finishes its move (the board answers, its clock stands still);
 //   - a turntable whose motor stalls (the board reports MOTOR_STALL);
 //   - a full disk while a frame's images are written, and while its manifest is written.
+//   - bursts of lost GVSP packets, shorter and longer than the retries.
 // Camera gone, projector and controller stalled or silent, and random packet loss are in
 // test_scan_through_real_stacks.cpp.
 //
@@ -327,6 +328,61 @@ TEST_F(CaptureFaults, AStalledTurntableMotorIsNamedAndTheCaptureResumes) {
   EXPECT_NE(message.find("MOTOR_STALL"), std::string::npos) << message;
   EXPECT_NE(message.find("moving to 180.000 deg"), std::string::npos) << message;
   EXPECT_LT(elapsed_ms(start), 30000.0);
+  expect_kept_and_resumable(2);
+}
+
+// A burst of lost packets while frame 2 is taken, shorter than the retries: the frame is
+// re-captured, counted, and the recording holds the simulator's images only.
+TEST_F(CaptureFaults, ABurstOfLostPacketsIsRecapturedAndCounted) {
+  start_scanner(dir_.file("scan"));
+  session::CaptureOptions options = capture_options();
+  options.image_timeout = milliseconds(300);
+  options.max_retries = 3;
+  session::CaptureSequencer scan(*projector_, {camera_.get()}, turntable_.get(), rig_->patterns, options);
+  // Every packet of the next 3 frames lost: the first 3 attempts at frame 2 see their first
+  // image never arrive, the fourth gets the whole stack.
+  const session::CaptureStatistics stats = scan.run({writer_.get()}, [&](const session::CapturedFrame& frame) {
+    if (frame.index == 1) fake_camera_->lose_packets(1.0, 3);
+  });
+  std::printf("[ measured ] burst of 3 lost frames: %d re-captures, %d lost images, %d incomplete frames\n",
+              stats.retries, stats.lost_images, stats.incomplete_frames);
+  EXPECT_EQ(stats.frames, kFrames);
+  EXPECT_EQ(stats.retries, 3);
+  EXPECT_EQ(stats.lost_images, 3);
+  EXPECT_EQ(stats.incomplete_frames, 0);
+  writer_.reset();
+  const RecordingReader scanned = RecordingReader::open(recording_);
+  ASSERT_EQ(scanned.frame_count(), static_cast<std::size_t>(kFrames));
+  EXPECT_NE(scanned.frame(2).note.find("re-captured 3 time(s); first problem: camera gige://127.0.0.1"),
+            std::string::npos)
+      << scanned.frame(2).note;
+  EXPECT_NE(scanned.frame(2).note.find("sent no image for pattern 0 within 300 ms"), std::string::npos)
+      << scanned.frame(2).note;
+  expect_kept_and_resumable(kFrames);  // nothing left to capture: the resumed run adds nothing
+}
+
+// A burst longer than the retries, every packet lost: no attempt at frame 2 gets an image, so
+// the camera is taken for gone — named, the frames before kept — and the capture resumes once
+// the link is back.
+TEST_F(CaptureFaults, ABurstLongerThanTheRetriesIsNamedAndTheCaptureResumes) {
+  start_scanner(dir_.file("scan"));
+  session::CaptureOptions options = capture_options();
+  options.image_timeout = milliseconds(300);
+  options.max_retries = 1;
+  session::CaptureSequencer scan(*projector_, {camera_.get()}, turntable_.get(), rig_->patterns, options);
+  const std::string message = error_message(
+      [&] {
+        scan.run({writer_.get()}, [&](const session::CapturedFrame& frame) {
+          if (frame.index == 1) fake_camera_->lose_packets(1.0, 2);
+        });
+      },
+      ErrorCode::kTimeout);
+  writer_.reset();
+  EXPECT_NE(message.find("capture frame 2 of 4 (turntable at 180.000 deg), pattern 0 of 22, no image in any of 2 "
+                         "attempt(s): camera gige://127.0.0.1"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("SLS-SIM-CAM"), std::string::npos) << message;
   expect_kept_and_resumable(2);
 }
 
