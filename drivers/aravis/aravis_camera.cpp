@@ -668,7 +668,9 @@ void AravisCamera::set_trigger_line(const std::string& line) {
 void AravisCamera::start() {
   Impl& camera = *impl_;
   camera.ensure_connected();
-  if (camera.acquiring) return;
+  // Still acquiring (a capture that failed on this camera leaves it running): begin afresh, so
+  // no image queued for the old triggers is taken for a new one.
+  if (camera.acquiring) stop();
   GErrorSlot error;
   const guint payload = arv_camera_get_payload(camera.camera, error.out());
   camera.check(error, "read PayloadSize");
