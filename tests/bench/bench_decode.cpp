@@ -2,7 +2,8 @@
 // (the simulated knurled screw, rendered once) decoded and triangulated. CUDA with the stack
 // resident on the device (the <= 2 ms target of issue #4), the upload of the stack from
 // pinned host memory beside it, host stacks through the overlapped two-slot pipeline, and
-// the CPU. Timed with CUDA events on the decoder's stream.
+// the CPU, and the host-side stack check each decode runs first. Timed with CUDA events on the
+// decoder's stream.
 #include <benchmark/benchmark.h>
 
 #include <memory>
@@ -10,6 +11,7 @@
 #include "drivers/sim/renderer.h"
 #include "sdk/core/device.h"
 #include "sdk/decode/decoder.h"
+#include "sdk/decode/stack_check.h"
 
 #if defined(SLS_HAVE_CUDA)
 #include <cuda_runtime_api.h>
@@ -51,6 +53,16 @@ void BM_DecodeCpu(benchmark::State& state) {
   state.counters["valid_fraction"] = static_cast<double>(ok) / static_cast<double>(stack.images[0].pixel_count());
 }
 BENCHMARK(BM_DecodeCpu)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+
+// The host-side frame check every Decoder::decode runs before decoding (stack_check.h): what it
+// adds to each frame of a scan.
+void BM_StackCheck(benchmark::State& state) {
+  const Stack& stack = paper_stack();
+  Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu());
+  for (auto _ : state) check_stack_behaves(stack.rig.patterns, decoder.decode_params(), stack.images);
+  state.counters["Mpixel"] = static_cast<double>(stack.images[0].pixel_count()) / 1e6;
+}
+BENCHMARK(BM_StackCheck)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 #if defined(SLS_HAVE_CUDA)
 class CudaEvents {
