@@ -3,7 +3,7 @@
 // one pattern image that is wrong everywhere (a projector stuck on a pattern, a frame mixed
 // up): a stuck Gray image moves whole stripes by a period and a stuck phase image bends every
 // phase, yet most pixels stay "valid" with millimetres of error. What every stack of a
-// pattern set must satisfy instead, on the lit pixels of evenly spaced rows (~32 k pixels):
+// pattern set must satisfy instead, on the lit pixels of 64 evenly spaced rows (~32 k pixels):
 //   - a Gray image and its complement add up to the all-on light, white + black (their
 //     projector light sums to all-on whatever the blur), up to noise and blurred stripe
 //     edges; with two pairs or more, to what the pairs add up to on the median (so a wrong
@@ -32,7 +32,7 @@ struct StackCheckLimits {
   double min_phase_misfit = 0.08;
   double outlier_ratio = 3.0;
   std::size_t min_lit_samples = 256;  // fewer lit pixels: too little to judge, not checked
-  std::size_t max_samples = 32768;    // pixels looked at (whole rows, evenly spaced)
+  std::size_t max_samples = 32768;    // pixels looked at (64 evenly spaced rows)
 };
 
 // Throws sls::Error(kFormat) naming the pattern image(s) at fault and by how much; returns
