@@ -1,8 +1,10 @@
 // PNG I/O: exact round trips, byte order, the conversions on reading, and that every kind of
 // broken file gives an sls::Error naming the file (never a crash).
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <random>
@@ -385,6 +387,51 @@ TEST(Png, AHeaderAnnouncingMoreThanTheFileCanHoldIsRefusedBeforeAllocating) {
   const Bytes flat = encode_png(Image16u(4000, 3000, 0));
   EXPECT_EQ(std::get<Image16u>(decode_png(flat.data(), flat.size(), "flat.png")).width(), 4000);
 }
+
+// Found by fuzz_png: a 106-byte file (its IHDR CRC made right) whose tEXt chunk claims 1.8 GB.
+// libpng reads ancillary chunks whole and allocated that much; chunk lengths are now checked
+// against the bytes that follow first.
+// In a child (a clean baseline), the decode must leave the peak of its address space within
+// 64 MiB. (Sanitizers reserve address space of their own, so they skip it.)
+std::size_t vm_peak_kb() {
+  std::FILE* status = std::fopen("/proc/self/status", "r");
+  unsigned long kb = 0;
+  char line[256];
+  while (status != nullptr && std::fgets(line, sizeof line, status) != nullptr) {
+    if (std::sscanf(line, "VmPeak: %lu kB", &kb) == 1) break;
+  }
+  if (status != nullptr) std::fclose(status);
+  return kb;
+}
+
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+TEST(Png, AnAncillaryChunkClaimingGigabytesIsNotAllocated) {
+  const Bytes file = {0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52,
+                      0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x02, 0x08, 0x06, 0x00, 0x00, 0x00, 0x72, 0xb6, 0x0d,
+                      0x24, 0x6d, 0x6f, 0x72, 0x79, 0x74, 0x45, 0x58, 0x74, 0x43, 0x6f, 0x6d, 0x6d, 0x65, 0x6e, 0x74,
+                      0x00, 0x73, 0x65, 0x65, 0x64, 0xcb, 0x99, 0xb6, 0xe3, 0x00, 0x00, 0x00, 0x16, 0x49, 0x44, 0x41,
+                      0x54, 0x78, 0xda, 0x63, 0xf8, 0xcf, 0xc0, 0xaa, 0x1f, 0x08, 0x1b, 0x34, 0x27, 0x40, 0xe7, 0x27,
+                      0x18, 0x00, 0x7f, 0x37, 0x31, 0x05, 0x97, 0x76, 0x51, 0xcb, 0x7e, 0x00, 0x00, 0x00, 0x00, 0x49,
+                      0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    const std::size_t before = vm_peak_kb();
+    bool format_error = false;
+    try {
+      (void)decode_png(file.data(), file.size(), "text.png");
+    } catch (const Error& error) {
+      format_error = error.code() == ErrorCode::kFormat;
+    }
+    const std::size_t grown_kb = vm_peak_kb() - before;
+    _exit(before == 0 ? 3 : !format_error ? 2 : grown_kb > (64u << 10) ? 1 : 0);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "1: gigabytes allocated; 2: not a format error; 3: no VmPeak";
+}
+#endif
 
 }  // namespace
 }  // namespace sls
