@@ -145,6 +145,71 @@ TEST(ScanSession, TurntablePriorGuessesTheMotion) {
   EXPECT_LT(error.surface_m, 30e-6);
 }
 
+// Issue 19 item 11: at 15 degree steps depth alone cannot see the screw turn about its own axis;
+// ICP converges with the rotation left at the guess. The turntable's angles expose it: the
+// frame is lost with the figures, never fused at a wrong pose.
+TEST(ScanSession, TrackingThatDisagreesWithTheTurntableIsLostNotFused) {
+  SimFrames sim("knurled-screw", 24);
+  ScanSession session(sim.calibration(), nullptr, small_options(Device::cpu()));
+  ASSERT_EQ(session.add_frame(sim.frame(0)).status, FrameStatus::kFused);
+  int disagreeing = 0;
+  for (int k = 1; k < 4; ++k) {
+    const FrameReport report = session.add_frame(sim.frame(k));
+    if (report.status == FrameStatus::kLost && report.reason.find("disagrees with the turntable") != std::string::npos) {
+      ++disagreeing;
+      EXPECT_NE(report.reason.find("--turntable-prior"), std::string::npos) << report.reason;
+    }
+    // Whatever is fused is fused where the object is: the screw turned by the turntable.
+    if (report.status == FrameStatus::kFused) {
+      const std::vector<StampedPose> trajectory = session.trajectory();
+      EXPECT_LT(relative_error(trajectory.front().T_world_camera, trajectory.back().T_world_camera, sim.truth(0),
+                               sim.truth(static_cast<std::size_t>(k)))
+                    .surface_m,
+                100e-6)
+          << "frame " << k;
+    }
+  }
+  EXPECT_GT(disagreeing, 0);
+}
+
+// Issue 19 item 12: with the turntable prior, frames missing from a revolution (two skipped
+// here: the next view is 45 degrees from the last fused one) must not lose the rest of the
+// scan. The view too little overlapped to verify is fused at the prior and flagged; tracking
+// verifies the views after it again.
+TEST(ScanSession, AViewTooLittleOverlappedIsFusedAtThePriorFlaggedAndTheScanGoesOn) {
+  SimFrames sim("knurled-screw", 24);
+  ScanSessionOptions options = small_options(Device::cpu());
+  options.turntable_prior = true;
+  ScanSession session(sim.calibration(), nullptr, options);
+  ASSERT_EQ(session.add_frame(sim.frame(0)).status, FrameStatus::kFused);
+  ASSERT_EQ(session.add_frame(sim.frame(1)).status, FrameStatus::kFused);
+  for (int k : {2, 3}) {
+    ScanFrame stuck = sim.frame(k);
+    stuck.depth_m.reset();
+    stuck.problem = "pattern 17 stuck";
+    ASSERT_EQ(session.add_frame(stuck).status, FrameStatus::kSkipped);
+  }
+  std::vector<bool> unverified;
+  for (int k = 4; k < 8; ++k) {
+    const FrameReport report = session.add_frame(sim.frame(k));
+    ASSERT_EQ(report.status, FrameStatus::kFused) << "frame " << k << ": " << report.reason;
+    unverified.push_back(report.unverified);
+    if (report.unverified) {
+      EXPECT_NE(report.reason.find("fused at the turntable prior"), std::string::npos) << report.reason;
+    }
+  }
+  EXPECT_TRUE(unverified.front()) << "the view 45 degrees on";
+  // At 15 degree steps on the ci camera a view overlaps the model by about a quarter, the least
+  // tracking accepts: some later views still fall just short (23-25 %) and are flagged too.
+  EXPECT_GT(std::count(unverified.begin() + 1, unverified.end(), false), 0) << "tracking verifies views again";
+  const std::vector<StampedPose> trajectory = session.trajectory();
+  ASSERT_EQ(trajectory.size(), 6u);
+  EXPECT_LT(relative_error(trajectory.front().T_world_camera, trajectory.back().T_world_camera, sim.truth(0),
+                           sim.truth(7))
+                .surface_m,
+            100e-6);
+}
+
 TEST(ScanSession, KnownPosesFuseIntoAFixedVolume) {
   SimFrames sim("knurled-screw", 36);
   ScanSessionOptions options = small_options(Device::cpu());
