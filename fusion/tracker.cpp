@@ -1,3 +1,5 @@
+// The Tracker: its options, the Gauss–Newton loop and its lost-frame tests, and the CPU path
+// (the CUDA path: tracker_device.cpp).
 #include "fusion/tracker.h"
 
 #include <Eigen/Eigenvalues>
@@ -12,23 +14,19 @@
 #include <string>
 #include <utility>
 
-#include "fusion/photometric_shared.h"
-#include "fusion/track_shared.h"
-#include "sdk/core/error.h"
-#include "sdk/core/ray_map.h"
+#include "fusion/tracker_internal.h"
 
 #if defined(_OPENMP)
 #include <omp.h>
 #endif
 
 #if defined(SLS_HAVE_CUDA)
-#include <cuda_runtime_api.h>
-
 #include "fusion/cuda/track_cuda.h"
-#include "sdk/core/cuda/device_buffer.h"
 #endif
 
 namespace sls::fusion {
+
+using namespace tracking_detail;
 
 void TrackingOptions::validate() const {
   if (iterations.empty() || iterations.size() > 8) {
@@ -103,12 +101,6 @@ void TrackingOptions::validate() const {
 
 namespace {
 
-using Sums = std::array<double, kTrackSums>;
-using FrameSums = std::array<double, kFrameSums>;
-using PhotometricSums = std::array<double, kPhotometricSums>;
-using TextureSums = std::array<double, kTextureSums>;
-using Matrix6d = Eigen::Matrix<double, 6, 6>;
-
 // body(x, y) for every pixel of a width x height map, rows spread over the CPU's threads (the
 // CPU launcher of the per-pixel bodies in track_shared.h and photometric_shared.h).
 template <typename Body>
@@ -121,19 +113,6 @@ void for_each_pixel(int width, int height, const Body& body) {
   }
 }
 
-// One level of the live pyramid: its camera and ray map (host), and on the CPU its depth,
-// measurement weights and normals (level 0's depth and weights are the caller's).
-struct Level {
-  CameraIntrinsics camera;
-  RayMap rays;
-  std::vector<float> depth;
-  std::vector<float> weight;  // with options.weight_by_confidence
-  std::vector<Vec3f> normals;
-  std::size_t pixels() const {
-    return static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height);
-  }
-};
-
 // Level l + 1's camera from level l's: half the focal length, the 2x2 block's centre.
 CameraIntrinsics half_camera(const CameraIntrinsics& c) {
   CameraIntrinsics out = c;
@@ -145,14 +124,6 @@ CameraIntrinsics half_camera(const CameraIntrinsics& c) {
   out.cy = 0.5 * (c.cy - 0.5);
   return out;
 }
-
-// The centre c and scale L of the parameterisation (track_shared.h) from the frame sums.
-struct Frame {
-  std::size_t live_pixels = 0;
-  std::size_t model_points = 0;
-  Vec3f centre{0.0f, 0.0f, 0.0f};
-  double scale = 1.0;
-};
 
 // The solved step of one Gauss–Newton iteration.
 struct Step {
@@ -248,134 +219,7 @@ void halve_texture(const float* fine_texture, const CameraIntrinsics& fine, floa
   });
 }
 
-// What the photometric term needs for a frame beyond the per-level maps.
-struct PhotometricSetup {
-  Pose T_model_ref;        // T_world_model⁻¹ · T_world_ref
-  double live_mean = 0.0;  // the frames' mean texture over their depth pixels (level 0)
-  double ref_mean = 0.0;
-};
-
 }  // namespace
-
-struct Tracker::Impl {
-  Device device;
-  CameraIntrinsics live_camera;  // the live depth maps' camera
-  CameraIntrinsics camera;       // ICP's finest level, the model maps' camera
-  TrackingOptions options;
-  // The live camera halved down to `camera` (empty when they are the same), and the host
-  // buffers of those halvings (the last is ICP's finest live depth).
-  std::vector<CameraIntrinsics> input_cameras;
-  std::vector<std::vector<float>> input_depth;
-  std::vector<std::vector<float>> input_weight;  // with options.weight_by_confidence
-  std::vector<Level> levels;
-  // The crease test on the model maps (level 0's size; on the device for CUDA): the model's
-  // normals over the baseline, and the marks.
-  std::vector<Vec3f> crease_normals;
-  std::vector<std::uint8_t> crease_mask;
-  bool crease_test() const { return options.crease_angle_deg > 0.0; }
-  float crease_min_cos() const { return static_cast<float>(std::cos(options.crease_angle_deg * M_PI / 180.0)); }
-  // The photometric term (options.photometric_weight > 0): on the CPU the live texture's
-  // halvings down to level 0 and its pyramid (level 0 is the input or its last halving).
-  bool photometric_on = false;
-  std::vector<std::vector<float>> input_texture;
-  std::vector<std::vector<float>> texture;
-  // The reference frame: the last frame tracked with a texture, or set_reference_frame's.
-  struct Reference {
-    bool valid = false;
-    Pose T_world_camera;
-    double mean = 0.0;                               // its texture's mean over its depth pixels
-    std::vector<std::vector<float>> depth, texture;  // per level (CPU)
-  } reference_frame;
-  using ReducePhotometric = std::function<PhotometricSums(int, const PhotometricParams&)>;
-#if defined(SLS_HAVE_CUDA)
-  cudaStream_t stream = nullptr;
-  std::vector<DeviceBuffer<float>> depth;  // level 0: uploads of host maps; the coarse levels
-  DeviceBuffer<float> live_upload;         // a host live map at the live camera's size
-  std::vector<DeviceBuffer<float>> input_device;  // the halvings down to level 0
-  // The measurement weights (options.weight_by_confidence): per level (level 0 when the input
-  // is halved or uploaded), a host map's upload, the halvings down to level 0.
-  std::vector<DeviceBuffer<float>> weight_device, input_weight_device;
-  DeviceBuffer<float> weight_upload;
-  std::vector<DeviceBuffer<Vec3f>> rays, normals;
-  DeviceBuffer<Vec3f> crease_normals_device;
-  DeviceBuffer<std::uint8_t> crease_mask_device;
-  DeviceBuffer<Vec3f> uploaded_points, uploaded_normals;  // host models, uploaded
-  DeviceBuffer<double> partials, device_sums;
-  double* host_sums = nullptr;  // pinned, kTrackSums
-  // The photometric term's: the texture pyramid (level 0 when the input is halved or
-  // uploaded), a host texture's upload, the halvings, the reference's pyramids, and the
-  // reductions' buffers (kPhotometricSums).
-  std::vector<DeviceBuffer<float>> texture_device, input_texture_device;
-  DeviceBuffer<float> texture_upload;
-  std::vector<DeviceBuffer<float>> reference_depth, reference_texture;
-  DeviceBuffer<double> photometric_partials, photometric_sums;
-  double* photometric_host_sums = nullptr;  // pinned, kPhotometricSums
-  // The pyramid, normals, frame statistics and Gauss–Newton steps on the device: one
-  // device-to-host copy of the sums per step, no allocation.
-  TrackingResult track_on_device(const float* depth_device, const Vec3f* model_points, const Vec3f* model_normals,
-                                 const Pose& T_world_model, const Pose& T_world_camera_guess,
-                                 const float* texture_device, const float* weight_device_in);
-  // The live depth pyramid from a map at the live camera's size (normals too when asked), and
-  // its weights' when weight_in is not null (else level_weight stays null).
-  void depth_pyramid_device(const float* depth_device, const float* weight_in, const float* level_depth[8],
-                            const float* level_weight[8], bool with_normals);
-  void texture_pyramid_device(const float* texture_in, const float* level_texture[8]);
-  double texture_mean_device(const float* texture0, const float* depth0);
-  void keep_reference_device(const float* const level_depth[8], const float* const level_texture[8], double mean,
-                             const Pose& T_world_camera);
-  void set_reference_on_device(const float* depth_device, const float* texture_in, const Pose& T_world_camera);
-  ~Impl() {
-    if (host_sums != nullptr) (void)cudaFreeHost(host_sums);
-    if (photometric_host_sums != nullptr) (void)cudaFreeHost(photometric_host_sums);
-    if (stream != nullptr) (void)cudaStreamDestroy(stream);
-  }
-#endif
-
-  // The Gauss–Newton loop over the levels, coarse to fine, and the lost-frame tests; `reduce`
-  // (level, params) returns the level's sums for one estimate; with `photometric`,
-  // `reduce_photometric` the photometric term's, added to the same system.
-  template <typename Reduce>
-  TrackingResult run(const Frame& frame, const Pose& T_world_model, const Pose& guess, Reduce&& reduce,
-                     const PhotometricSetup* photometric = nullptr,
-                     const ReducePhotometric& reduce_photometric = {}) const;
-  Frame frame_from_sums(const FrameSums& first, const FrameSums& second, Vec3f reference) const;
-  // Two passes of `statistics(reference)`: about the origin for the centroid, then about it.
-  template <typename Statistics>
-  Frame frame_from_statistics(Statistics&& statistics) const {
-    const FrameSums first = statistics(Vec3f{0.0f, 0.0f, 0.0f});
-    Vec3f centre{0.0f, 0.0f, 0.0f};
-    if (first[0] > 0.0) {
-      centre = Vec3f{static_cast<float>(first[1] / first[0]), static_cast<float>(first[2] / first[0]),
-                     static_cast<float>(first[3] / first[0])};
-    }
-    return frame_from_sums(first, statistics(centre), centre);
-  }
-  TrackModelView model_view(const Vec3f* points, const Vec3f* point_normals) const {
-    TrackModelView view;
-    view.points = points;
-    view.normals = point_normals;
-    view.camera = camera.cast<float>();
-    return view;
-  }
-  // The CPU's pyramids: level_depth[l] / level_texture[l] point at the input (level 0 when the
-  // live camera is ICP's finest) or at the tracker's buffers.
-  void depth_pyramid(const float* depth_in, const float* weight_in, const float* level_depth[8],
-                     const float* level_weight[8], bool with_normals);
-  void texture_pyramid(const float* texture_in, const float* level_texture[8]);
-  double texture_mean(const float* texture0, const float* depth0) const;
-  void keep_reference(const float* const level_depth[8], const float* const level_texture[8], double mean,
-                      const Pose& T_world_camera);
-  // The photometric term for a frame with (or without) a live texture whose mean over the
-  // depth pixels is live_mean: on when there is a reference, else off with the reason.
-  std::optional<PhotometricSetup> photometric_setup(bool have_texture, double live_mean, const Pose& T_world_model,
-                                                    std::string* skipped) const;
-  void check_size(const Image32f& image, const char* what) const {
-    if (image.width() != live_camera.width || image.height() != live_camera.height) {
-      throw_error(ErrorCode::kInvalidArgument, "tracking: the {} is {}x{}, the camera {}x{}", what, image.width(),
-                  image.height(), live_camera.width, live_camera.height);
-    }
-  }
-};
 
 Frame Tracker::Impl::frame_from_sums(const FrameSums& first, const FrameSums& second, Vec3f reference) const {
   Frame frame;
@@ -395,8 +239,7 @@ Frame Tracker::Impl::frame_from_sums(const FrameSums& first, const FrameSums& se
   return frame;
 }
 
-template <typename Reduce>
-TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model, const Pose& guess, Reduce&& reduce,
+TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model, const Pose& guess, const Reduce& reduce,
                                   const PhotometricSetup* photometric,
                                   const ReducePhotometric& reduce_photometric) const {
   TrackingResult result;
@@ -952,235 +795,5 @@ void Tracker::set_reference_frame(const Image32f& depth_m, const Image32f& textu
 
 void Tracker::clear_reference_frame() { impl_->reference_frame.valid = false; }
 bool Tracker::has_reference_frame() const { return impl_->reference_frame.valid; }
-
-#if defined(SLS_HAVE_CUDA)
-TrackingResult Tracker::track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
-                                     const Pose& T_world_camera_guess, const float* texture_device,
-                                     const float* confidence_device) {
-  Impl& s = *impl_;
-  if (!s.device.is_cuda()) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: track_device on a tracker for {}; make it for CUDA",
-                s.device.to_string());
-  }
-  require_device(s.device);
-  if (!raycaster.device().is_cuda()) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: track_device needs a CUDA raycaster, not {}",
-                raycaster.device().to_string());
-  }
-  if (raycaster.camera().width != s.camera.width || raycaster.camera().height != s.camera.height) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: the raycaster's camera is {}x{}, the tracker's {}x{}",
-                raycaster.camera().width, raycaster.camera().height, s.camera.width, s.camera.height);
-  }
-  if (depth_device == nullptr) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: no live depth map (null device pointer)");
-  }
-  raycaster.synchronize();
-  return s.track_on_device(depth_device, raycaster.points_device(), raycaster.normals_device(), T_world_model,
-                           T_world_camera_guess, s.photometric_on ? texture_device : nullptr,
-                           s.options.weight_by_confidence ? confidence_device : nullptr);
-}
-
-void Tracker::set_reference_frame_device(const float* depth_device, const float* texture_device,
-                                         const Pose& T_world_camera) {
-  Impl& s = *impl_;
-  if (!s.device.is_cuda()) {
-    throw_error(ErrorCode::kInvalidArgument,
-                "tracking: set_reference_frame_device on a tracker for {}; make it for CUDA", s.device.to_string());
-  }
-  if (depth_device == nullptr || texture_device == nullptr) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: no reference {} (null device pointer)",
-                depth_device == nullptr ? "depth map" : "texture");
-  }
-  if (!s.photometric_on) return;
-  require_device(s.device);
-  s.set_reference_on_device(depth_device, texture_device, T_world_camera);
-}
-
-void Tracker::Impl::depth_pyramid_device(const float* depth_device, const float* weight_in,
-                                         const float* level_depth[8], const float* level_weight[8],
-                                         bool with_normals) {
-  Impl& s = *this;
-  // The live map (and its weights) halved down to ICP's finest level (into level 0's buffer),
-  // then the pyramid and normals, on the device.
-  const bool weighted = weight_in != nullptr;
-  for (std::size_t k = 0; k < s.input_cameras.size(); ++k) {
-    const CameraIntrinsics& fine = s.input_cameras[k];
-    const CameraIntrinsics& coarse = k + 1 < s.input_cameras.size() ? s.input_cameras[k + 1] : s.camera;
-    const bool last = k + 1 == s.input_cameras.size();
-    float* coarse_depth = last ? s.depth[0].data() : s.input_device[k].data();
-    float* coarse_weight = !weighted ? nullptr : (last ? s.weight_device[0].data() : s.input_weight_device[k].data());
-    detail::launch_downsample_depth_cuda(depth_device, weight_in, fine.width, fine.height, static_cast<float>(fine.fx),
-                                         coarse_depth, coarse_weight, coarse.width, coarse.height, s.stream);
-    depth_device = coarse_depth;
-    weight_in = coarse_weight;
-  }
-  level_depth[0] = depth_device;
-  level_weight[0] = weight_in;
-  for (std::size_t l = 0; l < s.levels.size(); ++l) {
-    const Level& level = s.levels[l];
-    if (l > 0) {
-      const Level& fine = s.levels[l - 1];
-      float* coarse_weight = weighted ? s.weight_device[l].data() : nullptr;
-      detail::launch_downsample_depth_cuda(level_depth[l - 1], level_weight[l - 1], fine.camera.width,
-                                           fine.camera.height, static_cast<float>(fine.camera.fx), s.depth[l].data(),
-                                           coarse_weight, level.camera.width, level.camera.height, s.stream);
-      level_depth[l] = s.depth[l].data();
-      level_weight[l] = coarse_weight;
-    }
-    if (!with_normals) continue;
-    detail::launch_live_normals_cuda(level_depth[l], s.rays[l].data(), level.camera.width, level.camera.height,
-                                     static_cast<float>(level.camera.fx),
-                                     static_cast<float>(s.options.normal_baseline_m), s.normals[l].data(), s.stream);
-  }
-}
-
-void Tracker::Impl::texture_pyramid_device(const float* texture_in, const float* level_texture[8]) {
-  for (std::size_t k = 0; k < input_cameras.size(); ++k) {
-    const CameraIntrinsics& fine = input_cameras[k];
-    const CameraIntrinsics& coarse = k + 1 < input_cameras.size() ? input_cameras[k + 1] : camera;
-    float* out = k + 1 < input_cameras.size() ? input_texture_device[k].data() : texture_device[0].data();
-    detail::launch_downsample_texture_cuda(texture_in, fine.width, fine.height, out, coarse.width, coarse.height,
-                                           stream);
-    texture_in = out;
-  }
-  level_texture[0] = texture_in;
-  for (std::size_t l = 1; l < levels.size(); ++l) {
-    const CameraIntrinsics& fine = levels[l - 1].camera;
-    detail::launch_downsample_texture_cuda(level_texture[l - 1], fine.width, fine.height, texture_device[l].data(),
-                                           levels[l].camera.width, levels[l].camera.height, stream);
-    level_texture[l] = texture_device[l].data();
-  }
-}
-
-double Tracker::Impl::texture_mean_device(const float* texture0, const float* depth0) {
-  detail::launch_texture_statistics_cuda(texture0, depth0, camera.width * camera.height, photometric_partials.data(),
-                                         photometric_sums.data(), stream);
-  SLS_CUDA_CHECK(cudaMemcpyAsync(photometric_host_sums, photometric_sums.data(), kTextureSums * sizeof(double),
-                                 cudaMemcpyDeviceToHost, stream));
-  SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
-  return photometric_host_sums[1] > 0.0 ? photometric_host_sums[0] / photometric_host_sums[1] : 0.0;
-}
-
-void Tracker::Impl::keep_reference_device(const float* const level_depth[8], const float* const level_texture[8],
-                                          double mean, const Pose& T_world_camera) {
-  for (std::size_t l = 0; l < levels.size(); ++l) {
-    const std::size_t bytes = levels[l].pixels() * sizeof(float);
-    SLS_CUDA_CHECK(cudaMemcpyAsync(reference_depth[l].data(), level_depth[l], bytes, cudaMemcpyDeviceToDevice, stream));
-    SLS_CUDA_CHECK(
-        cudaMemcpyAsync(reference_texture[l].data(), level_texture[l], bytes, cudaMemcpyDeviceToDevice, stream));
-  }
-  // The inputs are the caller's (the decoder's next frame may overwrite them): copied now.
-  SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
-  reference_frame.mean = mean;
-  reference_frame.T_world_camera = T_world_camera;
-  reference_frame.valid = true;
-}
-
-void Tracker::Impl::set_reference_on_device(const float* depth_device, const float* texture_in,
-                                            const Pose& T_world_camera) {
-  const float* level_depth[8] = {};
-  const float* level_weight[8] = {};
-  const float* level_texture[8] = {};
-  depth_pyramid_device(depth_device, nullptr, level_depth, level_weight, false);
-  texture_pyramid_device(texture_in, level_texture);
-  const double mean = texture_mean_device(level_texture[0], level_depth[0]);
-  if (!(mean > 0.0) || !std::isfinite(mean)) {
-    reference_frame.valid = false;
-    return;
-  }
-  keep_reference_device(level_depth, level_texture, mean, T_world_camera);
-}
-
-TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const Vec3f* model_points,
-                                              const Vec3f* model_normals, const Pose& T_world_model,
-                                              const Pose& T_world_camera_guess, const float* texture_in,
-                                              const float* weight_in) {
-  Impl& s = *this;
-  const int width = s.camera.width, height = s.camera.height;
-  const int pixels = width * height;
-  const float* level_depth[8] = {};  // validate(): at most 8 levels
-  const float* level_weight[8] = {};
-  s.depth_pyramid_device(depth_device, weight_in, level_depth, level_weight, true);
-  depth_device = level_depth[0];
-  auto download = [&](int count) {
-    SLS_CUDA_CHECK(cudaMemcpyAsync(s.host_sums, s.device_sums.data(), static_cast<std::size_t>(count) * sizeof(double),
-                                   cudaMemcpyDeviceToHost, s.stream));
-    SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
-  };
-  auto statistics = [&](Vec3f reference) {
-    detail::launch_frame_statistics_cuda(model_points, depth_device, pixels, reference, s.partials.data(),
-                                         s.device_sums.data(), s.stream);
-    download(kFrameSums);
-    FrameSums sums{};
-    std::copy(s.host_sums, s.host_sums + kFrameSums, sums.begin());
-    return sums;
-  };
-  const Frame frame = s.frame_from_statistics(statistics);
-
-  TrackModelView model_view = s.model_view(model_points, model_normals);
-  if (s.crease_test()) {
-    detail::launch_model_creases_cuda(model_points, width, height, static_cast<float>(s.camera.fx),
-                                      static_cast<float>(s.options.normal_baseline_m),
-                                      static_cast<float>(s.options.crease_radius_m), s.crease_min_cos(),
-                                      s.crease_normals_device.data(), s.crease_mask_device.data(), s.stream);
-    model_view.creases = s.crease_mask_device.data();
-  }
-  auto reduce = [&](int l, const TrackParams& params) {
-    const Level& level = s.levels[static_cast<std::size_t>(l)];
-    TrackLiveView live;
-    live.depth = level_depth[l];
-    live.rays = s.rays[static_cast<std::size_t>(l)].data();
-    live.normals = s.normals[static_cast<std::size_t>(l)].data();
-    live.weights = level_weight[l];
-    live.width = level.camera.width;
-    live.height = level.camera.height;
-    detail::launch_track_cuda(live, model_view, params, s.partials.data(), s.device_sums.data(), s.stream);
-    download(kTrackSums);
-    Sums sums{};
-    std::copy(s.host_sums, s.host_sums + kTrackSums, sums.begin());
-    return sums;
-  };
-
-  const float* level_texture[8] = {};
-  double live_mean = 0.0;
-  if (texture_in != nullptr) {
-    s.texture_pyramid_device(texture_in, level_texture);
-    live_mean = s.texture_mean_device(level_texture[0], level_depth[0]);
-  }
-  std::string skipped;
-  const std::optional<PhotometricSetup> setup =
-      s.photometric_setup(texture_in != nullptr, live_mean, T_world_model, &skipped);
-  Impl::ReducePhotometric reduce_photometric;
-  if (setup) {
-    reduce_photometric = [&](int l, const PhotometricParams& params) {
-      const std::size_t level = static_cast<std::size_t>(l);
-      PhotometricLevelView ref, live;
-      ref.texture = s.reference_texture[level].data();
-      ref.depth = s.reference_depth[level].data();
-      ref.rays = s.rays[level].data();
-      ref.width = live.width = s.levels[level].camera.width;
-      ref.height = live.height = s.levels[level].camera.height;
-      live.texture = level_texture[l];
-      live.depth = level_depth[l];
-      live.rays = ref.rays;
-      detail::launch_photometric_cuda(ref, live, params, s.photometric_partials.data(), s.photometric_sums.data(),
-                                      s.stream);
-      SLS_CUDA_CHECK(cudaMemcpyAsync(s.photometric_host_sums, s.photometric_sums.data(),
-                                     kPhotometricSums * sizeof(double), cudaMemcpyDeviceToHost, s.stream));
-      SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
-      PhotometricSums sums{};
-      std::copy(s.photometric_host_sums, s.photometric_host_sums + kPhotometricSums, sums.begin());
-      return sums;
-    };
-  }
-  TrackingResult result = s.run(frame, T_world_model, T_world_camera_guess, reduce, setup ? &*setup : nullptr,
-                                reduce_photometric);
-  if (!skipped.empty()) result.photometric_skipped = skipped;
-  if (texture_in != nullptr && live_mean > 0.0 && std::isfinite(live_mean) && !result.lost) {
-    s.keep_reference_device(level_depth, level_texture, live_mean, result.T_world_camera);
-  }
-  return result;
-}
-#endif
 
 }  // namespace sls::fusion

@@ -1,0 +1,243 @@
+// The Tracker's CUDA path: track_device, the device pyramids and reference frame, and the
+// Gauss–Newton loop's reductions on the GPU (one copy of the sums to the host per step).
+#include "fusion/tracker_internal.h"
+
+#if defined(SLS_HAVE_CUDA)
+#include <utility>
+
+#include "fusion/cuda/track_cuda.h"
+
+namespace sls::fusion {
+
+using namespace tracking_detail;
+
+TrackingResult Tracker::track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
+                                     const Pose& T_world_camera_guess, const float* texture_device,
+                                     const float* confidence_device) {
+  Impl& s = *impl_;
+  if (!s.device.is_cuda()) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: track_device on a tracker for {}; make it for CUDA",
+                s.device.to_string());
+  }
+  require_device(s.device);
+  if (!raycaster.device().is_cuda()) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: track_device needs a CUDA raycaster, not {}",
+                raycaster.device().to_string());
+  }
+  if (raycaster.camera().width != s.camera.width || raycaster.camera().height != s.camera.height) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: the raycaster's camera is {}x{}, the tracker's {}x{}",
+                raycaster.camera().width, raycaster.camera().height, s.camera.width, s.camera.height);
+  }
+  if (depth_device == nullptr) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: no live depth map (null device pointer)");
+  }
+  raycaster.synchronize();
+  return s.track_on_device(depth_device, raycaster.points_device(), raycaster.normals_device(), T_world_model,
+                           T_world_camera_guess, s.photometric_on ? texture_device : nullptr,
+                           s.options.weight_by_confidence ? confidence_device : nullptr);
+}
+
+void Tracker::set_reference_frame_device(const float* depth_device, const float* texture_device,
+                                         const Pose& T_world_camera) {
+  Impl& s = *impl_;
+  if (!s.device.is_cuda()) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "tracking: set_reference_frame_device on a tracker for {}; make it for CUDA", s.device.to_string());
+  }
+  if (depth_device == nullptr || texture_device == nullptr) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: no reference {} (null device pointer)",
+                depth_device == nullptr ? "depth map" : "texture");
+  }
+  if (!s.photometric_on) return;
+  require_device(s.device);
+  s.set_reference_on_device(depth_device, texture_device, T_world_camera);
+}
+
+void Tracker::Impl::depth_pyramid_device(const float* depth_device, const float* weight_in,
+                                         const float* level_depth[8], const float* level_weight[8],
+                                         bool with_normals) {
+  Impl& s = *this;
+  // The live map (and its weights) halved down to ICP's finest level (into level 0's buffer),
+  // then the pyramid and normals, on the device.
+  const bool weighted = weight_in != nullptr;
+  for (std::size_t k = 0; k < s.input_cameras.size(); ++k) {
+    const CameraIntrinsics& fine = s.input_cameras[k];
+    const CameraIntrinsics& coarse = k + 1 < s.input_cameras.size() ? s.input_cameras[k + 1] : s.camera;
+    const bool last = k + 1 == s.input_cameras.size();
+    float* coarse_depth = last ? s.depth[0].data() : s.input_device[k].data();
+    float* coarse_weight = !weighted ? nullptr : (last ? s.weight_device[0].data() : s.input_weight_device[k].data());
+    detail::launch_downsample_depth_cuda(depth_device, weight_in, fine.width, fine.height, static_cast<float>(fine.fx),
+                                         coarse_depth, coarse_weight, coarse.width, coarse.height, s.stream);
+    depth_device = coarse_depth;
+    weight_in = coarse_weight;
+  }
+  level_depth[0] = depth_device;
+  level_weight[0] = weight_in;
+  for (std::size_t l = 0; l < s.levels.size(); ++l) {
+    const Level& level = s.levels[l];
+    if (l > 0) {
+      const Level& fine = s.levels[l - 1];
+      float* coarse_weight = weighted ? s.weight_device[l].data() : nullptr;
+      detail::launch_downsample_depth_cuda(level_depth[l - 1], level_weight[l - 1], fine.camera.width,
+                                           fine.camera.height, static_cast<float>(fine.camera.fx), s.depth[l].data(),
+                                           coarse_weight, level.camera.width, level.camera.height, s.stream);
+      level_depth[l] = s.depth[l].data();
+      level_weight[l] = coarse_weight;
+    }
+    if (!with_normals) continue;
+    detail::launch_live_normals_cuda(level_depth[l], s.rays[l].data(), level.camera.width, level.camera.height,
+                                     static_cast<float>(level.camera.fx),
+                                     static_cast<float>(s.options.normal_baseline_m), s.normals[l].data(), s.stream);
+  }
+}
+
+void Tracker::Impl::texture_pyramid_device(const float* texture_in, const float* level_texture[8]) {
+  for (std::size_t k = 0; k < input_cameras.size(); ++k) {
+    const CameraIntrinsics& fine = input_cameras[k];
+    const CameraIntrinsics& coarse = k + 1 < input_cameras.size() ? input_cameras[k + 1] : camera;
+    float* out = k + 1 < input_cameras.size() ? input_texture_device[k].data() : texture_device[0].data();
+    detail::launch_downsample_texture_cuda(texture_in, fine.width, fine.height, out, coarse.width, coarse.height,
+                                           stream);
+    texture_in = out;
+  }
+  level_texture[0] = texture_in;
+  for (std::size_t l = 1; l < levels.size(); ++l) {
+    const CameraIntrinsics& fine = levels[l - 1].camera;
+    detail::launch_downsample_texture_cuda(level_texture[l - 1], fine.width, fine.height, texture_device[l].data(),
+                                           levels[l].camera.width, levels[l].camera.height, stream);
+    level_texture[l] = texture_device[l].data();
+  }
+}
+
+double Tracker::Impl::texture_mean_device(const float* texture0, const float* depth0) {
+  detail::launch_texture_statistics_cuda(texture0, depth0, camera.width * camera.height, photometric_partials.data(),
+                                         photometric_sums.data(), stream);
+  SLS_CUDA_CHECK(cudaMemcpyAsync(photometric_host_sums, photometric_sums.data(), kTextureSums * sizeof(double),
+                                 cudaMemcpyDeviceToHost, stream));
+  SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
+  return photometric_host_sums[1] > 0.0 ? photometric_host_sums[0] / photometric_host_sums[1] : 0.0;
+}
+
+void Tracker::Impl::keep_reference_device(const float* const level_depth[8], const float* const level_texture[8],
+                                          double mean, const Pose& T_world_camera) {
+  for (std::size_t l = 0; l < levels.size(); ++l) {
+    const std::size_t bytes = levels[l].pixels() * sizeof(float);
+    SLS_CUDA_CHECK(cudaMemcpyAsync(reference_depth[l].data(), level_depth[l], bytes, cudaMemcpyDeviceToDevice, stream));
+    SLS_CUDA_CHECK(
+        cudaMemcpyAsync(reference_texture[l].data(), level_texture[l], bytes, cudaMemcpyDeviceToDevice, stream));
+  }
+  // The inputs are the caller's (the decoder's next frame may overwrite them): copied now.
+  SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
+  reference_frame.mean = mean;
+  reference_frame.T_world_camera = T_world_camera;
+  reference_frame.valid = true;
+}
+
+void Tracker::Impl::set_reference_on_device(const float* depth_device, const float* texture_in,
+                                            const Pose& T_world_camera) {
+  const float* level_depth[8] = {};
+  const float* level_weight[8] = {};
+  const float* level_texture[8] = {};
+  depth_pyramid_device(depth_device, nullptr, level_depth, level_weight, false);
+  texture_pyramid_device(texture_in, level_texture);
+  const double mean = texture_mean_device(level_texture[0], level_depth[0]);
+  if (!(mean > 0.0) || !std::isfinite(mean)) {
+    reference_frame.valid = false;
+    return;
+  }
+  keep_reference_device(level_depth, level_texture, mean, T_world_camera);
+}
+
+TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const Vec3f* model_points,
+                                              const Vec3f* model_normals, const Pose& T_world_model,
+                                              const Pose& T_world_camera_guess, const float* texture_in,
+                                              const float* weight_in) {
+  Impl& s = *this;
+  const int width = s.camera.width, height = s.camera.height;
+  const int pixels = width * height;
+  const float* level_depth[8] = {};  // validate(): at most 8 levels
+  const float* level_weight[8] = {};
+  s.depth_pyramid_device(depth_device, weight_in, level_depth, level_weight, true);
+  depth_device = level_depth[0];
+  auto download = [&](int count) {
+    SLS_CUDA_CHECK(cudaMemcpyAsync(s.host_sums, s.device_sums.data(), static_cast<std::size_t>(count) * sizeof(double),
+                                   cudaMemcpyDeviceToHost, s.stream));
+    SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
+  };
+  auto statistics = [&](Vec3f reference) {
+    detail::launch_frame_statistics_cuda(model_points, depth_device, pixels, reference, s.partials.data(),
+                                         s.device_sums.data(), s.stream);
+    download(kFrameSums);
+    FrameSums sums{};
+    std::copy(s.host_sums, s.host_sums + kFrameSums, sums.begin());
+    return sums;
+  };
+  const Frame frame = s.frame_from_statistics(statistics);
+
+  TrackModelView model_view = s.model_view(model_points, model_normals);
+  if (s.crease_test()) {
+    detail::launch_model_creases_cuda(model_points, width, height, static_cast<float>(s.camera.fx),
+                                      static_cast<float>(s.options.normal_baseline_m),
+                                      static_cast<float>(s.options.crease_radius_m), s.crease_min_cos(),
+                                      s.crease_normals_device.data(), s.crease_mask_device.data(), s.stream);
+    model_view.creases = s.crease_mask_device.data();
+  }
+  auto reduce = [&](int l, const TrackParams& params) {
+    const Level& level = s.levels[static_cast<std::size_t>(l)];
+    TrackLiveView live;
+    live.depth = level_depth[l];
+    live.rays = s.rays[static_cast<std::size_t>(l)].data();
+    live.normals = s.normals[static_cast<std::size_t>(l)].data();
+    live.weights = level_weight[l];
+    live.width = level.camera.width;
+    live.height = level.camera.height;
+    detail::launch_track_cuda(live, model_view, params, s.partials.data(), s.device_sums.data(), s.stream);
+    download(kTrackSums);
+    Sums sums{};
+    std::copy(s.host_sums, s.host_sums + kTrackSums, sums.begin());
+    return sums;
+  };
+
+  const float* level_texture[8] = {};
+  double live_mean = 0.0;
+  if (texture_in != nullptr) {
+    s.texture_pyramid_device(texture_in, level_texture);
+    live_mean = s.texture_mean_device(level_texture[0], level_depth[0]);
+  }
+  std::string skipped;
+  const std::optional<PhotometricSetup> setup =
+      s.photometric_setup(texture_in != nullptr, live_mean, T_world_model, &skipped);
+  Impl::ReducePhotometric reduce_photometric;
+  if (setup) {
+    reduce_photometric = [&](int l, const PhotometricParams& params) {
+      const std::size_t level = static_cast<std::size_t>(l);
+      PhotometricLevelView ref, live;
+      ref.texture = s.reference_texture[level].data();
+      ref.depth = s.reference_depth[level].data();
+      ref.rays = s.rays[level].data();
+      ref.width = live.width = s.levels[level].camera.width;
+      ref.height = live.height = s.levels[level].camera.height;
+      live.texture = level_texture[l];
+      live.depth = level_depth[l];
+      live.rays = ref.rays;
+      detail::launch_photometric_cuda(ref, live, params, s.photometric_partials.data(), s.photometric_sums.data(),
+                                      s.stream);
+      SLS_CUDA_CHECK(cudaMemcpyAsync(s.photometric_host_sums, s.photometric_sums.data(),
+                                     kPhotometricSums * sizeof(double), cudaMemcpyDeviceToHost, s.stream));
+      SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
+      PhotometricSums sums{};
+      std::copy(s.photometric_host_sums, s.photometric_host_sums + kPhotometricSums, sums.begin());
+      return sums;
+    };
+  }
+  TrackingResult result = s.run(frame, T_world_model, T_world_camera_guess, reduce, setup ? &*setup : nullptr,
+                                reduce_photometric);
+  if (!skipped.empty()) result.photometric_skipped = skipped;
+  if (texture_in != nullptr && live_mean > 0.0 && std::isfinite(live_mean) && !result.lost) {
+    s.keep_reference_device(level_depth, level_texture, live_mean, result.T_world_camera);
+  }
+  return result;
+}
+
+}  // namespace sls::fusion
+#endif
