@@ -150,7 +150,36 @@ Json frame_to_json(const FrameInfo& frame) {
   if (frame.has_depth()) json["depth"] = frame.depth_file;
   json["status"] = frame.complete ? "complete" : "incomplete";
   if (!frame.note.empty()) json["note"] = frame.note;
+  if (frame.capture) {
+    const FrameCaptureCounters& capture = *frame.capture;
+    Json counters;
+    counters["attempts"] = capture.attempts;
+    counters["incomplete_images"] = capture.incomplete_images;
+    counters["lost_images"] = capture.lost_images;
+    counters["stale_images"] = capture.stale_images;
+    if (capture.transport) {
+      counters["resent_packets"] = capture.transport->resent_packets;
+      counters["missing_packets"] = capture.transport->missing_packets;
+      counters["queue_depth"] = capture.transport->queue_depth;
+    }
+    json["capture"] = std::move(counters);
+  }
   return json;
+}
+
+// What the manifest parser accepts back (recording_manifest.cpp).
+void check_capture_counters(const std::string& folder, const FrameCaptureCounters& capture) {
+  constexpr std::uint64_t kMaxPackets = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
+  const bool packets_fit = !capture.transport || (capture.transport->resent_packets <= kMaxPackets &&
+                                                  capture.transport->missing_packets <= kMaxPackets &&
+                                                  capture.transport->queue_depth <= kMaxPackets);
+  if (capture.attempts < 1 || capture.incomplete_images < 0 || capture.lost_images < 0 || capture.stale_images < 0 ||
+      !packets_fit) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "recording {}: capture counters out of range (attempts {} must be >= 1, image counts {}, {}, {} "
+                ">= 0, packet counts < 2^63)",
+                folder, capture.attempts, capture.incomplete_images, capture.lost_images, capture.stale_images);
+  }
 }
 
 // Runs job(0..count-1) on up to `threads` threads (0: one per hardware thread). PNG
@@ -192,6 +221,16 @@ void run_parallel(std::size_t count, int threads, const Job& job) {
 }
 
 }  // namespace
+
+bool operator==(const FrameTransportCounters& a, const FrameTransportCounters& b) {
+  return a.resent_packets == b.resent_packets && a.missing_packets == b.missing_packets &&
+         a.queue_depth == b.queue_depth;
+}
+
+bool operator==(const FrameCaptureCounters& a, const FrameCaptureCounters& b) {
+  return a.attempts == b.attempts && a.incomplete_images == b.incomplete_images && a.lost_images == b.lost_images &&
+         a.stale_images == b.stale_images && a.transport == b.transport;
+}
 
 // ---------------------------------------------------------------------------------------
 // Writer
@@ -322,6 +361,7 @@ int RecordingWriter::append_any(const std::vector<Image<T>>& images, const Frame
   if (metadata.turntable_angle_deg && !std::isfinite(*metadata.turntable_angle_deg)) {
     throw_error(ErrorCode::kInvalidArgument, "recording {}: turntable angle is not finite", folder_);
   }
+  if (metadata.capture) check_capture_counters(folder_, *metadata.capture);
   if (expected == 0 && depth_m == nullptr) {
     throw_error(ErrorCode::kInvalidArgument, "recording {}: a depth-only recording's frames need a depth map", folder_);
   }
@@ -360,6 +400,7 @@ int RecordingWriter::append_any(const std::vector<Image<T>>& images, const Frame
   frame.turntable_angle_deg = metadata.turntable_angle_deg;
   frame.complete = metadata.complete;
   frame.note = metadata.note;
+  frame.capture = metadata.capture;
   const std::string frame_relative = frame_folder_relative(frame.index);
   const std::string frame_folder = folder_ + "/" + frame_relative;
   create_directories(frame_folder);

@@ -17,7 +17,12 @@
 //    "frames": [{"index", "timestamp_ns", "turntable_angle_deg": number|null,
 //                "images": ["frames/000000/pattern_000.png", ...],
 //                "depth": "frames/000000/depth.png" (optional),
-//                "status": "complete"|"incomplete", "note": "..." (optional)}]}
+//                "status": "complete"|"incomplete", "note": "..." (optional),
+//                "capture": {...} (optional, FrameCaptureCounters)}]}
+//   "capture" (frames captured through the capture sequencer): {"attempts", "incomplete_images",
+//   "lost_images", "stale_images"} and, when the cameras' transport counts them, also
+//   {"resent_packets", "missing_packets", "queue_depth"}. Absent in recordings made otherwise
+//   or before it was kept: readers treat it as unknown, not as zero.
 //
 // Pixel values: stored as captured, unscaled. A camera of bit_depth <= 8 is stored as 8-bit
 // PNG, deeper ones (10/12/14/16) as 16-bit PNG holding values 0..2^bit_depth-1.
@@ -74,6 +79,30 @@ struct RecordingInfo {
   std::string created_utc;      // ISO 8601, set by the writer; read back by the reader
 };
 
+// A frame's figures from the cameras' transport (GigE Vision streams), summed over the cameras:
+// the packets the stream counted since the previous frame ended (or the acquisition began).
+struct FrameTransportCounters {
+  std::uint64_t resent_packets = 0;   // sent again by a camera on request
+  std::uint64_t missing_packets = 0;  // never arrived: each spoiled an image
+  // The most images one camera's output queue held behind an image the capture took for this
+  // frame: how far behind the capture was (0: it kept up).
+  std::uint64_t queue_depth = 0;
+};
+
+// What capturing a frame took (the capture sequencer's counts for this frame alone), kept in
+// the recording so that a scan of it can report them.
+struct FrameCaptureCounters {
+  int attempts = 1;           // 1 + re-captures of the stack
+  int incomplete_images = 0;  // the transport could not complete them, over every attempt and camera
+  int lost_images = 0;        // never arrived: frame-id gaps and timeouts
+  int stale_images = 0;       // arrived late for an earlier trigger and were dropped
+  std::optional<FrameTransportCounters> transport;  // none when no camera's transport counts
+};
+
+bool operator==(const FrameTransportCounters& a, const FrameTransportCounters& b);
+bool operator==(const FrameCaptureCounters& a, const FrameCaptureCounters& b);
+inline bool operator!=(const FrameCaptureCounters& a, const FrameCaptureCounters& b) { return !(a == b); }
+
 struct FrameMetadata {
   std::int64_t timestamp_ns = 0;
   std::optional<double> turntable_angle_deg;
@@ -81,6 +110,8 @@ struct FrameMetadata {
   // than images_per_frame, always the first ones of the pattern sequence.
   bool complete = true;
   std::string note;
+  // How the capture went (the capture sequencer's); none for frames made otherwise.
+  std::optional<FrameCaptureCounters> capture;
 };
 
 struct FrameInfo {
@@ -89,6 +120,7 @@ struct FrameInfo {
   std::optional<double> turntable_angle_deg;
   bool complete = true;
   std::string note;
+  std::optional<FrameCaptureCounters> capture;  // absent when the manifest has none
   std::vector<std::string> image_files;  // relative to the recording folder
   std::string depth_file;                // relative; empty when the frame has no depth map
   bool has_depth() const { return !depth_file.empty(); }
@@ -129,7 +161,8 @@ class RecordingWriter {
   // Images must match the camera size; 16-bit images for bit_depth > 8, 8-bit images (or
   // 16-bit ones holding values <= 255) for bit_depth <= 8; values must fit bit_depth.
   // A complete frame has exactly images_per_frame images, an incomplete one at most that.
-  // `depth_m` (metres, 0 or non-finite = invalid) must match the camera size.
+  // `depth_m` (metres, 0 or non-finite = invalid) must match the camera size. Capture
+  // counters, when given, need attempts >= 1, counts >= 0 and packet counts below 2^63.
   // Returns the frame's index. On failure (kInvalidArgument, kIo) nothing is listed and
   // the recording stays valid; the next append reuses the index.
   // `before_listing`, when given, is called with the frame's index once its files are on

@@ -83,6 +83,31 @@ class ManifestParser {
   std::string path_;
 };
 
+// A frame's optional "capture" counters (the capture sequencer's): every count an integer in
+// range; the transport's three keys all or none.
+FrameCaptureCounters parse_capture(const ManifestParser& parser, const Json& json, const std::string& where) {
+  if (!json.is_object()) parser.fail(fmt::format("'{}' must be an object, not {}", where, json.type_name()));
+  constexpr std::int64_t kMaxCount = std::numeric_limits<int>::max();
+  constexpr std::int64_t kMaxPackets = std::numeric_limits<std::int64_t>::max();
+  FrameCaptureCounters capture;
+  capture.attempts = static_cast<int>(parser.integer(json, "attempts", where, 1, kMaxCount));
+  capture.incomplete_images = static_cast<int>(parser.integer(json, "incomplete_images", where, 0, kMaxCount));
+  capture.lost_images = static_cast<int>(parser.integer(json, "lost_images", where, 0, kMaxCount));
+  capture.stale_images = static_cast<int>(parser.integer(json, "stale_images", where, 0, kMaxCount));
+  static const char* const kTransportKeys[] = {"resent_packets", "missing_packets", "queue_depth"};
+  std::size_t present = 0;
+  for (const char* key : kTransportKeys) present += json.contains(key) ? 1u : 0u;
+  if (present > 0) {
+    FrameTransportCounters transport;
+    transport.resent_packets = static_cast<std::uint64_t>(parser.integer(json, "resent_packets", where, 0, kMaxPackets));
+    transport.missing_packets =
+        static_cast<std::uint64_t>(parser.integer(json, "missing_packets", where, 0, kMaxPackets));
+    transport.queue_depth = static_cast<std::uint64_t>(parser.integer(json, "queue_depth", where, 0, kMaxPackets));
+    capture.transport = transport;
+  }
+  return capture;
+}
+
 FrameInfo parse_frame(const ManifestParser& parser, const Json& json, std::size_t position, int images_per_frame) {
   const std::string where = fmt::format("frames[{}]", position);
   if (!json.is_object()) parser.fail(fmt::format("'{}' must be an object, not {}", where, json.type_name()));
@@ -99,6 +124,9 @@ FrameInfo parse_frame(const ManifestParser& parser, const Json& json, std::size_
   }
   frame.complete = status == "complete";
   if (const Json* note = parser.optional_member(json, "note")) frame.note = parser.string(*note, where + ".note");
+  if (const Json* capture = parser.optional_member(json, "capture")) {
+    frame.capture = parse_capture(parser, *capture, where + ".capture");
+  }
   const Json& images = parser.member(json, "images", where);
   if (!images.is_array()) parser.fail(fmt::format("'{}.images' must be an array, not {}", where, images.type_name()));
   const std::size_t expected = static_cast<std::size_t>(images_per_frame);

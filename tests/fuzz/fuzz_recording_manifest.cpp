@@ -1,7 +1,9 @@
 // libFuzzer target: a recording's manifest.json. Whatever is accepted has sizes in range,
-// strictly increasing frame indices, the image count the header promises, and only relative
-// paths that stay inside the recording.
+// strictly increasing frame indices, the image count the header promises, capture counters in
+// range, and only relative paths that stay inside the recording.
+#include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <string>
 
 #include "sdk/core/error.h"
@@ -37,6 +39,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     check(!frame.complete || frame.image_files.size() == static_cast<std::size_t>(info.images_per_frame));
     for (const std::string& file : frame.image_files) check_inside(file);
     if (frame.has_depth()) check_inside(frame.depth_file);
+    if (frame.capture) {
+      const sls::FrameCaptureCounters& capture = *frame.capture;
+      check(capture.attempts >= 1 && capture.incomplete_images >= 0 && capture.lost_images >= 0 &&
+            capture.stale_images >= 0);
+      constexpr std::uint64_t kMaxPackets = std::numeric_limits<std::int64_t>::max();
+      check(!capture.transport || (capture.transport->resent_packets <= kMaxPackets &&
+                                   capture.transport->missing_packets <= kMaxPackets &&
+                                   capture.transport->queue_depth <= kMaxPackets));
+    }
   }
   if (info.has_groundtruth) check_inside(manifest.groundtruth_relative);
   if (!manifest.calibration_relative.empty()) check_inside(manifest.calibration_relative);

@@ -6,8 +6,10 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -307,6 +309,66 @@ TEST(Recording, IncompleteFrameKeepsItsImagesAndNote) {
   EXPECT_EQ(reader.load_images(0), two);
 }
 
+// A device capture's per-frame counters (the capture sequencer's): kept per frame, absent where
+// none were given, and still there after a resumed writer rewrote the manifest.
+TEST(Recording, CaptureCountersRoundTripAndSurviveAResume) {
+  test::TemporaryDirectory dir;
+  const std::string folder = dir.file("rec");
+  FrameCaptureCounters sequencer_only;  // a camera whose transport counts nothing (the simulator)
+  sequencer_only.attempts = 3;
+  sequencer_only.incomplete_images = 1;
+  sequencer_only.lost_images = 2;
+  sequencer_only.stale_images = 1;
+  FrameCaptureCounters gige;  // a GigE Vision camera's
+  gige.attempts = 2;
+  gige.incomplete_images = 1;
+  gige.transport = FrameTransportCounters{5, 7, 2};
+  FrameCaptureCounters huge = gige;  // the largest counts the manifest holds
+  huge.attempts = std::numeric_limits<int>::max();
+  huge.transport->resent_packets = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
+  const std::vector<std::optional<FrameCaptureCounters>> written = {std::nullopt, sequencer_only, gige, huge};
+  {
+    RecordingWriter writer = RecordingWriter::create(folder, make_info(16), make_calibration());
+    for (std::size_t f = 0; f < 3; ++f) {
+      FrameMetadata m = metadata(static_cast<std::int64_t>(f), std::nullopt);
+      m.capture = written[f];
+      writer.append_frame(random_images<std::uint16_t>(kImagesPerFrame, 65535, 60u + static_cast<std::uint32_t>(f)), m);
+      EXPECT_EQ(writer.frame(f).capture, written[f]) << "frame " << f;
+    }
+  }
+  const std::string text = read_file_text(folder + "/manifest.json");
+  const auto count = [&text](const std::string& key) {
+    std::size_t n = 0;
+    for (std::size_t at = text.find(key); at != std::string::npos; at = text.find(key, at + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count("\"capture\""), 2u) << "frame 0 has no capture key: " << text;
+  EXPECT_EQ(count("\"resent_packets\""), 1u) << "only frame 2 has transport counters";
+  {
+    RecordingWriter resumed = RecordingWriter::append_to(folder);
+    FrameMetadata m = metadata(3, std::nullopt);
+    m.capture = huge;
+    resumed.append_frame(random_images<std::uint16_t>(kImagesPerFrame, 65535, 63), m);
+  }
+  const RecordingReader reader = RecordingReader::open(folder);
+  ASSERT_EQ(reader.frame_count(), written.size());
+  for (std::size_t f = 0; f < written.size(); ++f) EXPECT_EQ(reader.frame(f).capture, written[f]) << "frame " << f;
+  EXPECT_FALSE(reader.frame(1).capture->transport.has_value());
+
+  // The writer refuses what the reader would refuse.
+  RecordingWriter writer = RecordingWriter::create(dir.file("bad"), make_info(16), make_calibration());
+  for (const auto& spoil : std::vector<void (*)(FrameCaptureCounters&)>{
+           [](FrameCaptureCounters& c) { c.attempts = 0; }, [](FrameCaptureCounters& c) { c.lost_images = -1; },
+           [](FrameCaptureCounters& c) { c.transport->missing_packets = ~std::uint64_t{0}; }}) {
+    FrameMetadata m = metadata(0, std::nullopt);
+    m.capture = gige;
+    spoil(*m.capture);
+    expect_error([&] { writer.append_frame(random_images<std::uint16_t>(kImagesPerFrame, 1, 1), m); },
+                 ErrorCode::kInvalidArgument, "capture counters out of range");
+  }
+  EXPECT_EQ(writer.frame_count(), 0u);
+}
+
 TEST(Recording, GroundtruthFolderAndNoCalibration) {
   test::TemporaryDirectory dir;
   RecordingInfo info = make_info(16);
@@ -522,6 +584,46 @@ TEST_F(DamagedRecording, MistypedOrMissingKeysNameTheKey) {
   expect_error([&] { RecordingReader::open(folder); }, ErrorCode::kFormat, "frames[0].status");
   write_file_atomic(file("manifest.json"), manifest);
   EXPECT_NO_THROW(RecordingReader::open(folder));
+}
+
+// The optional per-frame "capture" counters: a manifest without them (every recording before
+// them, and the simulator's) reads as before; present ones are checked key by key.
+TEST_F(DamagedRecording, CaptureCountersAreOptionalButCheckedWhenPresent) {
+  const std::string manifest = read_file_text(file("manifest.json"));
+  EXPECT_FALSE(RecordingReader::open(folder).frame(1).capture.has_value());
+  const auto with_capture = [&](const std::string& counters) {
+    write_file_atomic(file("manifest.json"), manifest);
+    replace_in_file(file("manifest.json"), "\"timestamp_ns\": 1001", "\"timestamp_ns\": 1001, \"capture\": " + counters);
+  };
+  with_capture(R"({"attempts": 2, "incomplete_images": 1, "lost_images": 0, "stale_images": 0, "unknown": 1})");
+  FrameCaptureCounters expected;
+  expected.attempts = 2;
+  expected.incomplete_images = 1;
+  EXPECT_EQ(RecordingReader::open(folder).frame(1).capture, expected) << "unknown keys are ignored, as elsewhere";
+  with_capture("null");
+  EXPECT_FALSE(RecordingReader::open(folder).frame(1).capture.has_value());
+  const std::pair<const char*, const char*> bad[] = {
+      {"[]", "'frames[1].capture' must be an object"},
+      {R"({"attempts": 0, "incomplete_images": 0, "lost_images": 0, "stale_images": 0})",
+       "'frames[1].capture.attempts' = 0 is outside 1.."},
+      {R"({"attempts": 1, "incomplete_images": 0, "lost_images": -1, "stale_images": 0})",
+       "'frames[1].capture.lost_images' = -1 is outside 0.."},
+      {R"({"attempts": 1, "incomplete_images": 0, "lost_images": 0, "stale_images": "2"})",
+       "'frames[1].capture.stale_images' must be an integer"},
+      {R"({"attempts": 1, "incomplete_images": 0, "lost_images": 0})", "missing key 'frames[1].capture.stale_images'"},
+      {R"({"attempts": 1, "incomplete_images": 0, "lost_images": 0, "stale_images": 0, "resent_packets": 3})",
+       "missing key 'frames[1].capture.missing_packets'"},
+      {R"({"attempts": 1, "incomplete_images": 0, "lost_images": 0, "stale_images": 0, "resent_packets": 0,
+           "missing_packets": 18446744073709551615, "queue_depth": 0})",
+       "'frames[1].capture.missing_packets' = 18446744073709551615 is outside 0.."},
+      {R"({"attempts": 1, "incomplete_images": 0, "lost_images": 0, "stale_images": 0, "resent_packets": 0,
+           "missing_packets": 0, "queue_depth": 1.5})",
+       "'frames[1].capture.queue_depth' must be an integer"},
+  };
+  for (const auto& [counters, message] : bad) {
+    with_capture(counters);
+    expect_error([&] { RecordingReader::open(folder); }, ErrorCode::kFormat, message);
+  }
 }
 
 // Found by fuzz_recording_manifest: well-formed JSON holding a number beyond a double made
