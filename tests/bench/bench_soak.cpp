@@ -8,7 +8,6 @@
 // ms/frame, the session's stages), and gpu_mib_rNN with a CUDA device (cudaMemGetInfo).
 // Writing the recording is not timed.
 #include <benchmark/benchmark.h>
-#include <malloc.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -20,49 +19,22 @@
 #include <string>
 #include <vector>
 
-#if defined(SLS_HAVE_CUDA)
-#include <cuda_runtime_api.h>
-#endif
-
 #include "drivers/sim/sim_recording.h"
 #include "sdk/core/device.h"
 #include "sdk/core/recording.h"
 #include "sdk/session/scan_session.h"
+#include "tests/support/process_memory.h"
 
 namespace sls {
 namespace {
 
 constexpr int kRevolutions = 20;
 constexpr int kFrames = 24;
-constexpr double kMiB = 1048576.0;
+using test::gpu_used_mib;
+using test::heap_mib;
+using test::median;
+using test::rss_mib;
 
-double rss_mib() {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmRSS:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
-  }
-  return 0.0;
-}
-double heap_mib() {
-  const struct mallinfo2 info = mallinfo2();
-  return static_cast<double>(info.uordblks + info.hblkhd) / kMiB;
-}
-double gpu_used_mib() {
-#if defined(SLS_HAVE_CUDA)
-  std::size_t free_bytes = 0, total_bytes = 0;
-  if (cudaMemGetInfo(&free_bytes, &total_bytes) != cudaSuccess) return 0.0;
-  return static_cast<double>(total_bytes - free_bytes) / kMiB;
-#else
-  return 0.0;
-#endif
-}
-double median(std::vector<double> values) {
-  if (values.empty()) return 0.0;
-  auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  return *middle;
-}
 
 void BM_Soak(benchmark::State& state) {
   const bool one_session = state.range(0) == 1;

@@ -16,34 +16,22 @@
 #include <string>
 #include <vector>
 
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define SLS_SOAK_ASAN 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__) && !defined(SLS_SOAK_ASAN)
-#define SLS_SOAK_ASAN 1
-#endif
-#if defined(SLS_SOAK_ASAN)
-// The ASan runtime's (sanitizer/allocator_interface.h, which gcc does not install everywhere).
-extern "C" std::size_t __sanitizer_get_current_allocated_bytes();
-#else
-#include <malloc.h>
-#endif
-#if defined(SLS_HAVE_CUDA)
-#include <cuda_runtime_api.h>
-#endif
-
 #include "drivers/sim/sim_recording.h"
 #include "sdk/core/recording.h"
 #include "sdk/session/scan_session.h"
+#include "tests/support/process_memory.h"
 #include "tests/support/test_support.h"
 #include "tests/unit/session/sim_frames.h"
 
 namespace sls::session {
 namespace {
 
-constexpr double kMiB = 1048576.0;
+using test::gpu_used_mib;
+using test::heap_mib;
+using test::kMiB;
+using test::median;
+using test::rss_mib;
+
 // 24 steps of 15°: the views overlap enough to track with the prior (45° do not, issue 19
 // item 11), and a revolution costs ~24 small frames.
 constexpr int kFramesPerRevolution = 24;
@@ -52,36 +40,6 @@ int soak_revolutions() {
   const char* value = std::getenv("SLS_SOAK_REVOLUTIONS");
   const int n = value != nullptr ? std::atoi(value) : 5;
   return std::max(n, 4);  // the first is warm-up, and a trend needs at least three after it
-}
-
-double rss_mib() {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmRSS:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;  // kB
-  }
-  return 0.0;
-}
-
-// Bytes the program holds on the heap (freed ones excluded): exact for leaks, unlike RSS, which
-// keeps pages the allocator has not returned (and, under ASan, its quarantine of freed blocks).
-double heap_mib() {
-#if defined(SLS_SOAK_ASAN)
-  return static_cast<double>(__sanitizer_get_current_allocated_bytes()) / kMiB;
-#else
-  const struct mallinfo2 info = mallinfo2();
-  return static_cast<double>(info.uordblks + info.hblkhd) / kMiB;
-#endif
-}
-
-double gpu_used_mib() {
-#if defined(SLS_HAVE_CUDA)
-  std::size_t free_bytes = 0, total_bytes = 0;
-  if (cudaMemGetInfo(&free_bytes, &total_bytes) != cudaSuccess) return 0.0;
-  return static_cast<double>(total_bytes - free_bytes) / kMiB;
-#else
-  return 0.0;
-#endif
 }
 
 template <typename T>
@@ -94,12 +52,6 @@ double cloud_mib(const PointCloud& c) {
 // What the model holds: the shipped parts and the current volume's surface, cloud and mesh.
 double model_mib(const fusion::ExtractedSurface& s) {
   return cloud_mib(s.cloud) + cloud_mib(s.mesh.vertices) + bytes(s.mesh.faces) / kMiB;
-}
-
-double median(std::vector<double> values) {
-  if (values.empty()) return 0.0;
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
-  return values[values.size() / 2];
 }
 
 struct Revolution {

@@ -1,0 +1,75 @@
+// What this process holds, for the long-run tests and benchmarks (test_scan_soak, bench_soak):
+// resident memory, the heap's live bytes and the GPU memory in use, in MiB. Header-only, so a
+// benchmark can use it without the gtest-based support library.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdlib>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define SLS_PROCESS_MEMORY_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__) && !defined(SLS_PROCESS_MEMORY_ASAN)
+#define SLS_PROCESS_MEMORY_ASAN 1
+#endif
+#if defined(SLS_PROCESS_MEMORY_ASAN)
+// The ASan runtime's (sanitizer/allocator_interface.h, which gcc does not install everywhere).
+extern "C" std::size_t __sanitizer_get_current_allocated_bytes();
+#else
+#include <malloc.h>
+#endif
+#if defined(SLS_HAVE_CUDA)
+#include <cuda_runtime_api.h>
+#endif
+
+namespace sls::test {
+
+constexpr double kMiB = 1048576.0;
+
+// VmRSS: pages resident, including those the allocator keeps after a free.
+inline double rss_mib() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmRSS:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;  // kB
+  }
+  return 0.0;
+}
+
+// Bytes the program holds on the heap (freed ones excluded): exact for leaks, unlike RSS, which
+// keeps pages the allocator has not returned (and, under ASan, its quarantine of freed blocks).
+inline double heap_mib() {
+#if defined(SLS_PROCESS_MEMORY_ASAN)
+  return static_cast<double>(__sanitizer_get_current_allocated_bytes()) / kMiB;
+#else
+  const struct mallinfo2 info = mallinfo2();
+  return static_cast<double>(info.uordblks + info.hblkhd) / kMiB;
+#endif
+}
+
+// The GPU's memory in use (all processes: cudaMemGetInfo), 0 without CUDA or a device.
+inline double gpu_used_mib() {
+#if defined(SLS_HAVE_CUDA)
+  std::size_t free_bytes = 0, total_bytes = 0;
+  if (cudaMemGetInfo(&free_bytes, &total_bytes) != cudaSuccess) return 0.0;
+  return static_cast<double>(total_bytes - free_bytes) / kMiB;
+#else
+  return 0.0;
+#endif
+}
+
+// The upper median (0 for none).
+inline double median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+}  // namespace sls::test
