@@ -222,6 +222,10 @@ struct AravisCamera::Impl {
   bool have_last_frame_id = false;
   std::uint64_t last_frame_id = 0;
   AravisStatistics statistics;
+  // The packet counters of the streams stop() already dropped (each start() makes a new one,
+  // whose counters begin at 0), and the output queue as the last wait_image() left it.
+  TransportStatistics transport_before;
+  std::uint64_t output_queue_depth = 0;
 
   Impl() = default;
   Impl(const Impl&) = delete;
@@ -235,6 +239,18 @@ struct AravisCamera::Impl {
     }
     if (stream != nullptr) g_object_unref(stream);
     if (camera != nullptr) g_object_unref(camera);
+  }
+
+  // The current stream's packet counters (GigE Vision only; 0 without a stream).
+  TransportStatistics stream_packets() const {
+    TransportStatistics packets;
+    if (stream == nullptr || !ARV_IS_GV_STREAM(stream)) return packets;
+    guint64 resent = 0;
+    guint64 missing = 0;
+    arv_gv_stream_get_statistics(ARV_GV_STREAM(stream), &resent, &missing);
+    packets.resent_packets = resent;
+    packets.missing_packets = missing;
+    return packets;
   }
 
   static void on_control_lost(ArvDevice* /*device*/, gpointer user) {
@@ -690,6 +706,7 @@ void AravisCamera::start() {
   camera.stream = stream;
   camera.acquiring = true;
   camera.have_last_frame_id = false;
+  camera.output_queue_depth = 0;
 }
 
 void AravisCamera::stop() {
@@ -697,6 +714,9 @@ void AravisCamera::stop() {
   if (!camera.acquiring) return;
   GErrorSlot error;
   arv_camera_stop_acquisition(camera.camera, error.out());
+  const TransportStatistics packets = camera.stream_packets();
+  camera.transport_before.resent_packets += packets.resent_packets;
+  camera.transport_before.missing_packets += packets.missing_packets;
   g_object_unref(camera.stream);  // drops the pool and any frame not yet taken
   camera.stream = nullptr;
   camera.acquiring = false;
@@ -742,6 +762,10 @@ CapturedImage AravisCamera::wait_image(std::chrono::milliseconds timeout) {
     ArvBuffer* buffer;
     ~ReturnToPool() { arv_stream_push_buffer(stream, buffer); }
   } give_back{camera.stream, buffer};
+  gint waiting_input = 0;
+  gint waiting_output = 0;
+  arv_stream_get_n_buffers(camera.stream, &waiting_input, &waiting_output);
+  camera.output_queue_depth = static_cast<std::uint64_t>(std::max(waiting_output, 0));
   return camera.convert(buffer);
 }
 
@@ -762,5 +786,15 @@ const std::string& AravisCamera::gain_feature() const { return impl_->gain_featu
 int AravisCamera::packet_size() const { return impl_->packet_size; }
 const DiscoveredCamera& AravisCamera::device() const { return impl_->identity; }
 AravisStatistics AravisCamera::statistics() const { return impl_->statistics; }
+
+std::optional<TransportStatistics> AravisCamera::transport_statistics() const {
+  const Impl& camera = *impl_;
+  if (camera.identity.protocol != "GigEVision") return std::nullopt;
+  TransportStatistics transport = camera.stream_packets();
+  transport.resent_packets += camera.transport_before.resent_packets;
+  transport.missing_packets += camera.transport_before.missing_packets;
+  transport.output_queue_depth = camera.output_queue_depth;
+  return transport;
+}
 
 }  // namespace sls::drivers

@@ -25,6 +25,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -96,6 +97,10 @@ class AravisCamera final : public Camera {
   void stop() override;
   void software_trigger() override;
   CapturedImage wait_image(std::chrono::milliseconds timeout) override;
+  // GigE Vision: the stream's packet counters (Aravis's n_resent_packets, n_missing_packets),
+  // summed over the streams of every start() since open, and the images its output queue held
+  // behind the last one wait_image() returned. USB3 Vision: nullopt (no packets to count).
+  std::optional<TransportStatistics> transport_statistics() const override;
 
   // Through the SFNC Gain (float), else GainRaw (integer: the value is rounded).
   void set_gain(double gain);

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "sdk/core/image.h"
@@ -38,6 +39,19 @@ struct CapturedImage {
   std::string problem;            // why it is incomplete
 };
 
+// What a camera's transport says about its stream: packets counted since the camera was opened
+// (across start() / stop()), and how far behind the reader of its images is.
+struct TransportStatistics {
+  // Packets the camera sent again because the host asked (GigE Vision packet resend).
+  std::uint64_t resent_packets = 0;
+  // Packets that never arrived, resend or not: each left an image incomplete.
+  std::uint64_t missing_packets = 0;
+  // Images waiting in the stream's output queue behind the last one wait_image() returned: how
+  // far behind the reader was when it took that image (0: it kept up). Not cumulative; 0
+  // before the first image of an acquisition.
+  std::uint64_t output_queue_depth = 0;
+};
+
 class Camera {
  public:
   virtual ~Camera() = default;
@@ -54,6 +68,11 @@ class Camera {
   // The next image; throws sls::Error(kTimeout) naming the camera when none arrives in time,
   // kDevice when the camera is gone.
   virtual CapturedImage wait_image(std::chrono::milliseconds timeout) = 0;
+
+  // The transport's figures, or nullopt for a camera whose transport keeps none (the
+  // simulator, recorded sessions). Cheap (no device I/O, callable after every image) and
+  // never throws.
+  virtual std::optional<TransportStatistics> transport_statistics() const { return std::nullopt; }
 };
 
 }  // namespace sls::drivers

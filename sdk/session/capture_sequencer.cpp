@@ -155,7 +155,10 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
   try {
     prepare();
     for (int frame = options_.first_frame; frame < frames; ++frame) {
+      const CaptureStatistics before = statistics_;
+      queue_depth_ = 0;
       CapturedFrame captured = capture_frame(frame);
+      captured.counters = frame_counters(before, captured.attempts);
       for (std::size_t c = 0; c < recordings.size(); ++c) {
         FrameMetadata metadata;
         const CameraStack& stack = captured.cameras[c];
@@ -163,6 +166,7 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
         metadata.turntable_angle_deg = captured.turntable_angle_deg;
         metadata.complete = captured.complete;
         metadata.note = captured.note;
+        metadata.capture = captured.counters;
         try {
           captured.recording_indices.push_back(recordings[c]->append_frame(stack.images, metadata));
         } catch (const Error& error) {
@@ -183,6 +187,46 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
   finish(false);
   statistics_.seconds = seconds_since(start);
   return statistics_;
+}
+
+std::optional<drivers::TransportStatistics> CaptureSequencer::transport_sample() const {
+  std::optional<drivers::TransportStatistics> total;
+  for (const drivers::Camera* camera : cameras_) {
+    const std::optional<drivers::TransportStatistics> one = camera->transport_statistics();
+    if (!one) continue;
+    if (!total) total.emplace();
+    total->resent_packets += one->resent_packets;
+    total->missing_packets += one->missing_packets;
+    total->output_queue_depth = std::max(total->output_queue_depth, one->output_queue_depth);
+  }
+  return total;
+}
+
+FrameCaptureCounters CaptureSequencer::frame_counters(const CaptureStatistics& before, int attempts) {
+  FrameCaptureCounters counters;
+  counters.attempts = attempts;
+  counters.incomplete_images = statistics_.incomplete_images - before.incomplete_images;
+  counters.lost_images = statistics_.lost_images - before.lost_images;
+  counters.stale_images = statistics_.stale_images - before.stale_images;
+  const std::optional<drivers::TransportStatistics> now = transport_sample();
+  if (now) {
+    const drivers::TransportStatistics mark = transport_mark_.value_or(drivers::TransportStatistics{});
+    // Counters only grow; a driver that restarted its own counts starts a new span.
+    const auto since = [](std::uint64_t value, std::uint64_t previous) {
+      return value >= previous ? value - previous : value;
+    };
+    FrameTransportCounters transport;
+    transport.resent_packets = since(now->resent_packets, mark.resent_packets);
+    transport.missing_packets = since(now->missing_packets, mark.missing_packets);
+    transport.queue_depth = queue_depth_;
+    counters.transport = transport;
+    FrameTransportCounters& total = statistics_.transport ? *statistics_.transport : statistics_.transport.emplace();
+    total.resent_packets += transport.resent_packets;
+    total.missing_packets += transport.missing_packets;
+    total.queue_depth = std::max(total.queue_depth, transport.queue_depth);
+  }
+  transport_mark_ = now;
+  return counters;
 }
 
 void CaptureSequencer::prepare() {
@@ -214,6 +258,7 @@ void CaptureSequencer::prepare() {
       fail(camera_name(c), "setup, starting the acquisition", error);
     }
   }
+  transport_mark_ = transport_sample();
 }
 
 void CaptureSequencer::finish(bool after_error) {
@@ -347,6 +392,9 @@ bool CaptureSequencer::collect_image(std::size_t camera, int frame, int pattern,
       return false;
     }
     ++statistics_.images;
+    if (const std::optional<drivers::TransportStatistics> transport = device.transport_statistics()) {
+      queue_depth_ = std::max(queue_depth_, transport->output_queue_depth);
+    }
     // Frames the camera numbered but we never received still used up a trigger each.
     const std::uint64_t answers = track.last_answer ? *track.last_answer + 1 + captured.frames_missed : expected;
     track.last_answer = answers;

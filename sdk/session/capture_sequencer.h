@@ -19,8 +19,16 @@
 //     belongs to another trigger are never used. Such a stack is re-captured whole, up to
 //     max_retries times; when the retries run out the frame is written marked incomplete, with the
 //     whole images it has (always the first ones of the sequence) and a note saying why;
-//  4. appends the stack to each camera's recording (flushed per frame by RecordingWriter), then
-//     calls the per-frame callback, then the progress callback.
+//  4. appends the stack to each camera's recording (flushed per frame by RecordingWriter), with
+//     the frame's capture counters (CapturedFrame::counters), then calls the per-frame callback,
+//     then the progress callback.
+//
+// Per-frame counters: the attempts, and the images that were incomplete, lost or stale while
+// this frame was captured (they sum to CaptureStatistics' counts), and, from the cameras that
+// report transport statistics (drivers::Camera::transport_statistics), the packets resent and
+// missing since the previous frame ended (or the acquisition started: the turntable's move is
+// part of a frame's span), summed over the cameras, and the deepest output queue behind any
+// image taken for the frame.
 //
 // Which trigger an image answers: every camera numbers its frames (frame_id), and a trigger it
 // acted on uses one number whether or not the image arrives. The sequencer counts the triggers it
@@ -114,6 +122,8 @@ struct CapturedFrame {
   std::vector<CameraStack> cameras;  // per camera, in the order given to the sequencer
   // What each camera's recording got as its index for this frame (empty without recordings).
   std::vector<int> recording_indices;
+  // What capturing it took (what the recordings store with the frame).
+  FrameCaptureCounters counters;
 
   // The first camera's first image's timestamp (what the recording stores), 0 when it has none.
   std::int64_t timestamp_ns() const;
@@ -128,6 +138,9 @@ struct CaptureStatistics {
   int lost_images = 0;        // never arrived: frame-id gaps and timeouts
   int timeouts = 0;           // waits for an image that ran out (counted in lost_images too)
   int stale_images = 0;       // arrived late for an earlier trigger and were dropped
+  // Packets resent and missing over the frames captured (the per-frame counts summed; queue
+  // depth: the deepest); none when no camera reports transport statistics.
+  std::optional<FrameTransportCounters> transport;
   double seconds = 0.0;          // wall time of run(), setup included
   double capture_seconds = 0.0;  // capturing stacks: turntable moves and recording excluded
   double projector_seconds = 0.0;  // of that, in show_pattern
@@ -175,6 +188,8 @@ class CaptureSequencer {
   void prepare();
   void finish(bool after_error);
   CapturedFrame capture_frame(int frame);
+  FrameCaptureCounters frame_counters(const CaptureStatistics& before, int attempts);
+  std::optional<drivers::TransportStatistics> transport_sample() const;
   Attempt capture_attempt(int frame);
   bool collect_image(std::size_t camera, int frame, int pattern, Attempt& attempt);
   std::string camera_name(std::size_t camera) const;
@@ -192,6 +207,10 @@ class CaptureSequencer {
   std::string failed_device_;  // the device whose error ended the scan, left alone in cleanup
   CaptureStatistics statistics_;
   std::optional<double> angle_deg_;
+  // The cameras' transport counters (summed) when the previous frame ended, and the deepest
+  // output queue seen during the current frame.
+  std::optional<drivers::TransportStatistics> transport_mark_;
+  std::uint64_t queue_depth_ = 0;
 };
 
 }  // namespace sls::session
