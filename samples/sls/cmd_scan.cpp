@@ -12,6 +12,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <optional>
 
 #include <fmt/format.h>
@@ -126,6 +127,21 @@ nlohmann::json stage_json(const session::StageTimes& times) {
   return {{"read", times.read_ms},       {"decode", times.decode_ms}, {"track", times.track_ms},
           {"integrate", times.integrate_ms}, {"move", times.move_ms},   {"raycast", times.raycast_ms},
           {"deform", times.deform_ms}};
+}
+
+// A frame's capture counters (recording.h): re-captures, spoiled images and, from a GigE
+// Vision stream, packets and queue depth.
+nlohmann::json capture_json(const FrameCaptureCounters& counters) {
+  nlohmann::json json = {{"attempts", counters.attempts},
+                         {"incomplete_images", counters.incomplete_images},
+                         {"lost_images", counters.lost_images},
+                         {"stale_images", counters.stale_images}};
+  if (counters.transport) {
+    json["resent_packets"] = counters.transport->resent_packets;
+    json["missing_packets"] = counters.transport->missing_packets;
+    json["queue_depth"] = counters.transport->queue_depth;
+  }
+  return json;
 }
 
 struct LoopClosureChoice {
@@ -417,11 +433,19 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   nlohmann::json per_frame = nlohmann::json::array();
   std::vector<double> pipeline_ms;  // track + integrate + move + raycast of each fused frame
   std::size_t active = 0;
+  // What each frame's capture took, as the recording keeps it (device captures), by frame index.
+  std::map<int, FrameCaptureCounters> capture_counters;
+  for (std::size_t i = 0; i < recording.frame_count(); ++i) {
+    if (recording.frame(i).capture) capture_counters[recording.frame(i).index] = *recording.frame(i).capture;
+  }
   for (const session::FrameReport& frame : session.frames()) {
     nlohmann::json entry = {{"frame", frame.index}, {"status", session::frame_status_name(frame.status)},
                             {"ms", stage_json(frame.times)}};
     if (!frame.reason.empty()) entry["reason"] = frame.reason;
     if (frame.unverified) entry["unverified"] = true;
+    if (const auto counters = capture_counters.find(frame.index); counters != capture_counters.end()) {
+      entry["capture"] = capture_json(counters->second);
+    }
     if (frame.tracking) {
       entry["tracking"] = {{"inlier_fraction", frame.tracking->inlier_fraction},
                            {"crease_pixels", frame.tracking->crease_pixels},

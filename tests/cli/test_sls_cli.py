@@ -393,6 +393,8 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(report["lost_frames"], [])
         self.assertGreater(report["points"], 10000)
         self.assertEqual(json.loads((out / "report.json").read_text())["points"], report["points"])
+        # The simulator's own recording has no capture counters: no per-frame "capture" key.
+        self.assertEqual([f for f in report["per_frame"] if "capture" in f], [])
         for name in ("cloud.ply", "mesh.ply", "trajectory.txt"):
             self.assertTrue((out / name).exists(), name)
         inspect = json.loads(run("--json", "inspect", str(out / "cloud.ply"), str(out / "mesh.ply"),
@@ -432,6 +434,15 @@ class SlsCli(unittest.TestCase):
         self.assertTrue(inspect["calibrated"])
         self.assertEqual(inspect["frames"], 3)
         self.assertEqual(inspect["frames_with_turntable_angle"], 3)
+        # Each frame's capture counters, kept in the recording: report.json's per_frame carries
+        # them (the simulated camera counts no packets: no packet keys), also when the recording
+        # is scanned again on its own.
+        clean = {"attempts": 1, "incomplete_images": 0, "lost_images": 0, "stale_images": 0}
+        report = json.loads((out / "report.json").read_text())
+        self.assertEqual([f.get("capture") for f in report["per_frame"]], [clean] * 3)
+        again = run("--json", "scan", "--input", str(out / "recording"), "--device", "cpu", "--out", str(self.dir / "again"))
+        self.assertEqual(again.returncode, 0, again.stderr)
+        self.assertEqual([f.get("capture") for f in json.loads(again.stdout)["per_frame"]], [clean] * 3)
         # Without a calibration the capture is kept and the command says why it stops.
         result = run("scan", "--camera", uri, "--projector", uri, "--frames", "1", "--device", "cpu",
                      "--out", str(self.dir / "uncalibrated"))
