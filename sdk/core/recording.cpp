@@ -7,6 +7,7 @@
 #include <cmath>
 #include <algorithm>
 #include <atomic>
+#include <cstdint>
 #include <ctime>
 #include <exception>
 #include <filesystem>
@@ -20,6 +21,7 @@
 
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
+#include "sdk/core/host_memory.h"
 #include "sdk/core/image_io.h"
 #include "sdk/core/recording_manifest.h"
 
@@ -568,6 +570,15 @@ Image16u RecordingReader::load_image(std::size_t position, std::size_t image) co
 
 std::vector<Image16u> RecordingReader::load_images(std::size_t position) const {
   const FrameInfo& info = frame(position);
+  // A 12 MP stack is ~1 GB: admitted before it is allocated, as the volume is (Linux
+  // overcommits, so a stack that does not fit would otherwise end in the OOM killer).
+  const std::uint64_t stack_bytes = static_cast<std::uint64_t>(info.image_files.size()) *
+                                    static_cast<std::uint64_t>(info_.camera.width) *
+                                    static_cast<std::uint64_t>(info_.camera.height) * sizeof(std::uint16_t);
+  admit_host_allocation(stack_bytes,
+                        fmt::format("frame {}'s pattern stack ({} images of {}x{})", info.index,
+                                    info.image_files.size(), info_.camera.width, info_.camera.height),
+                        "free memory for it (other programs, a smaller volume: --voxel-um / --max-voxels)");
   // Decoding is CPU-bound (~0.3 s per 24 MB image): decode the frame's images side by side.
   std::vector<Image16u> images(info.image_files.size());
   run_parallel(images.size(), 0, [&](std::size_t k) { images[k] = load_image(position, k); });

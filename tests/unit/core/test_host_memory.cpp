@@ -1,11 +1,20 @@
 // Host memory admission (host_memory.h): what the process may still allocate, and a refusal
 // that names the size asked, the size available and the limit, before anything is allocated.
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstring>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
 #include "sdk/core/error.h"
 #include "sdk/core/host_memory.h"
+#include "sdk/core/recording.h"
+#include "tests/support/test_support.h"
 
 namespace sls {
 namespace {
@@ -30,6 +39,56 @@ TEST(HostMemory, AdmitsWhatFitsAndRefusesWhatDoesNotNamingTheSizes) {
     EXPECT_NE(message.find("use larger voxels"), std::string::npos) << message;
   }
 }
+
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)  // they need the address space
+// A recording's pattern stack (8 images of 2048x1536: 48 MiB) read in a child limited to its
+// size plus 16 MiB (ulimit -v): refused before allocating, naming the frame and the limit, and
+// not as a problem of the frame (a scan stops with it rather than skipping every frame).
+TEST(HostMemory, APatternStackBeyondTheLimitIsRefusedBeforeItIsRead) {
+  test::TemporaryDirectory dir;
+  RecordingInfo info;
+  info.device = {"sim://stack", "slscan-sim", "SN-1"};
+  info.camera = {2048, 1536, 12};
+  info.pattern_set_json = R"({"name": "test", "image_count": 8})";
+  info.images_per_frame = 8;
+  {
+    RecordingWriterOptions options;
+    options.sync = false;
+    RecordingWriter writer = RecordingWriter::create(dir.file("rec"), info, std::nullopt, options);
+    writer.append_frame(std::vector<Image16u>(8, Image16u(2048, 1536)), FrameMetadata{});
+  }
+  const RecordingReader recording = RecordingReader::open(dir.file("rec"));
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    rlimit limit{};
+    getrlimit(RLIMIT_AS, &limit);
+    std::FILE* status = std::fopen("/proc/self/status", "r");
+    unsigned long vm_kb = 0;
+    char line[256];
+    while (status != nullptr && std::fgets(line, sizeof line, status) != nullptr) {
+      if (std::sscanf(line, "VmSize: %lu kB", &vm_kb) == 1) break;
+    }
+    if (status != nullptr) std::fclose(status);
+    limit.rlim_cur = static_cast<rlim_t>(vm_kb * 1024ul + (16ul << 20));
+    if (vm_kb == 0 || setrlimit(RLIMIT_AS, &limit) != 0) _exit(3);
+    try {
+      (void)recording.load_images(0);
+    } catch (const Error& error) {
+      const bool named = std::strstr(error.what(), "frame 0's pattern stack (8 images of 2048x1536) needs 48.0 MiB") &&
+                         std::strstr(error.what(), "ulimit -v");
+      _exit(error.code() == ErrorCode::kOutOfMemory && named && !is_frame_problem(error) ? 0 : 2);
+    }
+    _exit(1);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "1: the stack was read beyond the limit; 2: another error; 3: no limit set";
+  // Without the limit it reads.
+  EXPECT_EQ(recording.load_images(0).size(), 8u);
+}
+#endif
 
 }  // namespace
 }  // namespace sls
