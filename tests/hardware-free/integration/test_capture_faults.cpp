@@ -8,16 +8,27 @@
 //   - a turntable whose motor stalls (the board reports MOTOR_STALL);
 //   - a full disk while a frame's images are written, and while its manifest is written.
 //   - bursts of lost GVSP packets, shorter and longer than the retries;
-//   - a projector that falls silent, resumed once it answers.
+//   - a projector that falls silent, resumed once it answers;
+//   - kill -9 of the capturing process during a turntable move, mid-stack, after a frame's first
+//     image is written, mid-frame and at the manifest (the capture runs in a child process: this
+//     executable again, its test CaptureKilledChild.*; the parent kills it and resumes).
 // Camera gone, projector and controller stalled or silent, and random packet loss are in
 // test_scan_through_real_stacks.cpp.
 //
 // Runs under run_in_netns.sh (a user namespace) and umockdev-wrapper; the disk-full cases mount
 // a small tmpfs in a private mount namespace taken before main(), and skip where that fails.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <sched.h>
+#include <signal.h>
+#include <spawn.h>
 #include <sys/mount.h>
+#include <sys/stat.h>
 #include <sys/statvfs.h>
+#include <sys/syscall.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
@@ -28,11 +39,15 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <ostream>
 #include <string>
+#include <thread>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "drivers/aravis/aravis_camera.h"
 #include "drivers/dlpc350/dlpc350_projector.h"
@@ -84,13 +99,24 @@ sim::RigOptions rig_options() {
 class FreezableClock {
  public:
   std::int64_t now() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return frozen_ ? frozen_at_ : steady() - offset_;
+    std::function<void()> read_while_frozen;
+    std::int64_t value = 0;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      value = frozen_ ? frozen_at_ : steady() - offset_;
+      if (frozen_) read_while_frozen = std::move(read_while_frozen_);
+      read_while_frozen_ = nullptr;
+    }
+    if (read_while_frozen) read_while_frozen();
+    return value;
   }
-  void freeze() {
+  // `read_while_frozen`: called once, the first time the board reads the frozen clock (the move
+  // that will never end has begun).
+  void freeze(std::function<void()> read_while_frozen = {}) {
     std::lock_guard<std::mutex> lock(mutex_);
     frozen_at_ = steady() - offset_;
     frozen_ = true;
+    read_while_frozen_ = std::move(read_while_frozen);
   }
   void thaw() {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -106,6 +132,7 @@ class FreezableClock {
   bool frozen_ = false;
   std::int64_t frozen_at_ = 0;
   std::int64_t offset_ = 0;
+  std::function<void()> read_while_frozen_;
 };
 
 // What the fake camera sees: the simulator's image of the pattern on the emulated DMD at the
@@ -119,6 +146,12 @@ class SimulatedView {
         scene_(sim::make_scene("knurled-screw")),
         renderer_(sim::make_rig(rig_options(), scene_), scene_, Device::cpu()) {}
 
+  // Called with the frame and pattern (-1: dark) of each image the camera takes, on its thread.
+  void observe(std::function<void(int frame, int pattern)> observer) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    observer_ = std::move(observer);
+  }
+
   void render(const FakeFrameRequest& request, ImageView<std::uint16_t> pixels) {
     std::lock_guard<std::mutex> lock(mutex_);
     const fwif::headctl::TurntableStatusReply table = head_->turntable();
@@ -127,6 +160,7 @@ class SimulatedView {
     if (renderer_.frame() != frame) renderer_.set_frame(frame);
     const std::optional<fwif::models::DisplayedPattern> shown = projector_->displayed_pattern();
     const int pattern = shown ? drivers::dlpc350_pattern_index({shown->flash_image, shown->pattern_number}, 0) : -1;
+    if (observer_) observer_(frame, pattern);
     Image16u image;
     if (pattern >= 0) {
       image = renderer_.render_pattern(pattern);
@@ -150,12 +184,19 @@ class SimulatedView {
   std::mutex mutex_;
   sim::Scene scene_;
   sim::Renderer renderer_;
+  std::function<void(int frame, int pattern)> observer_;
 };
+
+// The child process of CaptureKilled: how the parent starts it, and what the child reads.
+constexpr const char* kChildMomentVariable = "SLS_KILLED_CAPTURE_MOMENT";
+constexpr const char* kChildFolderVariable = "SLS_KILLED_CAPTURE_FOLDER";
+constexpr int kToParentFd = 200;    // the child writes: '1' frame 1 recorded, 'K' kill me now
+constexpr int kFromParentFd = 201;  // the parent writes '1': go on past frame 1
 
 class CaptureFaults : public UsbDevicesTest {
  protected:
   static void SetUpTestSuite() {
-    if (std::getenv("SLS_TEST_NETNS") == nullptr) return;
+    if (std::getenv("SLS_TEST_NETNS") == nullptr || std::getenv(kChildMomentVariable) != nullptr) return;
     direct_dir_ = new TemporaryDirectory();
     sim::SimRecordingOptions options;
     options.rig = rig_options();
@@ -175,8 +216,19 @@ class CaptureFaults : public UsbDevicesTest {
 
   static std::string direct_folder() { return direct_dir_->file("direct"); }
 
-  // The bench of test_scan_through_real_stacks.cpp, with the head controller on `clock_`.
+  // The bench of test_scan_through_real_stacks.cpp, with the head controller on `clock_`, and a
+  // new recording for it.
   void start_scanner(const std::string& recording_folder) {
+    open_scanner();
+    if (HasFatalFailure()) return;
+    recording_ = recording_folder;
+    writer_ = std::make_unique<RecordingWriter>(RecordingWriter::create(
+        recording_, session::make_recording_info(*projector_, *camera_, rig_->patterns), rig_->calibration(),
+        writer_options()));
+  }
+
+  // The bench alone: the emulated devices plugged, the fake camera started, the drivers open.
+  void open_scanner() {
     ASSERT_TRUE(fwif::models::umockdev_preload_active()) << "run under umockdev-wrapper";
     bus_ = std::make_unique<fwif::models::EmulatedUsbBus>();
     projector_model_ = std::make_shared<fwif::models::Dlpc350Model>();
@@ -208,10 +260,6 @@ class CaptureFaults : public UsbDevicesTest {
 
     const sim::Scene scene = sim::make_scene("knurled-screw");
     rig_ = std::make_unique<sim::SimRig>(sim::make_rig(rig_options(), scene));
-    recording_ = recording_folder;
-    writer_ = std::make_unique<RecordingWriter>(RecordingWriter::create(
-        recording_, session::make_recording_info(*projector_, *camera_, rig_->patterns), rig_->calibration(),
-        writer_options()));
   }
 
   static RecordingWriterOptions writer_options() {
@@ -479,6 +527,192 @@ INSTANTIATE_TEST_SUITE_P(
                       DiskFull{"mid_frame", 10, "frames/000002/pattern_010.png"},
                       DiskFull{"at_the_manifest", 22, "manifest.json.tmp-"}),
     [](const ::testing::TestParamInfo<DiskFull>& param) { return std::string(param.param.name); });
+
+// kill -9 of a process capturing through the real stacks, at each stage of a frame: the frames
+// recorded before stay listed and whole, and the capture resumed (in this process, with its own
+// devices) completes the recording to the simulator's. The capture runs in a child process
+// (this executable again, running CaptureKilledChild.* alone: forking this one would copy
+// Aravis' and GLib's threads' locks mid-use); it reports over a pipe, and the parent kills it:
+//   - during_a_turntable_move: once the board reads its clock, frozen, for the move to 180°;
+//   - mid_stack: while the camera takes frame 2's pattern 10 (nothing of frame 2 written);
+//   - after_the_first_image: frame 2's first image written, the second being opened;
+//   - mid_frame: frame 2's images 0-9 written, the 11th being opened;
+//   - at_the_manifest: every image of frame 2 written, the manifest listing it being opened.
+// The last three wait on a FIFO put where the child is about to write (its open() waits for a
+// reader, which never comes): the parent sees it wait there, kills it, and removes the FIFO.
+struct KillMoment {
+  const char* name;
+  const char* fifo;  // relative to the recording; "manifest" for manifest.json.tmp-PID; null: the child says when
+};
+
+void PrintTo(const KillMoment& moment, std::ostream* out) { *out << moment.name; }
+
+// Whether a thread of `pid` waits in open() of the FIFO `path` for a reader: the kernel's
+// wait_for_partner, or (where /proc hides wait channels) an openat() of that path.
+bool waits_to_open(pid_t pid, const std::string& path) {
+  std::error_code error;
+  for (const fs::directory_entry& task : fs::directory_iterator(fmt::format("/proc/{}/task", pid), error)) {
+    std::string wchan, call;
+    std::getline(std::ifstream(task.path() / "wchan"), wchan);
+    if (wchan == "wait_for_partner") return true;
+    std::ifstream(task.path() / "syscall") >> call;
+    if (call != std::to_string(SYS_openat)) continue;
+    std::string directory, address;
+    std::ifstream(task.path() / "syscall") >> call >> directory >> address;
+    const int memory = ::open(fmt::format("/proc/{}/mem", pid).c_str(), O_RDONLY | O_CLOEXEC);
+    if (memory < 0) continue;
+    std::string name(path.size() + 1, '\0');
+    const ssize_t n = ::pread(memory, name.data(), name.size(), static_cast<off_t>(std::stoull(address, nullptr, 16)));
+    ::close(memory);
+    if (n == static_cast<ssize_t>(name.size()) && name == path + '\0') return true;
+  }
+  return false;
+}
+
+class CaptureKilled : public CaptureFaults, public ::testing::WithParamInterface<KillMoment> {
+ protected:
+  void TearDown() override {
+    if (child_ > 0) {
+      ::kill(child_, SIGKILL);
+      ::waitpid(child_, nullptr, 0);
+    }
+    for (const int fd : {to_child_, from_child_}) {
+      if (fd >= 0) ::close(fd);
+    }
+  }
+
+  // Starts this executable running CaptureKilledChild.* into `folder`, with the pipes to it.
+  void start_child(const std::string& moment, const std::string& folder) {
+    int to_parent[2], from_parent[2];
+    ASSERT_EQ(::pipe2(to_parent, O_CLOEXEC), 0);
+    ASSERT_EQ(::pipe2(from_parent, O_CLOEXEC), 0);
+    posix_spawn_file_actions_t actions;
+    ::posix_spawn_file_actions_init(&actions);
+    ::posix_spawn_file_actions_adddup2(&actions, to_parent[1], kToParentFd);
+    ::posix_spawn_file_actions_adddup2(&actions, from_parent[0], kFromParentFd);
+    std::vector<std::string> environment{std::string(kChildMomentVariable) + "=" + moment,
+                                         std::string(kChildFolderVariable) + "=" + folder};
+    for (char** variable = environ; *variable != nullptr; ++variable) environment.emplace_back(*variable);
+    std::vector<char*> envp;
+    for (std::string& variable : environment) envp.push_back(variable.data());
+    envp.push_back(nullptr);
+    std::string self = fs::read_symlink("/proc/self/exe").string();
+    std::string filter = "--gtest_filter=CaptureKilledChild.*";
+    char* argv[] = {self.data(), filter.data(), nullptr};
+    const int spawned = ::posix_spawn(&child_, self.c_str(), &actions, nullptr, argv, envp.data());
+    ::posix_spawn_file_actions_destroy(&actions);
+    ::close(to_parent[1]);
+    ::close(from_parent[0]);
+    from_child_ = to_parent[0];
+    to_child_ = from_parent[1];
+    ASSERT_EQ(spawned, 0) << std::strerror(spawned);
+  }
+
+  // The child's next word, within a minute; fails the test when it ended or stayed silent.
+  void expect_from_child(char expected) {
+    pollfd ready{from_child_, POLLIN, 0};
+    ASSERT_EQ(::poll(&ready, 1, 60000), 1) << "the child said nothing within a minute";
+    char word = 0;
+    ASSERT_EQ(::read(from_child_, &word, 1), 1) << "the child ended before saying '" << expected << "'";
+    ASSERT_EQ(word, expected);
+  }
+
+  void kill_child() {
+    ASSERT_EQ(::kill(child_, SIGKILL), 0);
+    int status = 0;
+    ASSERT_EQ(::waitpid(child_, &status, 0), child_);
+    child_ = -1;
+    ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "the child ended before the kill: " << status;
+  }
+
+  pid_t child_ = -1;
+  int from_child_ = -1;
+  int to_child_ = -1;
+};
+
+TEST_P(CaptureKilled, ListsTheFramesRecordedBeforeWholeAndResumesToTheSimulatorsRecording) {
+  const KillMoment moment = GetParam();
+  const std::string folder = dir_.file("scan");
+  start_child(moment.name, folder);
+  ASSERT_FALSE(HasFatalFailure());
+  expect_from_child('1');  // frame 1 recorded; the child waits
+  ASSERT_FALSE(HasFatalFailure());
+  std::string fifo;
+  if (moment.fifo != nullptr) {
+    fifo = std::string(moment.fifo) == "manifest" ? fmt::format("{}/manifest.json.tmp-{}", folder, child_)
+                                                  : folder + "/" + moment.fifo;
+    fs::create_directories(fs::path(fifo).parent_path());
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0644), 0) << std::strerror(errno);
+  }
+  ASSERT_EQ(::write(to_child_, "1", 1), 1);
+  if (moment.fifo == nullptr) {
+    expect_from_child('K');
+    ASSERT_FALSE(HasFatalFailure());
+  } else {
+    const auto start = Clock::now();
+    while (!waits_to_open(child_, fifo)) {
+      ASSERT_EQ(::waitpid(child_, nullptr, WNOHANG), 0) << "the child ended without opening " << fifo;
+      ASSERT_LT(elapsed_ms(start), 60000.0) << "the child did not open " << fifo << " within a minute";
+      std::this_thread::sleep_for(milliseconds(2));
+    }
+  }
+  kill_child();
+  ASSERT_FALSE(HasFatalFailure());
+  if (!fifo.empty()) fs::remove(fifo);  // ours: the recording is left as the kill left it
+
+  // Frame 2's files written before the kill lie there unlisted.
+  const std::string frame_two = folder + "/frames/000002";
+  const std::string name = moment.name;
+  EXPECT_EQ(fs::exists(frame_two + "/pattern_000.png"), name != "during_a_turntable_move" && name != "mid_stack");
+  EXPECT_EQ(fs::exists(frame_two + "/pattern_009.png"), name == "mid_frame" || name == "at_the_manifest");
+  EXPECT_EQ(fs::exists(frame_two + "/pattern_021.png"), name == "at_the_manifest");
+  open_scanner();  // this process's own devices: the child's went with it
+  ASSERT_FALSE(HasFatalFailure());
+  recording_ = folder;
+  expect_kept_and_resumable(2);
+}
+
+INSTANTIATE_TEST_SUITE_P(EachMoment, CaptureKilled,
+                         ::testing::Values(KillMoment{"during_a_turntable_move", nullptr},
+                                           KillMoment{"mid_stack", nullptr},
+                                           KillMoment{"after_the_first_image", "frames/000002/pattern_001.png"},
+                                           KillMoment{"mid_frame", "frames/000002/pattern_010.png"},
+                                           KillMoment{"at_the_manifest", "manifest"}),
+                         [](const ::testing::TestParamInfo<KillMoment>& param) { return std::string(param.param.name); });
+
+// The child of CaptureKilled (skipped when run otherwise): captures into the folder it is given
+// and reports over its pipes; it never ends by itself.
+class CaptureKilledChild : public CaptureFaults {};
+
+void tell_parent(char word) {
+  if (::write(kToParentFd, &word, 1) != 1) std::_Exit(3);
+}
+
+TEST_F(CaptureKilledChild, CapturesUntilItsParentKillsIt) {
+  const char* moment_variable = std::getenv(kChildMomentVariable);
+  if (moment_variable == nullptr) GTEST_SKIP() << "the child process of CaptureKilled.*, which starts and kills it";
+  const std::string moment = moment_variable;
+  start_scanner(std::getenv(kChildFolderVariable));
+  ASSERT_FALSE(HasFatalFailure());
+  session::CaptureOptions options = capture_options();
+  options.turntable_timeout = milliseconds(120000);  // a table stuck for good: the kill ends the move
+  session::CaptureSequencer scan(*projector_, {camera_.get()}, turntable_.get(), rig_->patterns, options);
+  scan.run({writer_.get()}, [&](const session::CapturedFrame& frame) {
+    if (frame.index != 1) return;
+    tell_parent('1');
+    char go = 0;
+    if (::read(kFromParentFd, &go, 1) != 1) std::_Exit(3);
+    if (moment == "during_a_turntable_move") clock_->freeze([] { tell_parent('K'); });
+    if (moment == "mid_stack") {
+      view_->observe([](int frame_index, int pattern) {
+        if (frame_index != 2 || pattern != 10) return;
+        tell_parent('K');
+        for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+      });
+    }
+  });
+  ADD_FAILURE() << "the capture ended without being killed";
+}
 
 }  // namespace
 }  // namespace sls::test
