@@ -44,7 +44,9 @@ struct CapturedImage {
 struct TransportStatistics {
   // Packets the camera sent again because the host asked (GigE Vision packet resend).
   std::uint64_t resent_packets = 0;
-  // Packets that never arrived, resend or not: each left an image incomplete.
+  // Packets missing from the images the transport could not complete, resend or not (Aravis
+  // counts, per such image, every packet after the last one received in sequence: an upper
+  // bound on those lost).
   std::uint64_t missing_packets = 0;
   // Images waiting in the stream's output queue behind the last one wait_image() returned: how
   // far behind the reader was when it took that image (0: it kept up). Not cumulative; 0

@@ -83,7 +83,7 @@ struct RecordingInfo {
 // the packets the stream counted since the previous frame ended (or the acquisition began).
 struct FrameTransportCounters {
   std::uint64_t resent_packets = 0;   // sent again by a camera on request
-  std::uint64_t missing_packets = 0;  // never arrived: each spoiled an image
+  std::uint64_t missing_packets = 0;  // missing from the images the transport could not complete
   // The most images one camera's output queue held behind an image the capture took for this
   // frame: how far behind the capture was (0: it kept up).
   std::uint64_t queue_depth = 0;
