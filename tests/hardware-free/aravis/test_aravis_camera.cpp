@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <ostream>
 #include <sstream>
 #include <string>
@@ -410,8 +412,13 @@ TEST(AravisCamera, FrameIdGapsAreCountedWhenThePoolRunsDry) {
     std::this_thread::sleep_for(milliseconds(30));  // let it cross loopback
   }
   std::this_thread::sleep_for(milliseconds(200));  // the last ones too, before a buffer frees up
+  ASSERT_TRUE(camera->transport_statistics().has_value()) << "a GigE Vision camera reports its stream";
+  EXPECT_EQ(camera->transport_statistics()->output_queue_depth, 0u) << "no image taken yet";
   const CapturedImage first = camera->wait_image(kFrameTimeout);
+  // The reader fell behind: the second image was already waiting when it took the first.
+  EXPECT_EQ(camera->transport_statistics()->output_queue_depth, 1u);
   const CapturedImage second = camera->wait_image(kFrameTimeout);
+  EXPECT_EQ(camera->transport_statistics()->output_queue_depth, 0u);
   EXPECT_EQ(second.frame_id, first.frame_id + 1);
   EXPECT_EQ(second.frames_missed, 0u);
   const CapturedImage next = grab(*camera);
@@ -460,6 +467,19 @@ TEST(AravisCamera, PacketLossNeverYieldsAWrongFrame) {
   EXPECT_GT(incomplete, 0) << "no loss seen: the test exercised nothing";
   EXPECT_EQ(camera->statistics().incomplete_images, static_cast<std::uint64_t>(incomplete));
   EXPECT_LE(timeouts, 3);
+  // The stream counted the packets that spoiled those frames: at least one each (the fake
+  // ignores resend requests, so none was resent). They outlive the stream stop() drops.
+  const std::optional<TransportStatistics> transport = camera->transport_statistics();
+  ASSERT_TRUE(transport.has_value());
+  std::printf("[ measured ] 60 frames at 0.2 %% packet loss: %d incomplete, %d timed out; the stream counted %llu "
+              "missing and %llu resent packets\n",
+              incomplete, timeouts, static_cast<unsigned long long>(transport->missing_packets),
+              static_cast<unsigned long long>(transport->resent_packets));
+  EXPECT_GE(transport->missing_packets, static_cast<std::uint64_t>(incomplete));
+  camera->stop();
+  camera->start();
+  EXPECT_EQ(camera->transport_statistics()->missing_packets, transport->missing_packets);
+  EXPECT_EQ(camera->transport_statistics()->resent_packets, transport->resent_packets);
 }
 
 TEST(AravisCamera, CameraDestroyedGivesAClearErrorWithinTheTimeout) {

@@ -15,6 +15,7 @@
 // without a private network namespace.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -199,8 +200,10 @@ std::size_t expect_same_images(const RecordingReader& scanned, const RecordingRe
 TEST_F(ScanThroughRealStacks, TurntableScanDecodesToTheSimulatorsDepthMaps) {
   start_scanner();
   session::CaptureSequencer scan = sequencer(capture_options());
+  std::vector<FrameCaptureCounters> counters;
   const auto start = Clock::now();
-  const session::CaptureStatistics stats = scan.run({writer_.get()});
+  const session::CaptureStatistics stats =
+      scan.run({writer_.get()}, [&](const session::CapturedFrame& frame) { counters.push_back(frame.counters); });
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   writer_->close();
   EXPECT_EQ(fake_camera_->source_error(), "");
@@ -220,11 +223,21 @@ TEST_F(ScanThroughRealStacks, TurntableScanDecodesToTheSimulatorsDepthMaps) {
   EXPECT_EQ(head_model_->turntable().position_step, 6400u * (kFrames - 1) / kFrames);
   EXPECT_FALSE(projector_model_->displayed_pattern().has_value());
 
+  // A clean capture counts nothing per frame either, and says so in the recording: the GigE
+  // Vision stream lost and resent no packet, and the capture never fell behind it.
+  FrameCaptureCounters clean;
+  clean.transport = FrameTransportCounters{};
+  ASSERT_EQ(counters.size(), static_cast<std::size_t>(kFrames));
+  for (const FrameCaptureCounters& frame : counters) EXPECT_EQ(frame, clean);
+  EXPECT_EQ(stats.transport, FrameTransportCounters{});
+
   const RecordingReader scanned = RecordingReader::open(dir_.file("scan"));
   scanned.verify(true);
   const RecordingReader direct = RecordingReader::open(direct_recording(dir_));
   ASSERT_EQ(scanned.frame_count(), static_cast<std::size_t>(kFrames));
   EXPECT_EQ(expect_same_images(scanned, direct, kFrames), kFrames * rig_->patterns.size());
+  for (std::size_t f = 0; f < scanned.frame_count(); ++f) EXPECT_EQ(scanned.frame(f).capture, clean) << "frame " << f;
+  EXPECT_FALSE(direct.frame(0).capture.has_value()) << "the simulator's own recording has no capture counters";
 
   // Identical images decode to identical depth: the scan through the hardware stacks measures
   // what the simulator's own recording measures.
@@ -269,6 +282,76 @@ TEST_F(ScanThroughRealStacks, WithPacketLossNoFrameIsSilentlyWrong) {
   EXPECT_EQ(incomplete, stats.incomplete_frames);
   // Every image the recording holds, in a complete frame or not, is the one the simulator made.
   expect_same_images(scanned, direct, kFrames);
+}
+
+// Issue 19: each frame's counters (re-captures, spoiled images, the GigE Vision stream's missing
+// and resent packets, how far the capture fell behind the stream) say where the loss struck;
+// they add up to the run's, and the recording keeps them.
+TEST_F(ScanThroughRealStacks, WithPacketLossEachFrameCountsItsOwnLossAndTheyAddUpToTheRuns) {
+  start_scanner(0.003, 1400);  // as WithPacketLossNoFrameIsSilentlyWrong
+  session::CaptureOptions options = capture_options();
+  options.max_retries = 3;
+  options.image_timeout = milliseconds(500);
+  session::CaptureSequencer scan = sequencer(options);
+  std::vector<FrameCaptureCounters> frames;
+  const session::CaptureStatistics stats =
+      scan.run({writer_.get()}, [&](const session::CapturedFrame& frame) {
+        EXPECT_EQ(frame.counters.attempts, frame.attempts);
+        frames.push_back(frame.counters);
+      });
+  ASSERT_EQ(frames.size(), static_cast<std::size_t>(kFrames));
+  ASSERT_TRUE(stats.transport.has_value()) << "a GigE Vision camera reports its stream";
+  FrameCaptureCounters sum;
+  sum.attempts = 0;
+  sum.transport = FrameTransportCounters{};
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const FrameCaptureCounters& frame = frames[f];
+    ASSERT_TRUE(frame.transport.has_value()) << "frame " << f;
+    std::printf("[ measured ] frame %zu: %d attempt(s), %d incomplete, %d lost, %d stale images; %llu missing, "
+                "%llu resent packets; queue depth %llu\n",
+                f, frame.attempts, frame.incomplete_images, frame.lost_images, frame.stale_images,
+                static_cast<unsigned long long>(frame.transport->missing_packets),
+                static_cast<unsigned long long>(frame.transport->resent_packets),
+                static_cast<unsigned long long>(frame.transport->queue_depth));
+    // An image the stream could not complete had packets missing, counted in its frame.
+    if (frame.incomplete_images > 0) {
+      EXPECT_GT(frame.transport->missing_packets, 0u) << "frame " << f;
+    }
+    sum.attempts += frame.attempts;
+    sum.incomplete_images += frame.incomplete_images;
+    sum.lost_images += frame.lost_images;
+    sum.stale_images += frame.stale_images;
+    sum.transport->resent_packets += frame.transport->resent_packets;
+    sum.transport->missing_packets += frame.transport->missing_packets;
+    sum.transport->queue_depth = std::max(sum.transport->queue_depth, frame.transport->queue_depth);
+  }
+  const drivers::TransportStatistics camera = camera_->transport_statistics().value();
+  std::printf("[ measured ] run: %d frames, %d re-captures, %d incomplete frames; %d incomplete, %d lost, %d stale "
+              "images; %llu missing, %llu resent packets, deepest queue %llu (the camera's stream: %llu missing, "
+              "%llu resent)\n",
+              stats.frames, stats.retries, stats.incomplete_frames, stats.incomplete_images, stats.lost_images,
+              stats.stale_images, static_cast<unsigned long long>(stats.transport->missing_packets),
+              static_cast<unsigned long long>(stats.transport->resent_packets),
+              static_cast<unsigned long long>(stats.transport->queue_depth),
+              static_cast<unsigned long long>(camera.missing_packets),
+              static_cast<unsigned long long>(camera.resent_packets));
+  EXPECT_GT(sum.incomplete_images + sum.lost_images, 0) << "no loss seen: the test exercised nothing";
+  EXPECT_GT(sum.transport->missing_packets, 0u);
+  // The frames' counts are the run's, split by frame.
+  EXPECT_EQ(sum.attempts - kFrames, stats.retries);
+  EXPECT_EQ(sum.incomplete_images, stats.incomplete_images);
+  EXPECT_EQ(sum.lost_images, stats.lost_images);
+  EXPECT_EQ(sum.stale_images, stats.stale_images);
+  EXPECT_EQ(sum.transport, stats.transport);
+  // And the run's packets are the stream's, up to its last frame (the camera also counts what
+  // arrived after it, before the capture stopped it).
+  EXPECT_LE(stats.transport->missing_packets, camera.missing_packets);
+  EXPECT_LE(stats.transport->resent_packets, camera.resent_packets);
+  EXPECT_EQ(static_cast<std::uint64_t>(stats.incomplete_images), camera_->statistics().incomplete_images);
+
+  const RecordingReader scanned = RecordingReader::open(dir_.file("scan"));
+  ASSERT_EQ(scanned.frame_count(), frames.size());
+  for (std::size_t f = 0; f < frames.size(); ++f) EXPECT_EQ(scanned.frame(f).capture, frames[f]) << "frame " << f;
 }
 
 TEST_F(ScanThroughRealStacks, ACameraThatVanishesIsNamedAndTheFramesBeforeAreKept) {

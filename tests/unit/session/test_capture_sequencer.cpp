@@ -7,6 +7,7 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -71,6 +72,10 @@ class ScriptedCamera final : public drivers::Camera {
   // Frames whose every attempt loses pattern `pattern` (incomplete image).
   std::map<int, int> always_incomplete;   // frame -> pattern
   int silent_from_frame = -1;             // from this turntable frame on, nothing comes back
+  // Transport statistics as a GigE Vision camera keeps them (none: like the simulator's): each
+  // incomplete image delivered counts 10 missing packets; the queue depth is what is still
+  // ready behind the image wait_image() took.
+  std::optional<drivers::TransportStatistics> transport;
   bool gone = false;                      // kDevice on every call
 
   drivers::CameraInfo info() const override { return {uri_, "scripted camera", "SC-1", kWidth, kHeight, 16}; }
@@ -108,11 +113,17 @@ class ScriptedCamera final : public drivers::Camera {
     }
     drivers::CapturedImage image = std::move(ready_.front());
     ready_.pop_front();
+    if (transport) {
+      if (!image.complete) transport->missing_packets += 10;
+      transport->output_queue_depth = ready_.size();
+    }
     if (have_delivered_ && image.frame_id > last_delivered_) image.frames_missed = image.frame_id - last_delivered_ - 1;
     have_delivered_ = true;
     last_delivered_ = image.frame_id;
     return image;
   }
+
+  std::optional<drivers::TransportStatistics> transport_statistics() const override { return transport; }
 
   TriggerSource source() const { return source_; }
   int software_triggers = 0;
@@ -365,6 +376,45 @@ TEST(CaptureSequencer, AnIncompleteImageMakesTheWholeStackBeCapturedAgain) {
   const RecordingReader reader = RecordingReader::open(bench.dir.file("rec"));
   EXPECT_TRUE(reader.frame(1).complete);
   EXPECT_EQ(reader.frame(1).note, seen[1].note);
+}
+
+// Issue 19: each frame carries the counts of its own capture (what CaptureStatistics sums), and
+// the recording keeps them; packets and queue depth only from a camera whose transport counts.
+TEST(CaptureSequencer, EachFrameCarriesItsOwnCaptureCountersIntoTheRecording) {
+  for (const bool transport : {false, true}) {
+    SCOPED_TRACE(transport ? "a camera reporting its transport" : "a camera without transport statistics");
+    Bench bench;
+    if (transport) bench.camera.transport = drivers::TransportStatistics{4, 2, 0};  // counted before the scan
+    bench.camera.faults[17 + 5] = Fault::kIncomplete;  // frame 1, pattern 5
+    // Frame 1 takes 6 + 17 triggers: frame 2's pattern 3 is trigger 43, lost, then stale in the retry.
+    bench.camera.faults[17 + 6 + 17 + 3] = Fault::kLate;
+    RecordingWriter writer = bench.writer();
+    CaptureSequencer sequencer(bench.projector, {&bench.camera}, &bench.turntable, bench.patterns, bench.options(3));
+    std::vector<FrameCaptureCounters> seen;
+    const CaptureStatistics stats =
+        sequencer.run({&writer}, [&](const CapturedFrame& frame) { seen.push_back(frame.counters); });
+    std::vector<FrameCaptureCounters> expected(3);
+    expected[1].attempts = 2;
+    expected[1].incomplete_images = 1;
+    expected[2].attempts = 2;
+    expected[2].lost_images = 1;
+    expected[2].stale_images = 1;
+    if (transport) {
+      expected[0].transport = FrameTransportCounters{0, 0, 0};
+      expected[1].transport = FrameTransportCounters{0, 10, 0};
+      expected[2].transport = FrameTransportCounters{0, 0, 1};  // the stale image was waiting before the new one
+    }
+    ASSERT_EQ(seen.size(), 3u);
+    for (std::size_t f = 0; f < seen.size(); ++f) EXPECT_EQ(seen[f], expected[f]) << "frame " << f;
+    EXPECT_EQ(stats.retries, 2);
+    EXPECT_EQ(stats.incomplete_images, 1);
+    EXPECT_EQ(stats.lost_images, 1);
+    EXPECT_EQ(stats.stale_images, 1);
+    EXPECT_EQ(stats.transport, transport ? std::optional(FrameTransportCounters{0, 10, 1}) : std::nullopt);
+    const RecordingReader reader = RecordingReader::open(bench.dir.file("rec"));
+    ASSERT_EQ(reader.frame_count(), 3u);
+    for (std::size_t f = 0; f < 3; ++f) EXPECT_EQ(reader.frame(f).capture, expected[f]) << "frame " << f;
+  }
 }
 
 TEST(CaptureSequencer, ALostImageIsRecapturedAndTheCamerasCountFollowed) {
