@@ -6,6 +6,7 @@
 #   bin/sls                             the tool
 #   share/slscan/samples/c_turntable_scan   a C program scanning a turntable revolution, with
 #                                       a CMakeLists.txt (find_package) and a Makefile (pkg-config)
+#   lib/udev/rules.d/60-slscan.rules    the projector's and head controller's USB access for users
 # The static component libraries (sls_core, fusion, ...) are inside libsls and not installed;
 # libsls exports only sls_* (sdk/capi/libsls.map).
 include(GNUInstallDirs)
@@ -40,3 +41,6 @@ install(FILES ${CMAKE_BINARY_DIR}/slscan.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/
 
 install(DIRECTORY ${CMAKE_SOURCE_DIR}/samples/c_turntable_scan DESTINATION ${CMAKE_INSTALL_DATADIR}/slscan/samples
         COMPONENT development)
+
+# Where udev reads packaged rules (/usr/lib/udev/rules.d with the /usr prefix).
+install(FILES ${CMAKE_SOURCE_DIR}/drivers/usb/60-slscan.rules DESTINATION lib/udev/rules.d COMPONENT runtime)

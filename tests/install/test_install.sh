@@ -3,7 +3,8 @@
 # temporary prefix, then the installed C sample (share/slscan/samples/c_turntable_scan) built as
 # an outside project twice, with CMake's find_package(slscan) and with a Makefile using
 # pkg-config, each run on the simulated scanner (sim://) through the installed libsls; and the
-# installed libsls exports only sls_* (every function its installed headers declare).
+# installed libsls exports only sls_* (every function its installed headers declare); the udev
+# rules give the USB ids the drivers open.
 #   test_install.sh BUILD_DIR WORK_DIR CHECK_EXPORTS_CMAKE
 set -euo pipefail
 build=$1
@@ -24,6 +25,19 @@ soname=$(objdump -p "$prefix/lib/libsls.so" | awk '$1 == "SONAME" {print $2}')
 [ -e "$prefix/lib/$soname" ] || { echo "FAIL: libsls's SONAME $soname is not installed"; exit 1; }
 # Nothing of the build tree is needed: the static component libraries stay inside libsls.
 if ls "$prefix/lib" | grep -E '\.a$'; then echo "FAIL: static libraries installed"; exit 1; fi
+# The udev rules name the USB ids the drivers open.
+source_dir=$(cd "$(dirname "$0")/../.." && pwd)
+rules=$prefix/lib/udev/rules.d/60-slscan.rules
+dlpc_vid=$(sed -n 's/.*kVendorId = 0x\([0-9A-Fa-f]*\);.*/\1/p' "$source_dir/firmware-interface/dlpc350/dlpc350_codec.h")
+dlpc_pid=$(sed -n 's/.*kProductId = 0x\([0-9A-Fa-f]*\);.*/\1/p' "$source_dir/firmware-interface/dlpc350/dlpc350_codec.h")
+head_vid=$(sed -n 's/.*HEADCTL_USB_VENDOR_ID 0x\([0-9A-Fa-f]*\)u.*/\1/p' "$source_dir/firmware-interface/headctl/headctl_protocol.h")
+head_pid=$(sed -n 's/.*HEADCTL_USB_PRODUCT_ID 0x\([0-9A-Fa-f]*\)u.*/\1/p' "$source_dir/firmware-interface/headctl/headctl_protocol.h")
+for ids in "$dlpc_vid $dlpc_pid" "$head_vid $head_pid"; do
+  set -- $ids
+  [ -n "${1:-}" ] && [ -n "${2:-}" ] || { echo "FAIL: could not read the USB ids from the headers"; exit 1; }
+  grep -qi "ATTRS{idVendor}==\"$1\", ATTRS{idProduct}==\"$2\"" "$rules" || { echo "FAIL: $rules lacks $1:$2"; exit 1; }
+done
+
 cmake -DLIBRARY="$prefix/lib/libsls.so" -DHEADERS="$prefix/include/sls" -P "$check_exports"
 
 # The head's calibration: the installed tool's simulated recording carries the simulator's.
