@@ -6,6 +6,7 @@
 #   bin/sls                             the tool
 #   share/slscan/samples/c_turntable_scan   a C program scanning a turntable revolution, with
 #                                       a CMakeLists.txt (find_package) and a Makefile (pkg-config)
+#   share/slscan/samples/cpp_turntable_scan the same scan from C++ (RAII over the C API)
 #   lib/udev/rules.d/60-slscan.rules    the projector's and head controller's USB access for users
 # The static component libraries (sls_core, fusion, ...) are inside libsls and not installed;
 # libsls exports only sls_* (sdk/capi/libsls.map).
@@ -39,8 +40,8 @@ file(RELATIVE_PATH SLS_PC_TO_PREFIX /prefix/${CMAKE_INSTALL_LIBDIR}/pkgconfig /p
 configure_file(${CMAKE_SOURCE_DIR}/cmake/slscan.pc.in ${CMAKE_BINARY_DIR}/slscan.pc @ONLY)
 install(FILES ${CMAKE_BINARY_DIR}/slscan.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig COMPONENT development)
 
-install(DIRECTORY ${CMAKE_SOURCE_DIR}/samples/c_turntable_scan DESTINATION ${CMAKE_INSTALL_DATADIR}/slscan/samples
-        COMPONENT development)
+install(DIRECTORY ${CMAKE_SOURCE_DIR}/samples/c_turntable_scan ${CMAKE_SOURCE_DIR}/samples/cpp_turntable_scan
+        DESTINATION ${CMAKE_INSTALL_DATADIR}/slscan/samples COMPONENT development)
 
 # Where udev reads packaged rules (/usr/lib/udev/rules.d with the /usr prefix).
 install(FILES ${CMAKE_SOURCE_DIR}/drivers/usb/60-slscan.rules DESTINATION lib/udev/rules.d COMPONENT runtime)

@@ -2,7 +2,8 @@
 # The SDK as an integrator installs it (issue 20): `cmake --install` of the build into a
 # temporary prefix, then the installed C sample (share/slscan/samples/c_turntable_scan) built as
 # an outside project twice, with CMake's find_package(slscan) and with a Makefile using
-# pkg-config, each run on the simulated scanner (sim://) through the installed libsls; and the
+# pkg-config, and the C++ sample (cpp_turntable_scan) with find_package, each run on the
+# simulated scanner (sim://) through the installed libsls; and the
 # installed libsls exports only sls_* (every function its installed headers declare); the udev
 # rules give the USB ids the drivers open.
 #   test_install.sh BUILD_DIR WORK_DIR CHECK_EXPORTS_CMAKE
@@ -63,4 +64,11 @@ PKG_CONFIG_PATH="$prefix/lib/pkgconfig" make -s -C "$work/make-build" > "$work/m
 LD_LIBRARY_PATH="$prefix/lib" "$work/make-build/c_turntable_scan" "$calibration" "$work/make-scan" 2 "sim://knurled-knob?preset=ci" \
   | tee "$work/make-scan.log" | tail -2
 grep -q "^fused [1-9][0-9]* of 2 frames" "$work/make-scan.log" || { echo "FAIL: the pkg-config build did not scan"; exit 1; }
-echo "installed SDK: find_package and pkg-config builds both scan"
+# 3. The C++ sample, with find_package.
+cpp_sample=$prefix/share/slscan/samples/cpp_turntable_scan
+cmake -S "$cpp_sample" -B "$work/cpp-build" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release > "$work/cpp-configure.log"
+cmake --build "$work/cpp-build" > "$work/cpp-build.log"
+"$work/cpp-build/cpp_turntable_scan" "$calibration" "$work/cpp-scan" 2 | tee "$work/cpp-scan.log" | tail -2
+grep -q "^fused [1-9][0-9]* of 2 frames" "$work/cpp-scan.log" || { echo "FAIL: the C++ sample did not scan"; exit 1; }
+[ -s "$work/cpp-scan/cloud.ply" ] || { echo "FAIL: the C++ sample wrote no cloud"; exit 1; }
+echo "installed SDK: find_package (C, C++) and pkg-config (C) builds all scan"
