@@ -1,0 +1,47 @@
+"""slscan: structured-light scanning from Python, over libsls (the C API, sdk/include/sls) with
+ctypes; pure Python, numpy for images.
+
+    import slscan
+
+    with slscan.Scan(use_turntable_prior=True) as scan:
+        scan.run_recording("scans/knob", on_frame=lambda report: print(report.index, report.status.name))
+        scan.close_loop()
+        scan.write_mesh("knob.ply")
+
+Handles (:class:`Context`, :class:`Camera`, :class:`Projector`, :class:`Turntable`,
+:class:`Scan`, :class:`Calibration`) are context managers that free the C object on exit.
+A failed call raises :class:`Error` (a subclass per status, e.g. :class:`NotFoundError`) with
+``.status``, ``.function`` and the library's ``.message``. Where libsls is loaded from:
+``slscan._lib`` (``$SLSCAN_LIBRARY`` first); :data:`library_path` says which was.
+"""
+from ._lib import API_VERSION, library_path
+from ._types import (CalibrationDevice, DeviceKind, DeviceRole, FrameStatus, FusionMethod, LogLevel, Status)
+from ._errors import (BusyError, CancelledError, DeviceError, DeviceTimeoutError, Error, FormatError, InternalError,
+                      InvalidArgumentError, IoError, NotFoundError, OutOfMemoryError, UnsupportedError,
+                      VersionMismatchError)
+from ._context import Context, DeviceInfo, DeviceList, build_info, cuda_device_count, devices, version
+from ._devices import Camera, CameraInfo, Frame, FrameInfo, Projector, ProjectorInfo, Turntable
+from ._scan import FrameReport, LoopClosure, Scan, ScanSummary
+from ._calibration import (Calibration, CalibrationProgress, CalibrationSummary, CalibrationView, Intrinsics,
+                           calibrate)
+
+__version__ = f"{API_VERSION // 10000}.{API_VERSION // 100 % 100}.{API_VERSION % 100}"
+"""The C API version this package speaks (SLS_API_VERSION of the headers it mirrors)."""
+
+__all__ = [
+    "API_VERSION", "library_path", "version", "build_info", "cuda_device_count",
+    "Status", "LogLevel", "DeviceKind", "DeviceRole", "FusionMethod", "FrameStatus", "CalibrationDevice",
+    "Error", "InvalidArgumentError", "IoError", "FormatError", "NotFoundError", "OutOfMemoryError",
+    "UnsupportedError", "VersionMismatchError", "DeviceError", "DeviceTimeoutError", "CancelledError",
+    "BusyError", "InternalError",
+    "Context", "devices", "DeviceInfo", "DeviceList",
+    "Camera", "CameraInfo", "Frame", "FrameInfo", "Projector", "ProjectorInfo", "Turntable",
+    "Scan", "FrameReport", "ScanSummary", "LoopClosure",
+    "calibrate", "Calibration", "CalibrationProgress", "CalibrationSummary", "CalibrationView", "Intrinsics",
+]
+
+# Public classes show as slscan.X (repr, tracebacks, pickling), not as the private module's.
+for _name in __all__:
+    if isinstance(globals()[_name], type):
+        globals()[_name].__module__ = __name__
+del _name

@@ -1,0 +1,232 @@
+"""Calibration from chessboard captures (sls_calibration.h): camera and projector intrinsics,
+their extrinsics and the turntable axis. Needs a libsls built with OpenCV; otherwise every call
+raises :class:`UnsupportedError`."""
+from __future__ import annotations
+
+import ctypes
+import os
+from dataclasses import dataclass, fields
+from typing import Any, Callable, List, Optional, Tuple, Union
+
+import numpy as np
+
+from . import _lib
+from ._context import Context, Handle, context_or_default
+from ._errors import call
+from ._types import (CalibrationConfigC, CalibrationDevice, CalibrationProgressC, CalibrationSummaryC,
+                     CalibrationViewC, IntrinsicsC, copy_reported, has_field)
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def _from_c(cls, value: ctypes.Structure):
+    items = {}
+    for field in fields(cls):
+        item = getattr(value, field.name)
+        if field.type in ("bool", bool):
+            item = bool(item)
+        elif field.type in ("str", str):
+            item = _lib.decode(item)
+        items[field.name] = item
+    return cls(**items)
+
+
+@dataclass(frozen=True)
+class CalibrationProgress:
+    """Progress of :func:`calibrate` (sls_calibration_progress)."""
+    stage: str
+    done: int
+    """Views finished."""
+    total: int
+    """Views in all (done == total while solving)."""
+    detail: str
+    """The view being read, or "solve"."""
+
+
+@dataclass(frozen=True)
+class CalibrationSummary:
+    """The figures of a calibration (sls_calibration_summary); the *_err fields are NaN without
+    ground truth (has_truth False)."""
+    camera_rms_px: float
+    projector_rms_px: float
+    stereo_rms_px: float
+    joint_camera_rms_px: float
+    joint_projector_rms_px: float
+    views_total: int
+    views_used: int
+    views_rejected: int
+    camera_outliers: int
+    projector_outliers: int
+    turntable_axis_fitted: bool
+    turntable_axis_rms_px: float
+    seconds: float
+    board_inner_cols: int
+    board_inner_rows: int
+    board_square_m: float
+    pattern_set: str
+    has_truth: bool
+    focal_rel_err: float
+    principal_point_err_px: float
+    baseline_rel_err: float
+    rotation_err_deg: float
+    axis_direction_err_deg: float
+    axis_point_err_um: float
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """A pinhole lens with Brown-Conrady distortion (sls_intrinsics), pixels."""
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    k1: float
+    k2: float
+    k3: float
+    p1: float
+    p2: float
+
+    @property
+    def K(self) -> np.ndarray:
+        """The 3x3 camera matrix."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+
+@dataclass(frozen=True)
+class CalibrationView:
+    """One board pose of the input (sls_calibration_view)."""
+    name: str
+    used: bool
+    rejected_reason: str
+    board_found: bool
+    has_turntable_angle: bool
+    turntable_angle_deg: float
+    camera_rms_px: float
+    projector_rms_px: float
+    obliquity_deg: float
+    corners: int
+    projector_corners_valid: int
+    decoded_fraction: float
+
+
+class Calibration(Handle):
+    """The result of :func:`calibrate` (sls_calibration); immutable. Close it (or use ``with``)."""
+
+    _destroy_name = "sls_calibration_destroy"
+
+    @property
+    def summary(self) -> CalibrationSummary:
+        """RMS figures, views used and rejected, the board, errors against ground truth."""
+        summary = _lib.init(CalibrationSummaryC, "sls_calibration_summary_init")
+        call(_lib.lib.sls_calibration_get_summary, self._checked(), ctypes.byref(summary))
+        return _from_c(CalibrationSummary, summary)
+
+    def intrinsics(self, device: Union[CalibrationDevice, str]) -> Intrinsics:
+        """The ``"camera"``'s or the ``"projector"``'s intrinsics."""
+        which = CalibrationDevice[device.upper()] if isinstance(device, str) else CalibrationDevice(device)
+        value = _lib.init(IntrinsicsC, "sls_intrinsics_init")
+        call(_lib.lib.sls_calibration_get_intrinsics, self._checked(), int(which), ctypes.byref(value))
+        return _from_c(Intrinsics, value)
+
+    @property
+    def T_camera_projector(self) -> np.ndarray:
+        """The projector's pose in the camera frame, 4x4, metres."""
+        matrix = (ctypes.c_double * 16)()
+        call(_lib.lib.sls_calibration_get_extrinsics, self._checked(), matrix)
+        return np.array(matrix).reshape(4, 4)
+
+    @property
+    def turntable_axis(self) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+        """(point, unit direction) of the turntable axis in the camera frame, metres; None when
+        no axis was fitted."""
+        if not self.summary.turntable_axis_fitted:
+            return None
+        point, direction = (ctypes.c_double * 3)(), (ctypes.c_double * 3)()
+        call(_lib.lib.sls_calibration_get_turntable_axis, self._checked(), point, direction)
+        return np.array(point), np.array(direction)
+
+    @property
+    def views(self) -> List[CalibrationView]:
+        """Every view of the input, used or rejected (with the reason), in the input's order."""
+        count = ctypes.c_size_t(0)
+        call(_lib.lib.sls_calibration_view_count, self._checked(), ctypes.byref(count))
+        views = []
+        for index in range(count.value):
+            view = _lib.init(CalibrationViewC, "sls_calibration_view_init")
+            call(_lib.lib.sls_calibration_get_view, self._checked(), index, ctypes.byref(view))
+            views.append(_from_c(CalibrationView, view))
+        return views
+
+    def write(self, path: PathLike, force: bool = False) -> None:
+        """Writes calibration.yml (OpenCV FileStorage YAML, atomically). Refuses with
+        :class:`InvalidArgumentError` when the stereo RMS is above max_rms_px, unless `force`."""
+        call(_lib.lib.sls_calibration_write, self._checked(), _lib.encode_path(path), int(bool(force)))
+
+
+_CONFIG_KEYS = ("board_inner_cols", "board_inner_rows", "board_square_m", "pattern_set", "estimate_k3",
+                "max_obliquity_deg", "min_projector_corner_fraction", "max_rms_px")
+
+
+def calibrate(input_path: PathLike, context: Optional[Context] = None,
+              progress: Optional[Callable[[CalibrationProgress], Any]] = None, **config: Any) -> Calibration:
+    """Calibrates from a recording of board poses (``sls sim --calibration`` writes one) or a
+    folder of captures, one subfolder per pose (sls_calibration_run). Blocks: seconds to minutes.
+
+    Args:
+        input_path: the recording or folder of captures.
+        context: decodes on its device; None: a default one.
+        progress: called before each view and before the solve; returning False stops the
+            run (:class:`CancelledError`); an exception it raises stops it and is raised again.
+        **config: sls_calibration_config fields: board_inner_cols, board_inner_rows,
+            board_square_m (all three unset: a simulated capture's ground truth), pattern_set
+            (e.g. ``"opencv-graycode:1024x768"``; needed for a folder of captures),
+            estimate_k3, max_obliquity_deg, min_projector_corner_fraction, max_rms_px.
+    Ctrl-C cancels the run between views and is raised. Raises :class:`UnsupportedError` in a
+    libsls built without OpenCV."""
+    unknown = sorted(set(config) - set(_CONFIG_KEYS))
+    if unknown:
+        raise TypeError(f"calibrate: unknown config {', '.join(unknown)}; known: {', '.join(_CONFIG_KEYS)}")
+    c_config = _lib.init(CalibrationConfigC, "sls_calibration_config_init")
+    pattern_set = None
+    for key, value in config.items():
+        if key == "pattern_set":
+            pattern_set = _lib.encode(value)  # kept referenced during the run
+            value = pattern_set
+        elif key == "estimate_k3":
+            value = int(bool(value))
+        elif key in ("board_inner_cols", "board_inner_rows"):
+            value = int(value)
+        else:
+            value = float(value)
+        setattr(c_config, key, value)
+    raised: List[BaseException] = []
+
+    def trampoline(report: int, user: Optional[int]) -> int:
+        # Runs inside the C run: nothing may propagate out of it. Also where Ctrl-C surfaces.
+        try:
+            c_progress = copy_reported(CalibrationProgressC, report)
+            if progress is None:
+                return 1
+            value = CalibrationProgress(*(_lib.decode(getattr(c_progress, f.name)) if f.type in ("str", str)
+                                          else getattr(c_progress, f.name) if has_field(c_progress, f.name) else 0
+                                          for f in fields(CalibrationProgress)))
+            return 0 if progress(value) is False else 1
+        except BaseException as error:  # noqa: B036 - re-raised after the run
+            raised.append(error)
+            return 0
+
+    c_callback = _lib.CALIBRATION_PROGRESS_CALLBACK(trampoline)
+    result = Calibration()
+    try:
+        with context_or_default(context) as handle:
+            call(_lib.lib.sls_calibration_run, handle, _lib.encode_path(input_path), ctypes.byref(c_config),
+                 ctypes.cast(c_callback, ctypes.c_void_p), None, ctypes.byref(result._handle))
+    except BaseException:
+        if raised:
+            raise raised[0] from None
+        raise
+    finally:
+        del c_callback, pattern_set
+    return result

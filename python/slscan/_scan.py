@@ -1,0 +1,329 @@
+"""Scans (sls_scan.h): frames decoded, tracked and fused into a model, a report per frame."""
+from __future__ import annotations
+
+import ctypes
+import os
+import threading
+from dataclasses import dataclass, fields
+from typing import Any, Callable, Dict, List, Optional, Union
+
+import numpy as np
+
+from . import _lib
+from ._context import Context, Handle, context_or_default
+from ._errors import BusyError, call, make_error
+from ._types import (CaptureConfigC, ErrorC, FrameReportC, FrameStatus, FusionMethod, LoopClosureC, ScanConfigC,
+                     ScanSummaryC, Status, copy_reported, has_field)
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+@dataclass(frozen=True, eq=False)
+class FrameReport:
+    """One frame's outcome (sls_frame_report), handed to the frame callback. Fields a library
+    older than this package does not report keep their zero value."""
+    index: int
+    """The frame's index in the recording (frames come in order)."""
+    recording_frames: int
+    """Frames in the recording: index + 1 of recording_frames are done."""
+    timestamp_ns: int
+    status: FrameStatus
+    reason: str
+    """Why lost or skipped ("" when fused, except unverified frames: why not verified)."""
+    T_world_camera: np.ndarray
+    """4x4 float64 (read-only), metres: the fused pose (a lost frame: the guess it was tracked
+    from; a skipped frame: identity)."""
+    depth_pixels: int
+    tracked: bool
+    """Registered by ICP (the next two fields are its); False for the first fused frame."""
+    inlier_fraction: float
+    residual_rms_m: float
+    read_ms: float
+    decode_ms: float
+    track_ms: float
+    integrate_ms: float
+    move_ms: float
+    raycast_ms: float
+    total_ms: float
+    keyframe: bool = False
+    deformation_nodes: int = 0
+    deformation_constraints: int = 0
+    deformation_solve_ms: float = 0.0
+    deform_ms: float = 0.0
+    unverified: bool = False
+    """Fused at the turntable prior because tracking could not verify the pose."""
+
+    @property
+    def fused(self) -> bool:
+        """Whether the frame was integrated into the model."""
+        return self.status == FrameStatus.FUSED
+
+    @classmethod
+    def _from_c(cls, report: FrameReportC) -> "FrameReport":
+        values: Dict[str, Any] = {}
+        for field in fields(cls):
+            if not has_field(report, field.name):
+                continue  # an older library's report: the default
+            value = getattr(report, field.name)
+            if field.name == "T_world_camera":
+                value = np.array(value, dtype=np.float64).reshape(4, 4)
+                value.setflags(write=False)
+            elif field.name == "reason":
+                value = _lib.decode(value)
+            elif field.name == "status":
+                value = FrameStatus(value)
+            elif field.type in ("bool", bool):
+                value = bool(value)
+            values[field.name] = value
+        return cls(**values)
+
+
+@dataclass(frozen=True)
+class ScanSummary:
+    """What the last run did (sls_scan_summary)."""
+    frames: int
+    """Frames processed (reported to the callback)."""
+    fused: int
+    lost: int
+    skipped: int
+    cancelled: bool
+    voxel_size_m: float
+    """The volume's voxel size; 0 before the first fused frame."""
+    volume_moves: int
+    deformation_nodes: int
+    deformation_constraints: int
+    loop_closed: bool
+
+
+@dataclass(frozen=True)
+class LoopClosure:
+    """What :meth:`Scan.close_loop` did (sls_loop_closure)."""
+    first_frame: int
+    last_frame: int
+    registration_inlier_fraction: float
+    registration_residual_rms_m: float
+    constraints: int
+    iterations: int
+    last_pose_correction_m: float
+    last_pose_correction_deg: float
+    ms: float
+
+
+def _dataclass_from_c(cls, value: ctypes.Structure):
+    items = {}
+    for field in fields(cls):
+        item = getattr(value, field.name)
+        items[field.name] = bool(item) if field.type in ("bool", bool) else item
+    return cls(**items)
+
+
+FrameCallback = Callable[[FrameReport], Any]
+
+_CONFIG_KEYS = ("fusion", "use_turntable_prior", "voxel_size_m", "volume_size_m", "max_voxels", "online_deformation")
+
+
+class Scan(Handle):
+    """A scan (sls_scan_create): its configuration, and after a run its model.
+
+    Args:
+        context: where it runs (CPU or CUDA); ``None``: a default :class:`Context` made for the
+            call (the scan does not keep it).
+        fusion: ``"gtsdf"`` (default: the detail-preserving anisotropic TSDF) or ``"tsdf"``.
+        use_turntable_prior: guess each pose from the recorded turntable angle about the
+            calibrated axis (default False: depth alone).
+        voxel_size_m: 0 (default): automatic.
+        volume_size_m: (x, y, z) extent; (0, 0, 0) (default): the camera's field of view.
+        max_voxels: the largest automatic volume; 0 (default): the library's (256e6 CUDA, 48e6 CPU).
+        online_deformation: the deformation graph (default True; needed by close_loop()).
+    Unset keywords keep the library's defaults (sls_scan_config_init); a bad value raises
+    :class:`InvalidArgumentError` naming the field.
+
+    Runs block the calling thread (the C call runs on a worker thread of this package, where
+    the frame callback is called, frame after frame); :meth:`cancel` may be called from any
+    thread or the callback. Ctrl-C (KeyboardInterrupt) during a run cancels it (after the
+    current frame, or the current stack while capturing) and is raised once the run returned.
+    """
+
+    _destroy_name = "sls_scan_destroy"
+
+    def __init__(self, context: Optional[Context] = None, **config: Any) -> None:
+        super().__init__()
+        self._running = False
+        unknown = sorted(set(config) - set(_CONFIG_KEYS))
+        if unknown:
+            raise TypeError(f"Scan: unknown config {', '.join(unknown)}; known: {', '.join(_CONFIG_KEYS)}")
+        self._config = _lib.init(ScanConfigC, "sls_scan_config_init")
+        for key, value in config.items():
+            if key == "fusion":
+                value = FusionMethod[value.upper()] if isinstance(value, str) else FusionMethod(value)
+            elif key == "volume_size_m":
+                value = [float(v) for v in value]
+                if len(value) != 3:
+                    raise ValueError(f"volume_size_m: 3 values (x, y, z), not {len(value)}")
+                value = (ctypes.c_double * 3)(*value)
+            elif key in ("use_turntable_prior", "online_deformation"):
+                value = int(bool(value))
+            else:
+                value = float(value)
+            setattr(self._config, key, value)
+        with context_or_default(context) as handle:
+            call(_lib.lib.sls_scan_create, handle, ctypes.byref(self._config), ctypes.byref(self._handle))
+
+    @property
+    def config(self) -> Dict[str, Any]:
+        """The configuration the scan was made with (defaults filled in)."""
+        return {"fusion": FusionMethod(self._config.fusion), "use_turntable_prior": bool(self._config.use_turntable_prior),
+                "voxel_size_m": self._config.voxel_size_m, "volume_size_m": tuple(self._config.volume_size_m),
+                "max_voxels": self._config.max_voxels, "online_deformation": bool(self._config.online_deformation)}
+
+    @property
+    def running(self) -> bool:
+        """Whether a run is in progress."""
+        return self._running
+
+    def close(self) -> None:
+        """Frees the scan and its model. :class:`BusyError` while a run is in progress."""
+        if self._running:
+            raise BusyError(Status.BUSY, "Scan.close", "the scan is running: cancel() it and wait for the run")
+        super().close()
+
+    def run_recording(self, path: PathLike, on_frame: Optional[FrameCallback] = None) -> ScanSummary:
+        """Scans a recording folder (sls_scan_run_recording) and returns the summary.
+
+        Args:
+            path: a recording written by ``sls sim``, ``sls scan`` or :meth:`run_devices`.
+            on_frame: called with a :class:`FrameReport` after each frame, in order. An
+                exception it raises cancels the scan and is raised again once the run returned.
+        Raises :class:`CancelledError` after :meth:`cancel` (the model keeps what was fused:
+        summary() and the writes still work), :class:`NotFoundError` for a missing folder or
+        manifest, :class:`FormatError` for a corrupt one, :class:`InvalidArgumentError` for a
+        recording without calibration or when no frame could be fused."""
+        return self._run(_lib.lib.sls_scan_run_recording, on_frame, _lib.encode_path(path))
+
+    def run_devices(self, *, camera: str, projector: str, calibration: PathLike, recording: PathLike,
+                    turntable: Optional[str] = None, frames: int = 0,
+                    on_frame: Optional[FrameCallback] = None) -> ScanSummary:
+        """Captures from devices by URI into a new recording, then scans it
+        (sls_scan_run_devices): per turntable position one pattern stack, then every frame as
+        :meth:`run_recording`, calling `on_frame` after the capture.
+
+        Args:
+            camera, projector: device URIs (``slscan.devices()``), e.g. one
+                ``"sim://knurled-knob?preset=ci"`` for both (the simulated head).
+            calibration: calibration.yml of these devices (stored in the recording).
+            recording: the recording folder to create (must not exist or be empty); it is kept.
+            turntable: a turntable URI, or None: every stack at one position.
+            frames: frames per revolution, one revolution; 0: 36 with a turntable, else 1.
+            on_frame: as in :meth:`run_recording`.
+        Raises as :meth:`run_recording`, and the device errors of opening a URI."""
+        capture = _lib.init(CaptureConfigC, "sls_capture_config_init")
+        capture.camera_uri = _lib.encode(camera)
+        capture.projector_uri = _lib.encode(projector)
+        capture.turntable_uri = _lib.encode(turntable)
+        capture.calibration_path = _lib.encode_path(calibration)
+        capture.recording_path = _lib.encode_path(recording)
+        capture.frames = int(frames)
+        return self._run(_lib.lib.sls_scan_run_devices, on_frame, ctypes.byref(capture))
+
+    def _run(self, function: Callable[..., int], on_frame: Optional[FrameCallback], *args: Any) -> ScanSummary:
+        handle = self._checked()
+        if self._running:
+            raise BusyError(Status.BUSY, function.__name__, "the scan is already running")
+        raised: List[BaseException] = []
+
+        def trampoline(report: int, user: Optional[int]) -> None:
+            # Runs inside the C scan: nothing may propagate out of it.
+            if raised or on_frame is None:
+                return
+            try:
+                on_frame(FrameReport._from_c(copy_reported(FrameReportC, report)))
+            except BaseException as error:  # noqa: B036 - re-raised after the run
+                raised.append(error)
+                _lib.lib.sls_scan_cancel(handle, None)
+
+        # Kept referenced until the run is over and the library has forgotten it.
+        c_callback = _lib.FRAME_CALLBACK(trampoline) if on_frame is not None else None
+        call(_lib.lib.sls_scan_set_frame_callback, handle,
+             ctypes.cast(c_callback, ctypes.c_void_p) if c_callback is not None else None, None)
+        outcome: Dict[str, Any] = {}
+
+        finished = threading.Event()
+
+        def worker() -> None:
+            error = ctypes.POINTER(ErrorC)()
+            try:
+                outcome["status"] = function(handle, *args, ctypes.byref(error))
+                if outcome["status"] != Status.OK and error:
+                    outcome["message"] = _lib.decode(_lib.lib.sls_error_message(error))
+                    outcome["function"] = _lib.decode(_lib.lib.sls_error_function(error))
+            except BaseException as raised_here:  # noqa: B036 - e.g. ctypes refusing an argument
+                outcome["exception"] = raised_here
+            finally:
+                _lib.lib.sls_error_free(error)
+                finished.set()
+
+        # The run waits on an Event, not on Thread.join(): a KeyboardInterrupt that interrupts
+        # join() can leave the thread marked stopped while it still runs (Python 3.11).
+        thread = threading.Thread(target=worker, name="slscan-scan")
+        interrupted: Optional[BaseException] = None
+        self._running = True
+        try:
+            thread.start()
+            while not finished.is_set():
+                try:
+                    finished.wait()
+                except BaseException as error:  # Ctrl-C: cancel, then wait for the run to stop
+                    interrupted = interrupted or error
+                    _lib.lib.sls_scan_cancel(handle, None)
+            thread.join()
+        finally:
+            self._running = False
+            _lib.lib.sls_scan_set_frame_callback(handle, None, None, None)
+            del c_callback
+        if raised:
+            raise raised[0]
+        if interrupted is not None:
+            raise interrupted
+        if "exception" in outcome:
+            raise outcome["exception"]
+        status = outcome.get("status", Status.INTERNAL)
+        if status != Status.OK:
+            raise make_error(status, outcome.get("function") or function.__name__, outcome.get("message", ""))
+        return self.summary()
+
+    def cancel(self) -> None:
+        """Asks the run in progress to stop after its current frame (or stack, while capturing);
+        the run then raises :class:`CancelledError`. Final: a later run is cancelled at once.
+        Safe from any thread and from the frame callback."""
+        call(_lib.lib.sls_scan_cancel, self._checked())
+
+    def summary(self) -> ScanSummary:
+        """What the last run did (all zero before the first)."""
+        summary = _lib.init(ScanSummaryC, "sls_scan_summary_init")
+        call(_lib.lib.sls_scan_get_summary, self._checked(), ctypes.byref(summary))
+        return _dataclass_from_c(ScanSummary, summary)
+
+    def close_loop(self) -> LoopClosure:
+        """Closes the loop of the last run (a full revolution): registers the last fused frame
+        to the first frame's surface and solves the deformation graph; the writes then give the
+        closed model. :class:`InvalidArgumentError` (the model unchanged) when it cannot: no
+        frame fused, online_deformation off, too few keyframes, or no registration."""
+        result = _lib.init(LoopClosureC, "sls_loop_closure_init")
+        call(_lib.lib.sls_scan_close_loop, self._checked(), ctypes.byref(result))
+        return _dataclass_from_c(LoopClosure, result)
+
+    def write_cloud(self, path: PathLike) -> None:
+        """Writes the model's point cloud (normals, confidence) as binary PLY, atomically."""
+        call(_lib.lib.sls_scan_write_cloud, self._checked(), _lib.encode_path(path))
+
+    def write_mesh(self, path: PathLike) -> None:
+        """Writes the model as a triangle mesh (marching cubes), binary PLY, atomically."""
+        call(_lib.lib.sls_scan_write_mesh, self._checked(), _lib.encode_path(path))
+
+    def write_trajectory(self, path: PathLike) -> None:
+        """Writes the fused frames' poses T_world_camera as a TUM trajectory."""
+        call(_lib.lib.sls_scan_write_trajectory, self._checked(), _lib.encode_path(path))
+
+    def __repr__(self) -> str:
+        return "<slscan.Scan closed>" if self.closed else f"<slscan.Scan {'running' if self._running else 'idle'}>"
+

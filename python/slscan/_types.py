@@ -1,0 +1,261 @@
+"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.3.0).
+
+Each versioned struct (its first field `struct_size`) is mirrored field for field, in the
+order of the header. Fill one with :func:`init_struct`, which calls the library's own
+``*_init()`` (so the defaults are the library's, never duplicated here), and read one the
+library filled with :func:`copy_reported` (the frame report and the calibration progress,
+whose size the library sets to its own). The test ``tests/python/test_types.py`` compares every
+mirror's size and field offsets with the C compiler's.
+"""
+from __future__ import annotations
+
+import ctypes
+import enum
+from ctypes import (Structure, c_char_p, c_double, c_int, c_int64, c_size_t, c_uint,
+                    c_uint64)
+from typing import Callable, Type, TypeVar
+
+# C enums are ints on every ABI slscan supports.
+c_enum = c_int
+
+
+class Status(enum.IntEnum):
+    """sls_status (sls_status.h): SLS_OK or a negative error code."""
+    OK = 0
+    INVALID_ARGUMENT = -1
+    IO = -2
+    FORMAT = -3
+    NOT_FOUND = -4
+    OUT_OF_MEMORY = -5
+    UNSUPPORTED = -6
+    VERSION_MISMATCH = -7
+    DEVICE = -8
+    TIMEOUT = -9
+    CANCELLED = -10
+    BUSY = -11
+    INTERNAL = -99
+
+
+class LogLevel(enum.IntEnum):
+    """sls_log_level (sls_context.h)."""
+    TRACE = 0
+    DEBUG = 1
+    INFO = 2
+    WARNING = 3
+    ERROR = 4
+    OFF = 5
+
+
+class DevicePreference(enum.IntEnum):
+    """sls_device_preference (sls_context.h)."""
+    AUTO = 0
+    CPU = 1
+    CUDA = 2
+
+
+class DeviceKind(enum.IntEnum):
+    """sls_device_kind (sls_device.h)."""
+    CAMERA = 0
+    PROJECTOR = 1
+    CONTROLLER = 2
+    SCANNER = 3
+
+
+class DeviceRole(enum.IntFlag):
+    """sls_device_role bits (sls_device.h): what a device's URI opens as."""
+    CAMERA = 1
+    PROJECTOR = 2
+    TURNTABLE = 4
+
+
+class FusionMethod(enum.IntEnum):
+    """sls_fusion_method (sls_scan.h)."""
+    GTSDF = 0
+    TSDF = 1
+
+
+class FrameStatus(enum.IntEnum):
+    """sls_frame_status (sls_scan.h)."""
+    FUSED = 0
+    LOST = 1
+    SKIPPED = 2
+
+
+class CalibrationDevice(enum.IntEnum):
+    """sls_calibration_device (sls_calibration.h)."""
+    CAMERA = 0
+    PROJECTOR = 1
+
+
+class ErrorC(Structure):
+    """sls_error: opaque."""
+
+
+class ContextConfigC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("log_level", c_enum), ("device", c_enum), ("cuda_device_id", c_int)]
+
+
+class DeviceInfoC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("kind", c_enum), ("uri", c_char_p), ("model", c_char_p),
+                ("serial", c_char_p), ("details", c_char_p), ("roles", c_uint)]
+
+
+class CameraInfoC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("uri", c_char_p), ("model", c_char_p), ("serial", c_char_p),
+                ("width", c_int), ("height", c_int), ("bit_depth", c_int)]
+
+
+class FrameInfoC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("width", c_int), ("height", c_int), ("bit_depth", c_int),
+                ("timestamp_ns", c_int64), ("frame_id", c_uint64), ("frames_missed", c_uint64)]
+
+
+class ProjectorInfoC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("uri", c_char_p), ("model", c_char_p), ("firmware", c_char_p),
+                ("width", c_int), ("height", c_int)]
+
+
+class ScanConfigC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("fusion", c_enum), ("use_turntable_prior", c_int),
+                ("voxel_size_m", c_double), ("volume_size_m", c_double * 3), ("max_voxels", c_double),
+                ("online_deformation", c_int)]
+
+
+class FrameReportC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("index", c_int), ("recording_frames", c_size_t),
+                ("timestamp_ns", c_int64), ("status", c_enum), ("reason", c_char_p),
+                ("T_world_camera", c_double * 16), ("depth_pixels", c_size_t), ("tracked", c_int),
+                ("inlier_fraction", c_double), ("residual_rms_m", c_double), ("read_ms", c_double),
+                ("decode_ms", c_double), ("track_ms", c_double), ("integrate_ms", c_double),
+                ("move_ms", c_double), ("raycast_ms", c_double), ("total_ms", c_double),
+                ("keyframe", c_int), ("deformation_nodes", c_size_t), ("deformation_constraints", c_size_t),
+                ("deformation_solve_ms", c_double), ("deform_ms", c_double), ("unverified", c_int)]
+
+
+class CaptureConfigC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("camera_uri", c_char_p), ("projector_uri", c_char_p),
+                ("turntable_uri", c_char_p), ("calibration_path", c_char_p), ("recording_path", c_char_p),
+                ("frames", c_int)]
+
+
+class ScanSummaryC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("frames", c_size_t), ("fused", c_size_t), ("lost", c_size_t),
+                ("skipped", c_size_t), ("cancelled", c_int), ("voxel_size_m", c_double),
+                ("volume_moves", c_size_t), ("deformation_nodes", c_size_t),
+                ("deformation_constraints", c_size_t), ("loop_closed", c_int)]
+
+
+class LoopClosureC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("first_frame", c_int), ("last_frame", c_int),
+                ("registration_inlier_fraction", c_double), ("registration_residual_rms_m", c_double),
+                ("constraints", c_size_t), ("iterations", c_int), ("last_pose_correction_m", c_double),
+                ("last_pose_correction_deg", c_double), ("ms", c_double)]
+
+
+class CalibrationConfigC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("board_inner_cols", c_int), ("board_inner_rows", c_int),
+                ("board_square_m", c_double), ("pattern_set", c_char_p), ("estimate_k3", c_int),
+                ("max_obliquity_deg", c_double), ("min_projector_corner_fraction", c_double),
+                ("max_rms_px", c_double)]
+
+
+class CalibrationProgressC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("stage", c_char_p), ("done", c_size_t), ("total", c_size_t),
+                ("detail", c_char_p)]
+
+
+class CalibrationSummaryC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("camera_rms_px", c_double), ("projector_rms_px", c_double),
+                ("stereo_rms_px", c_double), ("joint_camera_rms_px", c_double),
+                ("joint_projector_rms_px", c_double), ("views_total", c_size_t), ("views_used", c_size_t),
+                ("views_rejected", c_size_t), ("camera_outliers", c_size_t), ("projector_outliers", c_size_t),
+                ("turntable_axis_fitted", c_int), ("turntable_axis_rms_px", c_double), ("seconds", c_double),
+                ("board_inner_cols", c_int), ("board_inner_rows", c_int), ("board_square_m", c_double),
+                ("pattern_set", c_char_p), ("has_truth", c_int), ("focal_rel_err", c_double),
+                ("principal_point_err_px", c_double), ("baseline_rel_err", c_double),
+                ("rotation_err_deg", c_double), ("axis_direction_err_deg", c_double),
+                ("axis_point_err_um", c_double)]
+
+
+class IntrinsicsC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("width", c_int), ("height", c_int), ("fx", c_double),
+                ("fy", c_double), ("cx", c_double), ("cy", c_double), ("k1", c_double), ("k2", c_double),
+                ("k3", c_double), ("p1", c_double), ("p2", c_double)]
+
+
+class CalibrationViewC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("name", c_char_p), ("used", c_int), ("rejected_reason", c_char_p),
+                ("board_found", c_int), ("has_turntable_angle", c_int), ("turntable_angle_deg", c_double),
+                ("camera_rms_px", c_double), ("projector_rms_px", c_double), ("obliquity_deg", c_double),
+                ("corners", c_size_t), ("projector_corners_valid", c_size_t), ("decoded_fraction", c_double)]
+
+
+# Every versioned struct with the name of its C type and of the library's _init() (tests).
+VERSIONED_STRUCTS: dict[str, tuple[Type[Structure], str]] = {
+    "sls_context_config": (ContextConfigC, "sls_context_config_init"),
+    "sls_device_info": (DeviceInfoC, "sls_device_info_init"),
+    "sls_camera_info": (CameraInfoC, "sls_camera_info_init"),
+    "sls_frame_info": (FrameInfoC, "sls_frame_info_init"),
+    "sls_projector_info": (ProjectorInfoC, "sls_projector_info_init"),
+    "sls_scan_config": (ScanConfigC, "sls_scan_config_init"),
+    "sls_capture_config": (CaptureConfigC, "sls_capture_config_init"),
+    "sls_scan_summary": (ScanSummaryC, "sls_scan_summary_init"),
+    "sls_loop_closure": (LoopClosureC, "sls_loop_closure_init"),
+    "sls_calibration_config": (CalibrationConfigC, "sls_calibration_config_init"),
+    "sls_calibration_summary": (CalibrationSummaryC, "sls_calibration_summary_init"),
+    "sls_intrinsics": (IntrinsicsC, "sls_intrinsics_init"),
+    "sls_calibration_view": (CalibrationViewC, "sls_calibration_view_init"),
+}
+# Structs only the library fills, with no _init() (their struct_size is the library's).
+REPORTED_STRUCTS: dict[str, Type[Structure]] = {
+    "sls_frame_report": FrameReportC,
+    "sls_calibration_progress": CalibrationProgressC,
+}
+
+S = TypeVar("S", bound=Structure)
+
+# The largest struct a library's _init() may write: room for every later version's fields.
+_INIT_SCRATCH_BYTES = 4096
+
+
+def library_struct_size(init: Callable[[ctypes.c_void_p], None]) -> int:
+    """The struct_size a library's ``*_init()`` sets: the size of the library's own struct.
+
+    The _init() functions are the library's and write its whole struct, which a newer library
+    may have grown: they write into a scratch buffer large enough for any version, never into
+    a mirror directly."""
+    scratch = (ctypes.c_char * _INIT_SCRATCH_BYTES)()
+    init(ctypes.cast(scratch, ctypes.c_void_p))
+    return c_size_t.from_buffer(scratch).value
+
+
+def init_struct(cls: Type[S], init: Callable[[ctypes.c_void_p], None]) -> S:
+    """A mirror filled by the library's ``*_init()``: its defaults, and struct_size the mirror's
+    own size (the fields of this version; a newer library keeps its defaults for the rest)."""
+    scratch = (ctypes.c_char * _INIT_SCRATCH_BYTES)()
+    init(ctypes.cast(scratch, ctypes.c_void_p))
+    library_size = c_size_t.from_buffer(scratch).value
+    if not 0 < library_size <= _INIT_SCRATCH_BYTES:
+        raise RuntimeError(f"{cls.__name__}: the library's _init set struct_size {library_size}")
+    value = cls()
+    ctypes.memmove(ctypes.byref(value), scratch, min(library_size, ctypes.sizeof(cls)))
+    value.struct_size = ctypes.sizeof(cls)
+    return value
+
+
+def copy_reported(cls: Type[S], address: int) -> S:
+    """A copy of the struct at `address` that the library filled with its own struct_size: the
+    fields both versions have; the others (a library older than these mirrors) stay zero, and
+    the copy keeps the library's struct_size (see :func:`has_field`)."""
+    value = cls()
+    size = c_size_t.from_address(address).value
+    ctypes.memmove(ctypes.byref(value), address, min(size, ctypes.sizeof(cls)))
+    value.struct_size = size
+    return value
+
+
+def has_field(value: Structure, name: str) -> bool:
+    """Whether `value`'s struct_size (as the library set it) covers field `name`."""
+    field = getattr(type(value), name)
+    return value.struct_size >= field.offset + field.size
+
