@@ -157,6 +157,11 @@ void Renderer::set_frame(int frame) {
   frame_ = frame;
 }
 
+int Renderer::add_placement(const ObjectPlacement& placement) {
+  rig_.placements.push_back(placement);
+  return static_cast<int>(rig_.placements.size()) - 1;
+}
+
 namespace {
 
 PatternRenderParams pattern_params(const SimRig& rig, int frame, const PatternDesc& pattern, std::uint32_t image_key) {

@@ -53,6 +53,9 @@ class Renderer {
   // rig().placements, 0 .. placements.size() − 1).
   void set_frame(int frame);
   int frame() const { return frame_; }
+  // Appends a placement to rig().placements (a calibration capture whose simulated operator
+  // places the board as it goes: sim_scanner.h) and returns its frame.
+  int add_placement(const ObjectPlacement& placement);
 
   // Pattern `pattern` of rig().patterns, as the camera's digital numbers.
   Image16u render_pattern(int pattern);

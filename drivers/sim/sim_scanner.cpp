@@ -3,6 +3,7 @@
 #include <cmath>
 #include <set>
 
+#include "drivers/sim/sim_calibration_capture.h"
 #include "sdk/core/error.h"
 
 namespace sls::sim {
@@ -25,7 +26,10 @@ class SimCamera final : public drivers::Camera {
   }
   double exposure_us() const override { return exposure_us_; }
   void set_trigger_source(drivers::TriggerSource source) override { source_ = source; }
-  void start() override { started_ = true; }
+  void start() override {
+    scanner_->start_acquisition();
+    started_ = true;
+  }
   void stop() override {
     started_ = false;
     pending_ = 0;
@@ -151,11 +155,18 @@ std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
   const drivers::DeviceUri uri = drivers::parse_device_uri(text);
   if (uri.scheme != "sim") throw_error(ErrorCode::kInvalidArgument, "'{}' is not a sim:// URI", text);
   static const std::set<std::string> kKeys = {"preset", "frames",  "seed",   "noise", "device", "width",
-                                              "projector", "bits", "gamma", "jitter", "tilt",  "offset_um"};
+                                              "projector", "bits", "gamma", "jitter", "tilt",  "offset_um",
+                                              "calibration", "hand_poses", "head"};
   for (const auto& [key, value] : uri.query) {
     if (kKeys.count(key) == 0) {
-      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector, bits, gamma, jitter, tilt, offset_um)",
+      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector, bits, gamma, jitter, tilt, offset_um, calibration, hand_poses, head)",
                   text, key);
+    }
+  }
+  const bool calibration = uri.get_int("calibration", 0) != 0;
+  for (const char* key : {"hand_poses", "head"}) {
+    if (!calibration && uri.query.count(key) != 0) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: '{}' is an option of a calibration target (calibration=1)", text, key);
     }
   }
   RigOptions options;
@@ -171,7 +182,31 @@ std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
   options.mount_tilt_deg = uri.get_double("tilt", options.mount_tilt_deg);
   options.mount_offset_m = uri.get_double("offset_um", options.mount_offset_m * 1e6) * 1e-6;
   const std::string device_text = uri.get("device", default_device().to_string());
-  return create(uri.target, options, parse_device(device_text));
+  if (!calibration) return create(uri.target, options, parse_device(device_text));
+
+  // The calibration target with its simulated operator (the header).
+  if (uri.target != "chessboard") {
+    throw_error(ErrorCode::kInvalidArgument, "{}: a calibration target (calibration=1) is sim://chessboard, not '{}'",
+                text, uri.target);
+  }
+  for (const char* key : {"frames", "tilt", "offset_um"}) {
+    if (uri.query.count(key) != 0) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: '{}' is a scan's option, not a calibration target's", text, key);
+    }
+  }
+  SimCalibrationOptions calibration_options;
+  calibration_options.rig = options;
+  calibration_options.hand_poses = uri.get_int("hand_poses", calibration_options.hand_poses);
+  calibration_options.turntable_poses = 0;  // the board on the table goes where the table does
+  calibration_options.head_object = uri.get("head", calibration_options.head_object);
+  if (calibration_options.hand_poses < 1 || calibration_options.hand_poses > 1000) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: hand_poses={} (1 .. 1000)", text, calibration_options.hand_poses);
+  }
+  Scene board = make_chessboard_scene(calibration_options.board);
+  SimRig rig = make_calibration_rig(calibration_options, board);
+  std::shared_ptr<SimScanner> scanner = create(std::move(rig), std::move(board), parse_device(device_text), text);
+  scanner->hand_placements_ = calibration_options.hand_poses;
+  return scanner;
 }
 
 std::unique_ptr<drivers::Camera> SimScanner::camera() { return std::make_unique<SimCamera>(shared_from_this()); }
@@ -196,9 +231,33 @@ void SimScanner::place_object(int frame) {
   }
 }
 
+void SimScanner::start_acquisition() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (hand_placements_ == 0 || homed_) return;  // no operator, or the board is on the table
+  if (next_hand_ >= hand_placements_) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "{}: the simulated operator has placed the board at all of its {} poses by hand (hand_poses={})", uri_,
+                hand_placements_, hand_placements_);
+  }
+  placement_ = next_hand_++;
+  captures_in_frame_ = 0;
+}
+
+int SimScanner::table_placement_locked() {
+  const std::vector<ObjectPlacement>& placements = rig().placements;
+  const double steps = rig().turntable.steps_per_revolution;
+  for (std::size_t i = static_cast<std::size_t>(hand_placements_); i < placements.size(); ++i) {
+    if (std::lround(*placements[i].commanded_angle_deg / 360.0 * steps) == step_) return static_cast<int>(i);
+  }
+  return renderer_.add_placement({rig().step_angle_deg(step_), rig().T_table_object});
+}
+
 int SimScanner::ensure_frame_traced() {
   int frame = step_;
-  if (!rig().placements.empty()) {
+  if (hand_placements_ > 0 && homed_) {
+    frame = table_placement_locked();
+    if (frame != renderer_.frame()) captures_in_frame_ = 0;  // the board just went onto the table
+  } else if (!rig().placements.empty()) {
     if (placement_ < 0) throw_error(ErrorCode::kInvalidArgument, "{}: capture before place_object()", uri_);
     frame = placement_;
     const std::optional<double>& angle = rig().placements[static_cast<std::size_t>(frame)].commanded_angle_deg;

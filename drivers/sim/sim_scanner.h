@@ -3,6 +3,17 @@
 // projector shows on the object at the turntable's angle. Opened by URI:
 //   sim://knurled-screw?preset=demo&frames=120&seed=1&noise=1&device=cuda
 // (object: knurled-screw, knurled-knob, chessboard, plane, sphere; preset: ci, demo, paper).
+//
+// A calibration target with a simulated operator, for a calibration capture through the
+// devices (session::capture_calibration, `sls calibrate --camera`):
+//   sim://chessboard?calibration=1&preset=ci&hand_poses=12&head=knurled-screw
+// The head is the one set up for `head` (sim_calibration_capture.h: make_calibration_rig), its
+// pattern set codes projector columns and rows, and the operator moves the calibration board
+// (9 x 7 corners of 0.6 mm) as a person does: at every new acquisition (a camera's start(), one
+// per pose of a calibration capture) to the next of `hand_poses` poses by hand, until the
+// turntable is homed; from then on the board sits on the turntable's mount, and every capture
+// sees it at the angle the table is at (any angle: in view or not, as on a real table).
+// `frames`, `tilt` and `offset_um` (a scan's) are refused with calibration=1.
 #pragma once
 
 #include <memory>
@@ -40,6 +51,8 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   // `frame`; the camera sees it there until the next call. A placement on the table is
   // captured only with the turntable moved to its commanded angle.
   void place_object(int frame);
+  // Whether the scanner's simulated operator places the board itself (calibration=1 above).
+  bool simulated_operator() const { return hand_placements_ > 0; }
 
   // The ground truth of the frame the turntable (or the operator) is at now.
   GroundTruthFrame ground_truth();
@@ -57,6 +70,10 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   // The frame the camera sees: the turntable's step in a scan, the placement in a calibration
   // capture. Traces it when it changed.
   int ensure_frame_traced();
+  // The simulated operator (under the lock): a camera's start() is a new pose; the board on
+  // the table is the placement at the table's step (added when the step is new).
+  void start_acquisition();
+  int table_placement_locked();
 
   std::string uri_;
   std::mutex mutex_;
@@ -64,6 +81,8 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   int pattern_ = -1;          // on the DMD; −1 = dark
   int step_ = 0;              // turntable position in steps
   int placement_ = -1;        // calibration captures: the placement; −1 = none yet
+  int hand_placements_ = 0;   // the simulated operator's poses by hand (placements 0 ..); 0 = none
+  int next_hand_ = 0;         // the next of them
   bool homed_ = false;
   std::uint32_t captures_in_frame_ = 0;
   std::uint64_t frame_id_ = 0;

@@ -22,6 +22,7 @@
 #include "sdk/core/recording.h"
 #include "sdk/core/trajectory.h"
 #include "tests/support/test_support.h"
+#include "tests/unit/sim/sim_test_rig.h"
 
 namespace sls::sim {
 namespace {
@@ -218,9 +219,7 @@ TEST(SimCalibrationCapture, TheTurntableMustBeAtAPlacementsAngle) {
   options.rig.camera_width = 64;
   options.hand_poses = 1;
   options.turntable_poses = 2;
-  const Scene board = make_chessboard_scene(options.board);
-  const std::shared_ptr<SimScanner> scanner =
-      SimScanner::create(make_calibration_rig(options, board), board, Device::cpu(), "sim://chessboard");
+  const std::shared_ptr<SimScanner> scanner = calibration_scanner(options);
   SimDevices devices = start_sim_devices(*scanner);
   std::int64_t timestamp = 0;
   EXPECT_THROW(capture_pattern_stack(devices, 1, &timestamp), Error);  // nothing placed yet
@@ -392,6 +391,56 @@ TEST(SimCalibrationCapture, AnInterruptedCaptureKeepsItsFramesAndTheirTruth) {
   EXPECT_EQ(read_tum_trajectory(reader.groundtruth_folder() + "/board_poses.txt").size(), 3u);
   EXPECT_EQ(read_json(reader.groundtruth_folder() + "/capture.json")["frames"].size(), 3u);
   EXPECT_TRUE(std::filesystem::exists(reader.groundtruth_folder() + "/frames/000002/corners.json"));
+}
+
+// sim://chessboard?calibration=1: the calibration target opened by URI, whose simulated operator
+// places the board at the next pose by hand at every acquisition until the table is homed,
+// then leaves it on the table's mount at whatever angle the table is at.
+TEST(SimCalibrationCapture, ACalibrationTargetByUriHasAnOperatorWhoPlacesTheBoard) {
+  const std::shared_ptr<SimScanner> scanner =
+      SimScanner::open("sim://chessboard?calibration=1&preset=ci&width=64&hand_poses=2&head=chessboard&device=cpu");
+  ASSERT_TRUE(scanner->simulated_operator());
+  EXPECT_EQ(scanner->rig().placements.size(), 2u);
+  EXPECT_TRUE(std::any_of(scanner->rig().patterns.patterns.begin(), scanner->rig().patterns.patterns.end(),
+                          [](const PatternDesc& p) { return p.axis == PatternAxis::kRows; }));
+  const std::unique_ptr<drivers::Camera> camera = scanner->camera();
+  const std::unique_ptr<drivers::Projector> projector = scanner->projector();
+  const std::unique_ptr<drivers::Turntable> turntable = scanner->turntable();
+  projector->load_patterns(scanner->rig().patterns);
+  const auto white = [&] {  // one acquisition: what the camera sees under white light
+    camera->start();
+    projector->show_pattern(0);
+    camera->software_trigger();
+    Image16u image = camera->wait_image(kSimDeviceTimeout).image;
+    camera->stop();
+    return image;
+  };
+  const Image16u first = white();
+  EXPECT_EQ(scanner->ground_truth().frame, 0);
+  const Image16u second = white();
+  EXPECT_EQ(scanner->ground_truth().frame, 1);
+  EXPECT_TRUE(first != second);
+  EXPECT_THROW(camera->start(), Error);  // both poses by hand placed
+  // The table homed: the board is on it, at the table's angle, a placement per angle.
+  turntable->home(kSimDeviceTimeout);
+  turntable->move_to_deg(10.0, kSimDeviceTimeout);
+  white();
+  GroundTruthFrame truth = scanner->ground_truth();
+  EXPECT_EQ(truth.frame, 2);
+  EXPECT_NEAR(truth.commanded_angle_deg, 10.0, 360.0 / kCalibrationTurntableSteps);
+  turntable->move_to_deg(350.0, kSimDeviceTimeout);
+  white();
+  EXPECT_EQ(scanner->ground_truth().frame, 3);
+  turntable->move_to_deg(10.0, kSimDeviceTimeout);
+  white();
+  EXPECT_EQ(scanner->ground_truth().frame, 2);
+  EXPECT_EQ(scanner->rig().placements.size(), 4u);
+
+  for (const char* bad : {"sim://chessboard?hand_poses=3", "sim://chessboard?head=chessboard",
+                          "sim://knurled-screw?calibration=1", "sim://chessboard?calibration=1&frames=4",
+                          "sim://chessboard?calibration=1&hand_poses=0", "sim://chessboard?calibration=1&head=teapot"}) {
+    EXPECT_THROW(SimScanner::open(bad), Error) << bad;
+  }
 }
 
 }  // namespace
