@@ -1,17 +1,32 @@
 // sls calibrate: camera, projector and turntable axis from board views (calib/), written as
 // the calibration.yml that decode and fusion read. Input: a recording (e.g. `sls sim
-// --calibration`) or a folder of captures, one subfolder per board pose.
+// --calibration`) or a folder of captures, one subfolder per board pose; or the views captured
+// first through devices by URI (--camera ... --record DIR: session::capture_calibration, a
+// confirmation per hand pose read from stdin), then calibrated from DIR as --input DIR would.
+#include <poll.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "samples/sls/capture.h"
 #include "samples/sls/commands.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
+#include "sdk/core/recording.h"
+#include "sdk/session/calibration_capture.h"
 
 #if defined(SLS_HAVE_CALIB)
 #include "calib/calibrate_capture.h"
@@ -32,9 +47,195 @@ struct CalibrateOptions {
   double max_rms_px = 1.0;
   bool force = false;
   bool estimate_k3 = false;
+  // Capture mode (--camera): the devices, the recording, the poses.
+  std::string camera_uri;
+  std::string projector_uri;
+  std::string turntable_uri;
+  std::string record;
+  int hand_poses = 12;
+  std::vector<double> turntable_angles;
+  double exposure_us = 0.0;
+  bool yes = false;
+  bool resume = false;
 };
 
 #if defined(SLS_HAVE_CALIB)
+namespace fs = std::filesystem;
+
+// One line from stdin without its newline, or nullopt at its end. Waits in steps of 100 ms, so
+// that a SIGINT (after which a plain read would simply go on) ends the wait with kCancelled.
+std::optional<std::string> read_answer(const StopOnSignal& stop) {
+  std::string line;
+  for (;;) {
+    if (stop.requested()) throw_error(ErrorCode::kCancelled, "interrupted while waiting for the operator");
+    pollfd input{STDIN_FILENO, POLLIN, 0};
+    const int ready = ::poll(&input, 1, 100);
+    if (ready < 0 && errno != EINTR) throw_error(ErrorCode::kIo, "stdin: {}", std::strerror(errno));
+    if (ready <= 0) continue;
+    char c = 0;
+    const ssize_t n = ::read(STDIN_FILENO, &c, 1);
+    if (n < 0 && errno != EINTR) throw_error(ErrorCode::kIo, "stdin: {}", std::strerror(errno));
+    if (n < 0) continue;
+    if (n == 0) return line.empty() ? std::nullopt : std::optional<std::string>(line);
+    if (c == '\n') return line;
+    line += c;
+  }
+}
+
+// The operator's answer to `question` on stderr: Enter (capture), s (skip) or q (stop).
+session::PoseDecision ask(const std::string& question, const std::string& pose, const StopOnSignal& stop) {
+  if (::isatty(STDERR_FILENO) != 0) std::cerr << "\n";  // below the progress line
+  for (;;) {
+    std::cerr << question << std::flush;
+    const std::optional<std::string> answer = read_answer(stop);
+    if (::isatty(STDIN_FILENO) == 0) std::cerr << "\n";  // answers from a pipe are not echoed
+    if (!answer) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "no answer for {}: stdin ended (--yes captures every pose without asking)", pose);
+    }
+    std::string word;
+    for (const char c : *answer) {
+      if (std::isspace(static_cast<unsigned char>(c)) == 0) word += static_cast<char>(std::tolower(c));
+    }
+    if (word.empty()) return session::PoseDecision::kCapture;
+    if (word == "s" || word == "skip") return session::PoseDecision::kSkip;
+    if (word == "q" || word == "quit" || word == "stop") return session::PoseDecision::kStop;
+    std::cerr << "answer Enter (capture), s (skip) or q (stop capturing)\n";
+  }
+}
+
+// The confirmations of `sls calibrate --camera`: each hand pose asked for on the terminal, and
+// once before the turntable poses (the board goes onto the table); with --yes none.
+session::PoseConfirmation terminal_confirmation(const CalibrateOptions& options, const StopOnSignal& stop) {
+  auto table = std::make_shared<std::optional<session::PoseDecision>>();  // the answer for the table poses
+  return [&options, &stop, table](const session::CalibrationPose& pose) {
+    if (options.yes) return session::PoseDecision::kCapture;
+    if (pose.kind == session::CalibrationPoseKind::kHand) {
+      return ask(fmt::format("Place the board for pose {} of {} and press Enter (s: skip this pose, q: stop "
+                             "capturing) ",
+                             pose.index + 1, pose.count),
+                 pose.describe(), stop);
+    }
+    if (!*table) {
+      *table = ask(fmt::format("Fix the board on the turntable for the {} turntable pose(s) and press Enter (s: skip "
+                               "them, q: stop capturing) ",
+                               pose.count),
+                   pose.describe(), stop);
+    }
+    return **table;
+  };
+}
+
+// The command that continues an interrupted capture.
+std::string resume_command(const CalibrateOptions& options) {
+  std::string command = "sls calibrate --camera " + options.camera_uri + " --projector " + options.projector_uri;
+  if (!options.turntable_uri.empty()) command += " --turntable " + options.turntable_uri;
+  command += fmt::format(" --record {} --hand-poses {}", options.record, options.hand_poses);
+  if (!options.turntable_angles.empty()) {
+    std::string angles;
+    for (const double angle : options.turntable_angles) angles += (angles.empty() ? "" : ",") + fmt::format("{:g}", angle);
+    command += " --turntable-angles " + angles;
+  }
+  command += fmt::format(" --board {} --square {:g} --out {} --resume", options.board, options.square_m, options.out);
+  return command;
+}
+
+nlohmann::json capture_json(const session::CalibrationCapture& captured) {
+  nlohmann::json poses = nlohmann::json::array();
+  for (const session::CalibrationPoseResult& pose : captured.poses) {
+    poses.push_back({{"pose", pose.pose.describe()},
+                     {"kind", session::calibration_pose_kind_name(pose.pose.kind)},
+                     {"index", pose.pose.index},
+                     {"captured", pose.captured},
+                     {"frame", pose.captured ? nlohmann::json(pose.frame) : nlohmann::json()},
+                     {"turntable_angle_deg",
+                      pose.turntable_angle_deg ? nlohmann::json(*pose.turntable_angle_deg) : nlohmann::json()},
+                     {"complete", pose.complete},
+                     {"seconds", pose.seconds}});
+  }
+  const int captured_poses = captured.captured_poses();
+  return {{"recording", captured.folder},
+          {"frames", captured.frames},
+          {"hand_frames", captured.hand_frames},
+          {"turntable_frames", captured.turntable_frames},
+          {"resumed_from", captured.resumed_from},
+          {"images_per_frame", captured.images_per_frame},
+          {"poses_captured", captured_poses},
+          {"poses_skipped", captured.skipped_poses()},
+          {"stopped", captured.stopped},
+          {"incomplete_frames", captured.statistics.incomplete_frames},
+          {"retries", captured.statistics.retries},
+          {"seconds", captured.seconds},
+          {"capture_seconds", captured.capture_seconds},
+          {"seconds_per_pose", captured_poses > 0 ? nlohmann::json(captured.capture_seconds / captured_poses)
+                                                  : nlohmann::json()},
+          {"poses", poses}};
+}
+
+// Captures the board views through the devices into options.record. Returns nullopt when a
+// signal stopped it (reported here: exit status 4).
+std::optional<session::CalibrationCapture> capture_views(const Context& context, const CalibrateOptions& options,
+                                                         const StopOnSignal& stop) {
+  std::error_code error;
+  const bool holds_recording = fs::exists(fs::path(options.record) / "manifest.json", error);
+  if (options.resume && !holds_recording) {
+    throw_error(ErrorCode::kInvalidArgument, "--resume: {} holds no recording to continue (no manifest.json)",
+                options.record);
+  }
+  if (!options.resume && fs::exists(options.record, error) && !fs::is_empty(options.record, error)) {
+    throw_error(ErrorCode::kInvalidArgument, "--record {} is not empty{}; add --resume to continue it, or choose another",
+                options.record, holds_recording ? " (it holds a recording, maybe one cut off)" : "");
+  }
+  session::CalibrationDeviceRequest request;
+  request.camera_uri = options.camera_uri;
+  request.projector_uri = options.projector_uri;
+  request.turntable_uri = options.turntable_uri;
+  if (!options.patterns.empty()) request.patterns = pattern_set_from_name(options.patterns);
+  request.sim_device = options.device.empty() ? Device::cpu() : parse_device(options.device);
+  session::CalibrationCaptureOptions capture;
+  capture.hand_poses = options.hand_poses;
+  capture.turntable_angles_deg = options.turntable_angles;
+  capture.exposure_us = options.exposure_us;
+  capture.resume = options.resume;
+  const auto frames_in_record = [&options] {
+    try {
+      return RecordingReader::open(options.record).frame_count();
+    } catch (const Error&) {
+      return std::size_t{0};
+    }
+  };
+  try {
+    return session::capture_calibration_from_devices(options.record, request, capture,
+                                                     terminal_confirmation(options, stop),
+                                                     stop.wrap(context.progress_callback("capture")));
+  } catch (const Error& failure) {
+    if (failure.code() != ErrorCode::kCancelled || !stop.requested()) {
+      if (frames_in_record() == 0) throw;
+      throw Error(failure.code(), fmt::format("{}: continue it with the same command and --resume, or calibrate it "
+                                              "with sls calibrate --input {}",
+                                              failure.what(), options.record));
+    }
+  }
+  const std::size_t frames = frames_in_record();
+  if (context.options.json) {
+    std::cout << nlohmann::json({{"ok", false},
+                                 {"interrupted", true},
+                                 {"stage", "capture"},
+                                 {"signal", stop.signal_name()},
+                                 {"recording", options.record},
+                                 {"frames_captured", frames},
+                                 {"resume", resume_command(options)}})
+                     .dump(2)
+              << "\n";
+  }
+  std::cerr << fmt::format("\ninterrupted by {} during the calibration capture: {} pose(s) captured into {} (a valid "
+                           "recording, not calibrated).\nContinue the capture: {}\nor calibrate what it holds: sls "
+                           "calibrate --input {} --board {} --square {:g} --out {}\n",
+                           stop.signal_name(), frames, options.record, resume_command(options), options.record,
+                           options.board, options.square_m, options.out);
+  return std::nullopt;
+}
+
 int run_calibrate(const Context& context, const CalibrateOptions& options) {
   calib::CalibrateCaptureOptions calibrate;
   calibrate.input = options.input;
@@ -54,9 +255,57 @@ int run_calibrate(const Context& context, const CalibrateOptions& options) {
   } else if (options.square_m > 0.0) {
     throw_error(ErrorCode::kInvalidArgument, "--square needs --board COLSxROWS");
   }
-  const calib::CalibrateCaptureResult result =
-      calib::calibrate_capture(calibrate, context.progress_callback("calibrate"));
+  // Capture mode (the board checked first): a signal stops the capture after the current pose,
+  // or the calibration after it.
+  std::optional<StopOnSignal> stop;
+  std::optional<session::CalibrationCapture> captured;
+  if (!options.camera_uri.empty()) {
+    calibrate.board.validate();
+    stop.emplace();
+    captured = capture_views(context, options, *stop);
+    if (!captured) return kExitInterrupted;
+    if (captured->frames == 0) {
+      throw_error(ErrorCode::kInvalidArgument, "no pose captured into {}: nothing to calibrate", options.record);
+    }
+    if (!context.options.json) {
+      std::cerr << fmt::format("captured {} frame(s) ({} by hand, {} on the turntable; {} pose(s) skipped{}{}) x {} "
+                               "images into {} in {:.1f} s ({:.2f} s per pose)\n",
+                               captured->frames, captured->hand_frames, captured->turntable_frames,
+                               captured->skipped_poses(),
+                               captured->resumed_from > 0 ? fmt::format(", resumed at frame {}", captured->resumed_from)
+                                                          : "",
+                               captured->stopped ? ", stopped by the operator" : "", captured->images_per_frame,
+                               options.record, captured->seconds,
+                               captured->captured_poses() > 0 ? captured->capture_seconds / captured->captured_poses()
+                                                              : 0.0);
+    }
+    calibrate.input = options.record;
+    calibrate.patterns.clear();  // the recording's own
+  }
+  const ProgressCallback progress = context.progress_callback("calibrate");
+  calib::CalibrateCaptureResult result;
+  try {
+    result = calib::calibrate_capture(calibrate, stop ? stop->wrap(progress) : progress);
+  } catch (const Error& error) {
+    if (!stop || !stop->requested() || error.code() != ErrorCode::kCancelled) throw;
+    if (context.options.json) {
+      std::cout << nlohmann::json({{"ok", false},
+                                   {"interrupted", true},
+                                   {"stage", "calibrate"},
+                                   {"signal", stop->signal_name()},
+                                   {"recording", options.record},
+                                   {"capture", capture_json(*captured)}})
+                       .dump(2)
+                << "\n";
+    }
+    std::cerr << fmt::format("\ninterrupted by {} during the calibration: the capture in {} is complete; calibrate it "
+                             "with sls calibrate --input {} --board {} --square {:g} --out {}\n",
+                             stop->signal_name(), options.record, options.record, options.board, options.square_m,
+                             options.out);
+    return kExitInterrupted;
+  }
   nlohmann::json json = calibration_json(result);
+  if (captured) json["capture"] = capture_json(*captured);
   const double rms = result.procam.stereo_rms_px;
   const bool too_high = !(rms <= options.max_rms_px);
   const bool write = !too_high || options.force;
@@ -120,18 +369,75 @@ int run_calibrate(const Context& context, const CalibrateOptions& options) {
 void add_calibrate_command(CLI::App& app, Context& context, int* exit_code) {
   CLI::App* command = app.add_subcommand(
       "calibrate", "Calibrate camera, projector and turntable axis from board views (a recording, e.g. `sls sim "
-                   "--calibration`, or a folder with one subfolder of pattern images per board pose)");
+                   "--calibration`, or a folder with one subfolder of pattern images per board pose), or capture the "
+                   "views first through devices by URI (--camera ... --record DIR)");
+  command->footer(
+      "Capture mode: --camera URI --projector URI [--turntable URI] --record DIR --hand-poses N [--turntable-angles "
+      "A,B,...] --board COLSxROWS --square M --out FILE. Before each hand pose it asks on stderr \"Place the board for "
+      "pose K of N and press Enter (s: skip this pose, q: stop capturing)\" and reads the answer from stdin (q ends "
+      "the capture and calibrates from the poses captured); before the turntable poses it asks once for the board to "
+      "be fixed on the table; --yes asks nothing. Each pose is the full pattern stack (columns and rows, white and "
+      "black) through the capture sequencer, appended to DIR (an ordinary recording, uncalibrated); then DIR is "
+      "calibrated as --input DIR. SIGINT/SIGTERM stops the capture after the current pose (or the calibration): DIR is "
+      "kept (valid), exit status 4, and --resume continues it. sim://chessboard?calibration=1&preset=ci&hand_poses=N "
+      "is a simulated board whose operator places it at each pose.");
   auto options = std::make_shared<CalibrateOptions>();
-  command->add_option("--input", options->input, "Recording, or folder of captures (one subfolder per board pose)")
-      ->required();
+  auto* input =
+      command->add_option("--input", options->input, "Recording, or folder of captures (one subfolder per board pose)");
+  auto* camera = command->add_option("--camera", options->camera_uri,
+                                     "Capture the views first with devices by URI (see `sls devices`): the camera, e.g. "
+                                     "gige://192.168.1.20");
+  auto* projector = command->add_option("--projector", options->projector_uri,
+                                        "With --camera: the projector, e.g. dlpc350://");
+  auto* turntable = command->add_option("--turntable", options->turntable_uri,
+                                        "With --camera: the turntable, e.g. headctl:// (for --turntable-angles)");
+  auto* record = command->add_option("--record", options->record,
+                                     "With --camera: folder for the capture's recording (new or empty; with --resume "
+                                     "the one to continue)");
+  auto* hand_poses = command->add_option("--hand-poses", options->hand_poses,
+                                         "With --camera: board poses by hand, each confirmed on the terminal")
+                         ->check(CLI::Range(0, 1000))
+                         ->capture_default_str();
+  auto* angles = command->add_option("--turntable-angles", options->turntable_angles,
+                                     "With --turntable: then the board fixed on the table at these angles in degrees, "
+                                     "0 <= A < 360, e.g. 350,0,10 (none by default)")
+                     ->delimiter(',')
+                     ->check(CLI::Validator(
+                         [](std::string& text) {
+                           char* end = nullptr;
+                           const double angle = std::strtod(text.c_str(), &end);
+                           const bool ok = end != text.c_str() && *end == '\0' && std::isfinite(angle) &&
+                                           angle >= 0.0 && angle < 360.0;
+                           return ok ? std::string() : text.substr(0, 40) + " is not an angle in [0, 360)";
+                         },
+                         "ANGLE in [0, 360)"));
+  auto* exposure = command->add_option("--exposure-us", options->exposure_us,
+                                       "With --camera: camera exposure in microseconds (0: leave it as it is)")
+                       ->check(finite_range(1.0, 1e7, true));
+  auto* yes = command->add_flag("--yes", options->yes,
+                                "With --camera: capture every pose without asking (a fixture that moves the board)");
+  auto* resume = command->add_flag("--resume", options->resume,
+                                   "With --camera: continue the capture in --record that was cut off (a signal, a kill, "
+                                   "a device error) with the same devices and options: the hand poses it lacks, then "
+                                   "the turntable angles it lacks; then calibrate");
+  input->excludes(camera);
+  camera->excludes(input);
+  for (CLI::Option* option : {projector, record}) camera->needs(option);
+  for (CLI::Option* option : {projector, turntable, record, hand_poses, exposure, yes, resume}) option->needs(camera);
+  angles->needs(turntable);
   command->add_option("--out", options->out, "calibration.yml to write")->required();
   command->add_option("--patterns", options->patterns,
                       "Pattern set by name: opencv-graycode:WxH (OpenCV structured_light's Gray code for a WxH "
-                      "projector, white and black last) or gray-phase:WxH (default: the recording's own)");
-  command->add_option("--board", options->board, "Chessboard inner corners COLSxROWS, e.g. 9x7 (default: a simulated "
-                                                 "capture's own board)");
-  command->add_option("--square", options->square_m, "Chessboard square side in metres (with --board)")
-      ->check(CLI::PositiveNumber);
+                      "projector, white and black last) or gray-phase:WxH (default: the recording's own; with "
+                      "--camera: the set to project, default gray-phase with columns and rows at the projector's "
+                      "size)");
+  auto* board = command->add_option("--board", options->board,
+                                    "Chessboard inner corners COLSxROWS, e.g. 9x7 (default: a simulated capture's own "
+                                    "board; required with --camera)");
+  auto* square = command->add_option("--square", options->square_m, "Chessboard square side in metres (with --board)")
+                     ->check(CLI::PositiveNumber);
+  camera->needs(board);
+  camera->needs(square);
   command->add_option("--report", options->report, "Folder for calibration_report.html and calibration.json");
   command->add_option("--max-rms-px", options->max_rms_px,
                       "Stereo RMS above which the calibration is not written (unless --force)")
@@ -140,8 +446,12 @@ void add_calibrate_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_flag("--force", options->force, "Write the calibration even when its RMS is above --max-rms-px");
   command->add_flag("--estimate-k3", options->estimate_k3,
                     "Also estimate the r^6 distortion term (default: fixed at 0, poorly determined by a narrow field)");
-  command->add_option("--device", options->device, "Decode on cpu, cuda or cuda:N (default: cpu)");
+  command->add_option("--device", options->device,
+                      "Decode (and with --camera render sim:// devices) on cpu, cuda or cuda:N (default: cpu)");
   command->callback([&context, exit_code, options] {
+    if (options->input.empty() && options->camera_uri.empty()) {
+      throw CLI::RequiredError("--input (a recording or folder) or --camera (with --projector, --record)");
+    }
     run_command(context, "calibrate",
                 [&context, options] {
 #if defined(SLS_HAVE_CALIB)
