@@ -60,7 +60,6 @@ void add_devices_command(CLI::App& app, Context& context, int* exit_code) {
   CLI::App* command = app.add_subcommand(
       "devices", "List connected cameras, projectors and head controllers (and the built-in simulator) with the "
                  "URI that opens each");
-  command->add_flag("--json", context.options.json, "Print machine-readable JSON on stdout (as sls --json devices)");
   command->footer(
       "URIs: sim://OBJECT?preset=ci|demo|paper (simulator), gige://ADDRESS and usb3://SERIAL (GenICam cameras\n"
       "through Aravis), dlpc350://BUS:ADDRESS (projector), headctl://BUS:ADDRESS (head controller).\n"

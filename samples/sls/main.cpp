@@ -10,6 +10,9 @@ int main(int argc, char** argv) {
   CLI::App app{"sls: structured-light scanning and high-resolution fusion (slscan)", "sls"};
   app.set_version_flag("--version", std::string("sls ") + SLS_VERSION);
   app.require_subcommand(1);
+  // The global options below are accepted after the command too (`sls eval ... --json`): a
+  // command passes the options it does not know to sls. Inherited by every command added after.
+  app.fallthrough();
   app.footer(
       "Run `sls COMMAND --help` for a command's options.\n"
       "Devices are named by URI (sim://, gige://, usb3://, dlpc350://, headctl://): `sls devices` lists them.\n"
