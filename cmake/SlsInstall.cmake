@@ -8,6 +8,9 @@
 #                                       a CMakeLists.txt (find_package) and a Makefile (pkg-config)
 #   share/slscan/samples/cpp_turntable_scan the same scan from C++ (RAII over the C API)
 #   lib/udev/rules.d/60-slscan.rules    the projector's and head controller's USB access for users
+#   lib/python3/dist-packages/slscan    the Python package (`import slscan` with that folder on
+#                                       PYTHONPATH), finding lib/libsls.so.0 through its _install.py
+#   share/slscan/samples/python/turntable_scan.py   the Python turntable scan
 # The static component libraries (sls_core, fusion, ...) are inside libsls and not installed;
 # libsls exports only sls_* (sdk/capi/libsls.map).
 include(GNUInstallDirs)
@@ -45,3 +48,19 @@ install(DIRECTORY ${CMAKE_SOURCE_DIR}/samples/c_turntable_scan ${CMAKE_SOURCE_DI
 
 # Where udev reads packaged rules (/usr/lib/udev/rules.d with the /usr prefix).
 install(FILES ${CMAKE_SOURCE_DIR}/drivers/usb/60-slscan.rules DESTINATION lib/udev/rules.d COMPONENT runtime)
+
+# The Python package: pure Python over libsls (ctypes), in the folder Debian keeps modules for
+# every Python 3 in (/usr/lib/python3/dist-packages with the /usr prefix; for another prefix,
+# PYTHONPATH=<prefix>/lib/python3/dist-packages). A generated _install.py names the installed
+# libsls relative to the package, so a moved prefix still finds its own library.
+set(SLS_INSTALL_PYTHONDIR lib/python3/dist-packages CACHE STRING
+    "Where cmake --install puts the slscan Python package, relative to the prefix")
+install(DIRECTORY ${CMAKE_SOURCE_DIR}/python/slscan DESTINATION ${SLS_INSTALL_PYTHONDIR} COMPONENT runtime
+        FILES_MATCHING PATTERN "*.py" PATTERN "py.typed" PATTERN "__pycache__" EXCLUDE)
+file(RELATIVE_PATH SLS_PYTHON_TO_LIBDIR /prefix/${SLS_INSTALL_PYTHONDIR}/slscan /prefix/${CMAKE_INSTALL_LIBDIR}/)
+string(REGEX REPLACE "/$" "" SLS_PYTHON_TO_LIBDIR "${SLS_PYTHON_TO_LIBDIR}")
+file(GENERATE OUTPUT ${CMAKE_BINARY_DIR}/python/_install.py CONTENT
+     "\"\"\"Written by cmake --install (cmake/SlsInstall.cmake): the installed libsls, relative to this package.\"\"\"\nLIBRARY = \"${SLS_PYTHON_TO_LIBDIR}/$<TARGET_SONAME_FILE_NAME:sls>\"\n")
+install(FILES ${CMAKE_BINARY_DIR}/python/_install.py DESTINATION ${SLS_INSTALL_PYTHONDIR}/slscan COMPONENT runtime)
+install(PROGRAMS ${CMAKE_SOURCE_DIR}/samples/python/turntable_scan.py
+        DESTINATION ${CMAKE_INSTALL_DATADIR}/slscan/samples/python COMPONENT development)

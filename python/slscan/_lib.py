@@ -62,7 +62,7 @@ def _installed_candidate() -> Optional[pathlib.Path]:
         from . import _install  # type: ignore[attr-defined]  # written by cmake --install
     except ImportError:
         return None
-    return (_PACKAGE_DIR / _install.LIBRARY).resolve()
+    return pathlib.Path(os.path.normpath(_PACKAGE_DIR / _install.LIBRARY))
 
 
 def _load() -> Tuple[ctypes.CDLL, str]:
