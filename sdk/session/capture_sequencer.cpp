@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <utility>
 
 #include <fmt/format.h>
 
 #include "sdk/core/error.h"
+#include "sdk/core/host_memory.h"
 
 namespace sls::session {
 namespace {
@@ -145,6 +147,20 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
                   writer->frame_count(), options_.first_frame > 0 ? "resumes" : "starts", options_.first_frame);
     }
   }
+
+  // Each camera's stack is held until it is recorded (~1 GB at 12 MP): admitted before anything
+  // moves, as a volume is (Linux overcommits; a stack that does not fit would end in the OOM
+  // killer part-way through a frame).
+  std::uint64_t stack_bytes = 0;
+  for (drivers::Camera* camera : cameras_) {
+    const drivers::CameraInfo info = camera->info();
+    stack_bytes += static_cast<std::uint64_t>(patterns_.size()) * static_cast<std::uint64_t>(info.width) *
+                   static_cast<std::uint64_t>(info.height) * sizeof(std::uint16_t);
+  }
+  admit_host_allocation(stack_bytes,
+                        fmt::format("capturing a pattern stack ({} images from {} camera(s))", patterns_.size(),
+                                    cameras_.size()),
+                        "free memory for it (other programs), or capture with fewer cameras");
 
   const Clock::time_point start = Clock::now();
   statistics_ = CaptureStatistics{};

@@ -3,8 +3,11 @@
 // benchmark can use it without the gtest-based support library.
 #pragma once
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
 #include <cstdlib>
 #include <fstream>
 #include <string>
@@ -62,6 +65,23 @@ inline double gpu_used_mib() {
 #else
   return 0.0;
 #endif
+}
+
+// Limits this process's address space (ulimit -v) to its present size plus `headroom_bytes`:
+// for a forked child that checks memory admission. False when the size is unknown or the limit
+// cannot be set. (Not under the sanitizers: their shadow memory needs the address space.)
+inline bool limit_address_space(std::uint64_t headroom_bytes) {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  std::uint64_t vm_kb = 0;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmSize:", 0) == 0) vm_kb = std::strtoull(line.c_str() + 7, nullptr, 10);
+  }
+  if (vm_kb == 0) return false;
+  rlimit limit{};
+  if (getrlimit(RLIMIT_AS, &limit) != 0) return false;
+  limit.rlim_cur = static_cast<rlim_t>(vm_kb * 1024u + headroom_bytes);
+  return setrlimit(RLIMIT_AS, &limit) == 0;
 }
 
 // The upper median (0 for none).

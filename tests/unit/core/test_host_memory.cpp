@@ -1,10 +1,8 @@
 // Host memory admission (host_memory.h): what the process may still allocate, and a refusal
 // that names the size asked, the size available and the limit, before anything is allocated.
-#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <cstdio>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -14,6 +12,7 @@
 #include "sdk/core/error.h"
 #include "sdk/core/host_memory.h"
 #include "sdk/core/recording.h"
+#include "tests/support/process_memory.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -61,17 +60,7 @@ TEST(HostMemory, APatternStackBeyondTheLimitIsRefusedBeforeItIsRead) {
   const pid_t child = fork();
   ASSERT_GE(child, 0);
   if (child == 0) {
-    rlimit limit{};
-    getrlimit(RLIMIT_AS, &limit);
-    std::FILE* status = std::fopen("/proc/self/status", "r");
-    unsigned long vm_kb = 0;
-    char line[256];
-    while (status != nullptr && std::fgets(line, sizeof line, status) != nullptr) {
-      if (std::sscanf(line, "VmSize: %lu kB", &vm_kb) == 1) break;
-    }
-    if (status != nullptr) std::fclose(status);
-    limit.rlim_cur = static_cast<rlim_t>(vm_kb * 1024ul + (16ul << 20));
-    if (vm_kb == 0 || setrlimit(RLIMIT_AS, &limit) != 0) _exit(3);
+    if (!test::limit_address_space(16ull << 20)) _exit(3);
     try {
       (void)recording.load_images(0);
     } catch (const Error& error) {

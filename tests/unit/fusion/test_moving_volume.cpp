@@ -6,7 +6,6 @@
 // without a gap or an overlap; follow() must move exactly when its rule says; the brick flags
 // must let a raycast of the moved volume see what a freshly filled one shows; a GTSDF
 // volume's running average must move exactly as its U does.
-#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -27,6 +26,7 @@
 #include "fusion/raycaster.h"
 #include "fusion/resample_shared.h"
 #include "sdk/core/error.h"
+#include "tests/support/process_memory.h"
 #include "tests/unit/fusion/fusion_test_scenes.h"
 #include "tests/unit/fusion/moving_volume_scene.h"
 
@@ -551,17 +551,7 @@ TEST(HostMemoryAdmission, VolumesBeyondUlimitAreRefusedBeforeAllocating) {
       }
       return false;
     };
-    rlimit limit{};
-    getrlimit(RLIMIT_AS, &limit);
-    std::FILE* status = std::fopen("/proc/self/status", "r");
-    unsigned long vm_kb = 0;
-    char line[256];
-    while (status != nullptr && std::fgets(line, sizeof line, status) != nullptr) {
-      if (std::sscanf(line, "VmSize: %lu kB", &vm_kb) == 1) break;
-    }
-    if (status != nullptr) std::fclose(status);
-    limit.rlim_cur = static_cast<rlim_t>(vm_kb * 1024ul + (256ul << 20));
-    if (vm_kb == 0 || setrlimit(RLIMIT_AS, &limit) != 0) _exit(3);
+    if (!sls::test::limit_address_space(256ull << 20)) _exit(3);
     const bool volume = refused([] {
       Volume big(VolumeGeometry::centred(Eigen::Vector3d::Zero(), 512, 512, 512, 1e-4), VoxelFormat::kFloat32,
                  Device::cpu());

@@ -2,6 +2,8 @@
 // incomplete, lost, late and ignored frames, silent and failing devices) and against the
 // simulated scanner, whose direct recording path it must reproduce image for image.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <deque>
@@ -16,6 +18,7 @@
 #include "sdk/core/error.h"
 #include "sdk/core/recording.h"
 #include "sdk/session/capture_sequencer.h"
+#include "tests/support/process_memory.h"
 #include "tests/support/test_support.h"
 
 namespace sls::session {
@@ -78,7 +81,8 @@ class ScriptedCamera final : public drivers::Camera {
   std::optional<drivers::TransportStatistics> transport;
   bool gone = false;                      // kDevice on every call
 
-  drivers::CameraInfo info() const override { return {uri_, "scripted camera", "SC-1", kWidth, kHeight, 16}; }
+  int width = kWidth, height = kHeight;  // what info() says
+  drivers::CameraInfo info() const override { return {uri_, "scripted camera", "SC-1", width, height, 16}; }
   void set_exposure_us(double exposure_us) override { exposure_ = exposure_us; }
   double exposure_us() const override { return exposure_; }
   void set_trigger_source(TriggerSource source) override { source_ = source; }
@@ -595,6 +599,37 @@ TEST(CaptureSequencer, WithoutATurntableEveryStackIsTakenWhereTheObjectStands) {
 
 // The simulated scanner through the sequencer gives the images of the simulator's own
 // recording path (same rig, same seeds): one capture model for both.
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)  // they need the address space
+// A camera of 4000x3000 and 17 patterns: a 389 MiB stack, in a child limited to its size plus
+// 64 MiB (ulimit -v). The capture is refused before anything moves, naming the stack and the
+// limit: no pattern shown, the turntable not homed.
+TEST(CaptureSequencer, AStackBeyondTheMemoryLimitIsRefusedBeforeAnythingMoves) {
+  Bench bench;
+  bench.camera.width = 4000;
+  bench.camera.height = 3000;
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    if (!test::limit_address_space(64ull << 20)) _exit(3);
+    CaptureSequencer sequencer(bench.projector, {&bench.camera}, &bench.turntable, bench.patterns, bench.options(2));
+    try {
+      sequencer.run({});
+    } catch (const Error& error) {
+      const bool named = std::string(error.what()).find("pattern stack (17 images from 1 camera(s)) needs 389") !=
+                             std::string::npos &&
+                         std::string(error.what()).find("ulimit -v") != std::string::npos;
+      const bool untouched = bench.stage.shown == -1 && bench.turntable.homes == 0 && bench.camera.starts == 0;
+      _exit(error.code() == ErrorCode::kOutOfMemory && named && untouched ? 0 : 2);
+    }
+    _exit(1);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "1: captured beyond the limit; 2: another error, or a device moved; 3: no limit";
+}
+#endif
+
 TEST(CaptureSequencer, SimulatedScannerGivesTheSimulatorsRecording) {
   test::TemporaryDirectory dir;
   sim::SimRecordingOptions sim_options;
