@@ -41,6 +41,11 @@ struct Context {
   ProgressCallback progress_callback(const std::string& stage) const;
   // Prints `result` as JSON (with --json) or through `human` (without).
   void emit(const nlohmann::json& result, const std::function<void()>& human) const;
+  // Called by `sls scan` after each frame it fused, skipped or lost, with the frame's index.
+  // The tool leaves it unset; a program running a command in-process (tests/unit/cli) may set
+  // it. An exception from it ends the frame loop as a fault of the machine does (sls::Error,
+  // or std::bad_alloc as kOutOfMemory): with frames fused, they are written as a partial model.
+  std::function<void(int frame)> after_frame;
 };
 
 // A number in [lo, hi], or 0 too with zero_allowed ("0: automatic"). NaN and infinities are

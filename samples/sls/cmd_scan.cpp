@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <new>
 #include <optional>
 
 #include <fmt/format.h>
@@ -26,6 +27,7 @@
 #include "samples/sls/capture.h"
 #include "samples/sls/commands.h"
 #include "samples/sls/evaluate.h"
+#include "samples/sls/output_files.h"
 #include "samples/sls/scan_report.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
@@ -310,6 +312,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   };
   bool printed_volume = false;
   const auto on_frame = [&](const session::FrameReport& frame) {
+    if (context.after_frame) context.after_frame(frame.index);
     if (context.options.json) return;
     if (!printed_volume && frame.status == session::FrameStatus::kFused) {
       const fusion::VolumeGeometry& geometry = session.volume_geometry();
@@ -330,7 +333,13 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   // model is.
   std::optional<Error> failure;
   try {
-    outcome = session::run_recording(session, recording, groundtruth ? &truth : nullptr, on_frame, progress);
+    try {
+      outcome = session::run_recording(session, recording, groundtruth ? &truth : nullptr, on_frame, progress);
+    } catch (const std::bad_alloc&) {
+      // An allocation the admission could not foresee failed: a fault of the machine as any other.
+      throw_error(ErrorCode::kOutOfMemory, "out of host memory after {} of {} frame(s)", session.frames().size(),
+                  recording.frame_count());
+    }
   } catch (const Error& error) {
     std::signal(SIGINT, previous_int);
     std::signal(SIGTERM, previous_term);
@@ -379,20 +388,33 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   const fusion::ExtractedSurface surface = session.final_surface();
   const double extract_ms = ms_since(start);
   const std::vector<StampedPose> trajectory = session.trajectory();
-  create_directories(options.out);
+  // Each output written whole or not at all, the reports after the model they describe, an
+  // earlier run's reports removed first (output_files.h): a kill, a full disk or a fault while
+  // writing never leaves a partial file, nor a report beside another run's model.
+  std::vector<std::string> planned;
+  if (session.deformation_enabled()) planned = {"undeformed/cloud.ply", "undeformed/trajectory.txt"};
+  for (const char* name : {"render.png", "cloud.ply", "mesh.ply", "trajectory.txt", "report.json", "report.html"}) {
+    planned.emplace_back(name);
+  }
+  OutputFiles outputs(options.out, planned, {"report.json", "report.html"});
   // With deformation, the model and trajectory as tracked too (OUT/undeformed), so `sls eval`
   // can put the two side by side.
   if (session.deformation_enabled()) {
-    std::filesystem::create_directories(options.out + "/undeformed");
-    write_ply(options.out + "/undeformed/cloud.ply", session.final_surface_undeformed().cloud);
-    write_tum_trajectory(options.out + "/undeformed/trajectory.txt", session.trajectory_undeformed());
+    const PointCloud undeformed = session.final_surface_undeformed().cloud;
+    outputs.write("undeformed/cloud.ply", [&](const std::string& path) {
+      create_directories(options.out + "/undeformed");
+      write_ply(path, undeformed);
+    });
+    outputs.write("undeformed/trajectory.txt",
+                  [&](const std::string& path) { write_tum_trajectory(path, session.trajectory_undeformed()); });
   }
   // A shaded picture of the current volume from the last fused view, with the camera's own
   // model (render.png): the fused surface at the scanner's resolution.
-  write_png(options.out + "/render.png", session.render(trajectory.back().T_world_camera));
-  write_ply(options.out + "/cloud.ply", surface.cloud);
-  write_ply(options.out + "/mesh.ply", surface.mesh);
-  write_tum_trajectory(options.out + "/trajectory.txt", trajectory);
+  const Image8u render = session.render(trajectory.back().T_world_camera);
+  outputs.write("render.png", [&](const std::string& path) { write_png(path, render); });
+  outputs.write("cloud.ply", [&](const std::string& path) { write_ply(path, surface.cloud); });
+  outputs.write("mesh.ply", [&](const std::string& path) { write_ply(path, surface.mesh); });
+  outputs.write("trajectory.txt", [&](const std::string& path) { write_tum_trajectory(path, trajectory); });
 
   const fusion::IntegrationOptions& fusion_options = session_options.integration;
   const fusion::VolumeGeometry& geometry = session.volume_geometry();
@@ -495,58 +517,61 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   report["outputs"] = {{"cloud", options.out + "/cloud.ply"}, {"mesh", options.out + "/mesh.ply"},
                        {"render", options.out + "/render.png"}, {"trajectory", options.out + "/trajectory.txt"},
                        {"report", options.out + "/report.json"}, {"report_html", options.out + "/report.html"}};
-  write_file_atomic(options.out + "/report.json", report.dump(2) + "\n");
+  const auto write_report = [&] {
+    outputs.write("report.json", [&](const std::string& path) { write_file_atomic(path, report.dump(2) + "\n"); });
+  };
+  write_report();
 
   // With ground truth (simulated recordings): sls eval's figures and per-point errors for the
   // report's heat map; the report.json written above is complete without them.
   sls::report::ScanReportInputs html;
   std::optional<eval::EvalReport> evaluation;
-  if (recording.info().has_groundtruth && !failure) try {
-    start = Clock::now();
-    eval::EvalOptions eval_options;
-    eval_options.keep_point_errors = true;
-    evaluation = eval::evaluate_result(options.out, recording.folder(), eval_options,
-                                       context.progress_callback("eval"));
-    report["evaluation"] = evaluation_json(*evaluation);
-    if (session.deformation_enabled()) {
-      // The same figures for the model as tracked: what deformation changed.
-      eval::EvalOptions undeformed_options;
-      undeformed_options.voxel_size_m = geometry.voxel_size_m;
-      report["evaluation_undeformed"] =
-          evaluation_json(eval::evaluate_result(options.out + "/undeformed", recording.folder(), undeformed_options,
-                                                context.progress_callback("eval")));
+  if (recording.info().has_groundtruth && !failure) {
+    try {
+      start = Clock::now();
+      eval::EvalOptions eval_options;
+      eval_options.keep_point_errors = true;
+      evaluation = eval::evaluate_result(options.out, recording.folder(), eval_options,
+                                         context.progress_callback("eval"));
+      report["evaluation"] = evaluation_json(*evaluation);
+      if (session.deformation_enabled()) {
+        // The same figures for the model as tracked: what deformation changed.
+        eval::EvalOptions undeformed_options;
+        undeformed_options.voxel_size_m = geometry.voxel_size_m;
+        report["evaluation_undeformed"] =
+            evaluation_json(eval::evaluate_result(options.out + "/undeformed", recording.folder(), undeformed_options,
+                                                  context.progress_callback("eval")));
+      }
+      report["ms_per_stage"]["evaluate"] = ms_since(start);
+      html.evaluation = &*evaluation;
+      html.point_errors_m = evaluation->cloud_point_errors_m;
+      if (evaluation->trajectory) {
+        html.truth = eval::truth_in_estimate_frame(
+            read_tum_trajectory(recording.groundtruth_folder() + "/trajectory.txt"), *evaluation->trajectory);
+      }
+    } catch (const Error& error) {
+      // A broken ground truth spoils the evaluation, not the scan: the model, trajectory and
+      // reports stand, and the report says what could not be measured.
+      if (!is_frame_problem(error)) throw;
+      const std::string warning = fmt::format("the scan is written, but it could not be evaluated against the "
+                                              "recording's ground truth: {}", error.what());
+      report["evaluation_error"] = error.what();
+      report["warnings"].push_back(warning);
+      html.evaluation = nullptr;
+      html.point_errors_m.clear();
     }
-    report["ms_per_stage"]["evaluate"] = ms_since(start);
-    html.evaluation = &*evaluation;
-    html.point_errors_m = evaluation->cloud_point_errors_m;
-    if (evaluation->trajectory) {
-      html.truth = eval::truth_in_estimate_frame(
-          read_tum_trajectory(recording.groundtruth_folder() + "/trajectory.txt"), *evaluation->trajectory);
-    }
-    write_file_atomic(options.out + "/report.json", report.dump(2) + "\n");
-  } catch (const Error& error) {
-    // A broken ground truth spoils the evaluation, not the scan: the model, trajectory and
-    // reports stand, and the report says what could not be measured.
-    if (!is_frame_problem(error)) throw;
-    const std::string warning = fmt::format("the scan is written, but it could not be evaluated against the "
-                                            "recording's ground truth: {}", error.what());
-    report["evaluation_error"] = error.what();
-    report["warnings"].push_back(warning);
-    html.evaluation = nullptr;
-    html.point_errors_m.clear();
-    write_file_atomic(options.out + "/report.json", report.dump(2) + "\n");
+    write_report();
   }
   html.report = report;
   html.cloud = &surface.cloud;
   html.trajectory = trajectory;
   if (session.deformation_enabled()) html.trajectory_undeformed = session.trajectory_undeformed();
   html.title = fmt::format("Scan of {}", recording.folder());
-  sls::report::write_scan_report_html(options.out, html);
+  outputs.write("report.html", [&](const std::string&) { sls::report::write_scan_report_html(options.out, html); });
   if (failure) {
-    throw Error(failure->code(),
-                fmt::format("{}; the {} frame(s) fused before it are written as a valid partial model: {}/cloud.ply, "
-                            "mesh.ply, trajectory.txt, report.json",
-                            failure->what(), session.fused_count(), options.out));
+    throw Error(failure->code(), fmt::format("{}; the {} frame(s) fused before it are written as a valid partial "
+                                             "model: {}", failure->what(), session.fused_count(),
+                                             outputs.describe_written()));
   }
   return report;
 }
