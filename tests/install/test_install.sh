@@ -5,8 +5,10 @@
 # pkg-config, and the C++ sample (cpp_turntable_scan) with find_package, each run on the
 # simulated scanner (sim://) through the installed libsls; and the
 # installed libsls exports only sls_* (every function its installed headers declare); the udev
-# rules give the USB ids the drivers open.
-#   test_install.sh BUILD_DIR WORK_DIR CHECK_EXPORTS_CMAKE
+# rules give the USB ids the drivers open; the installed Python package, with only PYTHONPATH set,
+# loads the installed libsls and its installed sample scans.
+#   test_install.sh BUILD_DIR WORK_DIR CHECK_EXPORTS_CMAKE [PYTHON]
+# PYTHON: a python3 with numpy (default: the first of python3 and /usr/bin/python3 that has it).
 set -euo pipefail
 build=$1
 work=$2
@@ -19,7 +21,8 @@ cmake --install "$build" --prefix "$prefix" > "$work/install.log"
 for file in include/sls/sls.h lib/libsls.so lib/cmake/slscan/slscanConfig.cmake \
             lib/cmake/slscan/slscanConfigVersion.cmake lib/pkgconfig/slscan.pc bin/sls \
             share/slscan/samples/c_turntable_scan/main.c share/slscan/samples/c_turntable_scan/CMakeLists.txt \
-            share/slscan/samples/c_turntable_scan/Makefile; do
+            share/slscan/samples/c_turntable_scan/Makefile lib/python3/dist-packages/slscan/__init__.py \
+            lib/python3/dist-packages/slscan/_install.py share/slscan/samples/python/turntable_scan.py; do
   [ -e "$prefix/$file" ] || { echo "FAIL: cmake --install did not install $file"; exit 1; }
 done
 soname=$(objdump -p "$prefix/lib/libsls.so" | awk '$1 == "SONAME" {print $2}')
@@ -71,4 +74,32 @@ cmake --build "$work/cpp-build" > "$work/cpp-build.log"
 "$work/cpp-build/cpp_turntable_scan" "$calibration" "$work/cpp-scan" 2 | tee "$work/cpp-scan.log" | tail -2
 grep -q "^fused [1-9][0-9]* of 2 frames" "$work/cpp-scan.log" || { echo "FAIL: the C++ sample did not scan"; exit 1; }
 [ -s "$work/cpp-scan/cloud.ply" ] || { echo "FAIL: the C++ sample wrote no cloud"; exit 1; }
-echo "installed SDK: find_package (C, C++) and pkg-config (C) builds all scan"
+
+# 4. Python: the installed package with PYTHONPATH alone (no SLSCAN_LIBRARY) loads the installed
+# libsls, not the build tree's; the installed sample scans one stop with the installed `sls`
+# tool giving the simulator's calibration.
+python=""
+for candidate in "${4:-}" python3 /usr/bin/python3; do
+  if [ -n "$candidate" ] && "$candidate" -c "import numpy" 2> /dev/null; then python=$candidate; break; fi
+done
+[ -n "$python" ] || { echo "FAIL: no python3 with numpy (scripts/install-deps installs python3-numpy)"; exit 1; }
+export PYTHONPATH=$prefix/lib/python3/dist-packages PYTHONDONTWRITEBYTECODE=1
+(cd "$work" && env -u SLSCAN_LIBRARY -u SLS_TOOL "$python" - "$prefix") <<'EOF'
+import pathlib, sys
+import slscan
+prefix = pathlib.Path(sys.argv[1]).resolve()
+package, library = pathlib.Path(slscan.__file__).resolve(), pathlib.Path(slscan.library_path).resolve()
+assert prefix in package.parents, f"slscan imported from {package}, not from {prefix}"
+assert library.parent == prefix / "lib", f"slscan loaded {library}, not the installed libsls"
+with slscan.Context(device="cpu") as context, slscan.Camera("sim://knurled-knob?preset=ci", context) as camera:
+    image, info = camera.grab(timeout_ms=10000)
+    assert image.shape == (camera.info.height, camera.info.width) and image.dtype.name == "uint16"
+print(f"installed Python package: slscan {slscan.version()} over {library}")
+EOF
+env -u SLSCAN_LIBRARY -u SLS_TOOL "$python" "$prefix/share/slscan/samples/python/turntable_scan.py" --frames 1 \
+  --device cpu --out "$work/python-scan" > "$work/python-scan.log"
+grep -q "^fused 1 of 1 frames" "$work/python-scan.log" || { echo "FAIL: the installed Python sample did not scan"; exit 1; }
+for file in cloud.ply mesh.ply trajectory.txt report.json; do
+  [ -s "$work/python-scan/$file" ] || { echo "FAIL: the Python sample wrote no $file"; exit 1; }
+done
+echo "installed SDK: find_package (C, C++) and pkg-config (C) builds all scan; the Python package and its sample too"
