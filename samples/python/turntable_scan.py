@@ -163,7 +163,7 @@ class FrameProgress:
             figures = "first frame" if report.fused else ""
         why = f": {report.reason}" if report.reason else ""
         print(f"  frame {report.index + 1:3d}/{report.recording_frames}: {report.status.name.lower():7s} "
-              f"{figures:32s} {report.total_ms:6.0f} ms | fused {self.fused}, lost {self.lost}"
+              f"{figures:34s} {report.total_ms:6.0f} ms | fused {self.fused}, lost {self.lost}"
               f"{f', skipped {self.skipped}' if self.skipped else ''}{why}", flush=True)
 
 
@@ -192,7 +192,9 @@ def main(argv: Optional[List[str]] = None) -> int:
                 slscan.Scan(context, fusion=args.fusion, use_turntable_prior=not args.no_turntable_prior) as scan:
             print(f"capturing one revolution from {args.camera} on the {'GPU' if context.uses_cuda else 'CPU'} ...",
                   flush=True)
-            watcher = CaptureProgress(recording / "manifest.json", args.frames)
+            # sls_capture_config.frames 0: 36 stops with a turntable, else 1.
+            stops = args.frames or (36 if args.turntable else 1)
+            watcher = CaptureProgress(recording / "manifest.json", stops)
             watcher.start()
             first_frame: List[float] = []
 
@@ -225,6 +227,15 @@ def main(argv: Optional[List[str]] = None) -> int:
             report["scan_s"] = scanned - (first_frame[0] if first_frame else scanned)
             print(f"fused {summary.fused} of {summary.frames} frames ({summary.lost} lost, {summary.skipped} "
                   f"skipped), voxels of {summary.voxel_size_m * 1e6:.1f} um, {summary.volume_moves} volume moves")
+            tracked = [frame for frame in progress.frames if frame["tracked"] and not frame["unverified"]]
+            report["figures"] = {
+                "mean_frame_ms": sum(frame["total_ms"] for frame in progress.frames) / max(1, len(progress.frames)),
+                "tracked_frames": len(tracked),
+                "mean_inlier_fraction": sum(frame["inlier_fraction"] for frame in tracked) / max(1, len(tracked)),
+                "mean_residual_rms_m": sum(frame["residual_rms_m"] for frame in tracked) / max(1, len(tracked))}
+            print(f"{report['figures']['mean_frame_ms']:.0f} ms a frame; {len(tracked)} frames tracked, inliers "
+                  f"{report['figures']['mean_inlier_fraction']:.3f}, rms "
+                  f"{report['figures']['mean_residual_rms_m'] * 1e6:.2f} um on average")
             if summary.fused == 0:
                 print("turntable_scan: no frame fused: nothing to write", file=sys.stderr)
                 return 1

@@ -39,6 +39,7 @@ def test_three_stops(tmp_path: pathlib.Path, sls_tool: str):
     assert report["summary"]["frames"] == 3 and report["summary"]["fused"] == 3
     assert [frame["status"] for frame in report["per_frame"]] == ["fused"] * 3
     assert len(report["per_frame"][2]["T_world_camera"]) == 4 and "loop_closure" in report
+    assert report["figures"]["mean_frame_ms"] > 0
     assert (out / "recording" / "manifest.json").is_file()
     # The recording is kept: a second run into the same folder needs --overwrite.
     again = run_sample("--frames", "1", "--out", str(out), "--sls", sls_tool)
