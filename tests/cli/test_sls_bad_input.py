@@ -7,6 +7,7 @@ import json
 import os
 import pathlib
 import shutil
+import signal
 import struct
 import subprocess
 import sys
@@ -97,6 +98,51 @@ class FullDisk(unittest.TestCase):
         self.assertEqual(resumed.returncode, 0, resumed.stderr)
         report = json.loads(resumed.stdout)
         self.assertEqual((report["frames"], report["frames_fused"]), (24, 24))
+
+    def fill(self, leave):
+        """Fills the disk with a file that leaves `leave` bytes free."""
+        stat = os.statvfs(self.mount)
+        size = stat.f_bavail * stat.f_frsize - leave
+        with open(self.mount / "filler", "wb") as filler:
+            while size > 0:
+                filler.write(b"x" * min(size, 1 << 20))
+                size -= 1 << 20
+
+    def test_a_disk_that_fills_before_the_outputs_names_the_file_leaves_no_partial_one_and_a_rerun_completes(self):
+        rec = pathlib.Path(self.tmp.name) / "rec"  # beside the small disk, not on it
+        made = run("sim", "--preset", "ci", "--frames", "6", "--mode", "depth", "--device", "cpu", "--out", str(rec))
+        self.assertEqual(made.returncode, 0, made.stderr)
+        self.resize("70m")  # the 64 MiB the up-front check asks for
+        out = self.mount / "out"
+        args = [SLS, "scan", "--input", str(rec), "--poses", "groundtruth", "--device", "cpu", "--out", str(out)]
+        scan = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        # Stopped at its first frame (past the check), the disk filled up to 1 MiB, then on: the
+        # frames are fused, render.png fits, cloud.ply (6 MB) does not.
+        stderr = ""
+        while not stderr.endswith("\n") or not stderr.splitlines()[-1].startswith("scan: 0/6"):
+            line = scan.stderr.readline()
+            self.assertTrue(line, stderr)
+            stderr += line
+        scan.send_signal(signal.SIGSTOP)
+        self.assertEqual(list(out.iterdir()), [], "the outputs began before the disk was filled")
+        self.fill(leave=1 << 20)
+        scan.send_signal(signal.SIGCONT)
+        _, rest = scan.communicate(timeout=300)
+        stderr += rest
+        self.assertEqual(scan.returncode, 1, stderr)
+        self.assertIn(f"cannot write the outputs into {out}: cannot write {out}/cloud.ply.tmp-", stderr)
+        self.assertIn("No space left on device; written: render.png; not written: cloud.ply, mesh.ply, "
+                      "trajectory.txt, report.json, report.html", stderr)
+        # No temporary, no partial file, no report of a model that is not there.
+        self.assertEqual(sorted(p.name for p in out.iterdir()), ["render.png"])
+        (self.mount / "filler").unlink()  # space freed: the scan run again writes everything
+        again = run("--json", "scan", "--input", str(rec), "--poses", "groundtruth", "--device", "cpu",
+                    "--out", str(out))
+        self.assertEqual(again.returncode, 0, again.stderr)
+        self.assertEqual(json.loads(again.stdout)["frames_fused"], 6)
+        for name in ("render.png", "cloud.ply", "mesh.ply", "trajectory.txt", "report.json", "report.html"):
+            self.assertTrue((out / name).is_file(), name)
+        self.assertEqual([p.name for p in out.iterdir() if ".tmp-" in p.name], [])
 
 
 class BadFrames(unittest.TestCase):

@@ -1,17 +1,36 @@
 #!/usr/bin/env python3
-"""`sls scan` and `sls sim` captures stopped by SIGINT/SIGTERM or killed (-9) at any moment, and
-`--resume` (issue 19 items 9, 10). Usage: test_sls_interrupts.py PATH_TO_SLS (stdlib only)."""
+"""`sls scan` and `sls sim` captures stopped by SIGINT/SIGTERM or killed (-9) at any moment, the
+fusion of `sls scan` killed at each stage, and `--resume` (issue 19 items 9, 10). Usage:
+test_sls_interrupts.py PATH_TO_SLS [TEST...] (stdlib only)."""
 import json
 import os
 import pathlib
+import shutil
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import unittest
 
 SLS = None
+FRAMES = 4
+_shared = None
+
+
+def reference():
+    """An uninterrupted 4-frame recording of the ci preset, made once for the file (what `sls scan
+    --sim ci --frames 4` records too)."""
+    global _shared
+    if _shared is None:
+        _shared = tempfile.TemporaryDirectory()
+        unittest.addModuleCleanup(_shared.cleanup)
+    rec = pathlib.Path(_shared.name) / "reference"
+    if not (rec / "manifest.json").exists():
+        result = run("sim", "--preset", "ci", "--frames", str(FRAMES), "--device", "cpu", "--out", str(rec))
+        assert result.returncode == 0, result.stderr
+    return rec
 
 
 def run(*args):
@@ -47,7 +66,7 @@ class SlsCaptureInterrupts(unittest.TestCase):
     kept) or killed (-9) at any moment leaves a valid recording whose every listed frame has
     its ground truth, and `--resume` ends with the recording an uninterrupted run writes."""
 
-    FRAMES = 4
+    FRAMES = FRAMES
     TRUTH = ("depth.pfm", "projector_u.pfm", "projector_v.pfm", "depth_sigma.pfm", "valid.png")
 
     def setUp(self):
@@ -57,21 +76,8 @@ class SlsCaptureInterrupts(unittest.TestCase):
     def tearDown(self):
         self.tmp.cleanup()
 
-    @classmethod
-    def tearDownClass(cls):
-        if getattr(cls, "shared", None):
-            cls.shared.cleanup()
-
     def reference(self):
-        """An uninterrupted recording, made once for the class (what `sls scan --sim` records too)."""
-        cls = type(self)
-        if not getattr(cls, "shared", None):
-            cls.shared = tempfile.TemporaryDirectory()
-        rec = pathlib.Path(cls.shared.name) / "reference"
-        if not (rec / "manifest.json").exists():
-            result = run("sim", "--preset", "ci", "--frames", str(self.FRAMES), "--device", "cpu", "--out", str(rec))
-            self.assertEqual(result.returncode, 0, result.stderr)
-        return rec
+        return reference()
 
     def assert_whole(self, rec, extra_poses=0):
         """The recording opens and checks; each listed frame has all its ground truth and its
@@ -247,6 +253,234 @@ class SlsCaptureInterrupts(unittest.TestCase):
         self.assertEqual((out / "recording/frames/000000/pattern_005.png").read_bytes(), first)
         self.assertTrue((out / "cloud.ply").exists())
 
+def digest(folder):
+    """Every file under `folder` with its bytes: what "untouched" compares."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def ply_counts(path):
+    """(vertices, faces) of a binary PLY that holds exactly the bytes its header announces."""
+    data = path.read_bytes()
+    end = data.find(b"end_header\n")
+    if not data.startswith(b"ply\n") or end < 0:
+        raise AssertionError(f"{path}: no PLY header")
+    counts, sizes, element = {}, {}, None
+    for line in data[:end].decode("ascii").splitlines():
+        words = line.split()
+        if words[:1] == ["element"]:
+            element = words[1]
+            counts[element], sizes[element] = int(words[2]), 0
+        elif words[:2] == ["property", "list"]:
+            sizes[element] += 1 + 3 * 4  # triangles: a uchar count and three ints
+        elif words[:1] == ["property"]:
+            sizes[element] += 1 if words[1] == "uchar" else 4
+    expected = end + len(b"end_header\n") + sum(counts[e] * sizes[e] for e in counts)
+    if len(data) != expected:
+        raise AssertionError(f"{path}: {len(data)} bytes where its header announces {expected}")
+    return counts.get("vertex", 0), counts.get("face", 0)
+
+
+def trajectory_poses(path):
+    """The poses of a TUM trajectory, each line 8 numbers."""
+    poses = [line.split() for line in path.read_text().splitlines() if line.strip() and not line.startswith("#")]
+    for pose in poses:
+        if len(pose) != 8:
+            raise AssertionError(f"{path}: a line of {len(pose)} values")
+        [float(v) for v in pose]
+    return poses
+
+
+def waits_to_open(pid, path):
+    """Whether a thread of process `pid` waits in open() of the FIFO `path` for a reader: the
+    kernel's wait_for_partner, or (where /proc hides wait channels) an openat(2) of that path."""
+    for task in pathlib.Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            if (task / "wchan").read_text() == "wait_for_partner":
+                return True
+            call = (task / "syscall").read_text().split()
+            if call[0] != {"x86_64": "257", "aarch64": "56"}.get(os.uname().machine):
+                continue
+            with open(f"/proc/{pid}/mem", "rb") as memory:
+                memory.seek(int(call[2], 16))
+                if memory.read(len(str(path)) + 1) == str(path).encode() + b"\0":
+                    return True
+        except (OSError, IndexError, ValueError):
+            continue
+    return False
+
+
+class RunningScan:
+    """`sls scan` in the background, its stderr read line by line."""
+
+    def __init__(self, *args):
+        self.process = subprocess.Popen([SLS, "scan", *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                        text=True)
+        self.lines = []
+        self.changed = threading.Condition()
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+
+    def _read(self):
+        for line in self.process.stderr:
+            with self.changed:
+                self.lines.append(line)
+                self.changed.notify_all()
+        with self.changed:
+            self.lines.append(None)
+            self.changed.notify_all()
+
+    def kill_after_line(self, needle, timeout=60):
+        """SIGKILL once stderr has a line starting with `needle`; False when the scan ended first."""
+        with self.changed:
+            if not self.changed.wait_for(lambda: None in self.lines or any(
+                    line.startswith(needle) for line in self.lines if line), timeout):
+                return False
+            if None in self.lines and not any(line.startswith(needle) for line in self.lines if line):
+                return False
+        return self.kill()
+
+    def kill_when_it_writes(self, path, timeout=60):
+        """SIGKILL once the scan opens `path` for writing: a FIFO is made there first, whose open()
+        waits for a reader (never ours: the scan stays there until killed). False when the scan
+        ended without writing it."""
+        os.mkfifo(path)
+        try:
+            deadline = time.monotonic() + timeout
+            while self.process.poll() is None and time.monotonic() < deadline:
+                if waits_to_open(self.process.pid, path):
+                    return self.kill()
+                time.sleep(0.005)
+            return False
+        finally:
+            os.unlink(path)  # ours, not the scan's: what is left is what the kill left
+
+    def kill(self):
+        self.process.send_signal(signal.SIGKILL)
+        self.process.wait(60)
+        self.reader.join(60)
+        self.process.stderr.close()
+        return self.process.returncode == -signal.SIGKILL
+
+    def finish(self):
+        self.process.wait(120)
+        self.reader.join(60)
+        self.process.stderr.close()
+        return self.process.returncode, "".join(line for line in self.lines if line)
+
+
+class SlsFusionKills(unittest.TestCase):
+    """kill -9 of `sls scan` at each stage of its fusion (issue 19 item 9): while frames are
+    decoded, tracked and integrated, after the last one (loop closure, extraction), and as each
+    output file is written. The recording is untouched; every output file in OUT is whole (each
+    is written to a temporary and renamed); report.json only stands beside the model it
+    describes (the outputs of an earlier run in OUT are not taken for this one's); and the scan
+    run again (`--resume` after a capture) writes every output."""
+
+    # In the order sls scan writes them (undeformed/: deformation on); a FIFO at the temporary
+    # name of each (NAME.tmp-PID) stops the scan there.
+    OUTPUTS = ("undeformed/cloud.ply", "undeformed/trajectory.txt", "render.png", "cloud.ply", "mesh.ply",
+               "trajectory.txt", "report.json", "report_view_0.png", "report.html")
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.dir = pathlib.Path(self.tmp.name)
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def assert_outputs_whole(self, out, complete=False):
+        """Every output file in `out` whole; report.json, when there, describes the model beside it
+        and report.html is there only beside it. A killed write may leave its temporary
+        (NAME.tmp-PID), never read; `complete`: every output there and no temporary."""
+        files = [p for p in out.rglob("*") if p.is_file() and p.relative_to(out).parts[0] != "recording"]
+        for path in files:
+            if ".tmp-" in path.name:
+                self.assertFalse(complete, f"{path} left behind")
+            elif path.suffix == ".ply":
+                ply_counts(path)
+            elif path.suffix == ".png":
+                data = path.read_bytes()
+                self.assertTrue(data.startswith(b"\x89PNG") and data.endswith(b"IEND\xaeB`\x82"), path)
+            elif path.name == "trajectory.txt":
+                trajectory_poses(path)
+            elif path.name == "report.json":
+                json.loads(path.read_text())
+            elif path.name == "report.html":
+                self.assertTrue(path.read_text().endswith("</html>\n"), path)
+        report_path = out / "report.json"
+        if complete:
+            for name in self.OUTPUTS:
+                self.assertTrue((out / name).is_file(), name)
+        if not report_path.exists():
+            self.assertFalse((out / "report.html").exists(), "report.html without the report.json it shows")
+            return None
+        report = json.loads(report_path.read_text())
+        self.assertEqual(ply_counts(out / "cloud.ply")[0], report["points"], "cloud.ply of another scan")
+        self.assertEqual(ply_counts(out / "mesh.ply")[1], report["triangles"], "mesh.ply of another scan")
+        self.assertEqual(len(trajectory_poses(out / "trajectory.txt")), report["frames_fused"])
+        return report
+
+    def test_kill_9_at_each_stage_of_fusion_leaves_whole_outputs_and_a_rerun_writes_them_all(self):
+        rec = reference()
+        before = digest(rec)
+        out = self.dir / "scan"
+        scan = ("--input", str(rec), "--turntable-prior", "--device", "cpu", "--out", str(out))
+        # An earlier scan's outputs in OUT (other poses: another model), as a re-run finds them.
+        earlier = run("scan", "--input", str(rec), "--poses", "groundtruth", "--device", "cpu", "--out", str(out))
+        self.assertEqual(earlier.returncode, 0, earlier.stderr)
+        self.assert_outputs_whole(out, complete=False)
+        killed = []
+        # While frames are fused (scan: k/N is printed after frame k), after the last one.
+        for done in (1, FRAMES - 1, FRAMES):
+            running = RunningScan(*scan)
+            self.assertTrue(running.kill_after_line(f"scan: {done}/{FRAMES}"), running.lines)
+            self.assert_outputs_whole(out)
+            killed.append(f"after frame {done}")
+        # As each output is written.
+        (out / "undeformed").mkdir(exist_ok=True)
+        for name in self.OUTPUTS:
+            running = RunningScan(*scan)
+            self.assertTrue(running.kill_when_it_writes(out / f"{name}.tmp-{running.process.pid}"),
+                            f"the scan ended without writing {name}: {running.finish()}")
+            self.assert_outputs_whole(out)
+            killed.append(name)
+        self.assertEqual(digest(rec), before, "the recording changed")
+        # A write killed half-way leaves its temporary: the next run removes those of processes
+        # that are gone (and leaves a live one's).
+        gone = subprocess.Popen(["true"])
+        gone.wait()
+        for name in ("cloud.ply", "undeformed/trajectory.txt"):
+            (out / f"{name}.tmp-{gone.pid}").write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vert")
+        (out / f"mesh.ply.tmp-{os.getpid()}").write_bytes(b"ply\n")
+        status, stderr = RunningScan(*scan).finish()
+        self.assertEqual(status, 0, stderr)
+        self.assertTrue((out / f"mesh.ply.tmp-{os.getpid()}").exists(), "a live process's temporary removed")
+        (out / f"mesh.ply.tmp-{os.getpid()}").unlink()
+        report = self.assert_outputs_whole(out, complete=True)
+        self.assertEqual(report["frames_fused"], FRAMES)
+        self.assertEqual(digest(rec), before, "the recording changed")
+        inspect = json.loads(run("--json", "inspect", "--deep", str(rec)).stdout)
+        self.assertTrue(inspect["ok"], inspect)
+
+    def test_kill_9_while_fusing_a_capture_and_resume_writes_every_output(self):
+        # A capture done (sls scan --sim): OUT/recording complete, as the reference; its fusion
+        # killed while fusing frames and while writing the model, then resumed.
+        out = self.dir / "sim"
+        shutil.copytree(reference(), out / "recording")
+        before = digest(out / "recording")
+        resume = ("--resume", "--turntable-prior", "--device", "cpu", "--out", str(out))
+        running = RunningScan(*resume)
+        self.assertTrue(running.kill_after_line(f"scan: 2/{FRAMES}"), running.lines)
+        self.assert_outputs_whole(out)
+        running = RunningScan(*resume)
+        self.assertTrue(running.kill_when_it_writes(out / f"mesh.ply.tmp-{running.process.pid}"))
+        self.assert_outputs_whole(out)
+        self.assertEqual(digest(out / "recording"), before, "the recording changed")
+        status, stderr = RunningScan(*resume).finish()
+        self.assertEqual(status, 0, stderr)
+        self.assertIn("is complete (4 frames): fusing it", stderr)
+        self.assertEqual(self.assert_outputs_whole(out, complete=True)["frames_fused"], FRAMES)
+        self.assertEqual(digest(out / "recording"), before, "the recording changed")
 
 
 if __name__ == "__main__":
