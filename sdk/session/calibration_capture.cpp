@@ -6,11 +6,11 @@
 #include <utility>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 
 #include "drivers/device_registry.h"
 #include "sdk/core/error.h"
 #include "sdk/core/recording.h"
+#include "sdk/session/scan_setup.h"
 
 namespace sls::session {
 namespace {
@@ -61,30 +61,6 @@ void add_statistics(CaptureStatistics& total, const CaptureStatistics& run) {
 bool same_angle(double reported_deg, double commanded_deg, int steps_per_revolution) {
   const double half_step = steps_per_revolution > 0 ? 180.0 / steps_per_revolution : 1e-6;
   return std::fabs(std::remainder(reported_deg - commanded_deg, 360.0)) <= half_step;
-}
-
-// The writer that continues `folder`: its recording must be what these devices and this
-// pattern set capture.
-RecordingWriter resume_writer(const std::string& folder, const CalibrationDevices& devices,
-                              const PatternSet& patterns) {
-  RecordingWriter writer = RecordingWriter::append_to(folder);
-  const RecordingInfo& recorded = writer.info();
-  const RecordingInfo now = make_recording_info(*devices.projector, *devices.camera, patterns);
-  if (recorded.device.uri != now.device.uri) {
-    throw_error(ErrorCode::kInvalidArgument, "resume: {} was captured with projector {}, not {}", folder,
-                recorded.device.uri, now.device.uri);
-  }
-  if (recorded.camera.width != now.camera.width || recorded.camera.height != now.camera.height ||
-      recorded.camera.bit_depth != now.camera.bit_depth || recorded.images_per_frame != now.images_per_frame ||
-      nlohmann::json::parse(recorded.pattern_set_json) != nlohmann::json::parse(now.pattern_set_json)) {
-    throw_error(ErrorCode::kInvalidArgument,
-                "resume: {} holds {}x{} {}-bit frames of {} patterns; this camera and pattern set give {}x{} {}-bit "
-                "with {} patterns ('{}')",
-                folder, recorded.camera.width, recorded.camera.height, recorded.camera.bit_depth,
-                recorded.images_per_frame, now.camera.width, now.camera.height, now.camera.bit_depth,
-                now.images_per_frame, patterns.name);
-  }
-  return writer;
 }
 
 std::string frames_kept(const RecordingWriter& writer) {
@@ -161,7 +137,7 @@ CalibrationCapture capture_calibration(const std::string& folder, const Calibrat
   }
   validate_pattern_set(patterns);
   RecordingWriter writer =
-      options.resume ? resume_writer(folder, devices, patterns)
+      options.resume ? append_to_recording_of(folder, *devices.projector, *devices.camera, patterns)
                      : RecordingWriter::create(folder, make_recording_info(*devices.projector, *devices.camera, patterns),
                                                std::nullopt);  // made uncalibrated
 

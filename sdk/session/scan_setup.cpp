@@ -30,22 +30,7 @@ namespace {
 RecordingWriter resume_writer(const std::string& folder, const drivers::Projector& projector,
                               const drivers::Camera& camera, const drivers::Turntable* turntable,
                               const PatternSet& patterns, CaptureOptions* capture) {
-  RecordingWriter writer = RecordingWriter::append_to(folder);
-  const RecordingInfo& recorded = writer.info();
-  const RecordingInfo now = make_recording_info(projector, camera, patterns);
-  if (recorded.device.uri != now.device.uri) {
-    throw_error(ErrorCode::kInvalidArgument, "resume: {} was captured with projector {}, not {}", folder,
-                recorded.device.uri, now.device.uri);
-  }
-  if (recorded.camera.width != now.camera.width || recorded.camera.height != now.camera.height ||
-      recorded.camera.bit_depth != now.camera.bit_depth || recorded.images_per_frame != now.images_per_frame ||
-      nlohmann::json::parse(recorded.pattern_set_json) != nlohmann::json::parse(now.pattern_set_json)) {
-    throw_error(ErrorCode::kInvalidArgument,
-                "resume: {} holds {}x{} {}-bit frames of {} patterns; this camera gives {}x{} {}-bit with {} patterns",
-                folder, recorded.camera.width, recorded.camera.height, recorded.camera.bit_depth,
-                recorded.images_per_frame, now.camera.width, now.camera.height, now.camera.bit_depth,
-                now.images_per_frame);
-  }
+  RecordingWriter writer = append_to_recording_of(folder, projector, camera, patterns);
   const int listed = static_cast<int>(writer.frame_count());
   if (listed > capture->frames) {
     throw_error(ErrorCode::kInvalidArgument, "resume: {} holds {} frames, more than the {} asked for", folder, listed,
@@ -72,6 +57,28 @@ RecordingWriter resume_writer(const std::string& folder, const drivers::Projecto
 }
 
 }  // namespace
+
+RecordingWriter append_to_recording_of(const std::string& folder, const drivers::Projector& projector,
+                                       const drivers::Camera& camera, const PatternSet& patterns) {
+  RecordingWriter writer = RecordingWriter::append_to(folder);
+  const RecordingInfo& recorded = writer.info();
+  const RecordingInfo now = make_recording_info(projector, camera, patterns);
+  if (recorded.device.uri != now.device.uri) {
+    throw_error(ErrorCode::kInvalidArgument, "resume: {} was captured with projector {}, not {}", folder,
+                recorded.device.uri, now.device.uri);
+  }
+  if (recorded.camera.width != now.camera.width || recorded.camera.height != now.camera.height ||
+      recorded.camera.bit_depth != now.camera.bit_depth || recorded.images_per_frame != now.images_per_frame ||
+      nlohmann::json::parse(recorded.pattern_set_json) != nlohmann::json::parse(now.pattern_set_json)) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "resume: {} holds {}x{} {}-bit frames of {} patterns; this camera and pattern set give {}x{} {}-bit "
+                "with {} patterns ('{}')",
+                folder, recorded.camera.width, recorded.camera.height, recorded.camera.bit_depth,
+                recorded.images_per_frame, now.camera.width, now.camera.height, now.camera.bit_depth,
+                now.images_per_frame, patterns.name);
+  }
+  return writer;
+}
 
 DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptureRequest& request,
                                    const ProgressCallback& progress) {

@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <string>
 
+#include "drivers/interfaces/camera.h"
 #include "drivers/interfaces/projector.h"
 #include "sdk/core/device.h"
 #include "sdk/core/progress.h"
@@ -59,6 +60,12 @@ PatternSet scan_pattern_set(const drivers::Projector& projector);
 // stops answering, kCancelled when `progress` asks to stop.
 DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptureRequest& request,
                                    const ProgressCallback& progress = {});
+
+// Continues the recording at `folder` (RecordingWriter::append_to) for a capture with these
+// devices and pattern set: throws sls::Error(kInvalidArgument) naming the difference when it
+// was captured with another projector, camera size or bit depth, or pattern set.
+RecordingWriter append_to_recording_of(const std::string& folder, const drivers::Projector& projector,
+                                       const drivers::Camera& camera, const PatternSet& patterns);
 
 // Opens a recording for a scan: reads and checks its manifest and, unless the caller brings its
 // own (`calibration_given`), requires a calibration. The frames' images are read (and a bad one
