@@ -76,6 +76,9 @@ std::optional<std::string> read_answer(const StopOnSignal& stop) {
     const ssize_t n = ::read(STDIN_FILENO, &c, 1);
     if (n < 0 && errno != EINTR) throw_error(ErrorCode::kIo, "stdin: {}", std::strerror(errno));
     if (n < 0) continue;
+    // An end of input that came with a signal (a parent that signals, then closes the pipe) is
+    // the signal's: the handler has run by the time read() returns.
+    if (n == 0 && stop.requested()) throw_error(ErrorCode::kCancelled, "interrupted while waiting for the operator");
     if (n == 0) return line.empty() ? std::nullopt : std::optional<std::string>(line);
     if (c == '\n') return line;
     line += c;
