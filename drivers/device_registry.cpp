@@ -3,10 +3,12 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <map>
 #include <mutex>
 
 #include "drivers/interfaces/device_uri.h"
+#include "drivers/replay/replay_recording.h"
 #include "drivers/sim/rig.h"
 #include "drivers/sim/scene.h"
 #include "drivers/sim/sim_scanner.h"
@@ -116,6 +118,29 @@ std::shared_ptr<sim::SimScanner> shared_sim_scanner(DeviceUri uri, const OpenOpt
   return scanner;
 }
 
+// Devices opened from one replay:// URI share one opened recording while any of them lives,
+// so the turntable selects the frame its camera plays. The key names the folder canonically:
+// replay://rec and replay://./rec/ are one recording.
+std::shared_ptr<replay::ReplayRecording> shared_replay_recording(const std::string& text, DeviceUri uri) {
+  std::error_code error;
+  std::filesystem::path folder = std::filesystem::weakly_canonical(uri.target, error);
+  if (!error) {
+    if (!folder.has_filename() && folder.has_parent_path()) folder = folder.parent_path();  // "rec/"
+    uri.target = folder.string();
+  }
+  const std::string key = uri.to_string();
+  static std::mutex mutex;
+  static std::map<std::string, std::weak_ptr<replay::ReplayRecording>> recordings;
+  std::lock_guard<std::mutex> lock(mutex);
+  for (auto it = recordings.begin(); it != recordings.end();) {
+    it = it->second.expired() ? recordings.erase(it) : std::next(it);
+  }
+  if (auto recording = recordings[key].lock()) return recording;
+  std::shared_ptr<replay::ReplayRecording> recording = replay::ReplayRecording::open(text);
+  recordings[key] = recording;
+  return recording;
+}
+
 DeviceDescription simulator_entry() {
   sim::RigOptions rig_options;
   rig_options.preset = kSimPreset;
@@ -218,6 +243,7 @@ bool DeviceEnumeration::hardware_found() const {
 const std::vector<DeviceScheme>& device_schemes() {
   static const std::vector<DeviceScheme> kSchemes = {
       {"sim", kRoleCamera | kRoleProjector | kRoleTurntable, "the simulated scanner (drivers/sim)", true, ""},
+      {"replay", kRoleCamera | kRoleProjector | kRoleTurntable, "recorded sessions (drivers/replay)", true, ""},
       {"gige", kRoleCamera, "the Aravis camera driver (drivers/aravis)", kHaveAravis, kAravisRequirement},
       {"usb3", kRoleCamera, "the Aravis camera driver (drivers/aravis)", kHaveAravis, kAravisRequirement},
       {"dlpc350", kRoleProjector, "the DLPC350 projector driver (drivers/dlpc350)", kHaveLibusb, kLibusbRequirement},
@@ -248,6 +274,7 @@ DeviceEnumeration enumerate_devices([[maybe_unused]] const EnumerateOptions& opt
 std::unique_ptr<Camera> open_camera(const std::string& text, const OpenOptions& options) {
   const DeviceUri uri = checked_uri(text, kRoleCamera);
   if (uri.scheme == "sim") return shared_sim_scanner(uri, options)->camera();
+  if (uri.scheme == "replay") return shared_replay_recording(text, uri)->camera();
 #if defined(SLS_HAVE_ARAVIS)
   std::unique_ptr<AravisCamera> camera = AravisCamera::open(uri);
   camera->set_trigger_source(TriggerSource::kSoftware);  // what open() promises for every camera
@@ -260,6 +287,7 @@ std::unique_ptr<Camera> open_camera(const std::string& text, const OpenOptions& 
 std::unique_ptr<Projector> open_projector(const std::string& text, const OpenOptions& options) {
   const DeviceUri uri = checked_uri(text, kRoleProjector);
   if (uri.scheme == "sim") return shared_sim_scanner(uri, options)->projector();
+  if (uri.scheme == "replay") return shared_replay_recording(text, uri)->projector();
 #if defined(SLS_HAVE_LIBUSB)
   return Dlpc350Projector::open(text);
 #else
@@ -270,6 +298,7 @@ std::unique_ptr<Projector> open_projector(const std::string& text, const OpenOpt
 std::unique_ptr<Turntable> open_turntable(const std::string& text, const OpenOptions& options) {
   const DeviceUri uri = checked_uri(text, kRoleTurntable);
   if (uri.scheme == "sim") return shared_sim_scanner(uri, options)->turntable();
+  if (uri.scheme == "replay") return shared_replay_recording(text, uri)->turntable();
 #if defined(SLS_HAVE_LIBUSB)
   std::unique_ptr<HeadController> controller = HeadController::open(text);
   // The same test as the driver's own before any turntable command: the capability and a

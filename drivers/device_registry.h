@@ -3,6 +3,8 @@
 // schemes to drivers, so `sls devices`, the C API and the capture sequencer agree on which URIs
 // open what:
 //   sim://OBJECT?...        the simulated scanner: camera, projector and turntable
+//   replay://PATH?...       a recording played back as camera, projector and turntable
+//                           (drivers/replay/replay_recording.h)
 //   gige://ADDRESS|ID       GenICam cameras through Aravis (GigE Vision)
 //   usb3://SERIAL|ID        GenICam cameras through Aravis (USB3 Vision)
 //   dlpc350://[BUS:ADDR]    the DLPC350 projector over USB
@@ -101,13 +103,15 @@ struct OpenOptions {
 // Open a device by URI, ready to use (a camera in software-trigger mode, not yet started).
 // sim:// devices opened with the same URI (and sim_device) while any of them is still open are
 // parts of one simulated scanner, so its camera sees what its projector shows at its
-// turntable's angle.
+// turntable's angle. replay:// devices opened with one URI (one folder, the same options)
+// while any of them is open share one opened recording likewise.
 // Errors (sls::Error), each message naming the URI:
 //   kUnsupported      unknown scheme, a recording path, or a driver not in this build (the
 //                     message says what the build lacks); a head controller without turntable
 //   kInvalidArgument  malformed URI, or a scheme that names another kind of device (gige:// as
 //                     a projector)
-//   kNotFound         nothing answers at that address / no such device connected
+//   kNotFound         nothing answers at that address / no such device connected / no
+//                     recording at a replay:// path (kFormat: a corrupt one)
 //   kDevice, kTimeout the device misbehaved while being opened
 std::unique_ptr<Camera> open_camera(const std::string& uri, const OpenOptions& options = {});
 std::unique_ptr<Projector> open_projector(const std::string& uri, const OpenOptions& options = {});

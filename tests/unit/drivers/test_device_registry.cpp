@@ -154,7 +154,7 @@ TEST(DeviceRegistry, ASchemeOfAnotherKindIsRefusedBeforeAnyConnection) {
 
 TEST(DeviceRegistry, SchemesMatchThisBuild) {
   const std::vector<DeviceScheme>& schemes = device_schemes();
-  ASSERT_EQ(schemes.size(), 5u);
+  ASSERT_EQ(schemes.size(), 6u);
   for (const DeviceScheme& scheme : schemes) {
     SCOPED_TRACE(scheme.scheme);
     bool expected = true;
