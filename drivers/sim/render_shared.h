@@ -51,7 +51,7 @@ struct FrameRenderParams {
   double ambient_electrons;    // per unit albedo
   double shadow_offset_m;      // shadow rays start this far off the surface (self-hit guard)
   // The phase-shift part of the pattern set, for the depth-only noise model.
-  int phase_period_px;
+  double phase_period_px;  // may be fractional (pattern_shared.h)
   int phase_steps;
   // What the decoder keeps (DecodeOptions' defaults), for the same model: a fringe weaker than
   // this share of (white − black)/2, a predicted coordinate noise above this (projector px)
@@ -102,8 +102,8 @@ SLS_HOST_DEVICE inline DepthNoise depth_noise(const FrameRenderParams& p, const 
                                               Vec3d camera_direction, Vec3d towards_projector,
                                               double projector_depth_m) {
   DepthNoise out;
-  if (p.phase_steps <= 0 || p.phase_period_px <= 0) return out;
-  const double period = static_cast<double>(p.phase_period_px);
+  if (p.phase_steps <= 0 || !(p.phase_period_px > 0.0)) return out;
+  const double period = p.phase_period_px;
   const double black = p.projector_optics.contrast_ratio > 1.0 ? 1.0 / p.projector_optics.contrast_ratio : 0.0;
   const double projector_pixel_m = projector_depth_m / p.projector.fx;
   const double camera_pixel_m = static_cast<double>(g.depth_m) * p.camera_sensor.pixel_pitch_m /

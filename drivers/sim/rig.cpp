@@ -183,6 +183,16 @@ SimRig make_rig(const RigOptions& options, const Scene& scene) {
   return rig;
 }
 
+void use_pattern_set(SimRig& rig, const PatternSet& patterns) {
+  validate_pattern_set(patterns);
+  CameraIntrinsics& p = rig.projector;
+  p.cx += 0.5 * (patterns.projector_width - p.width);
+  p.cy += 0.5 * (patterns.projector_height - p.height);
+  p.width = patterns.projector_width;
+  p.height = patterns.projector_height;
+  rig.patterns = patterns;
+}
+
 namespace {
 
 const ObjectPlacement& placement_of(const SimRig& rig, int frame) {

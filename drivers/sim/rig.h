@@ -97,6 +97,13 @@ struct RigOptions {
 // bad sizes.
 SimRig make_rig(const RigOptions& options, const Scene& scene);
 
+// Projects `patterns` (any family, pattern_families.h) instead of the preset's set. A set
+// made for another DMD size gets a DMD of that size behind the same lens (same pixel pitch,
+// principal point at the new centre), so captures described for e.g. a 1024 x 768 projector
+// render with ground truth; rig.optics keeps the preset's physical model. Throws
+// sls::Error(kInvalidArgument) for an invalid set.
+void use_pattern_set(SimRig& rig, const PatternSet& patterns);
+
 // The presets' names and one-line descriptions, for --help.
 std::string preset_help();
 

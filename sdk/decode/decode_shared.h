@@ -19,6 +19,14 @@
 // distance to the edge), still inside the margin: no pixel jumps by a whole period. In other
 // words, the finest bit picks which of the two periods around the phase wrap agrees with the
 // phase. The result is then checked against the decoded stripe (consistency flag).
+//
+// The same rounding serves the other families (pattern_set.h): a Gray code over stripes of
+// unit W0 px from an origin o (stripe j covers [o - 0.5 + W j, o - 0.5 + W (j + 1)), W =
+// W0 2^lowest) need not be aligned with the phase wraps, since the rounding only needs u_g
+// within P/2 of u; a Gray code numbering whole periods (W = P) has no margin at its edges,
+// so there the ambiguous bit's two decisions are both unwrapped and the one whose stripe
+// holds its result wins. Several periods on one axis unwrap coarse to fine, each from the
+// coarser coordinate; the phase's sign and offset map psi = s 2 pi u / P + offset back to u.
 #pragma once
 
 #include <cmath>
@@ -32,6 +40,8 @@ namespace sls {
 
 constexpr int kDecodeMaxGrayBits = 24;
 constexpr int kDecodeMaxPhaseSteps = 32;
+// Phase shifts of distinct periods on one axis (multi-period sets unwrap coarse to fine).
+constexpr int kDecodeMaxPhaseGroups = 3;
 
 // Bit flags of DecodedFrame::mask. kDecodeOk alone means projector coordinates and depth are
 // valid; kDecodeOutOfRange alone means the coordinates are valid but triangulation rejected
@@ -45,18 +55,36 @@ enum DecodeMaskBits : std::uint8_t {
   kDecodeOutOfRange = 32u,    // triangulation: depth range, small angle, no convergence
 };
 
+// One phase shift of one period: N images, their steps' cos/sin, and how the phase maps
+// to the coordinate (sign, offset: PatternDesc).
+struct PhaseGroup {
+  int count = 0;        // N
+  float period_px = 0.0f;
+  float sign = 1.0f;    // -1: reversed
+  float offset_rad = 0.0f;
+  int index[kDecodeMaxPhaseSteps] = {};
+  float cos_step[kDecodeMaxPhaseSteps] = {};  // cos(2 pi j / N) of that image's step j
+  float sin_step[kDecodeMaxPhaseSteps] = {};
+};
+
+// How Gray bits without a projected complement are thresholded.
+enum GrayThreshold : std::int32_t {
+  kGrayThresholdReference = 0,  // (white + black) / 2 (the complement where there is one)
+  kGrayThresholdPhaseMean = 1,  // the mean of the axis' first phase group (its A)
+};
+
 // Where one axis' patterns sit in the stack. extent == 0: the axis is not coded.
 struct AxisCode {
   int extent = 0;                // projector pixels along the axis
   int gray_count = 0;            // bits gray_lowest_bit .. gray_lowest_bit + gray_count - 1
   int gray_lowest_bit = 0;
+  float gray_unit_px = 1.0f;     // stripe unit of the code (PatternDesc::gray_unit_px)
+  float gray_origin_px = 0.0f;
+  int gray_threshold = kGrayThresholdReference;
   int gray_index[kDecodeMaxGrayBits] = {};          // stack index of bit (lowest + i)
   int gray_inverse_index[kDecodeMaxGrayBits] = {};  // its complement, -1 when not projected
-  int phase_count = 0;           // phase images (N)
-  int phase_period_px = 0;
-  int phase_index[kDecodeMaxPhaseSteps] = {};
-  float phase_cos[kDecodeMaxPhaseSteps] = {};  // cos(2 pi j / N) of that image's step j
-  float phase_sin[kDecodeMaxPhaseSteps] = {};
+  int phase_group_count = 0;     // coarsest period first: each unwraps the next
+  PhaseGroup phase[kDecodeMaxPhaseGroups];
 };
 
 struct DecodeLayout {
@@ -131,11 +159,79 @@ SLS_HOST_DEVICE inline float unwrap_coordinate(float stripe_centre, float wrappe
   return n * period + wrapped;
 }
 
-// Distance from u to stripe j's extent [W j - 0.5, W j + W - 0.5]; 0 inside.
-SLS_HOST_DEVICE inline float distance_to_stripe(float u, int stripe, float width) {
-  const float lo = static_cast<float>(stripe) * width - 0.5f;
-  const float hi = lo + width;
-  return u < lo ? lo - u : (u > hi ? u - hi : 0.0f);
+// Stripe j's extent along the axis: the pixels whose centres k satisfy
+// j W <= k + 0.5 - o < (j + 1) W (pattern_shared.h), edges at pixel edges.
+struct StripeExtent {
+  float lo, hi;
+};
+
+SLS_HOST_DEVICE inline StripeExtent stripe_extent(int stripe, float width, float origin) {
+  const float first = std::ceil(origin - 0.5f + static_cast<float>(stripe) * width);
+  const float end = std::ceil(origin - 0.5f + static_cast<float>(stripe + 1) * width);
+  return {first - 0.5f, end - 0.5f};
+}
+
+// Distance from u to an extent; 0 inside.
+SLS_HOST_DEVICE inline float distance_to_stripe(float u, StripeExtent e) {
+  return u < e.lo ? e.lo - u : (u > e.hi ? u - e.hi : 0.0f);
+}
+
+// The period of the wrapped coordinate that a stripe agrees with: the rounding from the
+// stripe's centre, or a neighbouring period when that lands closer to the stripe (stripes as
+// wide as the period, whose edges need not fall on the wraps).
+SLS_HOST_DEVICE inline float unwrap_in_stripe(StripeExtent e, float wrapped, float period, float* distance) {
+  float u = unwrap_coordinate(0.5f * (e.lo + e.hi), wrapped, period);
+  float best = distance_to_stripe(u, e);
+  for (int side = -1; side <= 1; side += 2) {
+    const float candidate = u + static_cast<float>(side) * period;
+    const float d = distance_to_stripe(candidate, e);
+    if (d < best) {
+      best = d;
+      u = candidate;
+    }
+  }
+  *distance = best;
+  return u;
+}
+
+// One phase group's wrapped coordinate in [0, P), its fringe amplitude B, mean A, and the
+// predicted 1-sigma noise of the coordinate.
+struct WrappedPhase {
+  float wrapped;
+  float modulation;
+  float mean;
+  float sigma_px;
+  bool saturated;
+};
+
+template <typename Samples>
+SLS_HOST_DEVICE inline WrappedPhase wrapped_phase(const PhaseGroup& g, const DecodeThresholds& t,
+                                                  const Samples& samples) {
+  WrappedPhase out{0.0f, 0.0f, 0.0f, INFINITY, false};
+  float c = 0.0f, s = 0.0f, sum = 0.0f;
+  for (int i = 0; i < g.count; ++i) {
+    const float value = samples(g.index[i]);
+    if (value >= t.saturation_dn) out.saturated = true;
+    c += value * g.cos_step[i];
+    s += value * g.sin_step[i];
+    sum += value;
+  }
+  const float n = static_cast<float>(g.count);
+  out.mean = sum / n;
+  out.modulation = (2.0f / n) * std::sqrt(c * c + s * s);
+  const float two_pi = 6.28318530717958648f;
+  // psi = sign * 2 pi u / P + offset  =>  u = P / 2 pi * sign * (psi - offset), mod P.
+  float turns = g.sign * (std::atan2(-s, c) - g.offset_rad) / two_pi;
+  turns -= std::floor(turns);
+  float wrapped = turns * g.period_px;
+  if (wrapped >= g.period_px) wrapped -= g.period_px;  // turns rounded up to 1
+  out.wrapped = wrapped;
+  // Phase noise of N-step phase shifting: sigma_phi = sqrt(2/N) sigma_I / B.
+  const float sigma_intensity = std::sqrt(sample_variance(t, out.mean));
+  if (out.modulation > 0.0f) {
+    out.sigma_px = g.period_px * 0.159154943f * std::sqrt(2.0f / n) * sigma_intensity / out.modulation;
+  }
+  return out;
 }
 
 // Decodes one axis. `reference` is (white + black) / 2 (the threshold for Gray bits without a
@@ -145,8 +241,15 @@ SLS_HOST_DEVICE inline AxisDecode decode_axis(const AxisCode& a, const DecodeThr
                                               float reference, float contrast) {
   AxisDecode out{NAN, 0.0f, 0u};
   std::uint8_t flags = 0u;
+  WrappedPhase phases[kDecodeMaxPhaseGroups];
+  for (int g = 0; g < a.phase_group_count; ++g) {
+    phases[g] = wrapped_phase(a.phase[g], t, samples);
+    if (phases[g].saturated) flags |= kDecodeSaturated;
+  }
+  if (a.gray_threshold == kGrayThresholdPhaseMean && a.phase_group_count > 0) reference = phases[0].mean;
   // Gray bits: each a comparison of a pattern with its complement (blur and albedo move no
-  // edge of a complementary pair); ambiguous where the difference is within the noise.
+  // edge of a complementary pair) or with the threshold; ambiguous where the difference is
+  // within the noise.
   std::uint32_t code = 0u;
   int ambiguous = 0;
   int ambiguous_bit = -1;
@@ -170,50 +273,63 @@ SLS_HOST_DEVICE inline AxisDecode decode_axis(const AxisCode& a, const DecodeThr
   // Only one bit changes at any stripe edge and edges of different bits are >= W apart, so
   // two ambiguous bits mean there is no usable signal, not an edge.
   if (ambiguous > 1) flags |= kDecodeInconsistent;
-  const float width = static_cast<float>(1 << a.gray_lowest_bit);
-  const std::uint32_t stripe_value = gray_decode(code);
-  const int stripe = static_cast<int>(stripe_value);
-  const float stripe_centre = static_cast<float>(stripe) * width + 0.5f * (width - 1.0f);
+  const float width = a.gray_unit_px * static_cast<float>(1 << a.gray_lowest_bit);
+  const int stripe = static_cast<int>(gray_decode(code));
+  const int other = ambiguous == 1 ? static_cast<int>(gray_decode(code ^ (1u << ambiguous_bit))) : stripe;
+  const StripeExtent extent = stripe_extent(stripe, width, a.gray_origin_px);
+  const StripeExtent other_extent = stripe_extent(other, width, a.gray_origin_px);
+  const bool gray = a.gray_count > 0;
+  // No Gray code: a one-period phase cue is its own reference, centred on the axis.
+  const float centre = gray ? 0.5f * (extent.lo + extent.hi) : 0.5f * static_cast<float>(a.extent - 1);
 
-  float u = stripe_centre;
+  float u = centre;
   float sigma = width * 0.288675135f;  // a uniform stripe: W / sqrt(12)
-  if (a.phase_count > 0) {
-    float c = 0.0f, s = 0.0f, sum = 0.0f;
-    for (int i = 0; i < a.phase_count; ++i) {
-      const float value = samples(a.phase_index[i]);
-      if (value >= t.saturation_dn) flags |= kDecodeSaturated;
-      c += value * a.phase_cos[i];
-      s += value * a.phase_sin[i];
-      sum += value;
-    }
-    const float n = static_cast<float>(a.phase_count);
-    const float mean = sum / n;
-    const float modulation = (2.0f / n) * std::sqrt(c * c + s * s);
-    const float period = static_cast<float>(a.phase_period_px);
-    float phi = std::atan2(-s, c);
-    if (phi < 0.0f) phi += 6.28318530717958648f;
-    float wrapped = phi * (period / 6.28318530717958648f);
-    if (wrapped >= period) wrapped -= period;  // phi rounded up to 2 pi
-    // Phase noise of N-step phase shifting: sigma_phi = sqrt(2/N) sigma_I / B.
-    const float sigma_intensity = std::sqrt(sample_variance(t, mean));
-    sigma = modulation > 0.0f
-                ? period * 0.159154943f * std::sqrt(2.0f / n) * sigma_intensity / modulation
-                : INFINITY;
-    if (!(modulation >= t.min_modulation_ratio * 0.5f * contrast) || !(sigma <= t.max_phase_sigma_px)) {
+  for (int g = 0; g < a.phase_group_count; ++g) {
+    const WrappedPhase& w = phases[g];
+    const float period = a.phase[g].period_px;
+    const bool finest = g + 1 == a.phase_group_count;
+    // Fringe weaker than its share of the contrast, or noisier than the finest coordinate may
+    // be (max_phase_sigma_px) or than the next period can be unwrapped with (a tenth of it).
+    const float max_sigma = finest ? t.max_phase_sigma_px : 0.1f * a.phase[g + 1].period_px;
+    if (!(w.modulation >= t.min_modulation_ratio * 0.5f * contrast) || !(w.sigma_px <= max_sigma)) {
       flags |= kDecodeLowModulation;
     }
-    u = unwrap_coordinate(stripe_centre, wrapped, period);
-    // Consistency: the unwrapped coordinate must lie in the decoded stripe (or, when one bit
-    // was ambiguous, in the stripe its other decision names), up to the tolerance.
-    if (a.gray_count > 0) {
-      float distance = distance_to_stripe(u, stripe, width);
-      if (distance > t.consistency_tolerance_px && ambiguous == 1) {
-        const int other = static_cast<int>(gray_decode(code ^ (1u << ambiguous_bit)));
-        const float other_distance = distance_to_stripe(u, other, width);
-        distance = other_distance < distance ? other_distance : distance;
+    if (g == 0) {
+      u = unwrap_coordinate(centre, w.wrapped, period);
+      if (gray) {
+        // Consistency: the unwrapped coordinate must lie in the decoded stripe, up to the
+        // tolerance. Where one bit was ambiguous, its other decision may be the right one.
+        // At the edge between two neighbouring stripes (the usual case: the pixel sits on
+        // the edge of the bit that changes there) the true coordinate is the candidate
+        // nearest that edge: with stripes as wide as the period each stripe holds one
+        // candidate, a period apart, so lying in a stripe decides nothing.
+        float distance = 0.0f;
+        u = unwrap_in_stripe(extent, w.wrapped, period, &distance);
+        if (ambiguous == 1) {
+          float other_distance = 0.0f;
+          const float u_other = unwrap_in_stripe(other_extent, w.wrapped, period, &other_distance);
+          const bool above = other == stripe + 1, below = other == stripe - 1;
+          if (above || below) {
+            const float edge = above ? extent.hi : extent.lo;
+            if (std::fabs(u_other - edge) + other_distance < std::fabs(u - edge) + distance) {
+              distance = other_distance;
+              u = u_other;
+            }
+          } else if (other_distance < distance) {
+            distance = other_distance;
+            u = u_other;
+          }
+        }
+        if (distance > t.consistency_tolerance_px) flags |= kDecodeInconsistent;
       }
-      if (distance > t.consistency_tolerance_px) flags |= kDecodeInconsistent;
+    } else {
+      // A finer period unwrapped by the coarser coordinate; a quarter period off means the
+      // coarser one was wrong.
+      const float previous = u;
+      u = unwrap_coordinate(previous, w.wrapped, period);
+      if (std::fabs(u - previous) > 0.25f * period) flags |= kDecodeInconsistent;
     }
+    sigma = w.sigma_px;
   }
   if (!(u >= -0.5f - t.consistency_tolerance_px &&
         u <= static_cast<float>(a.extent) - 0.5f + t.consistency_tolerance_px)) {
@@ -252,6 +368,8 @@ SLS_HOST_DEVICE inline PixelDecode decode_pixel(const DecodeParams& p, const Sam
   } else {
     // No references: the contrast of the first complementary Gray pair stands in, since away
     // from its edges |pattern - inverse| is the full white - black contrast.
+    // Without either, the first phase group's fringe: mean +- B are the brightest and
+    // darkest light it saw.
     const AxisCode& a = layout.axes[layout.axes[0].extent > 0 ? 0 : 1];
     if (a.gray_count > 0 && a.gray_inverse_index[a.gray_count - 1] >= 0) {
       const float p0 = samples(a.gray_index[a.gray_count - 1]);
@@ -259,6 +377,11 @@ SLS_HOST_DEVICE inline PixelDecode decode_pixel(const DecodeParams& p, const Sam
       reference = 0.5f * (p0 + q0);
       contrast = std::fabs(p0 - q0);
       if (!contrast_above_noise(t, p0, q0, contrast)) flags |= kDecodeShadow;
+    } else if (a.phase_group_count > 0) {
+      const WrappedPhase w = wrapped_phase(a.phase[0], t, samples);
+      reference = w.mean;
+      contrast = 2.0f * w.modulation;
+      if (!contrast_above_noise(t, w.mean + w.modulation, w.mean - w.modulation, contrast)) flags |= kDecodeShadow;
     }
   }
   float worst_sigma = 0.0f;

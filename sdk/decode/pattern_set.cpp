@@ -1,5 +1,6 @@
 #include "sdk/decode/pattern_set.h"
 
+#include <cmath>
 #include <cstdio>
 
 #include <fmt/format.h>
@@ -14,7 +15,7 @@ namespace {
 using Json = nlohmann::ordered_json;
 
 constexpr const char* kFormatName = "slscan-pattern-set";
-constexpr int kFormatVersion = 1;
+constexpr int kFormatVersion = 2;  // 1: slscan's own fields only (still written when enough)
 // Far above any DMD (the largest are 4K); keeps extent * steps products and images sane.
 constexpr int kMaxProjectorSide = 1 << 16;
 constexpr int kMaxPhaseSteps = 1024;
@@ -36,9 +37,6 @@ const char* kind_name(PatternKind kind) {
   return "unknown";
 }
 
-const char* set_kind_name(PatternSetKind kind) {
-  return kind == PatternSetKind::kHeterodyne ? "heterodyne" : "gray_phase";
-}
 
 int extent_for(PatternAxis axis, int width, int height) { return axis == PatternAxis::kRows ? height : width; }
 
@@ -106,6 +104,42 @@ std::string string_member(const Json& object, const char* key, const std::string
   return value.get<std::string>();
 }
 
+bool bool_member(const Json& object, const char* key, const std::string& where) {
+  const Json& value = *member(object, key, where);
+  if (!value.is_boolean()) throw_format(fmt::format("{}: \"{}\" is not a boolean", where, key));
+  return value.get<bool>();
+}
+
+double number_member(const Json& object, const char* key, const std::string& where) {
+  const Json& value = *member(object, key, where);
+  if (!value.is_number() || !std::isfinite(value.get<double>())) {
+    throw_format(fmt::format("{}: \"{}\" is not a finite number", where, key));
+  }
+  return value.get<double>();
+}
+
+double optional_number(const Json& object, const char* key, const std::string& where, double fallback) {
+  return object.contains(key) ? number_member(object, key, where) : fallback;
+}
+
+// A number as JSON: integers stay integers (version-1 readers and the tests read them so).
+Json number_json(double value) {
+  if (value == std::floor(value) && std::fabs(value) < 2147483647.0) return static_cast<std::int64_t>(value);
+  return value;
+}
+
+bool uses_version_2(const PatternSet& set) {
+  if (set.kind != PatternSetKind::kGrayPhase && set.kind != PatternSetKind::kHeterodyne) return true;
+  if (set.gray_threshold != GrayThresholdMode::kAuto) return true;
+  for (const PatternDesc& d : set.patterns) {
+    if (d.period_px != std::floor(d.period_px) || d.phase_reversed || d.phase_offset_rad != 0.0 ||
+        d.gray_unit_px != 0.0 || d.gray_origin_px != 0.0) {
+      return true;
+    }
+  }
+  return false;
+}
+
 PatternAxis parse_axis(const Json& object, const std::string& where) {
   const std::string axis = string_member(object, "axis", where);
   if (axis == "columns") return PatternAxis::kColumns;
@@ -123,15 +157,17 @@ PatternDesc parse_pattern(const Json& object, int width, int height, const std::
     d.kind = PatternKind::kGrayCode;
     d.axis = parse_axis(object, where);
     d.bit = int_member(object, "bit", where);
-    const Json& inverted = *member(object, "inverted", where);
-    if (!inverted.is_boolean()) throw_format(where + ": \"inverted\" is not a boolean");
-    d.inverted = inverted.get<bool>();
+    d.inverted = bool_member(object, "inverted", where);
+    d.gray_unit_px = optional_number(object, "unit_px", where, 0.0);
+    d.gray_origin_px = optional_number(object, "origin_px", where, 0.0);
   } else if (kind == "phase_shift") {
     d.kind = PatternKind::kPhaseShift;
     d.axis = parse_axis(object, where);
     d.step = int_member(object, "step", where);
     d.steps = int_member(object, "steps", where);
-    d.period_px = int_member(object, "period_px", where);
+    d.period_px = number_member(object, "period_px", where);
+    d.phase_reversed = object.contains("reversed") && bool_member(object, "reversed", where);
+    d.phase_offset_rad = optional_number(object, "offset_rad", where, 0.0);
   } else {
     throw_format(fmt::format("{}: unknown pattern kind \"{}\"", where, kind));
   }
@@ -145,6 +181,29 @@ int gray_code_bits(int extent) {
   int bits = 0;
   while (bits < 31 && (std::int64_t{1} << bits) < extent) ++bits;
   return bits;
+}
+
+int gray_code_bits(const PatternDesc& d) {
+  if (d.extent <= 0) return 0;
+  const std::int64_t last = gray_stripe_of(d, d.extent - 1);
+  if (last < 0 || last >= (std::int64_t{1} << 31)) return 31;
+  return gray_code_bits(static_cast<int>(last + 1));
+}
+
+const char* pattern_set_kind_name(PatternSetKind kind) {
+  switch (kind) {
+    case PatternSetKind::kGrayPhase:
+      return "gray_phase";
+    case PatternSetKind::kHeterodyne:
+      return "heterodyne";
+    case PatternSetKind::kGrayCode:
+      return "gray_code";
+    case PatternSetKind::kPhaseShift:
+      return "phase_shift";
+    case PatternSetKind::kMicroPhase:
+      return "micro_phase";
+  }
+  return "unknown";
 }
 
 int automatic_gray_lowest_bit(int phase_period_px) {
@@ -212,6 +271,7 @@ PatternSet make_opencv_graycode_pattern_set(int width, int height, bool referenc
   }
   PatternSet set;
   set.name = fmt::format("opencv_graycode_{}x{}", width, height);
+  set.kind = PatternSetKind::kGrayCode;
   set.projector_width = width;
   set.projector_height = height;
   for (const PatternAxis axis : {PatternAxis::kColumns, PatternAxis::kRows}) {
@@ -265,7 +325,7 @@ void validate_pattern_set(const PatternSet& set) {
     throw_error(ErrorCode::kInvalidArgument, "pattern set \"{}\": projector size {}x{} is unusable", set.name,
                 set.projector_width, set.projector_height);
   }
-  if (set.kind != PatternSetKind::kGrayPhase && set.kind != PatternSetKind::kHeterodyne) {
+  if (static_cast<int>(set.kind) < 0 || static_cast<int>(set.kind) > static_cast<int>(PatternSetKind::kMicroPhase)) {
     throw_error(ErrorCode::kInvalidArgument, "pattern set \"{}\": unknown kind {}", set.name,
                 static_cast<int>(set.kind));
   }
@@ -285,14 +345,23 @@ void validate_pattern_set(const PatternSet& set) {
       case PatternKind::kBlack:
         break;
       case PatternKind::kGrayCode:
-        if (d.bit < 0 || d.bit >= gray_code_bits(extent)) {
+        if (!std::isfinite(d.gray_unit_px) || !std::isfinite(d.gray_origin_px) ||
+            (d.gray_unit_px != 0.0 && !(d.gray_unit_px >= 1.0 && d.gray_unit_px <= kMaxPeriod)) ||
+            !(d.gray_origin_px <= 0.0 && d.gray_origin_px > -kMaxPeriod)) {
+          throw_error(ErrorCode::kInvalidArgument,
+                      "pattern set \"{}\": pattern {}: Gray stripe unit {} px (need 1..{}) or origin {} px (need "
+                      "<= 0) is unusable",
+                      set.name, i, d.gray_unit_px, kMaxPeriod, d.gray_origin_px);
+        }
+        if (d.bit < 0 || d.bit >= gray_code_bits(d)) {
           throw_error(ErrorCode::kInvalidArgument, "pattern set \"{}\": pattern {}: Gray bit {} outside 0..{} for {} {}",
-                      set.name, i, d.bit, gray_code_bits(extent) - 1, extent, axis_name(d.axis));
+                      set.name, i, d.bit, gray_code_bits(d) - 1, extent, axis_name(d.axis));
         }
         break;
       case PatternKind::kPhaseShift:
-        if (d.steps < 3 || d.steps > kMaxPhaseSteps || d.step < 0 || d.step >= d.steps || d.period_px < 3 ||
-            d.period_px > kMaxPeriod) {
+        if (d.steps < 3 || d.steps > kMaxPhaseSteps || d.step < 0 || d.step >= d.steps || !(d.period_px >= 3.0) ||
+            !(d.period_px <= kMaxPeriod) || !std::isfinite(d.phase_offset_rad) ||
+            !(std::fabs(d.phase_offset_rad) <= 1e3)) {
           throw_error(ErrorCode::kInvalidArgument,
                       "pattern set \"{}\": pattern {}: phase step {} of {}, period {} px is unusable", set.name, i,
                       d.step, d.steps, d.period_px);
@@ -315,7 +384,7 @@ std::string pattern_label(const PatternDesc& d) {
     case PatternKind::kGrayCode:
       return fmt::format("gray_{}{}{}", axis, d.bit, d.inverted ? "_inv" : "");
     case PatternKind::kPhaseShift:
-      return fmt::format("phase_{}_p{}_s{}of{}", axis, d.period_px, d.step, d.steps);
+      return fmt::format("phase_{}_p{}_s{}of{}", axis, number_json(d.period_px).dump(), d.step, d.steps);
   }
   return "unknown";
 }
@@ -323,9 +392,12 @@ std::string pattern_label(const PatternDesc& d) {
 std::string pattern_set_to_json(const PatternSet& set) {
   Json root = Json::object();
   root["format"] = kFormatName;
-  root["format_version"] = kFormatVersion;
+  root["format_version"] = uses_version_2(set) ? 2 : 1;
   root["name"] = set.name;
-  root["kind"] = set_kind_name(set.kind);
+  root["kind"] = pattern_set_kind_name(set.kind);
+  if (set.gray_threshold != GrayThresholdMode::kAuto) {
+    root["gray_threshold"] = set.gray_threshold == GrayThresholdMode::kPhaseMean ? "phase_mean" : "white_black";
+  }
   root["projector"] = {{"width", set.projector_width}, {"height", set.projector_height}};
   root["image_count"] = set.patterns.size();
   Json patterns = Json::array();
@@ -336,11 +408,15 @@ std::string pattern_set_to_json(const PatternSet& set) {
       p["axis"] = axis_name(d.axis);
       p["bit"] = d.bit;
       p["inverted"] = d.inverted;
+      if (d.gray_unit_px != 0.0) p["unit_px"] = number_json(d.gray_unit_px);
+      if (d.gray_origin_px != 0.0) p["origin_px"] = number_json(d.gray_origin_px);
     } else if (d.kind == PatternKind::kPhaseShift) {
       p["axis"] = axis_name(d.axis);
       p["step"] = d.step;
       p["steps"] = d.steps;
-      p["period_px"] = d.period_px;
+      p["period_px"] = number_json(d.period_px);
+      if (d.phase_reversed) p["reversed"] = true;
+      if (d.phase_offset_rad != 0.0) p["offset_rad"] = d.phase_offset_rad;
     }
     patterns.push_back(std::move(p));
   }
@@ -368,12 +444,23 @@ PatternSet pattern_set_from_json(const std::string& text) {
   PatternSet set;
   set.name = string_member(root, "name", "top level");
   const std::string kind = string_member(root, "kind", "top level");
-  if (kind == "gray_phase") {
-    set.kind = PatternSetKind::kGrayPhase;
-  } else if (kind == "heterodyne") {
-    set.kind = PatternSetKind::kHeterodyne;
-  } else {
-    throw_format(fmt::format("unknown set kind \"{}\"", kind));
+  bool known = false;
+  for (int k = 0; k <= static_cast<int>(PatternSetKind::kMicroPhase); ++k) {
+    if (kind == pattern_set_kind_name(static_cast<PatternSetKind>(k))) {
+      set.kind = static_cast<PatternSetKind>(k);
+      known = true;
+    }
+  }
+  if (!known) throw_format(fmt::format("unknown set kind \"{}\"", kind));
+  if (root.contains("gray_threshold")) {
+    const std::string threshold = string_member(root, "gray_threshold", "top level");
+    if (threshold == "white_black") {
+      set.gray_threshold = GrayThresholdMode::kWhiteBlack;
+    } else if (threshold == "phase_mean") {
+      set.gray_threshold = GrayThresholdMode::kPhaseMean;
+    } else if (threshold != "auto") {
+      throw_format(fmt::format("unknown gray_threshold \"{}\" (white_black, phase_mean or auto)", threshold));
+    }
   }
   const Json& projector = *member(root, "projector", "top level");
   if (!projector.is_object()) throw_format("\"projector\" is not an object");

@@ -36,11 +36,22 @@
 
 namespace sls {
 
-// What kind of set it is, so the decoder picks its method. Heterodyne (multi-frequency phase
-// shifting) is reserved for the decode issue; only kGrayPhase is produced today.
+// What kind of set it is: the family it was made as (pattern_families.h), so tools can
+// name it. The Gray-code and phase-shift kinds all decode through one layout (decoder.h);
+// heterodyne and micro phase shifting are reserved for their own decoders (issue 21).
 enum class PatternSetKind : std::int32_t {
-  kGrayPhase = 0,
-  kHeterodyne = 1,  // reserved
+  kGrayPhase = 0,   // slscan's own: Gray code over pixels down to the complementary bit + phase
+  kHeterodyne = 1,  // reserved: multi-frequency phase shifting with beat unwrapping
+  kGrayCode = 2,    // Gray code alone (OpenCV structured_light's order, or ours)
+  kPhaseShift = 3,  // N-step phase shift at one or more periods, Gray / complementary Gray unwrapped
+  kMicroPhase = 4,  // reserved: micro phase shifting
+};
+
+// How Gray patterns without a projected complement are thresholded.
+enum class GrayThresholdMode : std::int32_t {
+  kAuto = 0,        // against (white + black) / 2 when the set has both, else the phase mean
+  kWhiteBlack = 1,  // against (white + black) / 2
+  kPhaseMean = 2,   // against the mean of the axis' (coarsest) phase images
 };
 
 struct PatternSet {
@@ -48,12 +59,14 @@ struct PatternSet {
   PatternSetKind kind = PatternSetKind::kGrayPhase;
   int projector_width = 0;   // DMD columns
   int projector_height = 0;  // DMD rows
+  GrayThresholdMode gray_threshold = GrayThresholdMode::kAuto;
   std::vector<PatternDesc> patterns;
 
   std::size_t size() const { return patterns.size(); }
   bool operator==(const PatternSet& other) const {
     return name == other.name && kind == other.kind && projector_width == other.projector_width &&
-           projector_height == other.projector_height && patterns == other.patterns;
+           projector_height == other.projector_height && gray_threshold == other.gray_threshold &&
+           patterns == other.patterns;
   }
   bool operator!=(const PatternSet& other) const { return !(*this == other); }
 };
@@ -95,6 +108,12 @@ PatternSet pattern_set_from_name(const std::string& name);
 
 // Bits a Gray code needs to give each of `extent` pixels its own code: ceil(log2(extent)).
 int gray_code_bits(int extent);
+// Bits a Gray code over stripes (PatternDesc::gray_unit_px, gray_origin_px) needs to number
+// every stripe that a pixel of [0, extent) falls in.
+int gray_code_bits(const PatternDesc& gray_pattern);
+
+// Names of the set kinds in JSON ("gray_phase", "gray_code", "phase_shift", ...).
+const char* pattern_set_kind_name(PatternSetKind kind);
 
 // The finest Gray bit the automatic choice projects for a phase period (see
 // GrayPhaseOptions::gray_lowest_bit).
@@ -115,7 +134,12 @@ std::string pattern_label(const PatternDesc& pattern);
 //                 {"kind": "gray_code", "axis": "columns", "bit": 9, "inverted": false},
 //                 {"kind": "phase_shift", "axis": "columns", "step": 0, "steps": 8,
 //                  "period_px": 32}, ...]}
-// Extents are not stored: they follow from the axis and the projector size.
+// Extents are not stored: they follow from the axis and the projector size. Fields other
+// tools need are written only when they differ from slscan's defaults (then format_version
+// 2): "period_px" not an integer, "reversed": true, "offset_rad", Gray "unit_px" and
+// "origin_px", the set's "gray_threshold" ("white_black" | "phase_mean"). Version-1 files
+// read as before. The description files of sdk/decode/README.md add a family form
+// (pattern_families.h).
 std::string pattern_set_to_json(const PatternSet& set);
 // Parses and validates. Throws sls::Error: kFormat (not JSON, missing or mistyped fields,
 // unknown kinds), kVersionMismatch (a newer format_version), kInvalidArgument (validation).

@@ -48,7 +48,8 @@ enum class PatternAxis : std::int32_t {
 };
 
 // One projected pattern. Plain data so kernels take it by value. Fields that do not apply
-// to the kind stay 0 (the JSON form omits them).
+// to the kind stay 0 (the JSON form omits them); the defaults are slscan's own conventions,
+// the other fields say what other tools do differently (docs/pattern-descriptions.md).
 struct PatternDesc {
   PatternKind kind = PatternKind::kWhite;
   PatternAxis axis = PatternAxis::kColumns;
@@ -57,11 +58,23 @@ struct PatternDesc {
   bool inverted = false;  // gray code: the complementary pattern (255 - level)
   int step = 0;           // phase shift: j in [0, steps)
   int steps = 0;          // phase shift: N
-  int period_px = 0;      // phase shift: P, in projector pixels along the axis
+  double period_px = 0;   // phase shift: P, in projector pixels along the axis (need not be an integer)
+  // Phase shift: level(k) from cos(s * 2 pi k / P + 2 pi j / N + offset), s = -1 when
+  // reversed (the phase falls along the axis, or the steps turn the other way).
+  bool phase_reversed = false;
+  double phase_offset_rad = 0;
+  // Gray code over stripes rather than pixels: pixel k is in stripe
+  // floor((k + 0.5 - gray_origin_px) / gray_unit_px) (unit 0 means 1: one stripe per pixel,
+  // slscan's and OpenCV's code). A unit of P numbers phase periods, P/2 is the complementary
+  // Gray code (one more bit, edges mid-period); the origin (<= 0) shifts the stripes.
+  double gray_unit_px = 0;
+  double gray_origin_px = 0;
 
   SLS_HOST_DEVICE bool operator==(const PatternDesc& o) const {
     return kind == o.kind && axis == o.axis && extent == o.extent && bit == o.bit && inverted == o.inverted &&
-           step == o.step && steps == o.steps && period_px == o.period_px;
+           step == o.step && steps == o.steps && period_px == o.period_px && phase_reversed == o.phase_reversed &&
+           phase_offset_rad == o.phase_offset_rad && gray_unit_px == o.gray_unit_px &&
+           gray_origin_px == o.gray_origin_px;
   }
   SLS_HOST_DEVICE bool operator!=(const PatternDesc& o) const { return !(*this == o); }
 };
@@ -74,17 +87,43 @@ SLS_HOST_DEVICE inline std::uint32_t gray_decode(std::uint32_t code) {
   return value;
 }
 
-// The 8-bit level of step j of an N-step phase shift of period P at pixel k (k >= 0).
-SLS_HOST_DEVICE inline int phase_shift_level(int k, int step, int steps, int period_px) {
+// The 8-bit level of step j of an N-step phase shift of integer period P at pixel k, in
+// the default sign (+1) or reversed (-1), without offset: reduced exactly in integers.
+SLS_HOST_DEVICE inline int phase_shift_level(int k, int step, int steps, int period_px, int sign = 1) {
   const std::int64_t turn = static_cast<std::int64_t>(period_px) * steps;
   if (turn <= 0) return 0;
-  std::int64_t m = (static_cast<std::int64_t>(k) * steps + static_cast<std::int64_t>(step) * period_px) % turn;
+  std::int64_t m =
+      (sign * static_cast<std::int64_t>(k) * steps + static_cast<std::int64_t>(step) * period_px) % turn;
   if (m < 0) m += turn;
   if (m == 0) return 255;                      // cos = 1
   if (2 * m == turn) return 0;                 // cos = -1
   if (4 * m == turn || 4 * m == 3 * turn) return 128;  // cos = 0: 127.5 rounds half up
   const double angle = 6.283185307179586476925 * (static_cast<double>(m) / static_cast<double>(turn));
   return static_cast<int>(std::floor(127.5 + 127.5 * std::cos(angle) + 0.5));
+}
+
+// Any phase pattern: integer periods without offset take the exact path above; others (a
+// period of 1024/90 px, an offset) round 127.5 + 127.5 cos(angle) in double, the angle's
+// turns reduced to [0, 1) first so that large k lose no precision.
+SLS_HOST_DEVICE inline int phase_pattern_level(const PatternDesc& d, int k) {
+  const int sign = d.phase_reversed ? -1 : 1;
+  const double whole = std::floor(d.period_px);
+  if (d.phase_offset_rad == 0.0 && whole == d.period_px && d.period_px >= 1.0 && d.period_px < 2147483647.0) {
+    return phase_shift_level(k, d.step, d.steps, static_cast<int>(whole), sign);
+  }
+  if (!(d.period_px > 0.0) || d.steps <= 0) return 0;
+  double turns = static_cast<double>(sign * k) / d.period_px + static_cast<double>(d.step) / d.steps +
+                 d.phase_offset_rad / 6.283185307179586476925;
+  turns -= std::floor(turns);
+  return static_cast<int>(std::floor(127.5 + 127.5 * std::cos(6.283185307179586476925 * turns) + 0.5));
+}
+
+// The stripe of pixel k in a Gray code over stripes (PatternDesc::gray_unit_px); -1 left of
+// the origin.
+SLS_HOST_DEVICE inline std::int64_t gray_stripe_of(const PatternDesc& d, int k) {
+  if (d.gray_unit_px == 0.0 && d.gray_origin_px == 0.0) return k;
+  const double unit = d.gray_unit_px > 0.0 ? d.gray_unit_px : 1.0;
+  return static_cast<std::int64_t>(std::floor((static_cast<double>(k) + 0.5 - d.gray_origin_px) / unit));
 }
 
 // The DMD level (0..255) of projector pixel `index` along the pattern's axis; 0 outside
@@ -97,12 +136,13 @@ SLS_HOST_DEVICE inline int pattern_pixel_value(const PatternDesc& d, int index) 
     case PatternKind::kBlack:
       return 0;
     case PatternKind::kGrayCode: {
-      if (d.bit < 0 || d.bit > 30) return d.inverted ? 255 : 0;
-      const std::uint32_t on = (gray_encode(static_cast<std::uint32_t>(index)) >> d.bit) & 1u;
+      const std::int64_t stripe = gray_stripe_of(d, index);
+      if (d.bit < 0 || d.bit > 30 || stripe < 0) return d.inverted ? 255 : 0;
+      const std::uint32_t on = (gray_encode(static_cast<std::uint32_t>(stripe)) >> d.bit) & 1u;
       return (on != 0u) != d.inverted ? 255 : 0;
     }
     case PatternKind::kPhaseShift:
-      return phase_shift_level(index, d.step, d.steps, d.period_px);
+      return phase_pattern_level(d, index);
   }
   return 0;
 }

@@ -73,6 +73,57 @@ std::vector<std::size_t> lit_samples(const DecodeParams& params, const std::vect
   return pixels;
 }
 
+// One phase group's images lie on one sinusoid (see the file comment of stack_check.h).
+template <typename Level>
+void check_phase_group(const PatternSet& set, const PhaseGroup& axis, const Level& level, std::size_t pixel_count,
+                       const StackCheckLimits& limits) {
+  const int steps = axis.count;
+  if (steps < 4) return;  // three steps fit any three values: nothing to check
+  // Least-squares sinusoid per pixel (steps equally spaced: the sums are the fit), then each
+  // image's misfit.
+  std::vector<MedianOfFractions> misfits(static_cast<std::size_t>(steps));
+  std::vector<double> x(static_cast<std::size_t>(steps)), cosines(x.size()), sines(x.size());
+  for (int j = 0; j < steps; ++j) {
+    cosines[static_cast<std::size_t>(j)] = static_cast<double>(axis.cos_step[j]);
+    sines[static_cast<std::size_t>(j)] = static_cast<double>(axis.sin_step[j]);
+  }
+  for (std::size_t n = 0; n < pixel_count; ++n) {
+    double mean = 0.0, c = 0.0, s = 0.0;
+    for (int j = 0; j < steps; ++j) {
+      x[static_cast<std::size_t>(j)] = level(axis.index[j], n);
+      mean += x[static_cast<std::size_t>(j)];
+      c += x[static_cast<std::size_t>(j)] * cosines[static_cast<std::size_t>(j)];
+      s += x[static_cast<std::size_t>(j)] * sines[static_cast<std::size_t>(j)];
+    }
+    mean /= steps;
+    c *= 2.0 / steps;
+    s *= 2.0 / steps;
+    for (int j = 0; j < steps; ++j) {
+      const double fitted =
+          mean + c * cosines[static_cast<std::size_t>(j)] + s * sines[static_cast<std::size_t>(j)];
+      misfits[static_cast<std::size_t>(j)].add(std::abs(x[static_cast<std::size_t>(j)] - fitted));
+    }
+  }
+  std::vector<double> medians(static_cast<std::size_t>(steps));
+  for (int j = 0; j < steps; ++j) medians[static_cast<std::size_t>(j)] = misfits[static_cast<std::size_t>(j)].median();
+  for (int j = 0; j < steps; ++j) {
+    std::vector<double> others;
+    for (int k = 0; k < steps; ++k) {
+      if (k != j) others.push_back(medians[static_cast<std::size_t>(k)]);
+    }
+    const double typical = median_of(others);
+    const double misfit = medians[static_cast<std::size_t>(j)];
+    if (misfit > limits.min_phase_misfit && misfit > limits.outlier_ratio * typical) {
+      const int pattern = axis.index[j];
+      throw_error(ErrorCode::kFormat,
+                  "pattern image {} ({}) is off the sinusoid of the other phase steps by {:.0f} % of the contrast "
+                  "on the median lit pixel (the others: {:.1f} %); a pattern stuck or images out of order?",
+                  pattern, pattern_label(set.patterns[static_cast<std::size_t>(pattern)]), 100.0 * misfit,
+                  100.0 * typical);
+    }
+  }
+}
+
 }  // namespace
 
 void check_stack_behaves(const PatternSet& set, const DecodeParams& params, const std::vector<Image16u>& stack,
@@ -122,51 +173,8 @@ void check_stack_behaves(const PatternSet& set, const DecodeParams& params, cons
     }
   }
   for (const AxisCode& axis : layout.axes) {
-    if (axis.extent <= 0) continue;
-    const int steps = axis.phase_count;
-    if (steps < 4) continue;  // three steps fit any three values: nothing to check
-    // Least-squares sinusoid per pixel (steps equally spaced: the sums are the fit), then each
-    // image's misfit.
-    std::vector<MedianOfFractions> misfits(static_cast<std::size_t>(steps));
-    std::vector<double> x(static_cast<std::size_t>(steps)), cosines(x.size()), sines(x.size());
-    for (int j = 0; j < steps; ++j) {
-      cosines[static_cast<std::size_t>(j)] = static_cast<double>(axis.phase_cos[j]);
-      sines[static_cast<std::size_t>(j)] = static_cast<double>(axis.phase_sin[j]);
-    }
-    for (std::size_t n = 0; n < pixels.size(); ++n) {
-      double mean = 0.0, c = 0.0, s = 0.0;
-      for (int j = 0; j < steps; ++j) {
-        x[static_cast<std::size_t>(j)] = level(axis.phase_index[j], n);
-        mean += x[static_cast<std::size_t>(j)];
-        c += x[static_cast<std::size_t>(j)] * cosines[static_cast<std::size_t>(j)];
-        s += x[static_cast<std::size_t>(j)] * sines[static_cast<std::size_t>(j)];
-      }
-      mean /= steps;
-      c *= 2.0 / steps;
-      s *= 2.0 / steps;
-      for (int j = 0; j < steps; ++j) {
-        const double fitted =
-            mean + c * cosines[static_cast<std::size_t>(j)] + s * sines[static_cast<std::size_t>(j)];
-        misfits[static_cast<std::size_t>(j)].add(std::abs(x[static_cast<std::size_t>(j)] - fitted));
-      }
-    }
-    std::vector<double> medians(static_cast<std::size_t>(steps));
-    for (int j = 0; j < steps; ++j) medians[static_cast<std::size_t>(j)] = misfits[static_cast<std::size_t>(j)].median();
-    for (int j = 0; j < steps; ++j) {
-      std::vector<double> others;
-      for (int k = 0; k < steps; ++k) {
-        if (k != j) others.push_back(medians[static_cast<std::size_t>(k)]);
-      }
-      const double typical = median_of(others);
-      const double misfit = medians[static_cast<std::size_t>(j)];
-      if (misfit > limits.min_phase_misfit && misfit > limits.outlier_ratio * typical) {
-        const int pattern = axis.phase_index[j];
-        throw_error(ErrorCode::kFormat,
-                    "pattern image {} ({}) is off the sinusoid of the other phase steps by {:.0f} % of the contrast "
-                    "on the median lit pixel (the others: {:.1f} %); a pattern stuck or images out of order?",
-                    pattern, pattern_label(set.patterns[static_cast<std::size_t>(pattern)]), 100.0 * misfit,
-                    100.0 * typical);
-      }
+    for (int group = 0; axis.extent > 0 && group < axis.phase_group_count; ++group) {
+      check_phase_group(set, axis.phase[group], level, pixels.size(), limits);
     }
   }
 }

@@ -623,10 +623,10 @@ TEST_F(DecoderInput, SetTheDecoderCannotUse) {
   std::string message = error_of([&] { Decoder decoder(set, calibration); }, ErrorCode::kInvalidArgument);
   EXPECT_NE(message.find("coarsest bit"), std::string::npos) << message;
   GrayPhaseOptions coarse;
-  coarse.gray_lowest_bit = 5;  // no complementary bit: stripes as wide as the period
+  coarse.gray_lowest_bit = 6;  // stripes of two periods: the Gray code cannot number them
   message = error_of([&] { Decoder decoder(make_gray_phase_pattern_set(coarse), calibration); },
                      ErrorCode::kInvalidArgument);
-  EXPECT_NE(message.find("complementary bit 4"), std::string::npos) << message;
+  EXPECT_NE(message.find("wider than the phase period"), std::string::npos) << message;
   DecodeOptions options;
   options.max_depth_m = options.min_depth_m;
   message = error_of([&] { Decoder decoder(rendered_->rig.patterns, calibration, Device::cpu(), options); },

@@ -483,7 +483,7 @@ TEST(PatternSetJson, RejectsBrokenInput) {
   EXPECT_EQ(parse_error("[1, 2]"), ErrorCode::kFormat);
   EXPECT_EQ(parse_error(good.substr(0, good.size() / 2)), ErrorCode::kFormat);
   EXPECT_EQ(parse_error(replaced("slscan-pattern-set", "other")), ErrorCode::kFormat);
-  EXPECT_EQ(parse_error(replaced("\"format_version\":1", "\"format_version\":2")), ErrorCode::kVersionMismatch);
+  EXPECT_EQ(parse_error(replaced("\"format_version\":1", "\"format_version\":3")), ErrorCode::kVersionMismatch);
   EXPECT_EQ(parse_error(replaced("\"kind\":\"gray_code\"", "\"kind\":\"sawtooth\"")), ErrorCode::kFormat);
   EXPECT_EQ(parse_error(replaced("\"axis\":\"columns\"", "\"axis\":\"diagonal\"")), ErrorCode::kFormat);
   EXPECT_EQ(parse_error(replaced("\"bit\":9", "\"bit\":\"9\"")), ErrorCode::kFormat);
