@@ -17,10 +17,10 @@
 #include <utility>
 
 #include <fmt/format.h>
-#include <spdlog/spdlog.h>
 
 #include "drivers/aravis/frame_data.h"
 #include "sdk/core/error.h"
+#include "sdk/core/log.h"
 
 namespace sls::drivers {
 namespace {
@@ -258,7 +258,7 @@ struct AravisCamera::Impl {
     auto* impl = static_cast<Impl*>(user);
     if (impl->control_lost.exchange(true)) return;
     const std::string* name = impl->heartbeat_name.load(std::memory_order_acquire);
-    spdlog::warn("{}: control connection lost", name != nullptr ? *name : std::string("camera"));
+    logger().warn("{}: control connection lost", name != nullptr ? *name : std::string("camera"));
   }
 
   void ensure_connected() const {

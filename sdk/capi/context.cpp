@@ -1,32 +1,18 @@
 // sls_context: version check, configuration, backend selection.
-#include <spdlog/spdlog.h>
-
 #include <cstring>
 #include <new>
 
 #include "sdk/capi/capi_guard.h"
 #include "sdk/capi/context_internal.h"
+#include "sdk/capi/log_internal.h"
 #include "sdk/capi/versioned_struct.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
+#include "sdk/core/log.h"
 #include "sls/sls_context.h"
 #include "sls/sls_version.h"
 
 namespace {
-
-spdlog::level::level_enum to_spdlog(const sls_log_level& field) {
-  const long long level = sls::capi::c_enum_value(field);
-  switch (level) {
-    case SLS_LOG_TRACE: return spdlog::level::trace;
-    case SLS_LOG_DEBUG: return spdlog::level::debug;
-    case SLS_LOG_INFO: return spdlog::level::info;
-    case SLS_LOG_WARNING: return spdlog::level::warn;
-    case SLS_LOG_ERROR: return spdlog::level::err;
-    case SLS_LOG_OFF: return spdlog::level::off;
-    default: break;
-  }
-  sls::throw_error(sls::ErrorCode::kInvalidArgument, "log_level {} is not an sls_log_level", level);
-}
 
 // The caller's config, which may come from older headers (smaller struct_size): fields it
 // lacks keep their defaults.
@@ -90,7 +76,7 @@ SLS_API sls_status sls_context_create(int api_version, const sls_context_config*
   }
   return sls::capi::guarded(__func__, error, [&] {
     const sls_context_config resolved = read_config(config);
-    spdlog::set_level(to_spdlog(resolved.log_level));
+    sls::logger().set_level(sls::capi::log_level_from_c(resolved.log_level));
     const sls::Device device = resolve_device(resolved);
     *context = new sls_context{resolved, device};
   });

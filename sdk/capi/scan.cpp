@@ -17,8 +17,10 @@
 #include "fusion/extract.h"
 #include "sdk/capi/capi_guard.h"
 #include "sdk/capi/context_internal.h"
+#include "sdk/capi/scan_internal.h"
 #include "sdk/capi/versioned_struct.h"
 #include "sdk/core/error.h"
+#include "sdk/core/log.h"
 #include "sdk/core/ply.h"
 #include "sdk/core/progress.h"
 #include "sdk/core/recording.h"
@@ -27,21 +29,10 @@
 #include "sdk/session/scan_setup.h"
 #include "sls/sls_scan.h"
 
-struct sls_scan {
-  sls::session::ScanSessionOptions options;  // from the config and the context's device
-  sls_frame_callback callback = nullptr;
-  void* user = nullptr;
-  std::atomic<bool> cancel_requested{false};  // final once set (sls_scan_cancel)
-  // Taken by a run for its whole length and by the other calls for theirs: a second taker
-  // answers SLS_ERROR_BUSY. An atomic flag rather than a mutex, because the frame callback
-  // calls in on the thread that holds it.
-  mutable std::atomic<bool> in_use{false};
-
-  // The last run's results.
-  std::optional<sls::session::ScanSession> session;
-  bool cancelled = false;
-  mutable std::optional<sls::fusion::ExtractedSurface> surface;  // extracted once, for the writes
-};
+using sls::capi::discard_results;
+using sls::capi::refuse_if_cancelled;
+using sls::capi::report_busy;
+using sls::capi::ScanHold;
 
 namespace {
 
@@ -49,27 +40,6 @@ constexpr std::size_t kScanConfigFirstVersionSize = offsetof(sls_scan_config, ma
 constexpr std::size_t kCaptureConfigFirstVersionSize = offsetof(sls_capture_config, frames) + sizeof(int);
 constexpr std::size_t kSummaryFirstVersionSize = offsetof(sls_scan_summary, volume_moves) + sizeof(std::size_t);
 constexpr std::size_t kLoopClosureFirstVersionSize = offsetof(sls_loop_closure, ms) + sizeof(double);
-
-// Holds a scan for one call, or finds it held (a run in progress).
-class ScanHold {
- public:
-  explicit ScanHold(const sls_scan& scan) : flag_(scan.in_use), held_(!flag_.exchange(true)) {}
-  ~ScanHold() {
-    if (held_) flag_.store(false);
-  }
-  ScanHold(const ScanHold&) = delete;
-  ScanHold& operator=(const ScanHold&) = delete;
-  bool held() const { return held_; }
-
- private:
-  std::atomic<bool>& flag_;
-  bool held_;
-};
-
-sls_status report_busy(const char* function, sls_error** error) {
-  return sls::capi::report(SLS_ERROR_BUSY, function,
-                           "the scan is running (during a run only sls_scan_cancel may be called on it)", error);
-}
 
 sls::session::ScanSessionOptions session_options(const sls_scan_config& config, const sls::Device& device) {
   sls::session::ScanSessionOptions options;
@@ -116,56 +86,7 @@ sls_frame_status to_c(sls::session::FrameStatus status) {
   sls::throw_error(sls::ErrorCode::kInternal, "frame status {} has no C value", static_cast<int>(status));
 }
 
-// The report's strings point into `frame`: valid while it lives (the callback's duration).
-sls_frame_report to_c(const sls::session::FrameReport& frame, std::size_t recording_frames) {
-  sls_frame_report report;
-  std::memset(&report, 0, sizeof(report));
-  report.struct_size = sizeof(report);
-  report.index = frame.index;
-  report.recording_frames = recording_frames;
-  report.timestamp_ns = frame.timestamp_ns;
-  report.status = to_c(frame.status);
-  report.reason = frame.reason.c_str();
-  const Eigen::Matrix4d T_world_camera = frame.T_world_camera.matrix();
-  for (int row = 0; row < 4; ++row) {
-    for (int column = 0; column < 4; ++column) report.T_world_camera[4 * row + column] = T_world_camera(row, column);
-  }
-  report.depth_pixels = frame.depth_pixels;
-  if (frame.tracking) {
-    report.tracked = 1;
-    report.inlier_fraction = frame.tracking->inlier_fraction;
-    report.residual_rms_m = frame.tracking->residual_rms_m;
-  }
-  report.read_ms = frame.times.read_ms;
-  report.decode_ms = frame.times.decode_ms;
-  report.track_ms = frame.times.track_ms;
-  report.integrate_ms = frame.times.integrate_ms;
-  report.move_ms = frame.times.move_ms;
-  report.raycast_ms = frame.times.raycast_ms;
-  report.deform_ms = frame.times.deform_ms;
-  report.total_ms = frame.times.total_ms();
-  report.keyframe = frame.deformation.keyframe ? 1 : 0;
-  report.deformation_nodes = frame.deformation.nodes;
-  report.deformation_constraints = frame.deformation.constraints;
-  report.deformation_solve_ms = frame.deformation.solve_ms;
-  report.unverified = frame.unverified ? 1 : 0;
-  return report;
-}
-
 bool cancel_requested(const sls_scan& scan) { return scan.cancel_requested.load(); }
-
-void refuse_if_cancelled(const sls_scan& scan) {
-  if (cancel_requested(scan)) {
-    sls::throw_error(sls::ErrorCode::kCancelled, "the scan was cancelled (sls_scan_cancel); create a new one");
-  }
-}
-
-// Forgets the previous run's model (its volume's memory first: the next run allocates its own).
-void discard_results(sls_scan& scan) {
-  scan.surface.reset();
-  scan.session.reset();
-  scan.cancelled = false;
-}
 
 // Replays the recording at `folder` into a new session (scan.session), the frame callback after
 // each frame; throws kCancelled after a cancel, kInvalidArgument when nothing was fused.
@@ -175,9 +96,7 @@ void scan_recording(sls_scan& scan, const std::string& folder) {
   sls::session::ScanSession& session = *scan.session;
   const std::size_t recording_frames = recording.frame_count();
   const auto on_frame = [&scan, recording_frames](const sls::session::FrameReport& frame) {
-    if (scan.callback == nullptr) return;
-    const sls_frame_report report = to_c(frame, recording_frames);
-    scan.callback(&report, scan.user);
+    sls::capi::report_frame(scan, frame, recording_frames, {});
   };
   // Asked before every frame: a cancel stops the replay after the frame in progress.
   const sls::ProgressCallback progress = [&scan](const sls::ProgressUpdate&) { return !cancel_requested(scan); };
@@ -228,13 +147,6 @@ void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
   scan_recording(scan, folder);
 }
 
-const sls::session::ScanSession& fused_session(const sls_scan& scan) {
-  if (!scan.session || scan.session->fused_count() == 0) {
-    sls::throw_error(sls::ErrorCode::kInvalidArgument, "no frame has been fused: nothing to write (run the scan first)");
-  }
-  return *scan.session;
-}
-
 // The loop closure of the last run's model; the model extracted before it is dropped, so the
 // writes extract the closed one.
 sls_loop_closure close_loop(sls_scan& scan) {
@@ -258,13 +170,101 @@ sls_loop_closure close_loop(sls_scan& scan) {
   return result;
 }
 
-const sls::fusion::ExtractedSurface& model(const sls_scan& scan) {
-  const sls::session::ScanSession& session = fused_session(scan);
-  if (!scan.surface) scan.surface = session.final_surface();
-  return *scan.surface;
+}  // namespace
+
+namespace sls::capi {
+
+sls_status report_busy(const char* function, sls_error** error) {
+  return report(SLS_ERROR_BUSY, function,
+                "the scan is running (during a run only sls_scan_cancel may be called on it)", error);
 }
 
-}  // namespace
+const session::ScanSession& fused_session(const sls_scan& scan) {
+  if (!scan.session || scan.session->fused_count() == 0) {
+    throw_error(ErrorCode::kInvalidArgument, "no frame has been fused: nothing to write (run the scan first)");
+  }
+  return *scan.session;
+}
+
+std::shared_ptr<const fusion::ExtractedSurface> model_surface(const sls_scan& scan) {
+  const session::ScanSession& session = fused_session(scan);
+  if (!scan.surface) scan.surface = std::make_shared<const fusion::ExtractedSurface>(session.final_surface());
+  return scan.surface;
+}
+
+void refuse_if_cancelled(const sls_scan& scan) {
+  if (scan.cancel_requested.load()) {
+    throw_error(ErrorCode::kCancelled, "the scan was cancelled (sls_scan_cancel); create a new one");
+  }
+}
+
+void discard_results(sls_scan& scan) {
+  // The volume's memory first: the next run allocates its own.
+  scan.surface.reset();
+  scan.session.reset();
+  scan.cancelled = false;
+  scan.feeding = false;
+  scan.next_index = 0;
+}
+
+// The report's strings point into `frame`: valid while it lives (the callback's duration).
+sls_frame_report frame_report_to_c(const session::FrameReport& frame, std::size_t recording_frames,
+                                   const FrameDepth& depth) {
+  sls_frame_report report;
+  std::memset(&report, 0, sizeof(report));
+  report.struct_size = sizeof(report);
+  report.index = frame.index;
+  report.recording_frames = recording_frames;
+  report.timestamp_ns = frame.timestamp_ns;
+  report.status = to_c(frame.status);
+  report.reason = frame.reason.c_str();
+  const Eigen::Matrix4d T_world_camera = frame.T_world_camera.matrix();
+  for (int row = 0; row < 4; ++row) {
+    for (int column = 0; column < 4; ++column) report.T_world_camera[4 * row + column] = T_world_camera(row, column);
+  }
+  report.depth_pixels = frame.depth_pixels;
+  if (frame.tracking) {
+    report.tracked = 1;
+    report.inlier_fraction = frame.tracking->inlier_fraction;
+    report.residual_rms_m = frame.tracking->residual_rms_m;
+  }
+  report.read_ms = frame.times.read_ms;
+  report.decode_ms = frame.times.decode_ms;
+  report.track_ms = frame.times.track_ms;
+  report.integrate_ms = frame.times.integrate_ms;
+  report.move_ms = frame.times.move_ms;
+  report.raycast_ms = frame.times.raycast_ms;
+  report.deform_ms = frame.times.deform_ms;
+  report.total_ms = frame.times.total_ms();
+  report.keyframe = frame.deformation.keyframe ? 1 : 0;
+  report.deformation_nodes = frame.deformation.nodes;
+  report.deformation_constraints = frame.deformation.constraints;
+  report.deformation_solve_ms = frame.deformation.solve_ms;
+  report.unverified = frame.unverified ? 1 : 0;
+  if (depth.depth_m != nullptr && !depth.depth_m->empty()) {
+    report.depth_m = depth.depth_m->data();
+    report.depth_width = depth.depth_m->width();
+    report.depth_height = depth.depth_m->height();
+    report.depth_stride_bytes = sizeof(float) * static_cast<std::size_t>(depth.depth_m->width());
+    report.depth_device = depth.depth_device;
+  }
+  return report;
+}
+
+void report_frame(sls_scan& scan, const session::FrameReport& frame, std::size_t recording_frames,
+                  const FrameDepth& depth) {
+  scan.surface.reset();  // the model changed (a fused frame), or may have (the graph's worker)
+  if (frame.status != session::FrameStatus::kFused) {
+    logger().warn("scan: frame {} {}: {}", frame.index, session::frame_status_name(frame.status), frame.reason);
+  }
+  if (scan.callback == nullptr) return;
+  const sls_frame_report report = frame_report_to_c(frame, recording_frames, depth);
+  scan.callback_thread.store(std::this_thread::get_id());
+  scan.callback(&report, scan.user);
+  scan.callback_thread.store(std::thread::id());
+}
+
+}  // namespace sls::capi
 
 extern "C" {
 
@@ -277,6 +277,12 @@ SLS_API void sls_scan_config_init(sls_scan_config* config) {
   config->voxel_size_m = 0.0;
   config->max_voxels = 0.0;
   config->online_deformation = 1;
+}
+
+SLS_API void sls_frame_report_init(sls_frame_report* report) {
+  if (report == nullptr) return;
+  std::memset(report, 0, sizeof(*report));
+  report->struct_size = sizeof(*report);
 }
 
 SLS_API void sls_capture_config_init(sls_capture_config* config) {
@@ -410,7 +416,7 @@ SLS_API sls_status sls_scan_write_cloud(const sls_scan* scan, const char* path, 
   SLS_CAPI_REQUIRE(path != nullptr, error, "path is NULL");
   const ScanHold hold(*scan);
   if (!hold.held()) return report_busy(__func__, error);
-  return sls::capi::guarded(__func__, error, [&] { sls::write_ply(path, model(*scan).cloud); });
+  return sls::capi::guarded(__func__, error, [&] { sls::write_ply(path, sls::capi::model_surface(*scan)->cloud); });
 }
 
 SLS_API sls_status sls_scan_write_mesh(const sls_scan* scan, const char* path, sls_error** error) {
@@ -418,7 +424,7 @@ SLS_API sls_status sls_scan_write_mesh(const sls_scan* scan, const char* path, s
   SLS_CAPI_REQUIRE(path != nullptr, error, "path is NULL");
   const ScanHold hold(*scan);
   if (!hold.held()) return report_busy(__func__, error);
-  return sls::capi::guarded(__func__, error, [&] { sls::write_ply(path, model(*scan).mesh); });
+  return sls::capi::guarded(__func__, error, [&] { sls::write_ply(path, sls::capi::model_surface(*scan)->mesh); });
 }
 
 SLS_API sls_status sls_scan_write_trajectory(const sls_scan* scan, const char* path, sls_error** error) {
@@ -427,7 +433,7 @@ SLS_API sls_status sls_scan_write_trajectory(const sls_scan* scan, const char* p
   const ScanHold hold(*scan);
   if (!hold.held()) return report_busy(__func__, error);
   return sls::capi::guarded(__func__, error,
-                            [&] { sls::write_tum_trajectory(path, fused_session(*scan).trajectory()); });
+                            [&] { sls::write_tum_trajectory(path, sls::capi::fused_session(*scan).trajectory()); });
 }
 
 }  // extern "C"

@@ -17,10 +17,10 @@
 #include <utility>
 
 #include <nlohmann/json.hpp>
-#include <spdlog/spdlog.h>
 
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
+#include "sdk/core/log.h"
 #include "sdk/core/host_memory.h"
 #include "sdk/core/image_io.h"
 #include "sdk/core/recording_manifest.h"
@@ -443,9 +443,9 @@ int RecordingWriter::append_any(const std::vector<Image<T>>& images, const Frame
   };
   run_parallel(images.size() + (depth_m != nullptr ? 1 : 0), options_.encode_threads, write_job);
   if (depth_out_of_range > 0) {
-    spdlog::warn("recording {}: frame {}: {} depth pixels outside the storable range {} .. {} m stored as invalid",
-                 folder_, frame.index, depth_out_of_range, info_.depth_offset_m + info_.depth_unit_m,
-                 info_.depth_offset_m + 65535.0 * info_.depth_unit_m);
+    logger().warn("recording {}: frame {}: {} depth pixels outside the storable range {} .. {} m stored as invalid",
+                  folder_, frame.index, depth_out_of_range, info_.depth_offset_m + info_.depth_unit_m,
+                  info_.depth_offset_m + 65535.0 * info_.depth_unit_m);
   }
   if (options_.sync) {
     sync_directory(frame_folder);

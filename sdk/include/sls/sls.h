@@ -20,11 +20,14 @@
 #include "sls/sls_version.h"
 #include "sls/sls_status.h"
 #include "sls/sls_context.h"
+#include "sls/sls_log.h"
 #include "sls/sls_device.h"
 #include "sls/sls_camera.h"
 #include "sls/sls_projector.h"
 #include "sls/sls_turntable.h"
 #include "sls/sls_scan.h"
+#include "sls/sls_results.h"
+#include "sls/sls_feed.h"
 #include "sls/sls_calibration.h"
 
 #endif /* SLS_SLS_H */

@@ -36,7 +36,8 @@ typedef enum sls_device_preference {
  * Later library versions only append fields. */
 typedef struct sls_context_config {
   size_t struct_size;
-  sls_log_level log_level;          /* default SLS_LOG_WARNING; process-wide (stderr) */
+  sls_log_level log_level;          /* default SLS_LOG_WARNING; process-wide: to stderr or the
+                                     * log callback (sls_log.h), as sls_set_log_level() */
   sls_device_preference device;    /* default SLS_DEVICE_AUTO */
   int cuda_device_id;               /* CUDA ordinal with SLS_DEVICE_CUDA/AUTO; default 0 */
 } sls_context_config;

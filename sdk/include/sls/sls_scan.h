@@ -159,7 +159,24 @@ typedef struct sls_frame_report {
    * not verify its pose (too little of the view overlaps the model, e.g. after a skipped
    * frame); `reason` says why. */
   int unverified;
+  /* Appended later: the depth map the frame was fused from (or, lost, tracked from), camera-frame
+   * z in metres (0: no depth), depth_width x depth_height floats with rows depth_stride_bytes
+   * apart: the decoded one for a pattern stack, the caller's for a depth map. NULL (sizes 0) when
+   * the frame had none (skipped before decoding). In the callback only, valid during the call:
+   * copy what you keep. The report sls_scan_add_depth()/_add_stack() fill for the caller has
+   * NULL here (sls_feed.h). */
+  const float* depth_m;
+  int depth_width;
+  int depth_height;
+  size_t depth_stride_bytes;
+  /* The same depth map in CUDA device memory, rows depth_stride_bytes apart, when the scan runs
+   * on a CUDA context and the frame's depth is on the GPU (else NULL): read-only, the library's
+   * work on it finished (synchronised), valid during the call only. No copy is made for it. */
+  const void* depth_device;
 } sls_frame_report;
+
+/* Sets struct_size and clears the other fields (for sls_scan_add_depth()/_add_stack()). */
+SLS_API void sls_frame_report_init(sls_frame_report* report);
 
 /* Called after each frame of a run, in frame order, on the thread running sls_scan_run_*().
  * `report` and its strings are valid during the call only. It must return normally and must
