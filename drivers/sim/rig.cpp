@@ -178,6 +178,7 @@ SimRig make_rig(const RigOptions& options, const Scene& scene) {
   pattern_options.projector_width = rig.projector.width;
   pattern_options.projector_height = rig.projector.height;
   rig.patterns = make_gray_phase_pattern_set(pattern_options);
+  if (options.patterns) use_pattern_set(rig, *options.patterns);
   rig.noise_seed = options.seed;
   rig.noise = options.noise;
   return rig;

@@ -90,6 +90,8 @@ struct RigOptions {
   double mount_offset_m = TurntableModel{}.mount_offset_m;
   std::uint64_t seed = 1;
   bool noise = true;
+  // Project this set instead of the preset's (use_pattern_set: its DMD size wins).
+  std::optional<PatternSet> patterns;
 };
 
 // The rig for a preset looking at `scene` (the focus point is the object's surface nearest

@@ -13,6 +13,7 @@
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/core/recording.h"
+#include "sdk/decode/pattern_families.h"
 
 namespace sls::cli {
 namespace {
@@ -21,6 +22,7 @@ struct SimOptions {
   sim::RigOptions rig;
   std::string object = "knurled-screw";
   std::string mode = "patterns";
+  std::string patterns;  // a pattern description file (sdk/decode/README.md); empty: the preset's set
   std::string out;
   std::string device;
   bool no_noise = false;
@@ -37,6 +39,7 @@ int run_sim(const Context& context, const SimOptions& options) {
   const Device device = options.device.empty() ? default_device() : parse_device(options.device);
   sim::RigOptions rig = options.rig;
   rig.noise = !options.no_noise;
+  if (!options.patterns.empty()) rig.patterns = load_pattern_description(options.patterns);
   sim::SimRecordingSummary summary;
   std::string object = options.object;
   // A signal stops the capture after the current frame; the recording so far is kept.
@@ -146,6 +149,10 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
                        "geometry (for fusion tests that skip decode)")
           ->check(CLI::IsMember({"patterns", "depth"}))
           ->capture_default_str();
+  CLI::Option* patterns = command->add_option(
+      "--patterns", options->patterns,
+      "A pattern description (JSON, sdk/decode/README.md; examples in samples/patterns/) to project instead of the "
+      "preset's Gray code + phase shift; a description for another DMD size gets a DMD of that size");
   command->add_option("--projector", options->rig.projector,
                       "dlpc350: DLP4500 912x1140 (as the DLPC350 drives it); 1080p: a 1920x1080 DMD")
       ->check(CLI::IsMember({"dlpc350", "1080p"}))
@@ -194,7 +201,7 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       "(--turntable-poses); patterns code projector columns and rows. Recorded uncalibrated; groundtruth/ holds the "
       "exact calibration, board, board poses and corners (docs/simulator.md). --object then names the object the "
       "head is set up for (it focuses on its surface; the axis calibrated is its scans'). Not with --frames, --mode, "
-      "--mount-tilt-deg, --mount-offset-um or --reference-spacing-um");
+      "--mount-tilt-deg, --mount-offset-um, --reference-spacing-um or --patterns");
   command->add_option("--hand-poses", options->hand_poses, "With --calibration: board poses by hand")
       ->check(CLI::Range(0, 1000))
       ->needs(calibration)
@@ -204,7 +211,7 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::Range(0, 1000))
       ->needs(calibration)
       ->capture_default_str();
-  for (CLI::Option* scan_only : {frames, mode, mount_tilt, mount_offset, reference_spacing, resume}) {
+  for (CLI::Option* scan_only : {frames, mode, mount_tilt, mount_offset, reference_spacing, resume, patterns}) {
     scan_only->excludes(calibration);
   }
   command->callback([&context, exit_code, options, mount_offset] {
