@@ -31,10 +31,12 @@
 //    records the frame incomplete again. Past the last frame: kNotFound "end of the recording".
 //    An image that cannot be read: the reader's kNotFound / kFormat naming the file.
 //  - what a capture through them re-records is the same recording: pixels, frame timestamps,
-//    angles, complete flags, the pattern set, camera size and bit depth, the device's model and
-//    serial; it differs in device.uri (replay://PATH: what it was captured from), created_utc,
-//    the capture counters and notes (the sequencer's of this capture) and in calibration.yml,
-//    which the capture stores only when given (`sls scan --calibration PATH/calibration.yml`).
+//    angles, complete flags, the pattern set, camera size and bit depth, the device's serial and
+//    model (a capture's "projector + camera"; a model without " + ", as the simulator's, is
+//    taken by both and comes back joined); it differs in device.uri (replay://PATH: what it was
+//    captured from), created_utc, the capture counters and notes (the sequencer's of this
+//    capture) and in calibration.yml, which the capture stores only when given (`sls scan
+//    --calibration PATH/calibration.yml`).
 //
 // Devices opened from one URI (the registry, drivers/device_registry.h) share one
 // ReplayRecording while any of them is open, as sim:// devices share their scanner.
