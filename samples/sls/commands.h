@@ -14,6 +14,7 @@ void add_calibrate_command(CLI::App& app, Context& context, int* exit_code);
 void add_decode_command(CLI::App& app, Context& context, int* exit_code);
 void add_devices_command(CLI::App& app, Context& context, int* exit_code);
 void add_eval_command(CLI::App& app, Context& context, int* exit_code);
+void add_import_command(CLI::App& app, Context& context, int* exit_code);
 void add_info_command(CLI::App& app, Context& context, int* exit_code);
 void add_inspect_command(CLI::App& app, Context& context, int* exit_code);
 void add_scan_command(CLI::App& app, Context& context, int* exit_code);

@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   add_decode_command(app, context, &exit_code);
   add_devices_command(app, context, &exit_code);
   add_eval_command(app, context, &exit_code);
+  add_import_command(app, context, &exit_code);
   add_info_command(app, context, &exit_code);
   add_inspect_command(app, context, &exit_code);
   add_scan_command(app, context, &exit_code);
