@@ -22,6 +22,8 @@ from ._errors import (BusyError, CancelledError, DeviceError, DeviceTimeoutError
 from ._context import Context, DeviceInfo, DeviceList, build_info, cuda_device_count, devices, version
 from ._devices import Camera, CameraInfo, Frame, FrameInfo, Projector, ProjectorInfo, Turntable
 from ._scan import FrameReport, LoopClosure, Scan, ScanSummary
+from ._results import Cloud, Mesh
+from ._log import get_log_level, set_log_callback, set_log_level
 from ._calibration import (Calibration, CalibrationProgress, CalibrationSummary, CalibrationView, Intrinsics,
                            calibrate)
 
@@ -36,7 +38,8 @@ __all__ = [
     "BusyError", "InternalError",
     "Context", "devices", "DeviceInfo", "DeviceList",
     "Camera", "CameraInfo", "Frame", "FrameInfo", "Projector", "ProjectorInfo", "Turntable",
-    "Scan", "FrameReport", "ScanSummary", "LoopClosure",
+    "Scan", "FrameReport", "ScanSummary", "LoopClosure", "Cloud", "Mesh",
+    "set_log_callback", "set_log_level", "get_log_level",
     "calibrate", "Calibration", "CalibrationProgress", "CalibrationSummary", "CalibrationView", "Intrinsics",
 ]
 

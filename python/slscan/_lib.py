@@ -28,7 +28,7 @@ from . import _types as t
 # compares them). Passed to sls_context_create(), which refuses a library of another major
 # version or of an older minor version.
 API_VERSION_MAJOR = 0
-API_VERSION_MINOR = 3
+API_VERSION_MINOR = 4
 API_VERSION_PATCH = 0
 API_VERSION = API_VERSION_MAJOR * 10000 + API_VERSION_MINOR * 100 + API_VERSION_PATCH
 
@@ -176,6 +176,29 @@ _PROTOTYPES = {
     "sls_scan_write_cloud": (c_int, [_P, c_char_p, _E]),
     "sls_scan_write_mesh": (c_int, [_P, c_char_p, _E]),
     "sls_scan_write_trajectory": (c_int, [_P, c_char_p, _E]),
+    "sls_frame_report_init": (None, [c_void_p]),
+    # sls_results.h
+    "sls_scan_get_cloud": (c_int, [_P, POINTER(_P), _E]),
+    "sls_cloud_destroy": (None, [_P]),
+    "sls_cloud_data_init": (None, [c_void_p]),
+    "sls_cloud_get_data": (c_int, [_P, POINTER(t.CloudDataC), _E]),
+    "sls_scan_get_mesh": (c_int, [_P, POINTER(_P), _E]),
+    "sls_mesh_destroy": (None, [_P]),
+    "sls_mesh_data_init": (None, [c_void_p]),
+    "sls_mesh_get_data": (c_int, [_P, POINTER(t.MeshDataC), _E]),
+    "sls_scan_get_trajectory": (c_int, [_P, c_void_p, c_void_p, c_size_t, POINTER(c_size_t), _E]),
+    "sls_scan_render_preview": (c_int, [_P, c_void_p, c_int, c_int, c_void_p, c_size_t, _E]),
+    # sls_feed.h
+    "sls_feed_config_init": (None, [c_void_p]),
+    "sls_scan_start_feed": (c_int, [_P, POINTER(t.FeedConfigC), POINTER(c_int), _E]),
+    "sls_depth_frame_init": (None, [c_void_p]),
+    "sls_scan_add_depth": (c_int, [_P, POINTER(t.DepthFrameC), c_void_p, _E]),
+    "sls_stack_frame_init": (None, [c_void_p]),
+    "sls_scan_add_stack": (c_int, [_P, POINTER(t.StackFrameC), c_void_p, _E]),
+    # sls_log.h
+    "sls_set_log_callback": (c_int, [c_void_p, c_void_p, _E]),
+    "sls_set_log_level": (c_int, [c_int, _E]),
+    "sls_get_log_level": (c_int, [POINTER(c_int), _E]),
     # sls_calibration.h
     "sls_calibration_config_init": (None, [c_void_p]),
     "sls_calibration_run": (c_int, [_P, c_char_p, POINTER(t.CalibrationConfigC), c_void_p, c_void_p, POINTER(_P),
@@ -207,6 +230,7 @@ for _name, (_restype, _argtypes) in _PROTOTYPES.items():
 # _types.copy_reported (the library's struct may be another version's).
 FRAME_CALLBACK = ctypes.CFUNCTYPE(None, c_void_p, c_void_p)
 CALIBRATION_PROGRESS_CALLBACK = ctypes.CFUNCTYPE(c_int, c_void_p, c_void_p)
+LOG_CALLBACK = ctypes.CFUNCTYPE(None, c_int, c_char_p, c_void_p)
 
 
 def init(cls, init_name: str):

@@ -5,15 +5,16 @@ import ctypes
 import os
 import threading
 from dataclasses import dataclass, fields
-from typing import Any, Callable, Dict, List, Optional, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from . import _lib
+from . import _lib, _results
 from ._context import Context, Handle, context_or_default
 from ._errors import BusyError, call, make_error
-from ._types import (CaptureConfigC, ErrorC, FrameReportC, FrameStatus, FusionMethod, LoopClosureC, ScanConfigC,
-                     ScanSummaryC, Status, copy_reported, has_field)
+from ._results import Cloud, Mesh
+from ._types import (CaptureConfigC, DepthFrameC, ErrorC, FeedConfigC, FrameReportC, FrameStatus, FusionMethod,
+                     LoopClosureC, ScanConfigC, ScanSummaryC, StackFrameC, Status, copy_reported, has_field)
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -52,6 +53,9 @@ class FrameReport:
     deform_ms: float = 0.0
     unverified: bool = False
     """Fused at the turntable prior because tracking could not verify the pose."""
+    depth_m: Optional[np.ndarray] = None
+    """The depth map the frame was fused from (H x W float32, metres, 0: none; the decoded one for
+    a pattern stack): a copy, only when the call was asked ``with_depth=True``, else None."""
 
     @property
     def fused(self) -> bool:
@@ -59,9 +63,15 @@ class FrameReport:
         return self.status == FrameStatus.FUSED
 
     @classmethod
-    def _from_c(cls, report: FrameReportC) -> "FrameReport":
+    def _from_c(cls, report: FrameReportC, with_depth: bool = False) -> "FrameReport":
+        """From the library's report; with_depth copies its depth map (valid during the callback
+        only, so this must run inside it)."""
         values: Dict[str, Any] = {}
         for field in fields(cls):
+            if field.name == "depth_m":
+                if with_depth and has_field(report, "depth_device") and report.depth_m:
+                    values["depth_m"] = _copy_depth(report)
+                continue
             if not has_field(report, field.name):
                 continue  # an older library's report: the default
             value = getattr(report, field.name)
@@ -76,6 +86,13 @@ class FrameReport:
                 value = bool(value)
             values[field.name] = value
         return cls(**values)
+
+
+def _copy_depth(report: FrameReportC) -> np.ndarray:
+    rows, columns, stride = int(report.depth_height), int(report.depth_width), int(report.depth_stride_bytes)
+    buffer = (ctypes.c_char * (stride * rows)).from_address(report.depth_m)
+    view = np.ndarray((rows, columns), dtype=np.float32, buffer=buffer, strides=(stride, 4))
+    return view.copy()
 
 
 @dataclass(frozen=True)
@@ -187,22 +204,26 @@ class Scan(Handle):
             raise BusyError(Status.BUSY, "Scan.close", "the scan is running: cancel() it and wait for the run")
         super().close()
 
-    def run_recording(self, path: PathLike, on_frame: Optional[FrameCallback] = None) -> ScanSummary:
+    def run_recording(self, path: PathLike, on_frame: Optional[FrameCallback] = None, *,
+                      with_depth: bool = False) -> ScanSummary:
         """Scans a recording folder (sls_scan_run_recording) and returns the summary.
 
         Args:
             path: a recording written by ``sls sim``, ``sls scan`` or :meth:`run_devices`.
             on_frame: called with a :class:`FrameReport` after each frame, in order. An
                 exception it raises cancels the scan and is raised again once the run returned.
+                It may call :meth:`cloud`, :meth:`mesh`, :meth:`trajectory` and
+                :meth:`render_preview` for a live view of the model.
+            with_depth: give each report a copy of the frame's depth map (``depth_m``).
         Raises :class:`CancelledError` after :meth:`cancel` (the model keeps what was fused:
         summary() and the writes still work), :class:`NotFoundError` for a missing folder or
         manifest, :class:`FormatError` for a corrupt one, :class:`InvalidArgumentError` for a
         recording without calibration or when no frame could be fused."""
-        return self._run(_lib.lib.sls_scan_run_recording, on_frame, _lib.encode_path(path))
+        return self._run(_lib.lib.sls_scan_run_recording, on_frame, with_depth, _lib.encode_path(path))
 
     def run_devices(self, *, camera: str, projector: str, calibration: PathLike, recording: PathLike,
                     turntable: Optional[str] = None, frames: int = 0,
-                    on_frame: Optional[FrameCallback] = None) -> ScanSummary:
+                    on_frame: Optional[FrameCallback] = None, with_depth: bool = False) -> ScanSummary:
         """Captures from devices by URI into a new recording, then scans it
         (sls_scan_run_devices): per turntable position one pattern stack, then every frame as
         :meth:`run_recording`, calling `on_frame` after the capture.
@@ -214,7 +235,7 @@ class Scan(Handle):
             recording: the recording folder to create (must not exist or be empty); it is kept.
             turntable: a turntable URI, or None: every stack at one position.
             frames: frames per revolution, one revolution; 0: 36 with a turntable, else 1.
-            on_frame: as in :meth:`run_recording`.
+            on_frame, with_depth: as in :meth:`run_recording`.
         Raises as :meth:`run_recording`, and the device errors of opening a URI."""
         capture = _lib.init(CaptureConfigC, "sls_capture_config_init")
         capture.camera_uri = _lib.encode(camera)
@@ -223,9 +244,10 @@ class Scan(Handle):
         capture.calibration_path = _lib.encode_path(calibration)
         capture.recording_path = _lib.encode_path(recording)
         capture.frames = int(frames)
-        return self._run(_lib.lib.sls_scan_run_devices, on_frame, ctypes.byref(capture))
+        return self._run(_lib.lib.sls_scan_run_devices, on_frame, with_depth, ctypes.byref(capture))
 
-    def _run(self, function: Callable[..., int], on_frame: Optional[FrameCallback], *args: Any) -> ScanSummary:
+    def _run(self, function: Callable[..., int], on_frame: Optional[FrameCallback], with_depth: bool,
+             *args: Any) -> ScanSummary:
         handle = self._checked()
         if self._running:
             raise BusyError(Status.BUSY, function.__name__, "the scan is already running")
@@ -236,7 +258,7 @@ class Scan(Handle):
             if raised or on_frame is None:
                 return
             try:
-                on_frame(FrameReport._from_c(copy_reported(FrameReportC, report)))
+                on_frame(FrameReport._from_c(copy_reported(FrameReportC, report), with_depth))
             except BaseException as error:  # noqa: B036 - re-raised after the run
                 raised.append(error)
                 _lib.lib.sls_scan_cancel(handle, None)
@@ -323,6 +345,112 @@ class Scan(Handle):
     def write_trajectory(self, path: PathLike) -> None:
         """Writes the fused frames' poses T_world_camera as a TUM trajectory."""
         call(_lib.lib.sls_scan_write_trajectory, self._checked(), _lib.encode_path(path))
+
+    # ---- Results in memory (sls_results.h) ----
+
+    def cloud(self) -> Cloud:
+        """The model now as a point cloud (:class:`Cloud`: numpy views, no copy), the same data
+        :meth:`write_cloud` would write. Allowed from the frame callback (a live view);
+        :class:`BusyError` from another thread during a run; :class:`InvalidArgumentError`
+        before a frame was fused."""
+        return _results.get_cloud(self._checked())
+
+    def mesh(self) -> Mesh:
+        """The model now as a triangle mesh (:class:`Mesh`), as :meth:`write_mesh` would write it."""
+        return _results.get_mesh(self._checked())
+
+    def trajectory(self) -> Tuple[np.ndarray, np.ndarray]:
+        """The fused frames' poses as :meth:`write_trajectory` writes them: (timestamps in
+        seconds, shape (N,); T_world_camera, shape (N, 4, 4)), copies."""
+        return _results.get_trajectory(self._checked())
+
+    def render_preview(self, width: int = 320, height: int = 240,
+                       T_world_camera: Optional[np.ndarray] = None) -> np.ndarray:
+        """A shaded grey picture (height x width uint8) of the model in the current volume, from
+        the last fused frame's pose or `T_world_camera` (4x4), for a UI."""
+        return _results.render_preview(self._checked(), width, height, T_world_camera)
+
+    # ---- Frames the caller feeds (sls_feed.h) ----
+
+    def start_feed(self, calibration: PathLike, *, bit_depth: int = 12) -> int:
+        """Starts feeding frames from your own capture code (a new, empty model), with the
+        head's calibration.yml; `bit_depth`: significant bits of pattern-stack pixels. Returns
+        the number of images a pattern stack must have (the set
+        :meth:`Projector.load_scan_patterns` loads, in its order)."""
+        config = _lib.init(FeedConfigC, "sls_feed_config_init")
+        config.calibration_path = _lib.encode_path(calibration)
+        config.bit_depth = int(bit_depth)
+        patterns = ctypes.c_int()
+        call(_lib.lib.sls_scan_start_feed, self._checked(), ctypes.byref(config), ctypes.byref(patterns))
+        return patterns.value
+
+    def add_depth(self, depth_m: np.ndarray, *, timestamp_ns: int = 0, turntable_angle_deg: Optional[float] = None,
+                  with_depth: bool = False) -> FrameReport:
+        """Tracks and fuses one depth map (H x W, metres, 0 or NaN: none; float32, any other
+        dtype is converted) and returns its report (a lost or skipped frame is a report, not
+        an error). ``turntable_angle_deg``: the table's reading, the pose guess with
+        use_turntable_prior."""
+        depth = np.asarray(depth_m)
+        if depth.ndim != 2:
+            raise ValueError(f"depth_m: a 2-D array, not {depth.ndim}-D")
+        if depth.dtype != np.float32 or depth.strides[1] != 4 or depth.strides[0] < 4 * depth.shape[1]:
+            depth = np.ascontiguousarray(depth, dtype=np.float32)
+        frame = _lib.init(DepthFrameC, "sls_depth_frame_init")
+        frame.depth_m = depth.ctypes.data
+        frame.height, frame.width = depth.shape
+        frame.stride_bytes = depth.strides[0]
+        self._frame_header(frame, timestamp_ns, turntable_angle_deg)
+        return self._feed(_lib.lib.sls_scan_add_depth, frame, with_depth)
+
+    def add_stack(self, images: Sequence[np.ndarray], *, timestamp_ns: int = 0,
+                  turntable_angle_deg: Optional[float] = None, with_depth: bool = False) -> FrameReport:
+        """Decodes, tracks and fuses one pattern stack: one H x W image per pattern (uint8 or
+        uint16, all alike; a (N, H, W) array too), in the order of the scan's pattern set."""
+        stack = [np.ascontiguousarray(image) for image in images]
+        if not stack:
+            raise ValueError("images: an empty stack")
+        first = stack[0]
+        if first.ndim != 2 or first.dtype not in (np.uint8, np.uint16):
+            raise ValueError(f"images: 2-D uint8 or uint16 arrays, not {first.ndim}-D {first.dtype}")
+        if any(image.shape != first.shape or image.dtype != first.dtype for image in stack):
+            raise ValueError("images: every image of a stack has the same shape and dtype")
+        pointers = (ctypes.c_void_p * len(stack))(*[image.ctypes.data for image in stack])
+        frame = _lib.init(StackFrameC, "sls_stack_frame_init")
+        frame.images = ctypes.cast(pointers, ctypes.c_void_p)
+        frame.image_count = len(stack)
+        frame.height, frame.width = first.shape
+        frame.bytes_per_pixel = first.dtype.itemsize
+        self._frame_header(frame, timestamp_ns, turntable_angle_deg)
+        return self._feed(_lib.lib.sls_scan_add_stack, frame, with_depth)
+
+    @staticmethod
+    def _frame_header(frame: ctypes.Structure, timestamp_ns: int, turntable_angle_deg: Optional[float]) -> None:
+        frame.timestamp_ns = int(timestamp_ns)
+        if turntable_angle_deg is not None:
+            frame.has_turntable_angle = 1
+            frame.turntable_angle_deg = float(turntable_angle_deg)
+
+    def _feed(self, function: Callable[..., int], frame: ctypes.Structure, with_depth: bool) -> FrameReport:
+        handle = self._checked()
+        if self._running:
+            raise BusyError(Status.BUSY, function.__name__, "the scan is running")
+        reports: List[FrameReport] = []
+
+        def trampoline(report: int, user: Optional[int]) -> None:
+            try:  # inside the C call: nothing may propagate out of it
+                reports.append(FrameReport._from_c(copy_reported(FrameReportC, report), with_depth))
+            except BaseException as error:  # noqa: B036 - re-raised after the call
+                reports.append(error)  # type: ignore[arg-type]
+
+        c_callback = _lib.FRAME_CALLBACK(trampoline)
+        call(_lib.lib.sls_scan_set_frame_callback, handle, ctypes.cast(c_callback, ctypes.c_void_p), None)
+        try:
+            call(function, handle, ctypes.byref(frame), None)
+        finally:
+            _lib.lib.sls_scan_set_frame_callback(handle, None, None, None)
+        if not reports or isinstance(reports[0], BaseException):
+            raise reports[0] if reports else RuntimeError(f"{function.__name__}: no frame report")
+        return reports[0]
 
     def __repr__(self) -> str:
         return "<slscan.Scan closed>" if self.closed else f"<slscan.Scan {'running' if self._running else 'idle'}>"

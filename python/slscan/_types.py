@@ -1,4 +1,4 @@
-"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.3.0).
+"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.4.0).
 
 Each versioned struct (its first field `struct_size`) is mirrored field for field, in the
 order of the header. Fill one with :func:`init_struct`, which calls the library's own
@@ -12,7 +12,7 @@ from __future__ import annotations
 import ctypes
 import enum
 from ctypes import (Structure, c_char_p, c_double, c_int, c_int64, c_size_t, c_uint,
-                    c_uint64)
+                    c_uint64, c_void_p)
 from typing import Callable, Type, TypeVar
 
 # C enums are ints on every ABI slscan supports.
@@ -37,7 +37,7 @@ class Status(enum.IntEnum):
 
 
 class LogLevel(enum.IntEnum):
-    """sls_log_level (sls_context.h)."""
+    """sls_log_level (sls_context.h, sls_log.h)."""
     TRACE = 0
     DEBUG = 1
     INFO = 2
@@ -129,7 +129,35 @@ class FrameReportC(Structure):
                 ("decode_ms", c_double), ("track_ms", c_double), ("integrate_ms", c_double),
                 ("move_ms", c_double), ("raycast_ms", c_double), ("total_ms", c_double),
                 ("keyframe", c_int), ("deformation_nodes", c_size_t), ("deformation_constraints", c_size_t),
-                ("deformation_solve_ms", c_double), ("deform_ms", c_double), ("unverified", c_int)]
+                ("deformation_solve_ms", c_double), ("deform_ms", c_double), ("unverified", c_int),
+                ("depth_m", c_void_p), ("depth_width", c_int), ("depth_height", c_int),
+                ("depth_stride_bytes", c_size_t), ("depth_device", c_void_p)]
+
+
+class CloudDataC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("points", c_size_t), ("positions", c_void_p), ("normals", c_void_p),
+                ("confidence", c_void_p), ("correction", c_void_p)]
+
+
+class MeshDataC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("vertices", c_size_t), ("faces", c_size_t), ("positions", c_void_p),
+                ("normals", c_void_p), ("confidence", c_void_p), ("indices", c_void_p)]
+
+
+class FeedConfigC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("calibration_path", c_char_p), ("bit_depth", c_int)]
+
+
+class DepthFrameC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("depth_m", c_void_p), ("width", c_int), ("height", c_int),
+                ("stride_bytes", c_size_t), ("timestamp_ns", c_int64), ("has_turntable_angle", c_int),
+                ("turntable_angle_deg", c_double)]
+
+
+class StackFrameC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("images", c_void_p), ("image_count", c_size_t), ("width", c_int),
+                ("height", c_int), ("bytes_per_pixel", c_int), ("stride_bytes", c_size_t),
+                ("timestamp_ns", c_int64), ("has_turntable_angle", c_int), ("turntable_angle_deg", c_double)]
 
 
 class CaptureConfigC(Structure):
@@ -205,6 +233,11 @@ VERSIONED_STRUCTS: dict[str, tuple[Type[Structure], str]] = {
     "sls_calibration_summary": (CalibrationSummaryC, "sls_calibration_summary_init"),
     "sls_intrinsics": (IntrinsicsC, "sls_intrinsics_init"),
     "sls_calibration_view": (CalibrationViewC, "sls_calibration_view_init"),
+    "sls_cloud_data": (CloudDataC, "sls_cloud_data_init"),
+    "sls_mesh_data": (MeshDataC, "sls_mesh_data_init"),
+    "sls_feed_config": (FeedConfigC, "sls_feed_config_init"),
+    "sls_depth_frame": (DepthFrameC, "sls_depth_frame_init"),
+    "sls_stack_frame": (StackFrameC, "sls_stack_frame_init"),
 }
 # Structs only the library fills, with no _init() (their struct_size is the library's).
 REPORTED_STRUCTS: dict[str, Type[Structure]] = {
