@@ -17,15 +17,19 @@
 //  - the projector holds the recorded pattern set only: load_patterns() of another set is
 //    kInvalidArgument naming both; show_pattern(k) picks image k of the frame played;
 //  - the turntable answers the recorded angles: move_to_deg(a) selects the recorded frame at
-//    angle a (within half the smallest step between recorded angles; the first such frame after
-//    the one played, so a revolution recorded twice plays in order) and position_deg() is that
+//    angle a (within half the smallest step between recorded angles, at most 0.5° so another
+//    frame count is refused; the first such frame after the one played, so a revolution
+//    recorded twice plays in order) and position_deg() is that
 //    frame's recorded angle. A move to an angle the recording has no frame at is kNotFound
 //    naming the angle and the recorded range. Opening it for a recording made without a
 //    turntable (no angles) is kUnsupported;
 //  - the camera gives, per trigger (software, or each show_pattern on kHardwareLine), the
 //    recorded image of the pattern shown, of the frame the turntable selected; without a
-//    turntable frames play in order, the next one when a stack starts again at a pattern it has
-//    played. The image carries the frame's recorded timestamp and the camera's own frame ids.
+//    turntable frames play in order from the first, the next one when a stack starts again at a
+//    pattern it has played (so a capture resumed part-way needs the turntable to start at its
+//    frame, and a stack restarted after an incomplete frame is kUnsupported: a re-capture cannot
+//    be told from the next frame). The image carries the frame's recorded timestamp and the
+//    camera's own frame ids.
 //    A pattern an incomplete frame lacks comes as an incomplete image (complete = false, with
 //    the recorded note), as the transport's loss did live, so the sequencer re-captures and
 //    records the frame incomplete again. Past the last frame: kNotFound "end of the recording".
