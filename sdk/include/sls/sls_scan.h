@@ -20,8 +20,9 @@
  * fused frame.
  *
  * Threads: a run blocks the thread that calls it; the frame callback runs on that thread.
- * sls_scan_cancel() may be called from any thread, the frame callback included. Every other
- * function on a scan returns SLS_ERROR_BUSY while a run is in progress (from the callback too);
+ * sls_scan_cancel() may be called from any thread, the frame callback included, and the getters
+ * of sls_results.h from the frame callback. Every other function on a scan returns
+ * SLS_ERROR_BUSY while a run is in progress (from the callback too);
  * different scans are independent. Destroying a scan while it runs is the caller's bug. The
  * deformation worker is the scan's own thread, started by a run and stopped by the next run or
  * sls_scan_destroy() (after its current job); no callback runs on it, and the calls that read
@@ -178,10 +179,11 @@ typedef struct sls_frame_report {
 /* Sets struct_size and clears the other fields (for sls_scan_add_depth()/_add_stack()). */
 SLS_API void sls_frame_report_init(sls_frame_report* report);
 
-/* Called after each frame of a run, in frame order, on the thread running sls_scan_run_*().
- * `report` and its strings are valid during the call only. It must return normally and must
- * not call functions on the same scan except sls_scan_cancel() (the others return
- * SLS_ERROR_BUSY). The run waits for it: a slow callback slows the scan. */
+/* Called after each frame of a run (or of sls_scan_add_depth/_add_stack, sls_feed.h), in frame
+ * order, on the thread running it. `report`, its strings and its depth map are valid during the
+ * call only. It must return normally and must not call functions on the same scan except
+ * sls_scan_cancel() and the getters of sls_results.h (a live view of the model; the others
+ * return SLS_ERROR_BUSY). The run waits for it: a slow callback slows the scan. */
 typedef void (*sls_frame_callback)(const sls_frame_report* report, void* user);
 
 /* Sets the callback later runs call after each frame (NULL: none), and the `user` pointer
