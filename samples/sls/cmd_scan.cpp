@@ -71,6 +71,7 @@ struct ScanOptions {
   double icp_crease_deg = fusion::TrackingOptions{}.crease_angle_deg;  // --poses track: the crease test (0: off)
   std::string deformation = "on";   // --poses track: online deformation (the graph)
   std::string loop_closure;         // on | off; empty: on for a full turntable revolution
+  int loop_frames = session::DeformationOptions().loop_frames;  // last frames the loop closure registers
   bool resume = false;              // continue the capture in OUT/recording, then fuse it all
   bool object_given = false;
   bool device_given = false;
@@ -190,6 +191,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
     session_options.tracking.crease_angle_deg = options.icp_crease_deg;
   }
   session_options.deformation.enabled = !groundtruth && options.deformation == "on";
+  session_options.deformation.loop_frames = options.loop_frames;
   // --calibration with --input: decode with that calibration instead of the recording's.
   std::optional<ScannerCalibration> calibration;
   if (!options.calibration.empty() && options.camera_uri.empty()) calibration = read_calibration(options.calibration);
@@ -678,6 +680,11 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                       "With --poses track: close the loop after the scan, registering the last frame to the first "
                       "(default: on for a full turntable revolution, else off)")
       ->check(CLI::IsMember({"on", "off"}));
+  command->add_option("--loop-frames", options->loop_frames,
+                      "With --loop-closure: how many of the last frames register to the first (each kept until "
+                      "then; 1 .. 64)")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
   command->add_option("--voxel-um", options->voxel_um,
                       "Voxel size in um (0: twice the pixel footprint, grown to fit --max-voxels; else 0.1 .. 100000)")
       ->check(finite_range(0.1, 1e5, true))

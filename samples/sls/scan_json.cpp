@@ -29,6 +29,8 @@ nlohmann::json capture_json(const FrameCaptureCounters& counters) {
 }
 
 nlohmann::json loop_closure_json(const session::LoopClosureReport& loop) {
+  nlohmann::json unregistered = nlohmann::json::array();
+  for (const auto& [frame, reason] : loop.unregistered) unregistered.push_back({{"frame", frame}, {"reason", reason}});
   return {{"closed", true},
           {"first_frame", loop.first_frame},
           {"last_frame", loop.last_frame},
@@ -36,7 +38,11 @@ nlohmann::json loop_closure_json(const session::LoopClosureReport& loop) {
            {{"inlier_fraction", loop.registration.inlier_fraction},
             {"residual_rms_um", loop.registration.residual_rms_m * 1e6},
             {"degenerate_directions", loop.registration.degenerate_directions},
-            {"iterations", loop.registration.iterations}}},
+            {"iterations", loop.registration.iterations},
+            {"moved_from_guess_um", loop.guess_moved_m * 1e6},
+            {"moved_from_guess_deg", loop.guess_moved_deg}}},
+          {"registered_frames", loop.registered_frames},
+          {"unregistered_frames", unregistered},
           {"constraints", loop.constraints},
           {"iterations", loop.solve.iterations},
           {"energy_before", loop.solve.before.total()},

@@ -98,12 +98,13 @@ void DeformationOptions::validate() const {
   if (!(max_normal_angle_deg > 0.0 && max_normal_angle_deg <= 90.0)) {
     throw_error(ErrorCode::kInvalidArgument, "deformation: normal angle {} deg outside (0, 90]", max_normal_angle_deg);
   }
-  if (online_iterations < 0 || loop_iterations < 1 || revisit_gap_nodes < 1 || keyframe_samples < 16 ||
-      max_constraints_per_keyframe < 0) {
+  if (online_iterations < 0 || loop_iterations < 1 || loop_frames < 1 || revisit_gap_nodes < 1 ||
+      keyframe_samples < 16 || max_constraints_per_keyframe < 0) {
     throw_error(ErrorCode::kInvalidArgument,
-                "deformation: online iterations {} (>= 0), loop iterations {} (>= 1), revisit gap {} (>= 1), "
-                "keyframe samples {} (>= 16), constraints per keyframe {} (>= 0)",
-                online_iterations, loop_iterations, revisit_gap_nodes, keyframe_samples, max_constraints_per_keyframe);
+                "deformation: online iterations {} (>= 0), loop iterations {} (>= 1), loop frames {} (>= 1), revisit "
+                "gap {} (>= 1), keyframe samples {} (>= 16), constraints per keyframe {} (>= 0)",
+                online_iterations, loop_iterations, loop_frames, revisit_gap_nodes, keyframe_samples,
+                max_constraints_per_keyframe);
   }
   fusion::deformation::GraphOptions checked = graph;
   checked.length_scale_m = 1.0;  // set by the session

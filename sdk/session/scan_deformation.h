@@ -50,6 +50,12 @@ struct DeformationOptions {
   double region_radius_m = 0.0;
   int online_iterations = 2;      // Gauss–Newton steps per keyframe
   int loop_iterations = 3;        // the loop closure's steps (the paper: one)
+  // The loop closure registers this many of the last fused frames to the first frame's
+  // surface (each kept as a depth map until then: on a GPU at 4000 x 3000, 48 MB each). Two:
+  // on the decoded demo revolutions the screw's model C2C 4.1 -> 2.5 µm against one, its loop
+  // 0.8 -> 1.1 µm, the knob's unchanged; more frames pull the last pose towards the older
+  // frames' registrations and the loop error grows (docs/benchmarks.md).
+  int loop_frames = 2;
   // Revisits: shipped parts bound only to nodes at least this many older than the keyframe.
   int revisit_gap_nodes = 16;
   double max_correspondence_m = 0.0;  // 0: 10 voxels

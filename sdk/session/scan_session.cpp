@@ -354,8 +354,8 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   }
   if (s.deformation) {
     start = Clock::now();
-    report.deformation = s.feed_deformation(frame.index, T_world_camera, *depth, confidence, depth_device,
-                                            confidence_device);
+    report.deformation = s.feed_deformation(frame.index, T_world_camera, frame.turntable_angle_deg, *depth, confidence,
+                                            depth_device, confidence_device);
     report.times.deform_ms += ms_since(start);
   }
   s.before_last = s.last;

@@ -21,6 +21,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fusion/extract.h"
@@ -136,14 +137,22 @@ struct FrameReport {
   StageTimes times;
 };
 
-// What close_loop() did: the last fused frame registered (ICP) to the first frame's surface
-// (the model raycast from the first pose before the volume first moved), its points made
-// E_con terms to where that registration puts them, and the graph solved.
+// What close_loop() did: the last fused frames (DeformationOptions::loop_frames) registered
+// (ICP) to the first frame's surface (the model raycast from the first pose before the volume
+// first moved), their points made E_con terms to where those registrations put them, and the
+// graph solved.
 struct LoopClosureReport {
   int first_frame = 0;
   int last_frame = 0;
-  fusion::TrackingResult registration;    // of the last frame to the first frame's surface
-  std::size_t constraints = 0;            // E_con terms added
+  // Of the newest kept frame that registers (the last frame unless it did not) to the first
+  // frame's surface.
+  fusion::TrackingResult registration;
+  std::vector<int> registered_frames;     // the kept frames that registered, newest first
+  std::vector<std::pair<int, std::string>> unregistered;  // those that did not, and why
+  // How far that registration moved the frame from its guess (the turntable's pose with the
+  // prior, else the online deformation's estimate).
+  double guess_moved_m = 0.0, guess_moved_deg = 0.0;
+  std::size_t constraints = 0;            // E_con terms added (all registered frames')
   fusion::deformation::SolveStats solve;
   // The last pose: how far the loop closure moved it (from the online deformation's estimate),
   // and how far from the tracked pose it ends.
@@ -184,12 +193,13 @@ class ScanSession {
   std::vector<StampedPose> trajectory_undeformed() const;
 
   // The loop closure (paper section IV-C), triggered by the caller after the revolution: the
-  // last fused frame registered to the first frame's surface, starting from the deformed
-  // estimate of its pose (the turntable's angle with turntable_prior), then loop_iterations
-  // Gauss–Newton steps with those constraints. Afterwards final_surface() and trajectory()
-  // are the closed model. sls::Error(kInvalidArgument), the model kept as it was: no frame
-  // fused ("before any frame"), online deformation off, too few keyframes, or a last frame
-  // that does not register to the first frame's surface (named, with the tracker's reason).
+  // last loop_frames fused frames registered to the first frame's surface, each starting from
+  // the deformed estimate of its pose (the turntable's angle with turntable_prior), then
+  // loop_iterations Gauss–Newton steps with those constraints. Afterwards final_surface() and
+  // trajectory() are the closed model. sls::Error(kInvalidArgument), the model kept as it
+  // was: no frame fused ("before any frame"), online deformation off, too few keyframes, or
+  // none of those frames registers to the first frame's surface (named, with the tracker's
+  // reason; frames that do not register while others do are reported, not fatal).
   LoopClosureReport close_loop();
   const std::optional<LoopClosureReport>& loop_closure() const;
   // Online deformation: whether it runs, the worker's state (waits for it: drain), and what

@@ -56,34 +56,46 @@ void ScanSession::Impl::record_shipped(int time, std::size_t shipped_before) {
   if (deformation && shipped.size() > shipped_before) deformation->add_shipped(time, shipped, shipped_before, shipped.size());
 }
 
-FrameDeformation ScanSession::Impl::feed_deformation(int frame, const Pose& T_world_camera, const Image32f& depth_m,
-                                                     const Image32f* confidence,
-                                                     [[maybe_unused]] const float* depth_device,
-                                                     [[maybe_unused]] const float* confidence_device) {
-  FrameDeformation out;
-  // The last fused frame, for close_loop(): on the GPU a device copy (the decoder's buffers
-  // hold the next frame by then), else a host copy.
+void ScanSession::Impl::keep_loop_frame(int frame, const Pose& T_world_camera, std::optional<double> angle_deg,
+                                        const Image32f& depth_m, const Image32f* confidence,
+                                        [[maybe_unused]] const float* depth_device,
+                                        [[maybe_unused]] const float* confidence_device) {
+  const std::size_t slots = static_cast<std::size_t>(options.deformation.loop_frames);
+  if (loop_frames.size() != slots) loop_frames.resize(slots);
+  LoopFrame& slot = loop_frames[loop_frames_next];
+  loop_frames_next = (loop_frames_next + 1) % slots;
+  slot.index = frame;
+  slot.T_world_camera = T_world_camera;
+  slot.angle_deg = angle_deg;
 #if defined(SLS_HAVE_CUDA)
   if (depth_device != nullptr) {
     const std::size_t pixels = depth_m.pixel_count();
-    if (last_depth_device.size() != pixels) last_depth_device.allocate(pixels);
-    SLS_CUDA_CHECK(cudaMemcpyAsync(last_depth_device.data(), depth_device, pixels * sizeof(float),
+    if (slot.depth_device.size() != pixels) slot.depth_device.allocate(pixels);
+    SLS_CUDA_CHECK(cudaMemcpyAsync(slot.depth_device.data(), depth_device, pixels * sizeof(float),
                                    cudaMemcpyDeviceToDevice, nullptr));
-    last_confidence_on_device = confidence_device != nullptr;
+    slot.confidence_on_device = confidence_device != nullptr;
     if (confidence_device != nullptr) {
-      if (last_confidence_device.size() != pixels) last_confidence_device.allocate(pixels);
-      SLS_CUDA_CHECK(cudaMemcpyAsync(last_confidence_device.data(), confidence_device, pixels * sizeof(float),
+      if (slot.confidence_device.size() != pixels) slot.confidence_device.allocate(pixels);
+      SLS_CUDA_CHECK(cudaMemcpyAsync(slot.confidence_device.data(), confidence_device, pixels * sizeof(float),
                                      cudaMemcpyDeviceToDevice, nullptr));
     }
     SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
-    last_depth = Image32f();
-  } else
-#endif
-  {
-    last_depth = depth_m;
-    last_confidence.reset();
-    if (confidence != nullptr) last_confidence = *confidence;
+    slot.depth = Image32f();
+    slot.confidence.reset();
+    return;
   }
+#endif
+  slot.depth = depth_m;
+  slot.confidence.reset();
+  if (confidence != nullptr) slot.confidence = *confidence;
+}
+
+FrameDeformation ScanSession::Impl::feed_deformation(int frame, const Pose& T_world_camera,
+                                                     std::optional<double> angle_deg, const Image32f& depth_m,
+                                                     const Image32f* confidence, const float* depth_device,
+                                                     const float* confidence_device) {
+  FrameDeformation out;
+  keep_loop_frame(frame, T_world_camera, angle_deg, depth_m, confidence, depth_device, confidence_device);
   const Eigen::Vector3d focus = focus_point(T_world_camera);
   if (deformation->wants_keyframe(T_world_camera, focus)) {
     out.keyframe = true;
@@ -203,64 +215,91 @@ LoopClosureReport ScanSession::close_loop() {
   }
   if (!s.reference_taken) s.capture_reference(s.moving->volume());  // the volume never moved
 
-  // Register the last frame to the first frame's surface, from the best guess of its pose in
-  // the first frame's world: the turntable's angle when it is known and used, else the
-  // online deformation's estimate.
+  // Register the kept last frames (newest first) to the first frame's surface, each from the
+  // best guess of its pose in the first frame's world: the turntable's angle when it is known
+  // and used, else the online deformation's estimate. Several frames, because one
+  // registration's error is what is left of the loop (measured: docs/benchmarks.md).
   const Impl::Fused& last = *s.last;
   const Impl::Fused& first = *s.first;
   const Pose deformed_last = s.deformation->deform_pose(last.index, last.T_world_camera, s.focus_point(last.T_world_camera));
-  Pose guess = deformed_last;
-  if (s.options.turntable_prior && s.calibration.turntable && last.angle_deg && first.angle_deg) {
-    guess = first.T_world_camera * turntable_camera_motion(*s.calibration.turntable, *last.angle_deg - *first.angle_deg);
+  std::vector<const Impl::LoopFrame*> kept;
+  for (const Impl::LoopFrame& frame : s.loop_frames) {
+    if (frame.index > first.index) kept.push_back(&frame);
   }
+  std::sort(kept.begin(), kept.end(), [](const Impl::LoopFrame* a, const Impl::LoopFrame* b) { return a->index > b->index; });
   LoopClosureReport report;
   report.first_frame = first.index;
   report.last_frame = last.index;
-  Image32f depth = s.last_depth;
+  struct Registered {
+    const Impl::LoopFrame* frame;
+    Pose T_world_camera;
+    double residual_rms_m;
+    Image32f depth;
+  };
+  std::vector<Registered> registered;
+  for (const Impl::LoopFrame* frame : kept) {
+    Pose guess = s.deformation->deform_pose(frame->index, frame->T_world_camera, s.focus_point(frame->T_world_camera));
+    if (s.options.turntable_prior && s.calibration.turntable && frame->angle_deg && first.angle_deg) {
+      guess = first.T_world_camera *
+              turntable_camera_motion(*s.calibration.turntable, *frame->angle_deg - *first.angle_deg);
+    }
+    fusion::TrackingResult registration;
+    Image32f depth = frame->depth;
 #if defined(SLS_HAVE_CUDA)
-  if (s.options.device.is_cuda()) {
-    report.registration = s.tracker.track_device(s.last_depth_device.data(), *s.reference_raycaster,
-                                                 first.T_world_camera, guess, nullptr,
-                                                 s.last_confidence_on_device ? s.last_confidence_device.data() : nullptr);
-    depth = Image32f(s.calibration.camera.width, s.calibration.camera.height, 0.0f);
-    s.last_depth_device.download(depth.data(), depth.pixel_count(), nullptr);
-    SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
-  } else {
-    report.registration = s.tracker.track(s.last_depth, s.reference_model, first.T_world_camera, guess, nullptr,
-                                          s.last_confidence ? &*s.last_confidence : nullptr);
-  }
+    if (s.options.device.is_cuda()) {
+      registration = s.tracker.track_device(frame->depth_device.data(), *s.reference_raycaster, first.T_world_camera,
+                                            guess, nullptr,
+                                            frame->confidence_on_device ? frame->confidence_device.data() : nullptr);
+      depth = Image32f(s.calibration.camera.width, s.calibration.camera.height, 0.0f);
+      frame->depth_device.download(depth.data(), depth.pixel_count(), nullptr);
+      SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+    } else {
+      registration = s.tracker.track(frame->depth, s.reference_model, first.T_world_camera, guess, nullptr,
+                                     frame->confidence ? &*frame->confidence : nullptr);
+    }
 #else
-  report.registration = s.tracker.track(s.last_depth, s.reference_model, first.T_world_camera, guess, nullptr,
-                                        s.last_confidence ? &*s.last_confidence : nullptr);
+    registration = s.tracker.track(frame->depth, s.reference_model, first.T_world_camera, guess, nullptr,
+                                   frame->confidence ? &*frame->confidence : nullptr);
 #endif
-  if (report.registration.lost) {
+    if (registration.lost) {
+      report.unregistered.push_back({frame->index, registration.reason});
+      continue;
+    }
+    if (registered.empty()) pose_difference(guess, registration.T_world_camera, &report.guess_moved_m, &report.guess_moved_deg);
+    if (registered.empty()) report.registration = registration;  // the newest one that registers
+    registered.push_back({frame, registration.T_world_camera, registration.residual_rms_m, std::move(depth)});
+  }
+  if (registered.empty()) {
+    const std::pair<int, std::string>& newest = report.unregistered.front();
     throw_error(ErrorCode::kInvalidArgument,
-                "loop closure: the last fused frame ({}) does not register to the first frame's ({}) surface: {} "
-                "(the scan is not a closed loop, or drifted beyond the tracker's reach); the model is kept as "
-                "online deformation left it",
-                last.index, first.index, report.registration.reason);
+                "loop closure: the last fused frame ({}) does not register to the first frame's ({}) surface: {}{} "
+                "(the scan is not a closed loop, or drifted beyond the tracker's reach); the model is kept as online "
+                "deformation left it",
+                newest.first, first.index, newest.second,
+                kept.size() > 1 ? fmt::format(", nor do the {} kept frames before it", kept.size() - 1) : "");
   }
 
-  // Its points: where tracking put them (deformed by the nodes of their time) should be where
-  // the registration puts them.
-  const SurfaceSamples samples = sample_depth_map(depth, s.calibration.camera, s.options.deformation.keyframe_samples,
-                                                  edge_step_m(s.calibration.camera, s.focus_distance_m));
-  const Pose& registered = report.registration.T_world_camera;
-  // Each point is where one rigid registration puts it: as certain as that registration's
-  // residual, not as a surface point's noise (σ_con).
-  const double sigma_registration =
-      std::max(report.registration.residual_rms_m, 0.1 * s.moving->volume().geometry().voxel_size_m);
-  const double weight = std::pow(s.deformation->constraint_sigma_m() / sigma_registration, 2.0);
-  for (const Eigen::Vector3f& p_camera : samples.points) {
-    const Eigen::Vector3d p = p_camera.cast<double>();
-    fusion::deformation::Constraint constraint;
-    constraint.source = last.T_world_camera * p;
-    constraint.source_binding = graph.bind_before(constraint.source, last.index);
-    constraint.target = registered * p;
-    constraint.weight = weight;
-    graph.add_constraint(constraint);
+  // Their points: where tracking put them (deformed by the nodes of their time) should be
+  // where the registration puts them. Each point is where one rigid registration puts it: as
+  // certain as that registration's residual, not as a surface point's noise (σ_con).
+  const double voxel_m = s.moving->volume().geometry().voxel_size_m;
+  for (const Registered& r : registered) {
+    const SurfaceSamples samples = sample_depth_map(r.depth, s.calibration.camera, s.options.deformation.keyframe_samples,
+                                                    edge_step_m(s.calibration.camera, s.focus_distance_m));
+    const double sigma_registration = std::max(r.residual_rms_m, 0.1 * voxel_m);
+    const double weight = std::pow(s.deformation->constraint_sigma_m() / sigma_registration, 2.0);
+    for (const Eigen::Vector3f& p_camera : samples.points) {
+      const Eigen::Vector3d p = p_camera.cast<double>();
+      fusion::deformation::Constraint constraint;
+      constraint.source = r.frame->T_world_camera * p;
+      constraint.source_binding = graph.bind_before(constraint.source, r.frame->index);
+      constraint.target = r.T_world_camera * p;
+      constraint.weight = weight;
+      graph.add_constraint(constraint);
+    }
+    report.constraints += samples.points.size();
+    report.registered_frames.push_back(r.frame->index);
   }
-  report.constraints = samples.points.size();
   report.solve = graph.solve(s.options.deformation.loop_iterations);
   const Pose closed = s.deformation->deform_pose(last.index, last.T_world_camera, s.focus_point(last.T_world_camera));
   pose_difference(deformed_last, closed, &report.moved_m, &report.moved_deg);

@@ -58,17 +58,30 @@ struct ScanSession::Impl {
   bool reference_taken = false;
   fusion::RaycastResult reference_model;
   std::optional<fusion::Raycaster> reference_raycaster;
-  // The last fused frame's depth (and the decoder's confidence): what close_loop() registers.
-  Image32f last_depth;
-  std::optional<Image32f> last_confidence;
+  // The last loop_frames fused frames (a ring, oldest overwritten): what close_loop()
+  // registers to the first frame's surface. Their depth and the decoder's confidence: on the
+  // GPU device copies (the decoder's buffers hold the next frame by then), else host copies.
+  struct LoopFrame {
+    int index = -1;                    // -1: an empty slot
+    Pose T_world_camera;
+    std::optional<double> angle_deg;
+    Image32f depth;
+    std::optional<Image32f> confidence;
+#if defined(SLS_HAVE_CUDA)
+    DeviceBuffer<float> depth_device;
+    DeviceBuffer<float> confidence_device;
+    bool confidence_on_device = false;
+#endif
+  };
+  std::vector<LoopFrame> loop_frames;
+  std::size_t loop_frames_next = 0;
+  void keep_loop_frame(int frame, const Pose& T_world_camera, std::optional<double> angle_deg, const Image32f& depth_m,
+                       const Image32f* confidence, const float* depth_device, const float* confidence_device);
   std::optional<LoopClosureReport> loop;
 
   std::vector<FrameReport> frames;
   StageTimes totals;
 #if defined(SLS_HAVE_CUDA)
-  DeviceBuffer<float> last_depth_device;       // the last fused frame's, on the GPU
-  DeviceBuffer<float> last_confidence_device;
-  bool last_confidence_on_device = false;
   DeviceBuffer<float> depth_upload;  // a depth-map frame on the GPU (decoded frames stay there)
   DeviceBuffer<float> texture_upload;  // the frame's texture (photometric term), kept on the GPU
 #endif
@@ -169,8 +182,8 @@ struct ScanSession::Impl {
   // raycast, a shipped part recorded and queued, the last frame kept, a keyframe queued.
   void capture_reference(const fusion::Volume& volume);
   void record_shipped(int time, std::size_t shipped_before);
-  FrameDeformation feed_deformation(int frame, const Pose& T_world_camera, const Image32f& depth_m,
-                                    const Image32f* confidence, const float* depth_device,
+  FrameDeformation feed_deformation(int frame, const Pose& T_world_camera, std::optional<double> angle_deg,
+                                    const Image32f& depth_m, const Image32f* confidence, const float* depth_device,
                                     const float* confidence_device);
   // The model (shipped parts and the current volume), deformed or not.
   fusion::ExtractedSurface surface(bool deformed) const;

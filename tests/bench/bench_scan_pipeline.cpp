@@ -13,6 +13,10 @@
 // by the simulator, decoded by the session on the GPU — rendering is not timed, decoding is).
 // fusion (0: GTSDF, the default; 1: TSDF; 2: GTSDF with κ 0.1, the default before the study of
 // bench_fusion_conditions).
+// prior (0: depth alone; 1: the turntable prior, each frame carrying its commanded angle, as
+// `sls scan --turntable-prior`: the tracker's degenerate directions keep the turntable's motion).
+// loop_frames (0: the default DeformationOptions::loop_frames; else how many of the last frames
+// the loop closure registers).
 // The model is measured against the exact object as `sls eval` does (C2C, edge C2C within 3
 // voxels of a crease; aligned at the first pose), deformed and as tracked; and as the paper's
 // Table I (`sls eval --raw-scan`): in the four image quadrants of frame 0's view against that
@@ -73,6 +77,8 @@ void BM_ScanPipeline(benchmark::State& state) {
   options.volume_size_m = Eigen::Vector3d::Constant(960 * options.voxel_size_m * (1.0 - 1e-9));
   if (state.range(2) > 0) options.tracking.max_model_width = static_cast<int>(state.range(2));
   options.deformation.enabled = state.range(3) != 0;
+  options.turntable_prior = state.range(6) != 0;
+  if (state.range(7) > 0) options.deformation.loop_frames = static_cast<int>(state.range(7));
   const bool patterns = state.range(4) != 0;
   using Clock = std::chrono::steady_clock;
   const auto seconds_since = [](Clock::time_point start) {
@@ -93,6 +99,7 @@ void BM_ScanPipeline(benchmark::State& state) {
       session::ScanFrame frame;
       frame.index = k;
       frame.timestamp_ns = static_cast<std::int64_t>(k) * 333'333'333;
+      if (options.turntable_prior) frame.turntable_angle_deg = rig.commanded_angle_deg(k);
       if (patterns) {
         for (int j = 0; j < static_cast<int>(rig.patterns.size()); ++j) frame.images.push_back(renderer.render_pattern(j));
       } else {
@@ -238,19 +245,24 @@ void BM_ScanPipeline(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ScanPipeline)
-    ->Args({0, 0, 0, 1, 0, 0})
-    ->Args({0, 1, 0, 1, 0, 0})
-    ->Args({0, 0, 0, 0, 0, 0})
-    ->Args({0, 1, 0, 0, 0, 0})
-    ->Args({0, 0, 2048, 1, 0, 0})
-    ->Args({0, 1, 2048, 1, 0, 0})
-    ->Args({0, 0, 0, 1, 1, 0})
-    ->Args({0, 1, 0, 1, 1, 0})
+    ->Args({0, 0, 0, 1, 0, 0, 0, 0})
+    ->Args({0, 1, 0, 1, 0, 0, 0, 0})
+    ->Args({0, 0, 0, 0, 0, 0, 0, 0})
+    ->Args({0, 1, 0, 0, 0, 0, 0, 0})
+    ->Args({0, 0, 2048, 1, 0, 0, 0, 0})
+    ->Args({0, 1, 2048, 1, 0, 0, 0, 0})
+    ->Args({0, 0, 0, 1, 1, 0, 0, 0})
+    ->Args({0, 1, 0, 1, 1, 0, 0, 0})
     // Table I: TSDF against GTSDF from pattern stacks, without deformation as the paper's.
-    ->Args({0, 0, 0, 0, 1, 0})
-    ->Args({0, 0, 0, 0, 1, 1})
-    ->Args({0, 0, 0, 0, 1, 2})
-    ->ArgNames({"frames", "object", "model_width", "deformation", "input", "fusion"})
+    ->Args({0, 0, 0, 0, 1, 0, 0, 0})
+    ->Args({0, 0, 0, 0, 1, 1, 0, 0})
+    ->Args({0, 0, 0, 0, 1, 2, 0, 0})
+    // With the turntable prior: the screw's axial slide, which depth alone cannot see.
+    ->Args({0, 0, 0, 1, 0, 0, 1, 0})
+    ->Args({0, 1, 0, 1, 0, 0, 1, 0})
+    ->Args({0, 0, 0, 1, 1, 0, 1, 0})
+    ->Args({0, 1, 0, 1, 1, 0, 1, 0})
+    ->ArgNames({"frames", "object", "model_width", "deformation", "input", "fusion", "prior", "loop_frames"})
     ->Iterations(1)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);

@@ -54,6 +54,10 @@ TEST(ScanDeformation, ClosesATurntableRevolution) {
   EXPECT_EQ(loop.first_frame, 0);
   EXPECT_EQ(loop.last_frame, 35);
   EXPECT_FALSE(loop.registration.lost);
+  // The default two last frames were each tried: the newest registers.
+  ASSERT_FALSE(loop.registered_frames.empty());
+  EXPECT_EQ(loop.registered_frames.front(), 35);
+  EXPECT_EQ(loop.registered_frames.size() + loop.unregistered.size(), 2u);
   EXPECT_GT(loop.constraints, 500u);
   EXPECT_GE(loop.solve.iterations, 1);
   EXPECT_LT(loop.solve.after.total(), loop.solve.before.total());
@@ -147,6 +151,7 @@ TEST(ScanDeformation, RefusesAnOpenPathAndKeepsTheModel) {
   } catch (const Error& error) {
     EXPECT_EQ(error.code(), ErrorCode::kInvalidArgument);
     EXPECT_NE(std::string(error.what()).find("does not register"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("nor do the 1 kept frames before it"), std::string::npos) << error.what();
     EXPECT_NE(std::string(error.what()).find("model is kept"), std::string::npos) << error.what();
   }
   EXPECT_FALSE(session.loop_closure().has_value());
