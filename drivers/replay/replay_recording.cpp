@@ -125,8 +125,10 @@ class ReplayCamera final : public drivers::Camera {
     ReplayRecording& replay = *replay_;
     const int pattern = replay.pattern_;
     if (pattern < 0) {
-      throw_error(ErrorCode::kInvalidArgument, "{}: triggered while the projector is dark; the recording holds the "
-                  "images of its patterns only", replay.uri_);
+      throw_error(ErrorCode::kInvalidArgument,
+                  "{}: triggered while its projector is dark; the camera gives the recorded image of the pattern "
+                  "that the replay projector opened with the same URI shows",
+                  replay.uri_);
     }
     ReplayTrigger trigger;
     trigger.pattern = pattern;
