@@ -95,12 +95,14 @@ void scan_recording(sls_scan& scan, const std::string& folder) {
   scan.session.emplace(sls::session::make_recording_session(recording, scan.options));
   sls::session::ScanSession& session = *scan.session;
   const std::size_t recording_frames = recording.frame_count();
-  const auto on_frame = [&scan, recording_frames](const sls::session::FrameReport& frame) {
-    sls::capi::report_frame(scan, frame, recording_frames, {});
-  };
+  // Reported from inside the session's add_frame, where the frame's depth map still exists.
+  session.set_frame_observer([&scan, recording_frames](const sls::session::FrameReport& frame,
+                                                       const sls::Image32f* depth, const float* depth_device) {
+    sls::capi::report_frame(scan, frame, recording_frames, {depth, depth_device});
+  });
   // Asked before every frame: a cancel stops the replay after the frame in progress.
   const sls::ProgressCallback progress = [&scan](const sls::ProgressUpdate&) { return !cancel_requested(scan); };
-  const sls::session::ReplayOutcome outcome = sls::session::run_recording(session, recording, nullptr, on_frame, progress);
+  const sls::session::ReplayOutcome outcome = sls::session::run_recording(session, recording, nullptr, {}, progress);
   if (outcome.interrupted) {
     scan.cancelled = true;
     sls::throw_error(sls::ErrorCode::kCancelled, "{}: {}; the model keeps the {} frame(s) fused", folder,

@@ -54,6 +54,12 @@ void start_feed(sls_scan& scan, const sls_feed_config& config, int* patterns_per
   options.decode.bit_depth = config.bit_depth;
   sls::capi::discard_results(scan);
   scan.session.emplace(calibration, &patterns, options);
+  // Reported from inside add_frame, where the frame's depth map (a stack's decoded one) exists.
+  sls_scan* const reported = &scan;
+  scan.session->set_frame_observer([reported](const sls::session::FrameReport& frame, const sls::Image32f* depth,
+                                              const float* depth_device) {
+    sls::capi::report_frame(*reported, frame, 0, {depth, depth_device});
+  });
   scan.feeding = true;
   scan.camera_width = calibration.camera.width;
   scan.camera_height = calibration.camera.height;
@@ -93,11 +99,11 @@ sls::session::ScanFrame frame_header(sls_scan& scan, int64_t timestamp_ns, int h
   return frame;
 }
 
-// Adds the frame to the session, reports it to the callback and to the caller's `report`.
-void add(sls_scan& scan, const sls::session::ScanFrame& frame, const sls::Image32f* depth, sls_frame_report* report) {
+// Adds the frame to the session (whose observer calls the callback), and reports it to the
+// caller's `report`.
+void add(sls_scan& scan, const sls::session::ScanFrame& frame, sls_frame_report* report) {
   ++scan.next_index;
-  const sls::session::FrameReport outcome = scan.session->add_frame(frame);
-  sls::capi::report_frame(scan, outcome, 0, {depth, nullptr});
+  scan.session->add_frame(frame);
   if (report != nullptr) {
     sls_frame_report filled = sls::capi::frame_report_to_c(scan.session->frames().back(), 0, {});
     sls::capi::write_versioned(filled, report, kReportFirstVersionSize, "sls_frame_report");
@@ -122,7 +128,7 @@ void add_depth(sls_scan& scan, const sls_depth_frame& in, sls_frame_report* repo
   }
   frame.read_ms = ms_since(start);
   frame.depth_m = std::move(depth);
-  add(scan, frame, &*frame.depth_m, report);
+  add(scan, frame, report);
 }
 
 void add_stack(sls_scan& scan, const sls_stack_frame& in, sls_frame_report* report) {
@@ -159,7 +165,7 @@ void add_stack(sls_scan& scan, const sls_stack_frame& in, sls_frame_report* repo
     frame.images.push_back(std::move(image));
   }
   frame.read_ms = ms_since(start);
-  add(scan, frame, nullptr, report);
+  add(scan, frame, report);
 }
 
 // Checks the caller's report struct before the frame goes in (a bad one must change nothing).

@@ -140,11 +140,14 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   report.index = frame.index;
   report.timestamp_ns = frame.timestamp_ns;
   report.times.read_ms = frame.read_ms;
+  const Image32f* depth = nullptr;  // the frame's, once decoded (or given)
+  const float* depth_device = nullptr;  // the GPU copy (CUDA builds)
   const auto finish = [&](FrameStatus status, std::string reason) -> FrameReport {
     report.status = status;
     report.reason = std::move(reason);
     s.totals += report.times;
     s.frames.push_back(report);
+    if (s.frame_observer) s.frame_observer(s.frames.back(), depth, depth_device);
     return report;
   };
 
@@ -159,9 +162,7 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
                               camera.width, camera.height));
   }
   DecodedFrame decoded;
-  const Image32f* depth = nullptr;
   const Image32f* confidence = nullptr;  // the decoder's, for the tracker's measurement weights
-  [[maybe_unused]] const float* depth_device = nullptr;  // the GPU copies (CUDA builds)
   [[maybe_unused]] const float* confidence_device = nullptr;
   if (!frame.images.empty()) {
     if (!s.decoder) return finish(FrameStatus::kSkipped, "a pattern stack, but the session has no pattern set");
@@ -364,6 +365,8 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
 }
 
 const std::vector<FrameReport>& ScanSession::frames() const { return impl_->frames; }
+
+void ScanSession::set_frame_observer(FrameObserver observer) { impl_->frame_observer = std::move(observer); }
 
 StageTimes ScanSession::totals() const { return impl_->totals; }
 

@@ -213,6 +213,14 @@ class ScanSession {
     double node_spacing_m = 0.0, region_radius_m = 0.0;
   };
   GraphSummary graph_summary() const;
+  // Called at the end of every add_frame(), the frame already in frames(), with its report and
+  // the depth map it was tracked and fused from (the decoded one for a pattern stack, the
+  // frame's own for a depth map; null when the frame had none: skipped before decoding), and on
+  // a CUDA device the same map on the GPU, its content final (else null). Valid during the call
+  // only: for front ends that show each frame (the C API's frame report). Empty: none.
+  using FrameObserver =
+      std::function<void(const FrameReport& report, const Image32f* depth_m, const float* depth_device)>;
+  void set_frame_observer(FrameObserver observer);
   // A shaded raycast of the current volume from a pose (pictures).
   Image8u render(const Pose& T_world_camera) const;
 

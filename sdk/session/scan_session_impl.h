@@ -80,6 +80,7 @@ struct ScanSession::Impl {
   std::optional<LoopClosureReport> loop;
 
   std::vector<FrameReport> frames;
+  ScanSession::FrameObserver frame_observer;  // set_frame_observer()
   StageTimes totals;
 #if defined(SLS_HAVE_CUDA)
   DeviceBuffer<float> depth_upload;  // a depth-map frame on the GPU (decoded frames stay there)

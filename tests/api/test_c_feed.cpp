@@ -78,6 +78,8 @@ sls_feed_config feed_config(const std::string& recording) {
 
 TEST_F(CFeed, FedDepthMapsGiveTheRunsModel) {
   const ScanPtr run = make_scan(context_.get(), false);
+  Seen run_seen;
+  SLS_OK_CALL(sls_scan_set_frame_callback(run.get(), on_frame_seen, &run_seen, &error_));
   SLS_OK_CALL(sls_scan_run_recording(run.get(), depth_recording().c_str(), &error_));
   const CloudCopy expected = scan_cloud(run.get());
   ASSERT_GT(expected.positions.size(), 3000u);
@@ -123,8 +125,9 @@ TEST_F(CFeed, FedDepthMapsGiveTheRunsModel) {
   for (std::size_t i = 0; i < seen.index.size(); ++i) {
     EXPECT_EQ(seen.index[i], static_cast<int>(i));
     EXPECT_EQ(seen.thread[i], std::this_thread::get_id());
-    // The depth as fused: the caller's values (NaN-free here), unpadded.
+    // The depth as fused: the caller's values (NaN-free here), unpadded; the run's the same.
     EXPECT_EQ(seen.depth[i], given[i]) << "frame " << i;
+    EXPECT_EQ(run_seen.depth[i], given[i]) << "frame " << i;
   }
   sls_scan_summary summary;
   sls_scan_summary_init(&summary);
@@ -169,6 +172,8 @@ void feed_stacks(sls_scan* scan, const std::string& folder, int bytes, Seen* see
 
 TEST_F(CFeed, FedPatternStacksGiveTheRunsModel) {
   const ScanPtr run = make_scan(context_.get(), false);
+  Seen run_seen;
+  SLS_OK_CALL(sls_scan_set_frame_callback(run.get(), on_frame_seen, &run_seen, &error_));
   SLS_OK_CALL(sls_scan_run_recording(run.get(), stack_recording().c_str(), &error_));
   const CloudCopy expected = scan_cloud(run.get());
   ASSERT_GT(expected.positions.size(), 3000u);
@@ -183,6 +188,12 @@ TEST_F(CFeed, FedPatternStacksGiveTheRunsModel) {
   feed_stacks(fed.get(), stack_recording(), 2, &seen);
   EXPECT_EQ(scan_cloud(fed.get()).positions, expected.positions);
   for (sls_frame_status status : seen.status) EXPECT_EQ(status, SLS_FRAME_FUSED);
+  // Each stack's decoded depth map reaches the callback, the run's and the feed's the same.
+  ASSERT_EQ(run_seen.depth.size(), seen.depth.size());
+  for (std::size_t i = 0; i < seen.depth.size(); ++i) {
+    EXPECT_EQ(seen.depth[i].size(), 400u * 300u);
+    EXPECT_EQ(seen.depth[i], run_seen.depth[i]) << "frame " << i;
+  }
 
   // 8-bit images of the same stacks (bit_depth 8): decoded and fused too.
   const ScanPtr eight = make_scan(context_.get(), false);

@@ -99,6 +99,8 @@ def test_live_model_from_the_callback_and_busy_elsewhere(context: slscan.Context
             assert preview.shape == (72, 96) and preview.dtype == np.uint8
             stamps, _ = scan.trajectory()
             seen.append((report.index, len(scan.cloud()), len(stamps), int((preview > 0).sum())))
+            assert report.depth_m is not None and report.depth_m.shape == (300, 400)
+            assert int(((report.depth_m > 0) & np.isfinite(report.depth_m)).sum()) == report.depth_pixels
             if report.index == 1:
                 def other() -> None:
                     try:
@@ -109,7 +111,7 @@ def test_live_model_from_the_callback_and_busy_elsewhere(context: slscan.Context
                 thread.start()
                 thread.join()
 
-        scan.run_recording(recording, on_frame=on_frame)
+        scan.run_recording(recording, on_frame=on_frame, with_depth=True)
     assert [index for index, *_ in seen] == [0, 1, 2, 3]
     assert all(points > 1000 and lit > 96 * 72 // 10 for _, points, _, lit in seen)
     assert [poses for _, _, poses, _ in seen] == [1, 2, 3, 4]

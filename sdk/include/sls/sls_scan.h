@@ -171,8 +171,10 @@ typedef struct sls_frame_report {
   int depth_height;
   size_t depth_stride_bytes;
   /* The same depth map in CUDA device memory, rows depth_stride_bytes apart, when the scan runs
-   * on a CUDA context and the frame's depth is on the GPU (else NULL): read-only, the library's
-   * work on it finished (synchronised), valid during the call only. No copy is made for it. */
+   * on a CUDA context and the frame's depth is on the GPU (else NULL): read-only, its content
+   * final (the host copy above was made from it, or it was uploaded and synchronised), valid
+   * during the call only. No copy is made for it. Not exercised by the tests of a machine
+   * without a GPU. */
   const void* depth_device;
 } sls_frame_report;
 
