@@ -15,7 +15,8 @@ int main(int argc, char** argv) {
   app.fallthrough();
   app.footer(
       "Run `sls COMMAND --help` for a command's options.\n"
-      "Devices are named by URI (sim://, gige://, usb3://, dlpc350://, headctl://): `sls devices` lists them.\n"
+      "Devices are named by URI (sim://, gige://, usb3://, dlpc350://, headctl://): `sls devices` lists them;\n"
+      "replay://RECORDING plays a recording back as camera, projector and turntable.\n"
       "Exit status: 0 ok, 1 the work failed (the message says why), 2 bad command line,\n"
       "3 the feature is not available in this build (e.g. CUDA asked of a build without it),\n"
       "4 interrupted (SIGINT/SIGTERM): what was done so far is written and valid.");
