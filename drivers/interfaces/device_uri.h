@@ -2,7 +2,8 @@
 //   sim://knurled-screw?preset=demo&frames=120      the simulated scanner
 //   gige://192.168.1.20   usb3://SERIAL              Aravis cameras (issue #7)
 //   dlpc350://  headctl://                           USB devices (issue #7)
-//   file:///path/to/recording   or a plain folder    a recording
+//   file:///path/to/recording   or a plain folder    a recording (read as input)
+//   replay://path/to/recording?timing=recorded       a recording played back as devices
 #pragma once
 
 #include <map>
