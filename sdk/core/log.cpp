@@ -81,6 +81,10 @@ Log& the_log() {
   return *log;
 }
 
+// Made and registered when the program starts, not at the first message: a spdlog::set_level()
+// in main() (the `sls` tool's -v, -q) then reaches it.
+[[maybe_unused]] const bool g_registered_at_start = (the_log(), true);
+
 }  // namespace
 
 spdlog::logger& logger() { return *the_log().logger; }
