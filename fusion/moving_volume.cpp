@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <utility>
 #include <vector>
 
 #include "fusion/extract_internal.h"
 #include "fusion/extract_shared.h"
 #include "fusion/resample_shared.h"
+#include "fusion/revisit_filter.h"
 #include "sdk/core/error.h"
 #include "sdk/core/host_memory.h"
 
@@ -109,6 +111,7 @@ struct MovingVolume::Impl {
   int current = 0;
   PointCloud shipped_cloud;
   TriangleMesh shipped_mesh;
+  std::optional<RevisitFilter> revisits;  // with options.merge_revisits
   std::size_t moves = 0;
 #if defined(SLS_HAVE_CUDA)
   cudaStream_t stream = nullptr;
@@ -247,6 +250,7 @@ void MovingVolume::place(const Pose& T_world_camera) {
   s.now().set_pose(placement(T_world_camera));
   s.shipped_cloud = PointCloud{};
   s.shipped_mesh = TriangleMesh{};
+  s.revisits.reset();
   s.moves = 0;
 }
 
@@ -300,7 +304,11 @@ MoveStats MovingVolume::move_to(const Pose& T_world_volume) {
   leaving.min = Eigen::Vector3d::Constant(0.5 * h);
   leaving.max = geometry.size_m() - Eigen::Vector3d::Constant(0.5 * h);
   leaving.keep_outside = true;
-  const ExtractedSurface part = s.extract_part(from, leaving, &stats.ship_assemble_ms);
+  ExtractedSurface part = s.extract_part(from, leaving, &stats.ship_assemble_ms);
+  if (s.options.merge_revisits) {
+    if (!s.revisits) s.revisits.emplace(2.0 * h);
+    part = s.revisits->filter(part);
+  }
   stats.shipped_points = part.cloud.size();
   stats.shipped_triangles = part.mesh.faces.size();
   append_cloud(&s.shipped_cloud, part.cloud);

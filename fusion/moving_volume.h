@@ -38,6 +38,12 @@ struct MovingVolumeOptions {
   // width deep) allows: the field's edges then swing in depth by tan 15° · half the width,
   // about half the box's half-depth, each way, leaving the rest for the surface's relief.
   double max_rotation_deg = 15.0;
+  // Revisited surface (fusion/revisit_filter.h): true ships only surface no earlier move
+  // shipped (cells of two voxels, per facing direction), so a session that circles the object
+  // many times keeps one copy and its model stays bounded by the object's surface; false
+  // (default: what every measured figure used) ships every pass, and a second revolution adds
+  // a second copy.
+  bool merge_revisits = false;
   ExtractOptions extract;          // for the shipped surface and final_surface()
   // Throws sls::Error(kInvalidArgument) naming the bad value.
   void validate() const;

@@ -30,6 +30,24 @@ void PointCloud::validate() const {
   }
 }
 
+PointCloud select_points(const PointCloud& cloud, const std::vector<std::size_t>& indices) {
+  PointCloud out;
+  const auto pick = [&indices](const auto& from, auto* to) {
+    if (from.empty()) return;
+    to->reserve(indices.size());
+    for (const std::size_t i : indices) to->push_back(from[i]);
+  };
+  pick(cloud.positions, &out.positions);
+  pick(cloud.normals, &out.normals);
+  pick(cloud.confidence, &out.confidence);
+  pick(cloud.colors, &out.colors);
+  for (const PointProperty& property : cloud.properties) {
+    out.properties.push_back({property.name, {}});
+    pick(property.values, &out.properties.back().values);
+  }
+  return out;
+}
+
 void TriangleMesh::validate() const {
   vertices.validate();
   const auto vertex_count = static_cast<std::int64_t>(vertices.size());

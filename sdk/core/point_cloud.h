@@ -36,6 +36,9 @@ struct PointCloud {
   void validate() const;
 };
 
+// The points of `cloud` at `indices` (in that order), with every per-point array and property.
+PointCloud select_points(const PointCloud& cloud, const std::vector<std::size_t>& indices);
+
 struct TriangleMesh {
   PointCloud vertices;
   std::vector<std::array<std::int32_t, 3>> faces;  // indices into vertices, counter-clockwise seen from outside

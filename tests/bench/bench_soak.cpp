@@ -2,7 +2,8 @@
 // 15°, depth maps of the knurled knob, turntable prior, a 1e6-voxel moving volume: the soak
 // test's scan, test_scan_soak.cpp) replayed 20 times back to back on the default device.
 // Argument: 0 a new ScanSession per revolution (many scans in one process), 1 one session fed
-// revolution after revolution (a long scan; online deformation off: its graph grows by design).
+// revolution after revolution (a long scan; online deformation off: its graph grows by design),
+// 2 the same with the moving volume's merge_revisits (one copy of revisited surface).
 // Counters per revolution r: rss_mib_rNN (VmRSS after it; for mode 0 after the session and
 // its model are gone), heap_mib_rNN (bytes held on the heap, mallinfo2), ms_rNN (median
 // ms/frame, the session's stages), and gpu_mib_rNN with a CUDA device (cudaMemGetInfo).
@@ -37,7 +38,7 @@ using test::rss_mib;
 
 
 void BM_Soak(benchmark::State& state) {
-  const bool one_session = state.range(0) == 1;
+  const bool one_session = state.range(0) >= 1;
   const Device device = default_device();
   const std::string folder =
       (std::filesystem::temp_directory_path() / ("sls_bench_soak_" + std::to_string(::getpid()))).string();
@@ -55,6 +56,7 @@ void BM_Soak(benchmark::State& state) {
   options.max_voxels = 1e6;
   options.turntable_prior = true;
   if (one_session) options.deformation.enabled = false;
+  options.moving.merge_revisits = state.range(0) == 2;
   const std::int64_t period_ns = rec.frame(rec.frame_count() - 1).timestamp_ns - rec.frame(0).timestamp_ns +
                                  (rec.frame(1).timestamp_ns - rec.frame(0).timestamp_ns);
   std::size_t fused = 0, frames = 0;
@@ -98,7 +100,7 @@ void BM_Soak(benchmark::State& state) {
   state.counters["fused_fraction"] = frames > 0 ? static_cast<double>(fused) / static_cast<double>(frames) : 0.0;
   std::filesystem::remove_all(folder);
 }
-BENCHMARK(BM_Soak)->Arg(0)->Arg(1)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(BM_Soak)->Arg(0)->Arg(1)->Arg(2)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 
 }  // namespace
 }  // namespace sls

@@ -3,7 +3,8 @@
 //  - ManyScansInOneProcess: a new ScanSession per revolution (an application scanning object
 //    after object): nothing may be left behind by a finished scan.
 //  - OneLongScan: revolution after revolution into ONE session (a long scan): the moving
-//    volume's moves, the tracker and the turntable checks must not slow down or leak.
+//    volume's moves, the tracker and the turntable checks must not slow down or leak; with
+//    the moving volume's merge_revisits, the model and memory stay flat.
 // Revolutions: SLS_SOAK_REVOLUTIONS (default 5: CI, ASan included; bench_soak runs 20).
 #include <gtest/gtest.h>
 
@@ -88,6 +89,8 @@ class ScanSoak : public ::testing::Test {
     return o;
   }
 
+  static std::vector<Revolution> long_scan(bool merge_revisits, int revolutions);
+
   // A new session per revolution; memory sampled after each scan and its model are gone.
   static std::vector<Revolution> many_scans(const Device& device, int revolutions) {
     const RecordingReader rec = recording();
@@ -168,14 +171,16 @@ TEST_F(ScanSoak, ManyScansInOneProcessLeaveNothingBehind) {
 // a node per keyframe by design (a scan is one revolution, then close_loop()), so over 20
 // revolutions it grows without bound and its solves with it; with it off, what must stay flat is
 // the session itself: volume moves, tracker, raycaster.
-TEST_F(ScanSoak, OneLongScanGrowsOnlyByItsModel) {
+// Revolution after revolution into one session (deformation off: its graph gains a node per
+// keyframe by design); merge_revisits as the moving volume's option.
+std::vector<Revolution> ScanSoak::long_scan(bool merge_revisits, int revolutions) {
   const RecordingReader rec = recording();
   ScanSessionOptions o = options(Device::cpu());
   o.deformation.enabled = false;
+  o.moving.merge_revisits = merge_revisits;
   ScanSession session(rec.calibration(), nullptr, o);
   const std::int64_t period_ns = rec.frame(rec.frame_count() - 1).timestamp_ns - rec.frame(0).timestamp_ns +
                                  (rec.frame(1).timestamp_ns - rec.frame(0).timestamp_ns);
-  const int revolutions = soak_revolutions();
   std::vector<Revolution> revs;
   for (int r = 0; r < revolutions; ++r) {
     std::vector<double> ms;
@@ -199,12 +204,17 @@ TEST_F(ScanSoak, OneLongScanGrowsOnlyByItsModel) {
     rev.model_mib = model_mib(session.final_surface_undeformed());
     revs.push_back(rev);
     std::printf(
-        "[ measured ] long scan, revolution %d: %zu of %d fused, %.2f ms/frame (fastest %.2f), RSS %.1f MiB, heap %.2f "
+        "[ measured ] long scan%s, revolution %d: %zu of %d fused, %.2f ms/frame (fastest %.2f), RSS %.1f MiB, heap %.2f "
         "MiB, "
         "model %.2f MiB, %zu moves\n",
-        r, rev.fused, kFramesPerRevolution, rev.median_ms, rev.fastest_ms, rev.rss_mib, rev.heap_mib, rev.model_mib,
+        merge_revisits ? " (revisits merged)" : "", r, rev.fused, kFramesPerRevolution, rev.median_ms, rev.fastest_ms, rev.rss_mib, rev.heap_mib, rev.model_mib,
         session.moves());
   }
+  return revs;
+}
+
+TEST_F(ScanSoak, OneLongScanGrowsOnlyByItsModel) {
+  const std::vector<Revolution> revs = long_scan(false, soak_revolutions());
   const Revolution& first = revs[1];
   const Revolution& last = revs.back();
   // Memory is not flat here, by design: every move ships the surface leaving the volume, and a
@@ -217,6 +227,24 @@ TEST_F(ScanSoak, OneLongScanGrowsOnlyByItsModel) {
       << "heap " << first.heap_mib << " -> " << last.heap_mib << " MiB, model " << first.model_mib << " -> "
       << last.model_mib << " MiB";
   EXPECT_GT(last.model_mib, first.model_mib);  // the model does grow: the bound above is not vacuous
+  const double early_ms = std::max(revs[0].fastest_ms, revs[1].fastest_ms);
+  EXPECT_LT(last.fastest_ms, kTimeRatio * early_ms) << "fastest ms/frame " << early_ms << " -> " << last.fastest_ms;
+  for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);
+}
+
+// The same long scan with merge_revisits: each pass after the first ships only what the
+// earlier ones missed, so the model and the heap stay flat (the per-frame reports, ~1 KiB a
+// frame, are what still grows: 4 MiB allowed for them and the allocator). Three revolutions
+// at most (CI's time): the second pass is where an unmerged model doubles.
+TEST_F(ScanSoak, OneLongScanWithMergedRevisitsStaysFlat) {
+  const std::vector<Revolution> revs = long_scan(true, std::min(soak_revolutions(), 3));
+  const Revolution& first = revs[1];
+  const Revolution& last = revs.back();
+  const double one_revolution_mib = revs[1].model_mib - revs[0].model_mib;  // what a pass adds unmerged
+  EXPECT_LT(last.model_mib - first.model_mib, 0.1 * std::max(first.model_mib, 1.0))
+      << "model " << first.model_mib << " -> " << last.model_mib << " MiB (one pass " << one_revolution_mib << ")";
+  EXPECT_LT(last.heap_mib - first.heap_mib, 4.0 + 0.2 * first.model_mib)
+      << "heap " << first.heap_mib << " -> " << last.heap_mib << " MiB";
   const double early_ms = std::max(revs[0].fastest_ms, revs[1].fastest_ms);
   EXPECT_LT(last.fastest_ms, kTimeRatio * early_ms) << "fastest ms/frame " << early_ms << " -> " << last.fastest_ms;
   for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);
