@@ -48,7 +48,7 @@ class SlsImport(unittest.TestCase):
         self.assertEqual(r.returncode, 0, r.stderr)
         manifest = json.loads((rec / "manifest.json").read_text())
         self.assertEqual(manifest["pattern_set"]["kind"], "phase_shift")
-        self.assertEqual(manifest["images_per_frame"], 20)
+        self.assertEqual(manifest["images_per_frame"], 25)
         r = run("--json", "decode", "--input", rec, "--out", out, "--device", "cpu", "--no-clouds")
         self.assertEqual(r.returncode, 0, r.stderr)
         report = json.loads(r.stdout)
