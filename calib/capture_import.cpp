@@ -5,7 +5,6 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
-#include <regex>
 
 #include <fmt/format.h>
 #include <opencv2/core.hpp>
@@ -65,32 +64,39 @@ std::vector<fs::path> entries(const fs::path& folder, bool directories) {
   return out;
 }
 
-std::regex pattern_regex(const std::string& pattern) {
-  std::string re;
-  bool frame = false, image = false;
-  for (std::size_t i = 0; i < pattern.size(); ++i) {
-    if (pattern.compare(i, 7, "{frame}") == 0) {
-      re += "([0-9]+)";
-      frame = true;
-      i += 6;
-    } else if (pattern.compare(i, 7, "{image}") == 0) {
-      re += "([0-9]+)";
-      image = true;
-      i += 6;
-    } else if (pattern[i] == '*') {
-      re += "[^/]*";
-    } else if (std::isalnum(static_cast<unsigned char>(pattern[i])) || pattern[i] == '/' || pattern[i] == '_') {
-      re += pattern[i];
-    } else {
-      re += std::string("\\") + pattern[i];
-    }
-  }
-  if (!image) {
+// A --name-pattern: literal characters, `*` (any run of characters but '/'), `{frame}` and
+// `{image}` (a run of digits each). Matched by hand rather than with std::regex: the grammar is
+// this small, and libstdc++'s regex trips GCC 12's maybe-uninitialized warning under ASan.
+void check_name_pattern(const std::string& pattern) {
+  if (pattern.find("{image}") == std::string::npos) {
     throw_error(ErrorCode::kInvalidArgument, "name pattern '{}' has no {{image}} (the image's place in its stack)",
                 pattern);
   }
-  if (!frame) re = "()" + re;  // one stack
-  return std::regex(re);
+}
+
+// Whether name[n..] matches pattern[p..]; the digits of {frame} and {image} go to *frame / *image.
+bool match_name(const std::string& pattern, std::size_t p, const std::string& name, std::size_t n, long long* frame,
+                long long* image) {
+  if (p == pattern.size()) return n == name.size();
+  for (const char* field : {"{frame}", "{image}"}) {
+    if (pattern.compare(p, 7, field) != 0) continue;
+    std::size_t end = n;
+    while (end < name.size() && std::isdigit(static_cast<unsigned char>(name[end])) && end - n < 18) ++end;
+    for (; end > n; --end) {  // longest run first, shorter ones if the rest does not match
+      if (match_name(pattern, p + 7, name, end, frame, image)) {
+        *(field[1] == 'f' ? frame : image) = std::stoll(name.substr(n, end - n));
+        return true;
+      }
+    }
+    return false;
+  }
+  if (pattern[p] == '*') {
+    for (std::size_t end = n;; ++end) {
+      if (match_name(pattern, p + 1, name, end, frame, image)) return true;
+      if (end == name.size() || name[end] == '/') return false;
+    }
+  }
+  return n < name.size() && name[n] == pattern[p] && match_name(pattern, p + 1, name, n + 1, frame, image);
 }
 
 void collect(const fs::path& root, const fs::path& folder, std::vector<std::string>* relative) {
@@ -243,15 +249,13 @@ std::vector<std::vector<std::string>> find_capture_stacks(const CaptureImportOpt
       }
     }
   } else {
-    const std::regex re = pattern_regex(options.name_pattern);
+    check_name_pattern(options.name_pattern);
     std::vector<std::string> files;
     collect(root, root, &files);
     std::map<long long, std::map<long long, std::string>> by_frame;
     for (const std::string& file : files) {
-      std::smatch match;
-      if (!std::regex_match(file, match, re)) continue;
-      const long long frame = match[1].length() > 0 ? std::stoll(match[1].str()) : 0;
-      const long long image = std::stoll(match[2].str());
+      long long frame = 0, image = 0;
+      if (!match_name(options.name_pattern, 0, file, 0, &frame, &image)) continue;
       auto [it, inserted] = by_frame[frame].emplace(image, (root / file).string());
       if (!inserted) {
         throw_error(ErrorCode::kInvalidArgument, "{}: {} and {} are both image {} of frame {}", options.images,

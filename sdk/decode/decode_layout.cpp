@@ -3,6 +3,7 @@
 // decoded at all.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 #include "sdk/core/error.h"
@@ -26,7 +27,7 @@ struct GroupKey {
 struct GroupBuild {
   GroupKey key;
   PhaseGroup group;
-  std::vector<bool> seen;
+  std::uint64_t seen_steps = 0;  // bit k: step k given (a mask: kDecodeMaxPhaseSteps is small)
 };
 
 // Fills one axis of the layout from the set's patterns along it.
@@ -87,14 +88,18 @@ void fill_axis(const PatternSet& set, PatternAxis axis, AxisCode* code) {
       build.group.period_px = static_cast<float>(d.period_px);
       build.group.sign = d.phase_reversed ? -1.0f : 1.0f;
       build.group.offset_rad = static_cast<float>(d.phase_offset_rad);
-      build.seen.assign(static_cast<std::size_t>(d.steps), false);
       groups.push_back(build);
       it = groups.end() - 1;
     }
-    if (it->seen[static_cast<std::size_t>(d.step)]) {
+    if (d.step < 0 || d.step >= d.steps) {
+      throw_error(ErrorCode::kInvalidArgument, "pattern {} ({}): phase step {} of {}", k, pattern_label(d), d.step,
+                  d.steps);
+    }
+    const std::uint64_t step_bit = std::uint64_t{1} << d.step;
+    if ((it->seen_steps & step_bit) != 0) {
       throw_error(ErrorCode::kInvalidArgument, "pattern {} ({}) repeats a phase step", k, pattern_label(d));
     }
-    it->seen[static_cast<std::size_t>(d.step)] = true;
+    it->seen_steps |= step_bit;
     PhaseGroup& g = it->group;
     const double angle = 2.0 * kPi * static_cast<double>(d.step) / static_cast<double>(d.steps);
     g.index[g.count] = index;

@@ -299,6 +299,17 @@ TEST(CaptureImport, ClearErrors) {
   const calib::CaptureImportSummary summary = calib::import_capture(named);
   EXPECT_EQ(summary.frames, 1);
   EXPECT_EQ(RecordingReader::open(options.out).frame_count(), 1u);
+
+  // Both stacks by one pattern with a wildcard: {frame} and {image} wherever they stand.
+  named.name_pattern = "scan_{frame}/*_{image}.bmp";
+  named.out = temp.file("both");
+  EXPECT_EQ(calib::import_capture(named).frames, 2);
+  named.out = temp.file("none");
+  named.name_pattern = "scan_{frame}/img_{image}.png";  // no such files
+  EXPECT_EQ(import_error(named, &message), ErrorCode::kNotFound);
+  named.name_pattern = "scan_{frame}/img.bmp";
+  EXPECT_EQ(import_error(named, &message), ErrorCode::kInvalidArgument);
+  EXPECT_NE(message.find("no {image}"), std::string::npos) << message;
 }
 
 }  // namespace
