@@ -33,6 +33,8 @@ class GlobalOptionsAfterTheCommand(unittest.TestCase):
                 "scan": ["--input", missing, "--out", os.path.join(tmp, "scanned")],
                 "sim": ["--preset", "ci", "--frames", "1", "--out", regular_file],
                 "calibrate": ["--input", missing, "--out", os.path.join(tmp, "calibration.yml")],
+                "import": ["--images", missing, "--patterns", missing, "--calibration", missing,
+                           "--out", os.path.join(tmp, "imported")],
             }
             listed = re.findall(r"^  (\w+)\s", run("--help").stdout.split("Subcommands:")[-1], re.MULTILINE)
             self.assertGreater(len(listed), 5, "could not read the commands from sls --help")
