@@ -99,7 +99,9 @@ constexpr double kOutlierFloorPx = 0.1;
 
 // A narrow field of view makes focal length and distance nearly interchangeable: the cost's
 // valley is long and flat, and OpenCV's default stop (30 iterations) leaves the focal length
-// 0.4 % off even from exact corners. Run to convergence instead.
+// 0.4 % off even from exact corners. Run to convergence instead. (With p1, p2 or k2 held the
+// last steps are slow, 9 s of the demo capture's solve, but a looser 1e-10 stops early in the
+// flat valley: the camera's principal point 1.2 px from the converged one.)
 const cv::TermCriteria kConvergence(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 500, 1e-15);
 
 int reject_outliers(const std::vector<ViewObservation>& views, std::vector<ViewSolution>* solutions,
@@ -137,6 +139,24 @@ int reject_outliers(const std::vector<ViewObservation>& views, std::vector<ViewS
   return rejected;
 }
 
+// Whether the fuller of two nested fits (`extra` more parameters, `parameters` in all) lowers
+// the residual significantly: its F statistic against F(extra, ∞)'s value at p = 0.001.
+// Corners are independent and Gaussian to the extent the outlier rejection made them so.
+bool significant(double rms_simple, double rms_full, std::size_t corners, int parameters, int extra) {
+  const double n = static_cast<double>(corners);
+  const double dof = 2.0 * n - parameters;
+  if (dof <= 0.0 || rms_full <= 0.0) return false;
+  const double critical = extra == 1 ? 10.83 : 6.91;  // χ²(extra) at p = 0.001, over extra
+  const double sse_simple = rms_simple * rms_simple * n, sse_full = rms_full * rms_full * n;
+  return ((sse_simple - sse_full) / extra) / (sse_full / dof) > critical;
+}
+
+std::size_t corner_count(const std::vector<std::vector<cv::Point2f>>& points) {
+  std::size_t n = 0;
+  for (const auto& view : points) n += view.size();
+  return n;
+}
+
 double rms_of(const std::vector<Eigen::Vector2d>& residuals, const std::vector<std::uint8_t>* valid) {
   double sum = 0.0;
   int count = 0;
@@ -171,7 +191,7 @@ void view_residuals(const ViewObservation& view, const ScannerCalibration& calib
 }
 
 Pose refine_board_pose(const ViewObservation& view, const ScannerCalibration& calibration, const BoardSpec& board,
-                       const Pose& initial, const ViewSolution* masks) {
+                       const Pose& initial, const ViewSolution* masks, double projector_weight) {
   const auto camera_used = [&](std::size_t c) { return masks == nullptr || masks->camera_inlier[c] != 0; };
   const auto projector_used = [&](std::size_t c) {
     return masks == nullptr ? view.projector.valid[c] != 0 : masks->projector_inlier[c] != 0;
@@ -189,7 +209,7 @@ Pose refine_board_pose(const ViewObservation& view, const ScannerCalibration& ca
         projector = view.projector.corners[c] - predict(calibration.projector, T_projector_board * object[c]);
       }
       r->segment<2>(static_cast<Eigen::Index>(4 * c)) = camera;
-      r->segment<2>(static_cast<Eigen::Index>(4 * c + 2)) = projector;
+      r->segment<2>(static_cast<Eigen::Index>(4 * c + 2)) = projector_weight * projector;
     }
   };
   const double length = board.square_m * std::max(board.inner_cols, board.inner_rows);
@@ -241,19 +261,59 @@ ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, co
   };
 
   // The camera alone: views it sees too obliquely are dropped, then mislocated corners, each
-  // followed by a new solve.
+  // followed by a new solve (with p1, p2 free); the last solve chooses the distortion model.
   cv::Mat camera_k, camera_d, projector_k, projector_d;
   std::vector<cv::Mat> rvecs, tvecs;
-  const auto solve_camera = [&] {
+  using Tangential = ProcamSettings::Tangential;
+  // Solves one device over `subsets`. With `choose_model` (and kAuto) the distortion model is
+  // chosen: p1, p2 are dropped (fixed at 0) unless they lower the residual significantly,
+  // then k2 likewise. Returns whether p1, p2 and k2 are free.
+  struct Model {
+    bool tangential = true, k2 = true;
+  };
+  const auto solve_device = [&](const Subsets& subsets, const cv::Size& size, cv::Mat* k, cv::Mat* d, double* rms,
+                                bool choose_model) {
+    Model model;
+    model.tangential = settings.tangential != Tangential::kZero;
+    const auto model_flags = [&](const Model& m) {
+      return flags | (m.tangential ? 0 : cv::CALIB_ZERO_TANGENT_DIST) | (m.k2 ? 0 : cv::CALIB_FIX_K2);
+    };
+    *k = cv::Mat();
+    *d = cv::Mat();
+    *rms = cv::calibrateCamera(subsets.object, subsets.points, size, *k, *d, rvecs, tvecs, model_flags(model),
+                               kConvergence);
+    if (!choose_model || settings.tangential != Tangential::kAuto) return model;
+    const std::size_t corners = corner_count(subsets.points);
+    const int views_in = static_cast<int>(subsets.points.size());
+    // Tries `simpler` (`dropped` parameters fewer); keeps it unless the current model is
+    // significantly better.
+    const auto try_simpler = [&](const Model& simpler, int dropped) {
+      cv::Mat k_simple, d_simple;
+      std::vector<cv::Mat> rvecs_simple, tvecs_simple;
+      const double rms_simple = cv::calibrateCamera(subsets.object, subsets.points, size, k_simple, d_simple,
+                                                    rvecs_simple, tvecs_simple, model_flags(simpler), kConvergence);
+      const int parameters = 4 + (settings.estimate_k3 ? 1 : 0) + 1 + (model.k2 ? 1 : 0) +
+                             (model.tangential ? 2 : 0) + 6 * views_in;
+      if (significant(rms_simple, *rms, corners, parameters, dropped)) return;
+      model = simpler;
+      *k = k_simple;
+      *d = d_simple;
+      *rms = rms_simple;
+      rvecs = std::move(rvecs_simple);
+      tvecs = std::move(tvecs_simple);
+    };
+    try_simpler({false, true}, 2);
+    try_simpler({model.tangential, false}, 1);
+    return model;
+  };
+  const auto solve_camera = [&](bool choose_model) {
     require_views();
     const Subsets subsets = collect(views, result.views, object_units, false, false, camera_take);
-    camera_k = cv::Mat();
-    camera_d = cv::Mat();
-    result.camera_rms_px =
-        cv::calibrateCamera(subsets.object, subsets.points, camera_size, camera_k, camera_d, rvecs, tvecs, flags,
-                            kConvergence);
+    const Model model = solve_device(subsets, camera_size, &camera_k, &camera_d, &result.camera_rms_px, choose_model);
+    result.camera_tangential = model.tangential;
+    result.camera_k2 = model.k2;
   };
-  solve_camera();
+  solve_camera(false);
   bool dropped = false;
   std::size_t k = 0;
   for (ViewSolution& s : result.views) {
@@ -268,33 +328,48 @@ ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, co
       dropped = true;
     }
   }
-  if (dropped) solve_camera();
+  if (dropped) solve_camera(false);
   result.camera_outliers =
       reject_outliers(views, &result.views, object_units, camera_k, camera_d, rvecs, tvecs, false);
-  if (result.camera_outliers > 0) solve_camera();
+  solve_camera(true);
 
-  const auto solve_projector = [&] {
+  const auto solve_projector = [&](bool choose_model) {
     const Subsets subsets = collect(views, result.views, object_units, true, false, projector_take);
-    projector_k = cv::Mat();
-    projector_d = cv::Mat();
-    result.projector_rms_px = cv::calibrateCamera(subsets.object, subsets.points, projector_size, projector_k,
-                                                  projector_d, rvecs, tvecs, flags, kConvergence);
+    const Model model =
+        solve_device(subsets, projector_size, &projector_k, &projector_d, &result.projector_rms_px, choose_model);
+    result.projector_tangential = model.tangential;
+    result.projector_k2 = model.k2;
   };
-  solve_projector();
+  solve_projector(false);
   result.projector_outliers =
       reject_outliers(views, &result.views, object_units, projector_k, projector_d, rvecs, tvecs, true);
-  if (result.projector_outliers > 0) solve_projector();
+  solve_projector(true);
 
-  // One joint refinement of both devices and their pose, over the corners both kept.
+  // One joint refinement of both devices and their pose, over the corners both kept. Each
+  // device's residuals weigh 1/σ² (σ its RMS alone): scaling the projector's pixels by
+  // w = σ_camera / σ_projector scales its residuals by w and its camera matrix by w, nothing
+  // else (distortion acts before the camera matrix), so stereoCalibrate minimises the weighted
+  // sum; the matrix is scaled back after. p1, p2 (k2) stay free if either device's model has them.
   const Subsets joint = collect(views, result.views, object_units, false, true, [&](std::size_t v, std::size_t c) {
     return camera_take(v, c) && projector_take(v, c);
   });
+  const double weight = settings.weight_joint_by_noise && result.projector_rms_px > 0.0
+                            ? std::clamp(result.camera_rms_px / result.projector_rms_px, 0.1, 10.0)
+                            : 1.0;
+  result.projector_weight = weight;
+  std::vector<std::vector<cv::Point2f>> projector_points = joint.second;
+  for (std::vector<cv::Point2f>& view : projector_points) {
+    for (cv::Point2f& p : view) p *= static_cast<float>(weight);
+  }
+  projector_k.rowRange(0, 2) *= weight;
+  const int joint_flags = flags | cv::CALIB_USE_INTRINSIC_GUESS |
+                          (result.camera_tangential || result.projector_tangential ? 0 : cv::CALIB_ZERO_TANGENT_DIST) |
+                          (result.camera_k2 || result.projector_k2 ? 0 : cv::CALIB_FIX_K2);
   cv::Mat rotation, translation, essential, fundamental;
   result.stereo_rms_px =
-      cv::stereoCalibrate(joint.object, joint.points, joint.second, camera_k, camera_d, projector_k, projector_d,
-                          camera_size, rotation, translation, essential, fundamental,
-                          flags | cv::CALIB_USE_INTRINSIC_GUESS,
-                          kConvergence);
+      cv::stereoCalibrate(joint.object, joint.points, projector_points, camera_k, camera_d, projector_k, projector_d,
+                          camera_size, rotation, translation, essential, fundamental, joint_flags, kConvergence);
+  projector_k.rowRange(0, 2) /= weight;
 
   ScannerCalibration& calibration = result.calibration;
   calibration.camera = intrinsics_from(camera_k, camera_d, settings.camera_width, settings.camera_height);
@@ -307,12 +382,12 @@ ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, co
           .inverse();
   calibration.reprojection_rms_px = result.stereo_rms_px;
 
-  double camera_sum = 0.0, projector_sum = 0.0;
-  int camera_count = 0, projector_count = 0;
+  double camera_sum = 0.0, projector_sum = 0.0, joint_sum = 0.0;
+  int camera_count = 0, projector_count = 0, joint_count = 0;
   for (std::size_t v = 0; v < views.size(); ++v) {
     ViewSolution& s = result.views[v];
     if (!s.used) continue;
-    s.T_camera_board = refine_board_pose(views[v], calibration, settings.board, s.T_camera_board, &s);
+    s.T_camera_board = refine_board_pose(views[v], calibration, settings.board, s.T_camera_board, &s, weight);
     s.obliquity_deg = obliquity_deg(s.T_camera_board);
     view_residuals(views[v], calibration, settings.board, s.T_camera_board, &s);
     for (std::size_t c = 0; c < object.size(); ++c) {
@@ -324,11 +399,20 @@ ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, co
         projector_sum += s.projector_residuals_px[c].squaredNorm();
         ++projector_count;
       }
+      if (s.camera_inlier[c] != 0 && s.projector_inlier[c] != 0) {
+        joint_sum += s.camera_residuals_px[c].squaredNorm() + s.projector_residuals_px[c].squaredNorm();
+        joint_count += 2;
+      }
     }
     ++result.views_used;
   }
   result.joint_camera_rms_px = camera_count > 0 ? std::sqrt(camera_sum / camera_count) : 0.0;
   result.joint_projector_rms_px = projector_count > 0 ? std::sqrt(projector_sum / projector_count) : 0.0;
+  // stereoCalibrate's RMS is of the weighted residuals; the one reported is in pixels.
+  if (weight != 1.0 && joint_count > 0) {
+    result.stereo_rms_px = std::sqrt(joint_sum / joint_count);
+    calibration.reprojection_rms_px = result.stereo_rms_px;
+  }
   return result;
 }
 

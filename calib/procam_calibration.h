@@ -25,6 +25,18 @@ struct ProcamSettings {
   // k3 (the r^6 term) is poorly determined by a narrow field of view and trades off against
   // k1/k2 and the focal length; fixed at 0 unless asked for.
   bool estimate_k3 = false;
+  // Tangential distortion (p1, p2): in a narrow field of view it moves the corners almost as
+  // a shift of the principal point with a turn of the device does, so fitted freely it trades
+  // with them and the principal point wanders by tens of pixels. kAuto fits p1, p2 only when
+  // they lower the residual significantly (an F-test between the nested models, per device);
+  // kEstimate always, kZero never. kAuto treats k2 the same way after p1, p2 (a 7° field
+  // barely sees r^5: k2 trades with k1 and the focal length).
+  enum class Tangential { kAuto, kEstimate, kZero };
+  Tangential tangential = Tangential::kAuto;
+  // Weigh the joint refinement's camera and projector residuals by their noise (each device's
+  // RMS alone): a maximum-likelihood fit rather than one that trusts the noisier device as
+  // much as the other.
+  bool weight_joint_by_noise = true;
   // A view whose board normal is farther than this from the camera's axis is rejected ("too
   // oblique"): corners foreshortened to slivers are located badly.
   double max_obliquity_deg = 65.0;
@@ -54,6 +66,11 @@ struct ProcamCalibration {
   int views_used = 0;
   int camera_outliers = 0;     // corners dropped as mislocated (see procam_calibration.cpp)
   int projector_outliers = 0;
+  bool camera_tangential = false;     // p1, p2 fitted (else fixed at 0), see ProcamSettings
+  bool projector_tangential = false;
+  bool camera_k2 = true;              // k2 fitted (else fixed at 0)
+  bool projector_k2 = true;
+  double projector_weight = 1.0;      // the projector residuals' weight relative to the camera's
   std::vector<ViewSolution> views;  // parallel to the observations
 };
 
@@ -66,8 +83,9 @@ void view_residuals(const ViewObservation& view, const ScannerCalibration& calib
                     const Pose& T_camera_board, ViewSolution* solution);
 
 // The board pose that best explains a view in camera and projector together (starting from
-// `initial`), under a fixed calibration; `masks` (optional) selects the corners used.
+// `initial`), under a fixed calibration; `masks` (optional) selects the corners used; the
+// projector's residuals weigh `projector_weight` times the camera's.
 Pose refine_board_pose(const ViewObservation& view, const ScannerCalibration& calibration, const BoardSpec& board,
-                       const Pose& initial, const ViewSolution* masks = nullptr);
+                       const Pose& initial, const ViewSolution* masks = nullptr, double projector_weight = 1.0);
 
 }  // namespace sls::calib

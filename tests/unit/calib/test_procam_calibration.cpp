@@ -93,6 +93,8 @@ TEST(ProcamCalibration, ExactCornersGiveTheExactCalibration) {
   EXPECT_LT(errors.baseline_rel_err, 1e-5);
   EXPECT_LT(errors.rotation_err_deg, 1e-4);
   EXPECT_EQ(result.camera_outliers + result.projector_outliers, 0);
+  // Exact corners see the camera's p1, p2 (2e-4, -1e-4: < 0.01 px at the image's corners).
+  EXPECT_TRUE(result.camera_tangential);
 }
 
 // Corners located to 0.03 px (what the simulator's demo capture gives, measured against its
@@ -112,6 +114,13 @@ TEST(ProcamCalibration, NoisyCornersOfTwelvePoses) {
               result.camera_rms_px, result.projector_rms_px, result.stereo_rms_px, 100 * e.camera_focal_rel_err,
               100 * e.projector_focal_rel_err, e.camera_principal_point_err_px, e.projector_principal_point_err_px,
               100 * e.baseline_rel_err, e.rotation_err_deg, result.camera_outliers, result.projector_outliers);
+  // 0.03 px of noise hides p1, p2 and k2 (their effect is < 0.1 px): held at 0, not fitted to
+  // the noise. The projector's noise is the camera's, so its residuals weigh about the same.
+  EXPECT_FALSE(result.camera_tangential);
+  EXPECT_FALSE(result.projector_tangential);
+  EXPECT_FALSE(result.camera_k2);
+  EXPECT_FALSE(result.projector_k2);
+  EXPECT_NEAR(result.projector_weight, 1.0, 0.1);
   EXPECT_LT(e.camera_focal_rel_err, 1e-3);
   EXPECT_LT(e.projector_focal_rel_err, 3e-3);
   EXPECT_LT(e.baseline_rel_err, 1e-3);
