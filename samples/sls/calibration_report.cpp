@@ -151,6 +151,12 @@ nlohmann::json calibration_json(const calib::CalibrateCaptureResult& result) {
       {"joint_camera_rms_px", procam.joint_camera_rms_px},
       {"joint_projector_rms_px", procam.joint_projector_rms_px},
       {"corners_dropped", {{"camera", procam.camera_outliers}, {"projector", procam.projector_outliers}}},
+      // Which distortion terms the data determined (the rest held at 0), and the projector
+      // residuals' weight in the joint refinement (calib/procam_calibration.h).
+      {"distortion_fitted",
+       {{"camera", {{"p1_p2", procam.camera_tangential}, {"k2", procam.camera_k2}}},
+        {"projector", {{"p1_p2", procam.projector_tangential}, {"k2", procam.projector_k2}}}}},
+      {"projector_weight", procam.projector_weight},
       {"views_used", used},
       {"views_rejected", rejected},
       {"seconds", result.seconds},
