@@ -3,8 +3,8 @@
 //  - ManyScansInOneProcess: a new ScanSession per revolution (an application scanning object
 //    after object): nothing may be left behind by a finished scan.
 //  - OneLongScan: revolution after revolution into ONE session (a long scan): the moving
-//    volume's moves, the tracker and the turntable checks must not slow down or leak; with
-//    the moving volume's merge_revisits, the model and memory stay flat.
+//    volume's moves, the tracker and the turntable checks must not leak (time per frame is
+//    printed; its trend is bench_soak's); with merge_revisits, the model and memory stay flat.
 // Revolutions: SLS_SOAK_REVOLUTIONS (default 5: CI, ASan included; bench_soak runs 20).
 #include <gtest/gtest.h>
 
@@ -131,14 +131,12 @@ test::TemporaryDirectory* ScanSoak::dir_ = nullptr;
 // MiB) exceeds the 0.25 MiB bound within the default run's three compared scans. RSS is
 // looser, as the allocator keeps freed pages (it moved by up to 4 MiB between scans here):
 // 8 MiB, less than one leaked session's volume buffers (volume MiB, printed).
-// Time: the fastest frame of the last revolution within 2x of the first two's (the larger of
-// their fastest frames: one lucky frame does not set the bar). A ratio, not an absolute: the
-// machine may be slow. The fastest frame, not the median: other work on a shared 2-core machine
-// more than doubled medians here (measured), but a per-frame cost that grows with the run
-// raises every frame, the fastest too.
+// Time is printed, not asserted: on a shared 2-core machine under ASan even a revolution's
+// fastest frame moved by 4x between revolutions (CI, measured), so any bound either fails at
+// random or is too loose to catch anything. Whether a frame's cost grows with the run is what
+// bench_soak measures (docs/benchmarks.md, "Soak").
 constexpr double kHeapGrowthMiB = 0.25;
 constexpr double kRssGrowthMiB = 8.0;
-constexpr double kTimeRatio = 2.0;
 
 void expect_flat(const std::vector<Revolution>& revs, bool check_rss) {
   const Revolution& first = revs[1];
@@ -149,8 +147,6 @@ void expect_flat(const std::vector<Revolution>& revs, bool check_rss) {
     EXPECT_LT(last.rss_mib - first.rss_mib, kRssGrowthMiB)
         << "RSS grew from " << first.rss_mib << " to " << last.rss_mib << " MiB";
   }
-  const double early_ms = std::max(revs[0].fastest_ms, revs[1].fastest_ms);
-  EXPECT_LT(last.fastest_ms, kTimeRatio * early_ms) << "fastest ms/frame " << early_ms << " -> " << last.fastest_ms;
   for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);  // every scan the same
 }
 
@@ -227,8 +223,6 @@ TEST_F(ScanSoak, OneLongScanGrowsOnlyByItsModel) {
       << "heap " << first.heap_mib << " -> " << last.heap_mib << " MiB, model " << first.model_mib << " -> "
       << last.model_mib << " MiB";
   EXPECT_GT(last.model_mib, first.model_mib);  // the model does grow: the bound above is not vacuous
-  const double early_ms = std::max(revs[0].fastest_ms, revs[1].fastest_ms);
-  EXPECT_LT(last.fastest_ms, kTimeRatio * early_ms) << "fastest ms/frame " << early_ms << " -> " << last.fastest_ms;
   for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);
 }
 
@@ -245,8 +239,6 @@ TEST_F(ScanSoak, OneLongScanWithMergedRevisitsStaysFlat) {
       << "model " << first.model_mib << " -> " << last.model_mib << " MiB (one pass " << one_revolution_mib << ")";
   EXPECT_LT(last.heap_mib - first.heap_mib, 4.0 + 0.2 * first.model_mib)
       << "heap " << first.heap_mib << " -> " << last.heap_mib << " MiB";
-  const double early_ms = std::max(revs[0].fastest_ms, revs[1].fastest_ms);
-  EXPECT_LT(last.fastest_ms, kTimeRatio * early_ms) << "fastest ms/frame " << early_ms << " -> " << last.fastest_ms;
   for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);
 }
 
