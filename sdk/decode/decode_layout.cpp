@@ -1,6 +1,6 @@
 // make_decode_layout (decoder.h): where each pattern of a set sits in the stack, per axis, for
-// every Gray-code / phase-shift family (pattern_set.h), and the checks that the set can be
-// decoded at all.
+// every family (pattern_set.h; heterodyne and micro phase shifting's own checks in
+// multi_frequency_layout.cpp), and the checks that the set can be decoded at all.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -8,6 +8,7 @@
 
 #include "sdk/core/error.h"
 #include "sdk/decode/decoder.h"
+#include "sdk/decode/multi_frequency_layout.h"
 
 namespace sls {
 namespace {
@@ -30,8 +31,10 @@ struct GroupBuild {
   std::uint64_t seen_steps = 0;  // bit k: step k given (a mask: kDecodeMaxPhaseSteps is small)
 };
 
-// Fills one axis of the layout from the set's patterns along it.
+// Fills one axis of the layout from the set's patterns along it (every kind but micro phase
+// shifting, whose single images are no phase groups: multi_frequency_layout.cpp).
 void fill_axis(const PatternSet& set, PatternAxis axis, AxisCode* code) {
+  const bool heterodyne = set.kind == PatternSetKind::kHeterodyne;
   const char* axis_name = axis == PatternAxis::kColumns ? "columns" : "rows";
   int normal_index[32];
   int inverse_index[32];
@@ -46,6 +49,11 @@ void fill_axis(const PatternSet& set, PatternAxis axis, AxisCode* code) {
     extent = d.extent;
     const int index = static_cast<int>(k);
     if (d.kind == PatternKind::kGrayCode) {
+      if (heterodyne) {
+        throw_error(ErrorCode::kInvalidArgument,
+                    "pattern {} ({}): a heterodyne set unwraps by the beats of its periods, it has no Gray code", k,
+                    pattern_label(d));
+      }
       if (d.bit < 0 || d.bit >= 32) {
         throw_error(ErrorCode::kInvalidArgument, "pattern {} ({}): Gray bit {} out of range", k, pattern_label(d),
                     d.bit);
@@ -145,14 +153,17 @@ void fill_axis(const PatternSet& set, PatternAxis axis, AxisCode* code) {
   // Coarse to fine: each period is unwrapped by the coordinate of the one before.
   std::sort(groups.begin(), groups.end(),
             [](const GroupBuild& a, const GroupBuild& b) { return a.key.period > b.key.period; });
-  if (!groups.empty()) {
+  if (heterodyne) {
+    // The beats number the periods (multi_frequency_layout.cpp checks that they can).
+  } else if (!groups.empty()) {
     const double period = groups.front().key.period;
     const double width = unit * std::ldexp(1.0, lowest < 0 ? 0 : lowest);
     if (gray_count == 0) {
       if (extent > period) {
         throw_error(ErrorCode::kInvalidArgument,
-                    "phase on the {} has {} periods and no Gray code to number them", axis_name,
-                    std::ceil(extent / period));
+                    "phase on the {} has {} periods and no Gray code to number them (a set whose periods' beats "
+                    "number them is of kind \"heterodyne\")",
+                    axis_name, std::ceil(extent / period));
       }
     } else if (width > period) {
       // The rounding in unwrap_coordinate needs the stripe centre within P/2 of u; stripes up
@@ -176,17 +187,17 @@ void fill_axis(const PatternSet& set, PatternAxis axis, AxisCode* code) {
   }
   code->phase_group_count = static_cast<int>(groups.size());
   for (std::size_t g = 0; g < groups.size(); ++g) code->phase[g] = groups[g].group;
+  if (heterodyne) detail::check_heterodyne_axis(axis_name, *code);
 }
 
 }  // namespace
 
 DecodeLayout make_decode_layout(const PatternSet& set) {
   validate_pattern_set(set);
-  if (set.kind == PatternSetKind::kHeterodyne || set.kind == PatternSetKind::kMicroPhase) {
-    throw_error(ErrorCode::kUnsupported, "pattern set '{}': {} sets are not decoded yet", set.name,
-                pattern_set_kind_name(set.kind));
-  }
   DecodeLayout layout;
+  layout.unwrap = set.kind == PatternSetKind::kHeterodyne   ? kUnwrapHeterodyne
+                  : set.kind == PatternSetKind::kMicroPhase ? kUnwrapMicroPhase
+                                                            : kUnwrapGrayPhase;
   layout.pattern_count = static_cast<int>(set.size());
   for (std::size_t k = 0; k < set.patterns.size(); ++k) {
     const PatternDesc& d = set.patterns[k];
@@ -199,8 +210,9 @@ DecodeLayout make_decode_layout(const PatternSet& set) {
     }
     *slot = static_cast<int>(k);
   }
-  fill_axis(set, PatternAxis::kColumns, &layout.axes[0]);
-  fill_axis(set, PatternAxis::kRows, &layout.axes[1]);
+  const auto fill = set.kind == PatternSetKind::kMicroPhase ? detail::fill_micro_phase_axis : fill_axis;
+  fill(set, PatternAxis::kColumns, &layout.axes[0]);
+  fill(set, PatternAxis::kRows, &layout.axes[1]);
   if (layout.axes[0].extent <= 0 && layout.axes[1].extent <= 0) {
     throw_error(ErrorCode::kInvalidArgument, "pattern set '{}' codes neither columns nor rows", set.name);
   }

@@ -27,6 +27,9 @@
 // so there the ambiguous bit's two decisions are both unwrapped and the one whose stripe
 // holds its result wins. Several periods on one axis unwrap coarse to fine, each from the
 // coarser coordinate; the phase's sign and offset map psi = s 2 pi u / P + offset back to u.
+//
+// Heterodyne and micro phase-shifting sets have no Gray code: their axes unwrap by the beats
+// of their periods or by a search over the periods (multi_frequency_shared.h).
 #pragma once
 
 #include <cmath>
@@ -40,8 +43,11 @@ namespace sls {
 
 constexpr int kDecodeMaxGrayBits = 24;
 constexpr int kDecodeMaxPhaseSteps = 32;
-// Phase shifts of distinct periods on one axis (multi-period sets unwrap coarse to fine).
+// Phase shifts of distinct periods on one axis (multi-period sets unwrap coarse to fine;
+// heterodyne sets beat two or three).
 constexpr int kDecodeMaxPhaseGroups = 3;
+// Single images of the other periods of a micro phase-shifting axis.
+constexpr int kDecodeMaxMicroSingles = 10;
 
 // Bit flags of DecodedFrame::mask. kDecodeOk alone means projector coordinates and depth are
 // valid; kDecodeOutOfRange alone means the coordinates are valid but triangulation rejected
@@ -73,6 +79,21 @@ enum GrayThreshold : std::int32_t {
   kGrayThresholdPhaseMean = 1,  // the mean of the axis' first phase group (its A)
 };
 
+// How a set's axes are unwrapped (from its PatternSetKind).
+enum DecodeUnwrap : std::int32_t {
+  kUnwrapGrayPhase = 0,   // a Gray code (or a one-period cue), then coarse-to-fine periods
+  kUnwrapHeterodyne = 1,  // two or three periods by their beats (multi_frequency_shared.h)
+  kUnwrapMicroPhase = 2,  // one N-step period and single images of nearby periods, searched
+};
+
+// One single image of a micro phase-shifting axis: level = cos(sign 2 pi u / P + shift).
+struct MicroSingle {
+  int index = 0;
+  float period_px = 0.0f;
+  float sign = 1.0f;
+  float shift_rad = 0.0f;  // 2 pi j / N + offset
+};
+
 // Where one axis' patterns sit in the stack. extent == 0: the axis is not coded.
 struct AxisCode {
   int extent = 0;                // projector pixels along the axis
@@ -85,9 +106,13 @@ struct AxisCode {
   int gray_inverse_index[kDecodeMaxGrayBits] = {};  // its complement, -1 when not projected
   int phase_group_count = 0;     // coarsest period first: each unwraps the next
   PhaseGroup phase[kDecodeMaxPhaseGroups];
+  // Micro phase shifting: phase[0] is the N-step period, these the single images.
+  int micro_count = 0;
+  MicroSingle micro[kDecodeMaxMicroSingles];
 };
 
 struct DecodeLayout {
+  int unwrap = kUnwrapGrayPhase;  // DecodeUnwrap, the same for both axes
   int pattern_count = 0;
   int white_index = -1;  // -1: not in the set
   int black_index = -1;
@@ -234,6 +259,27 @@ SLS_HOST_DEVICE inline WrappedPhase wrapped_phase(const PhaseGroup& g, const Dec
   return out;
 }
 
+// A decoded coordinate beyond the axis by more than the consistency tolerance: a misdecode.
+SLS_HOST_DEVICE inline bool off_axis(const AxisCode& a, const DecodeThresholds& t, float u) {
+  return !(u >= -0.5f - t.consistency_tolerance_px &&
+           u <= static_cast<float>(a.extent) - 0.5f + t.consistency_tolerance_px);
+}
+
+// A fringe weaker than its share of the contrast, or whose coordinate is noisier than
+// max_sigma_px.
+SLS_HOST_DEVICE inline bool weak_fringe(const WrappedPhase& w, const DecodeThresholds& t, float contrast,
+                                        float max_sigma_px) {
+  return !(w.modulation >= t.min_modulation_ratio * 0.5f * contrast) || !(w.sigma_px <= max_sigma_px);
+}
+
+// The other unwrappings (multi_frequency_shared.h, included at the end of this file).
+template <typename Samples>
+SLS_HOST_DEVICE inline AxisDecode decode_heterodyne_axis(const AxisCode& a, const DecodeThresholds& t,
+                                                         const Samples& samples, float contrast);
+template <typename Samples>
+SLS_HOST_DEVICE inline AxisDecode decode_micro_phase_axis(const AxisCode& a, const DecodeThresholds& t,
+                                                          const Samples& samples, float contrast);
+
 // Decodes one axis. `reference` is (white + black) / 2 (the threshold for Gray bits without a
 // projected complement), `contrast` white - black.
 template <typename Samples>
@@ -291,9 +337,7 @@ SLS_HOST_DEVICE inline AxisDecode decode_axis(const AxisCode& a, const DecodeThr
     // Fringe weaker than its share of the contrast, or noisier than the finest coordinate may
     // be (max_phase_sigma_px) or than the next period can be unwrapped with (a tenth of it).
     const float max_sigma = finest ? t.max_phase_sigma_px : 0.1f * a.phase[g + 1].period_px;
-    if (!(w.modulation >= t.min_modulation_ratio * 0.5f * contrast) || !(w.sigma_px <= max_sigma)) {
-      flags |= kDecodeLowModulation;
-    }
+    if (weak_fringe(w, t, contrast, max_sigma)) flags |= kDecodeLowModulation;
     if (g == 0) {
       u = unwrap_coordinate(centre, w.wrapped, period);
       if (gray) {
@@ -331,10 +375,7 @@ SLS_HOST_DEVICE inline AxisDecode decode_axis(const AxisCode& a, const DecodeThr
     }
     sigma = w.sigma_px;
   }
-  if (!(u >= -0.5f - t.consistency_tolerance_px &&
-        u <= static_cast<float>(a.extent) - 0.5f + t.consistency_tolerance_px)) {
-    flags |= kDecodeInconsistent;
-  }
+  if (off_axis(a, t, u)) flags |= kDecodeInconsistent;
   out.flags = flags;
   out.sigma_px = sigma;
   if (flags == 0u) out.coordinate = u;
@@ -348,10 +389,11 @@ struct PixelDecode {
   std::uint8_t mask; // DecodeMaskBits (kDecodeOk set when both coded axes decoded)
 };
 
-// Decodes one pixel: references (shadow test), then each coded axis. Triangulation is
-// separate (triangulate_shared.h) and may add kDecodeOutOfRange.
-template <typename Samples>
-SLS_HOST_DEVICE inline PixelDecode decode_pixel(const DecodeParams& p, const Samples& samples) {
+// Decodes one pixel: references (shadow test), then each coded axis, unwrapped as `Unwrap`
+// (DecodeUnwrap: the layout's, fixed at compile time so that a kernel carries one unwrapping's
+// code). Triangulation is separate (triangulate_shared.h) and may add kDecodeOutOfRange.
+template <int Unwrap, typename Samples>
+SLS_HOST_DEVICE inline PixelDecode decode_pixel_unwrapped(const DecodeParams& p, const Samples& samples) {
   const DecodeLayout& layout = p.layout;
   const DecodeThresholds& t = p.thresholds;
   PixelDecode out{NAN, NAN, 0.0f, 0u};
@@ -389,7 +431,9 @@ SLS_HOST_DEVICE inline PixelDecode decode_pixel(const DecodeParams& p, const Sam
     for (int axis = 0; axis < 2; ++axis) {
       const AxisCode& a = layout.axes[axis];
       if (a.extent <= 0) continue;
-      const AxisDecode d = decode_axis(a, t, samples, reference, contrast);
+      const AxisDecode d = Unwrap == kUnwrapHeterodyne   ? decode_heterodyne_axis(a, t, samples, contrast)
+                           : Unwrap == kUnwrapMicroPhase ? decode_micro_phase_axis(a, t, samples, contrast)
+                                                         : decode_axis(a, t, samples, reference, contrast);
       flags |= d.flags;
       if (d.sigma_px > worst_sigma) worst_sigma = d.sigma_px;
       if (axis == 0) {
@@ -413,4 +457,19 @@ SLS_HOST_DEVICE inline PixelDecode decode_pixel(const DecodeParams& p, const Sam
   return out;
 }
 
+// The same with the layout's unwrapping chosen per call.
+template <typename Samples>
+SLS_HOST_DEVICE inline PixelDecode decode_pixel(const DecodeParams& p, const Samples& samples) {
+  switch (p.layout.unwrap) {
+    case kUnwrapHeterodyne:
+      return decode_pixel_unwrapped<kUnwrapHeterodyne>(p, samples);
+    case kUnwrapMicroPhase:
+      return decode_pixel_unwrapped<kUnwrapMicroPhase>(p, samples);
+    default:
+      return decode_pixel_unwrapped<kUnwrapGrayPhase>(p, samples);
+  }
+}
+
 }  // namespace sls
+
+#include "sdk/decode/multi_frequency_shared.h"  // IWYU pragma: export

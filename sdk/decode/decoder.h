@@ -39,7 +39,8 @@ struct DecodeOptions {
   double shadow_min_contrast_dn = 0.0;
   double shadow_contrast_sigma = 6.0;
   // A Gray bit is ambiguous when |pattern - inverse| <= gray_margin_sigma * its noise (only
-  // acceptable for one bit: the one whose stripe edge the pixel sits on).
+  // acceptable for one bit: the one whose stripe edge the pixel sits on). Micro phase shifting
+  // holds its period search to the same margin (multi_frequency_shared.h).
   double gray_margin_sigma = 3.0;
   // Low modulation: fringe amplitude below min_modulation_ratio * (white - black) / 2, or a
   // predicted coordinate noise above max_phase_sigma_px (projector pixels).
@@ -79,8 +80,9 @@ struct DecodedFrame {
 // Where each pattern of `set` is used. Throws sls::Error(kInvalidArgument) for a set the
 // decoder cannot use: a Gray bit without the coarser ones above it, bits that do not number
 // the whole axis, stripes too wide to unwrap the phase (W >= P), phase steps of mixed N or
-// P, more than kDecodeMaxGrayBits / kDecodeMaxPhaseSteps, no columns and no rows, a
-// heterodyne set.
+// P, more than kDecodeMaxGrayBits / kDecodeMaxPhaseSteps, no columns and no rows, heterodyne
+// periods whose beat does not span the axis, micro phase-shifting periods that cannot tell
+// the candidates apart (multi_frequency_layout.h).
 DecodeLayout make_decode_layout(const PatternSet& set);
 DecodeThresholds make_decode_thresholds(const DecodeOptions& options);
 TriangulationParams make_triangulation_params(const ScannerCalibration& calibration, const DecodeOptions& options);

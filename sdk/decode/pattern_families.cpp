@@ -12,6 +12,7 @@
 
 #include "sdk/core/error.h"
 #include "sdk/decode/decode_shared.h"
+#include "sdk/decode/decoder.h"
 
 namespace sls {
 namespace {
@@ -107,11 +108,15 @@ PatternSet make_phase_shift_pattern_set(const PhaseShiftOptions& o) {
   if (!(o.gray_shift_px >= 0.0) || !std::isfinite(o.gray_shift_px)) {
     bad(fmt::format("phase-shift pattern set: gray_shift_px {} must be >= 0", o.gray_shift_px));
   }
+  const bool heterodyne = o.unwrap == PhaseUnwrap::kHeterodyne;
+  if (heterodyne && o.gray_shift_px != 0.0) {
+    bad("phase-shift pattern set: gray_shift_px with heterodyne unwrapping, which projects no Gray code");
+  }
   PatternSet set;
-  set.kind = PatternSetKind::kPhaseShift;
+  set.kind = heterodyne ? PatternSetKind::kHeterodyne : PatternSetKind::kPhaseShift;
   set.projector_width = o.projector_width;
   set.projector_height = o.projector_height;
-  set.gray_threshold = o.gray_threshold;
+  set.gray_threshold = heterodyne ? GrayThresholdMode::kAuto : o.gray_threshold;
   if (o.references) {
     set.patterns.push_back(reference(PatternKind::kWhite, o.projector_width));
     set.patterns.push_back(reference(PatternKind::kBlack, o.projector_width));
@@ -134,7 +139,13 @@ PatternSet make_phase_shift_pattern_set(const PhaseShiftOptions& o) {
     }
     name += fmt::format("_{}{}", axis == PatternAxis::kColumns ? 'c' : 'r', o.steps);
     const double coarsest = periods.front();
-    if (o.unwrap != PhaseUnwrap::kNone) {
+    if (heterodyne) {
+      if (periods.size() < 2) {
+        bad(fmt::format("phase-shift pattern set: heterodyne unwrapping beats two or three periods, the {} have one",
+                        axis == PatternAxis::kColumns ? "columns" : "rows"));
+      }
+      name += "h";
+    } else if (o.unwrap != PhaseUnwrap::kNone) {
       PatternDesc d;
       d.kind = PatternKind::kGrayCode;
       d.axis = axis;
@@ -175,6 +186,62 @@ PatternSet make_phase_shift_pattern_set(const PhaseShiftOptions& o) {
   }
   set.name = o.name.empty() ? name : o.name;
   validate_pattern_set(set);
+  if (heterodyne) (void)make_decode_layout(set);  // the beats must number each axis
+  return set;
+}
+
+PatternSet make_micro_phase_pattern_set(const MicroPhaseOptions& o) {
+  check_projector("micro phase-shifting", o.projector_width, o.projector_height, o.columns, o.rows);
+  if (o.steps < 3 || o.steps > kDecodeMaxPhaseSteps) {
+    bad(fmt::format("micro phase-shifting pattern set: {} steps (need 3..{})", o.steps, kDecodeMaxPhaseSteps));
+  }
+  PatternSet set;
+  set.kind = PatternSetKind::kMicroPhase;
+  set.projector_width = o.projector_width;
+  set.projector_height = o.projector_height;
+  if (o.references) {
+    set.patterns.push_back(reference(PatternKind::kWhite, o.projector_width));
+    set.patterns.push_back(reference(PatternKind::kBlack, o.projector_width));
+  }
+  std::string name = "micro_phase";
+  for (const PatternAxis axis : {PatternAxis::kColumns, PatternAxis::kRows}) {
+    if (!(axis == PatternAxis::kColumns ? o.columns : o.rows)) continue;
+    const int extent = axis == PatternAxis::kColumns ? o.projector_width : o.projector_height;
+    const std::vector<double>& periods =
+        axis == PatternAxis::kRows && !o.row_periods_px.empty() ? o.row_periods_px : o.periods_px;
+    if (periods.size() < 2 || periods.size() > static_cast<std::size_t>(kDecodeMaxMicroSingles) + 1) {
+      bad(fmt::format("micro phase-shifting pattern set: {} periods (need 2..{})", periods.size(),
+                      kDecodeMaxMicroSingles + 1));
+    }
+    for (std::size_t i = 0; i < periods.size(); ++i) {
+      if (!(periods[i] >= 3.0 && periods[i] <= kMaxSide)) {
+        bad(fmt::format("micro phase-shifting pattern set: period {} px (need 3..{})", periods[i], kMaxSide));
+      }
+      if (std::count(periods.begin(), periods.end(), periods[i]) > 1) {
+        bad(fmt::format("micro phase-shifting pattern set: period {} px is listed twice", periods[i]));
+      }
+    }
+    name += fmt::format("_{}{}p{}f{}", axis == PatternAxis::kColumns ? 'c' : 'r', o.steps, period_text(periods[0]),
+                        periods.size());
+    // The first period's N steps, then one image (step 0) of each other period.
+    for (std::size_t i = 0; i < periods.size(); ++i) {
+      for (int step = 0; step < (i == 0 ? o.steps : 1); ++step) {
+        PatternDesc d;
+        d.kind = PatternKind::kPhaseShift;
+        d.axis = axis;
+        d.extent = extent;
+        d.step = step;
+        d.steps = o.steps;
+        d.period_px = periods[i];
+        d.phase_reversed = o.reversed;
+        d.phase_offset_rad = o.offset_rad;
+        set.patterns.push_back(d);
+      }
+    }
+  }
+  set.name = o.name.empty() ? name : o.name;
+  validate_pattern_set(set);
+  (void)make_decode_layout(set);  // the single images must tell the periods apart
   return set;
 }
 
@@ -258,6 +325,13 @@ void read_direction(Reader& r, bool* columns, bool* rows, const char* fallback) 
   *rows = direction != "columns";
 }
 
+// "phase_sign": 1 or -1 (PatternDesc::phase_reversed).
+bool read_sign(Reader& r) {
+  const int sign = r.integer("phase_sign", 1);
+  if (sign != 1 && sign != -1) bad_format("\"phase_sign\" must be 1 or -1");
+  return sign < 0;
+}
+
 GrayThresholdMode read_threshold(Reader& r) {
   const std::string t = r.text("gray_threshold", "auto", {"auto", "white_black", "phase_mean"});
   return t == "white_black" ? GrayThresholdMode::kWhiteBlack
@@ -284,7 +358,8 @@ PatternSet pattern_set_from_description(const std::string& text) {
                 version);
   }
   // No family: slscan's own (what recordings made before descriptions existed use).
-  const std::string family = r.text("family", "gray_phase", {"gray_phase", "gray_code", "phase_shift"});
+  const std::string family =
+      r.text("family", "gray_phase", {"gray_phase", "gray_code", "phase_shift", "micro_phase"});
   const std::string name = r.has("name") && r.at("name").is_string() ? r.at("name").get<std::string>() : "";
   int width = 0, height = 0;
   if (r.has("projector")) {
@@ -325,6 +400,21 @@ PatternSet pattern_set_from_description(const std::string& text) {
     o.name = name;
     r.reject_unknown("gray_code");
     set = make_gray_code_pattern_set(o);
+  } else if (family == "micro_phase") {
+    MicroPhaseOptions o;
+    if (width > 0) o.projector_width = width;
+    if (height > 0) o.projector_height = height;
+    read_direction(r, &o.columns, &o.rows, "columns");
+    o.steps = r.integer("steps", o.steps);
+    const std::vector<double> periods = r.numbers("periods_px");
+    if (!periods.empty()) o.periods_px = periods;
+    o.row_periods_px = r.numbers("row_periods_px");
+    o.reversed = read_sign(r);
+    o.offset_rad = r.number("phase_offset_rad", 0.0);
+    o.references = r.text("references", "first", {"first", "none"}) == "first";
+    o.name = name;
+    r.reject_unknown("micro_phase");
+    set = make_micro_phase_pattern_set(o);
   } else {
     PhaseShiftOptions o;
     if (width > 0) o.projector_width = width;
@@ -342,14 +432,21 @@ PatternSet pattern_set_from_description(const std::string& text) {
     const std::vector<double> periods = r.numbers("periods_px");
     if (!periods.empty()) o.periods_px = periods;
     o.row_periods_px = r.numbers("row_periods_px");
-    const int sign = r.integer("phase_sign", 1);
-    if (sign != 1 && sign != -1) bad_format("\"phase_sign\" must be 1 or -1");
-    o.reversed = sign < 0;
+    o.reversed = read_sign(r);
     o.offset_rad = r.number("phase_offset_rad", 0.0);
-    const std::string unwrap = r.text("unwrap", "complementary_gray", {"gray", "complementary_gray", "none"});
-    o.unwrap = unwrap == "gray" ? PhaseUnwrap::kGray
-               : unwrap == "none" ? PhaseUnwrap::kNone
-                                  : PhaseUnwrap::kComplementaryGray;
+    const std::string unwrap =
+        r.text("unwrap", "complementary_gray", {"gray", "complementary_gray", "none", "heterodyne"});
+    o.unwrap = unwrap == "gray"         ? PhaseUnwrap::kGray
+               : unwrap == "none"       ? PhaseUnwrap::kNone
+               : unwrap == "heterodyne" ? PhaseUnwrap::kHeterodyne
+                                        : PhaseUnwrap::kComplementaryGray;
+    if (o.unwrap == PhaseUnwrap::kHeterodyne) {
+      for (const char* key : {"gray_inverse", "gray_shift_px", "gray_threshold"}) {
+        if (r.has(key)) {
+          bad_format(fmt::format("\"{}\" has no meaning with \"unwrap\": \"heterodyne\" (no Gray code)", key));
+        }
+      }
+    }
     o.gray_inverse = r.boolean("gray_inverse", true);
     o.gray_shift_px = r.number("gray_shift_px", 0.0);
     o.references = r.text("references", "first", {"first", "none"}) == "first";

@@ -37,14 +37,14 @@
 namespace sls {
 
 // What kind of set it is: the family it was made as (pattern_families.h), so tools can
-// name it. The Gray-code and phase-shift kinds all decode through one layout (decoder.h);
-// heterodyne and micro phase shifting are reserved for their own decoders (issue 21).
+// name it, and for the last two how the decoder unwraps it (decoder.h: the Gray-code and
+// phase-shift kinds by their Gray code, heterodyne and micro phase shifting by their periods).
 enum class PatternSetKind : std::int32_t {
   kGrayPhase = 0,   // slscan's own: Gray code over pixels down to the complementary bit + phase
-  kHeterodyne = 1,  // reserved: multi-frequency phase shifting with beat unwrapping
+  kHeterodyne = 1,  // N-step phase shift at 2-3 periods unwrapped by their beats, no Gray code
   kGrayCode = 2,    // Gray code alone (OpenCV structured_light's order, or ours)
   kPhaseShift = 3,  // N-step phase shift at one or more periods, Gray / complementary Gray unwrapped
-  kMicroPhase = 4,  // reserved: micro phase shifting
+  kMicroPhase = 4,  // micro phase shifting: one N-step period + one image of each nearby period
 };
 
 // How Gray patterns without a projected complement are thresholded.

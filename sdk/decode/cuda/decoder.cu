@@ -8,8 +8,10 @@
 namespace sls::detail {
 namespace {
 
-// Parameters by value: ~1.3 KB, within the kernel parameter space, and read from the
-// constant bank by every thread.
+// Parameters by value: a few KB, within the kernel parameter space, and read from the
+// constant bank by every thread. One kernel per unwrapping (DecodeUnwrap), so that each carries
+// only its own code and registers.
+template <int Unwrap>
 __global__ void decode_kernel(DecodeParams decode, TriangulationParams triangulation, int width, int height,
                               const std::uint16_t* __restrict__ stack, std::size_t plane_stride,
                               const Vec3f* __restrict__ rays, const std::uint8_t* __restrict__ ray_valid,
@@ -20,7 +22,7 @@ __global__ void decode_kernel(DecodeParams decode, TriangulationParams triangula
   const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
   // Plane-major stack: neighbouring threads read neighbouring pixels of each image (coalesced).
   const StridedStackSamples samples{stack, plane_stride, i};
-  PixelDecode pixel = decode_pixel(decode, samples);
+  PixelDecode pixel = decode_pixel_unwrapped<Unwrap>(decode, samples);
   out.depth[i] = triangulate_decoded_pixel(decode.layout, triangulation, &pixel, rays[i], ray_valid[i] != 0);
   out.u[i] = pixel.u;
   out.v[i] = pixel.v;
@@ -37,8 +39,20 @@ void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& t
   const dim3 block(32, 8);
   const dim3 grid((static_cast<unsigned>(width) + block.x - 1) / block.x,
                   (static_cast<unsigned>(height) + block.y - 1) / block.y);
-  decode_kernel<<<grid, block, 0, stream>>>(decode, triangulation, width, height, stack, plane_stride, rays,
-                                            ray_valid, outputs);
+  switch (decode.layout.unwrap) {
+    case kUnwrapHeterodyne:
+      decode_kernel<kUnwrapHeterodyne><<<grid, block, 0, stream>>>(decode, triangulation, width, height, stack,
+                                                                   plane_stride, rays, ray_valid, outputs);
+      break;
+    case kUnwrapMicroPhase:
+      decode_kernel<kUnwrapMicroPhase><<<grid, block, 0, stream>>>(decode, triangulation, width, height, stack,
+                                                                   plane_stride, rays, ray_valid, outputs);
+      break;
+    default:
+      decode_kernel<kUnwrapGrayPhase><<<grid, block, 0, stream>>>(decode, triangulation, width, height, stack,
+                                                                  plane_stride, rays, ray_valid, outputs);
+      break;
+  }
   SLS_CUDA_CHECK_LAUNCH();
 }
 

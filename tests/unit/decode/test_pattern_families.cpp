@@ -13,6 +13,7 @@
 #include "drivers/sim/rig.h"
 #include "sdk/core/error.h"
 #include "sdk/decode/decoder.h"
+#include "sdk/decode/multi_frequency_layout.h"
 #include "sdk/decode/pattern_families.h"
 #include "tests/support/test_support.h"
 
@@ -134,6 +135,7 @@ struct PlaneFigures {
   double rms_px = 0.0, max_px = 0.0;
   std::size_t compared = 0, truth_valid = 0, jumps = 0;
   std::size_t ok = 0;  // pixels decoded
+  std::size_t low_modulation = 0, inconsistent = 0;  // truly valid pixels flagged so
   double valid_fraction() const { return static_cast<double>(ok) / static_cast<double>(truth_valid); }
 };
 
@@ -164,6 +166,8 @@ PlaneFigures decode_plane(const PatternSet& set, double jump_px, bool screw = fa
     for (int x = 0; x < truth.valid.width(); ++x) {
       if (!truth.valid(x, y)) continue;
       ++f.truth_valid;
+      if ((decoded.mask(x, y) & kDecodeLowModulation) != 0) ++f.low_modulation;
+      if ((decoded.mask(x, y) & kDecodeInconsistent) != 0) ++f.inconsistent;
       if (decoded.mask(x, y) != kDecodeOk) continue;
       ++f.ok;
       for (int axis = 0; axis < 2; ++axis) {
@@ -179,8 +183,10 @@ PlaneFigures decode_plane(const PatternSet& set, double jump_px, bool screw = fa
   }
   f.rms_px = std::sqrt(sum / static_cast<double>(std::max<std::size_t>(f.compared, 1)));
   std::printf("[families] %s on the %s (ci 400x300, %s): %zu coordinates, valid %.3f, RMS %.4f px, "
-              "max %.3f px, %zu beyond %.1f px\n",
-              set.name.c_str(), screw ? "knurled screw" : "plane", noise ? "noisy" : "noise-free", f.compared, f.valid_fraction(), f.rms_px, f.max_px, f.jumps, jump_px);
+              "max %.3f px, %zu beyond %.1f px; of %zu truly valid pixels %zu low modulation, %zu inconsistent\n",
+              set.name.c_str(), screw ? "knurled screw" : "plane", noise ? "noisy" : "noise-free", f.compared,
+              f.valid_fraction(), f.rms_px, f.max_px, f.jumps, jump_px, f.truth_valid, f.low_modulation,
+              f.inconsistent);
   return f;
 }
 
@@ -253,6 +259,152 @@ TEST(PatternFamilies, PhaseShiftVariantsDecodeThePlane) {
     EXPECT_GT(f.valid_fraction(), 0.95);
     EXPECT_EQ(f.jumps, 0u);
     EXPECT_LE(f.rms_px, 0.02);
+  }
+}
+
+// --- Heterodyne and micro phase shifting ---------------------------------------------------
+
+std::string error_message_of(const std::string& json) {
+  try {
+    pattern_set_from_description(json);
+  } catch (const Error& error) {
+    return error.what();
+  }
+  return "no error";
+}
+
+TEST(PatternFamilies, HeterodyneAndMicroPhaseDescriptionsLoad) {
+  const PatternSet heterodyne = load_pattern_description(sample("heterodyne_3freq.json"));
+  EXPECT_EQ(heterodyne.kind, PatternSetKind::kHeterodyne);
+  EXPECT_EQ(heterodyne.size(), 2u + 3u * 4u);
+  const PatternSet micro = load_pattern_description(sample("micro_phase_shifting.json"));
+  EXPECT_EQ(micro.kind, PatternSetKind::kMicroPhase);
+  EXPECT_EQ(micro.size(), 2u + 3u + 5u);
+  for (const PatternSet* set : {&heterodyne, &micro}) {
+    const DecodeLayout layout = make_decode_layout(*set);
+    EXPECT_EQ(layout.unwrap, set == &micro ? kUnwrapMicroPhase : kUnwrapHeterodyne);
+    const std::string json = pattern_set_to_json(*set);  // the explicit form says the kind
+    EXPECT_EQ(pattern_set_from_json(json), *set) << json;
+  }
+  const DecodeLayout layout = make_decode_layout(micro);
+  EXPECT_EQ(layout.axes[0].micro_count, 5);
+  EXPECT_EQ(layout.axes[0].phase[0].count, 3);
+  // What the sample's comment and MicroPhaseOptions say of its periods.
+  EXPECT_NEAR(detail::micro_phase_code_distance(layout.axes[0]), 0.41, 0.01);
+  EXPECT_EQ(make_micro_phase_pattern_set({}).patterns, micro.patterns);
+  // The heterodyne sample's beats: 166.7 and 200 px, and 1000 px across the 912 columns.
+  const float periods[3] = {14.2857f, 15.625f, 16.9492f};
+  const HeterodyneBeats beats = heterodyne_beats(periods, 3);
+  EXPECT_NEAR(beats.intermediate_px, 1000.0 / 6.0, 0.05);
+  EXPECT_NEAR(beats.spanning_px, 1000.0, 0.5);
+}
+
+TEST(PatternFamilies, BadHeterodyneAndMicroPhaseDescriptionsAreRefused) {
+  struct Case {
+    const char* json;
+    ErrorCode code;
+    const char* says;  // part of the message
+  };
+  const Case cases[] = {
+      {R"({"family":"phase_shift","unwrap":"heterodyne","periods_px":[16]})", ErrorCode::kInvalidArgument,
+       "beats two or three periods"},
+      {R"({"family":"phase_shift","unwrap":"heterodyne","periods_px":[16,24]})", ErrorCode::kInvalidArgument,
+       "beat of 48.0 px is shorter than the 912 columns"},
+      {R"({"family":"phase_shift","unwrap":"heterodyne","periods_px":[12,16,24]})", ErrorCode::kInvalidArgument,
+       "both pairs beat at 48 px"},
+      {R"({"family":"phase_shift","unwrap":"heterodyne","direction":"both","periods_px":[14.2857,15.625,16.9492]})",
+       ErrorCode::kInvalidArgument, "shorter than the 1140 rows"},
+      {R"({"family":"phase_shift","unwrap":"heterodyne","periods_px":[20,21],"gray_inverse":false})",
+       ErrorCode::kFormat, "\"gray_inverse\" has no meaning"},
+      {R"({"family":"micro_phase","periods_px":[19]})", ErrorCode::kInvalidArgument, "1 periods (need 2..11)"},
+      {R"({"family":"micro_phase","periods_px":[19,17,19]})", ErrorCode::kInvalidArgument, "listed twice"},
+      {R"({"family":"micro_phase","periods_px":[16,32]})", ErrorCode::kInvalidArgument,
+       "cannot tell the periods of 16 px apart"},
+      {R"({"family":"micro_phase","steps":2})", ErrorCode::kInvalidArgument, "2 steps (need 3..32)"},
+      {R"({"family":"micro_phase","unwrap":"gray"})", ErrorCode::kFormat, "has no parameter \"unwrap\""},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.json);
+    EXPECT_EQ(error_code_of(c.json), c.code);
+    EXPECT_NE(error_message_of(c.json).find(c.says), std::string::npos) << error_message_of(c.json);
+  }
+  // Explicit lists the layout refuses: a heterodyne set with a Gray code, a micro set whose
+  // single-image period has two images.
+  PhaseShiftOptions gray;
+  gray.periods_px = {32.0};
+  PatternSet with_gray = make_phase_shift_pattern_set(gray);
+  with_gray.kind = PatternSetKind::kHeterodyne;
+  EXPECT_THROW(make_decode_layout(with_gray), Error);
+  PatternSet doubled = make_micro_phase_pattern_set({});
+  doubled.patterns.push_back(doubled.patterns.back());
+  doubled.patterns.back().step = 1;
+  try {
+    make_decode_layout(doubled);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("both have several images"), std::string::npos) << error.what();
+  }
+}
+
+// The largest error below half the finest period: a period jump moves a pixel by a whole one.
+double half_finest_period(const PatternSet& set) {
+  double finest = 1e9;
+  for (const PatternDesc& d : set.patterns) {
+    if (d.kind == PatternKind::kPhaseShift) finest = std::min(finest, d.period_px);
+  }
+  return 0.5 * finest;
+}
+
+// The shipped descriptions (columns), and rows alone with what other tools do differently:
+// reversed phases with offsets, steps out of order, no references, two heterodyne frequencies,
+// four micro steps. (Both axes at once: the CUDA comparison.)
+std::vector<PatternSet> multi_frequency_variants() {
+  std::vector<PatternSet> sets;
+  sets.push_back(load_pattern_description(sample("heterodyne_3freq.json")));
+  sets.push_back(load_pattern_description(sample("micro_phase_shifting.json")));
+  // One beat of 1200 px over the 1140 rows, 20 periods of 60: the beat's noise is the
+  // periods' amplified 20 x sqrt(2), which must stay under a tenth of the period.
+  PhaseShiftOptions two;
+  two.unwrap = PhaseUnwrap::kHeterodyne;
+  two.columns = false;
+  two.rows = true;
+  two.steps = 5;
+  two.step_order = {4, 2, 0, 3, 1};
+  two.periods_px = {60.0, 1200.0 / 19.0};
+  two.reversed = true;
+  two.offset_rad = 0.8;
+  two.references = false;
+  sets.push_back(make_phase_shift_pattern_set(two));
+  MicroPhaseOptions micro;
+  micro.columns = false;
+  micro.rows = true;
+  micro.steps = 4;
+  micro.reversed = true;
+  micro.offset_rad = -0.4;
+  micro.references = false;
+  micro.periods_px = {23.75, 22.2125, 21.625, 21.4375, 20.0, 21.9875};  // the columns' x 1140/912
+  sets.push_back(make_micro_phase_pattern_set(micro));
+  return sets;
+}
+
+TEST(PatternFamilies, HeterodyneAndMicroPhaseDecodeThePlane) {
+  for (const PatternSet& set : multi_frequency_variants()) {
+    SCOPED_TRACE(set.name);
+    const PlaneFigures f = decode_plane(set, half_finest_period(set));
+    EXPECT_GT(f.valid_fraction(), 0.95);
+    EXPECT_EQ(f.jumps, 0u);
+    EXPECT_LE(f.rms_px, 0.02);
+  }
+}
+
+// The knurled screw, noisy: no pixel moved by a period (errors below half the finest period).
+TEST(PatternFamilies, HeterodyneAndMicroPhaseHaveNoPeriodJumpsOnTheKnurledScrew) {
+  for (const char* file : {"heterodyne_3freq.json", "micro_phase_shifting.json"}) {
+    SCOPED_TRACE(file);
+    const PatternSet set = load_pattern_description(sample(file));
+    const PlaneFigures f = decode_plane(set, half_finest_period(set), true, true);
+    EXPECT_GT(f.valid_fraction(), 0.8);
+    EXPECT_EQ(f.jumps, 0u);
   }
 }
 

@@ -1,6 +1,7 @@
 // The families of issue 21 decode the same on the CUDA decoder as on the CPU (one body of
-// per-pixel code, decode_shared.h): each shipped description (samples/patterns/) and a
-// reversed, offset, multi-period variant, noisy, on the knurled screw. Skipped without a GPU.
+// per-pixel code, decode_shared.h and multi_frequency_shared.h): each shipped description
+// (samples/patterns/) and reversed, offset, multi-period, row variants, noisy, on the knurled
+// screw. Skipped without a GPU.
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -71,6 +72,30 @@ TEST(PatternFamiliesCuda, CpuAndCudaAgreeOnEveryShippedDescription) {
   variant.gray_inverse = false;
   variant.gray_threshold = GrayThresholdMode::kPhaseMean;
   compare_backends(make_phase_shift_pattern_set(variant));
+}
+
+// Heterodyne and micro phase shifting (multi_frequency_shared.h): the shipped descriptions, and
+// rows and columns with reversed, offset phases.
+TEST(PatternFamiliesCuda, CpuAndCudaAgreeOnHeterodyneAndMicroPhase) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  for (const char* file : {"heterodyne_3freq.json", "micro_phase_shifting.json"}) {
+    compare_backends(load_pattern_description(std::string(SLS_SOURCE_DIR) + "/samples/patterns/" + file));
+  }
+  PhaseShiftOptions heterodyne;
+  heterodyne.unwrap = PhaseUnwrap::kHeterodyne;
+  heterodyne.rows = true;
+  heterodyne.reversed = true;
+  heterodyne.offset_rad = 0.3;
+  heterodyne.periods_px = {1000.0 / 70.0, 1000.0 / 64.0, 1000.0 / 59.0};
+  heterodyne.row_periods_px = {60.0, 1200.0 / 19.0};
+  compare_backends(make_phase_shift_pattern_set(heterodyne));
+  MicroPhaseOptions micro;
+  micro.rows = true;
+  micro.steps = 4;
+  micro.reversed = true;
+  micro.offset_rad = -0.4;
+  micro.row_periods_px = {23.75, 22.2125, 21.625, 21.4375, 20.0, 21.9875};
+  compare_backends(make_micro_phase_pattern_set(micro));
 }
 
 }  // namespace
