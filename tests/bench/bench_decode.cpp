@@ -3,14 +3,18 @@
 // resident on the device (the <= 2 ms target of issue #4), the upload of the stack from
 // pinned host memory beside it, host stacks through the overlapped two-slot pipeline, and
 // the CPU, and the host-side stack check each decode runs first. Timed with CUDA events on the
-// decoder's stream.
+// decoder's stream. BM_DecodeFamily*: the same frame in each pattern family of issue 21 (the
+// descriptions of samples/patterns/; <= 2 ms resident for heterodyne and micro phase shifting).
 #include <benchmark/benchmark.h>
 
+#include <map>
 #include <memory>
+#include <string>
 
 #include "drivers/sim/renderer.h"
 #include "sdk/core/device.h"
 #include "sdk/decode/decoder.h"
+#include "sdk/decode/pattern_families.h"
 #include "sdk/decode/stack_check.h"
 
 #if defined(SLS_HAVE_CUDA)
@@ -28,19 +32,32 @@ struct Stack {
   std::vector<Image16u> images;
 };
 
-// Rendered once per process (on the GPU when there is one: 22 images in well under a second).
-const Stack& paper_stack() {
-  static const std::unique_ptr<Stack> stack = [] {
+// The families of BM_DecodeFamily* (arg = index): slscan's own (the preset's set), then the
+// shipped descriptions.
+const char* const kFamilies[] = {"", "heterodyne_3freq.json", "micro_phase_shifting.json",
+                                 "complementary_gray_phase_shift.json", "multi_period_gray_phase_shift.json"};
+constexpr int kFamilyCount = static_cast<int>(sizeof(kFamilies) / sizeof(kFamilies[0]));
+
+// Rendered once per process and family (on the GPU when there is one: 22 images in well under
+// a second). `description`: a file of samples/patterns/, empty for the preset's own set.
+const Stack& paper_stack(const std::string& description = "") {
+  static std::map<std::string, std::unique_ptr<Stack>> stacks;
+  std::unique_ptr<Stack>& stack = stacks[description];
+  if (stack == nullptr) {
     auto s = std::make_unique<Stack>();
     sim::RigOptions options;
     options.preset = "paper";
     const sim::Scene scene = sim::make_scene("knurled-screw");
     s->rig = sim::make_rig(options, scene);
+    if (!description.empty()) {
+      sim::use_pattern_set(s->rig, load_pattern_description(std::string(SLS_SOURCE_DIR) + "/samples/patterns/" +
+                                                            description));
+    }
     sim::Renderer renderer(s->rig, scene, default_device());
     renderer.set_frame(0);
     for (int k = 0; k < static_cast<int>(s->rig.patterns.size()); ++k) s->images.push_back(renderer.render_pattern(k));
-    return s;
-  }();
+    stack = std::move(s);
+  }
   return *stack;
 }
 
@@ -53,6 +70,22 @@ void BM_DecodeCpu(benchmark::State& state) {
   state.counters["valid_fraction"] = static_cast<double>(ok) / static_cast<double>(stack.images[0].pixel_count());
 }
 BENCHMARK(BM_DecodeCpu)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+
+void BM_DecodeFamilyCpu(benchmark::State& state) {
+  const Stack& stack = paper_stack(kFamilies[state.range(0)]);
+  Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu());
+  std::size_t ok = 0;
+  for (auto _ : state) ok = decoder.decode(stack.images).ok_count();
+  state.SetLabel(stack.rig.patterns.name);
+  state.counters["images"] = static_cast<double>(stack.images.size());
+  state.counters["valid_fraction"] = static_cast<double>(ok) / static_cast<double>(stack.images[0].pixel_count());
+}
+BENCHMARK(BM_DecodeFamilyCpu)
+    ->ArgName("family")
+    ->DenseRange(0, kFamilyCount - 1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(3);
 
 // The host-side frame check every Decoder::decode runs before decoding (stack_check.h): what it
 // adds to each frame of a scan.
@@ -129,6 +162,42 @@ void BM_DecodeCudaResident(benchmark::State& state) {
   state.counters["Mpixel"] = static_cast<double>(pixels) / 1e6;
 }
 BENCHMARK(BM_DecodeCudaResident)->Unit(benchmark::kMillisecond)->UseManualTime();
+
+// Each family's stack resident on the device: decode + triangulate (issue 21: <= 2 ms for
+// heterodyne and micro phase shifting at 4000 x 3000). valid_fraction: of all pixels.
+void BM_DecodeFamilyCudaResident(benchmark::State& state) {
+  if (cuda_device_count() == 0) {
+    state.SkipWithError("no CUDA device");
+    return;
+  }
+  const Stack& stack = paper_stack(kFamilies[state.range(0)]);
+  Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cuda());
+  const RayMap& rays = decoder.rays();
+  detail::CudaDecodeContext context(decoder.decode_params(), decoder.triangulation_params(), rays.width, rays.height,
+                                    rays.rays.data(), rays.valid.data());
+  const std::size_t pixels = stack.images[0].pixel_count();
+  const PinnedStack pinned(stack.images);
+  DeviceBuffer<std::uint16_t> device_stack(stack.images.size() * pixels);
+  device_stack.upload(pinned.data, stack.images.size() * pixels, context.stream());
+  context.decode_resident(device_stack.data(), pixels);  // warm-up
+  SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+  CudaEvents events;
+  for (auto _ : state) {
+    events.start(context.stream());
+    context.decode_resident(device_stack.data(), pixels);
+    state.SetIterationTime(events.stop_ms(context.stream()) * 1e-3);
+  }
+  state.SetLabel(stack.rig.patterns.name);
+  state.counters["images"] = static_cast<double>(stack.images.size());
+  state.counters["Mpixel"] = static_cast<double>(pixels) / 1e6;
+  state.counters["valid_fraction"] =
+      static_cast<double>(decoder.decode(stack.images).ok_count()) / static_cast<double>(pixels);
+}
+BENCHMARK(BM_DecodeFamilyCudaResident)
+    ->ArgName("family")
+    ->DenseRange(0, kFamilyCount - 1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseManualTime();
 
 void BM_UploadStackPinned(benchmark::State& state) {
   if (cuda_device_count() == 0) {
