@@ -40,8 +40,11 @@ constexpr int kFamilyCount = static_cast<int>(sizeof(kFamilies) / sizeof(kFamili
 
 // Rendered once per process and family (on the GPU when there is one: 22 images in well under
 // a second). `description`: a file of samples/patterns/, empty for the preset's own set.
-const Stack& paper_stack(const std::string& description = "") {
+// A C string, not a std::string: a reference returned from a function given a temporary is what
+// GCC 13's -Wdangling-reference flags, though the stacks live in the static map.
+const Stack& paper_stack(const char* description_file = "") {
   static std::map<std::string, std::unique_ptr<Stack>> stacks;
+  const std::string description(description_file);
   std::unique_ptr<Stack>& stack = stacks[description];
   if (stack == nullptr) {
     auto s = std::make_unique<Stack>();
