@@ -16,7 +16,15 @@ struct PatternRenderParams {
   ProjectorModel projector;
   NoiseKey key;  // pixel field is filled per pixel
   bool noise = true;
+  // Exposure time relative to the rig's: every electron (projector and ambient light) scales
+  // with it, read noise and the full well do not, so bright pixels saturate (HDR capture).
+  double exposure = 1.0;
 };
+
+// The mean electrons a pixel collects at the render's exposure (exact at 1).
+SLS_HOST_DEVICE inline float exposed_electrons(const PatternRenderParams& params, float electrons) {
+  return static_cast<float>(static_cast<double>(electrons) * params.exposure);
+}
 
 class RenderBackend {
  public:

@@ -25,6 +25,7 @@
 #include <cstdint>
 
 #include "drivers/sim/albedo_footprint_shared.h"
+#include "drivers/sim/material_shared.h"
 #include "drivers/sim/noise_shared.h"
 #include "drivers/sim/optics_shared.h"
 #include "drivers/sim/scene_shared.h"
@@ -59,6 +60,7 @@ struct FrameRenderParams {
   double decode_min_modulation_ratio;
   double decode_max_phase_sigma_px;
   double decode_min_sin_angle;
+  SurfaceMaterial material;    // the object's finish (material_shared.h); default: Lambertian
 };
 
 enum PixelFlags : std::uint32_t {
@@ -268,7 +270,7 @@ SLS_HOST_DEVICE inline PixelGeometry trace_pixel(const FrameRenderParams& p, Vec
     albedo = footprint.albedo;
     g.camera_sigma_px = static_cast<float>(lens_blur_sigma_px(p.camera_lens, p.camera_sensor, depth));
   }
-  g.ambient_electrons = static_cast<float>(p.ambient_electrons * albedo);
+  g.ambient_electrons = static_cast<float>(p.ambient_electrons * p.material.diffuse_scale * albedo);
 
   // Lit: the projector's centre is in front of the surface and nothing lies between them.
   const Vec3d to_projector = p.projector_centre_object - hit.point;
@@ -289,12 +291,14 @@ SLS_HOST_DEVICE inline PixelGeometry trace_pixel(const FrameRenderParams& p, Vec
         projector_pixel.y < p.projector.height - 0.5)) {
     return g;
   }
-  // Irradiance: Lambertian reflection of the projector's light, which falls off with the
-  // square of the distance from its lens (normalised at its focus distance) and with the
-  // cosine of incidence (normalised to the reference geometry of white_electrons).
+  // Irradiance: the projector's light, which falls off with the square of the distance from
+  // its lens (normalised at its focus distance) and with the cosine of incidence (normalised
+  // to the reference geometry of white_electrons), reflected by the material (Lambertian:
+  // the albedo; metal: plus its specular lobe, material_shared.h).
   const double falloff = (p.projector_optics.lens.focus_distance_m * p.projector_optics.lens.focus_distance_m) /
                          (point_projector.z * point_projector.z);
-  g.white_electrons = static_cast<float>(p.projector_optics.white_electrons * albedo * falloff *
+  const double reflectance = material_reflectance(p.material, albedo, hit.normal, towards, -ray.direction);
+  g.white_electrons = static_cast<float>(p.projector_optics.white_electrons * reflectance * falloff *
                                          (cos_incidence / p.cos_reference));
   g.projector_u = static_cast<float>(projector_pixel.x);
   g.projector_v = static_cast<float>(projector_pixel.y);

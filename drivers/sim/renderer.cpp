@@ -54,7 +54,7 @@ class CpuRenderBackend final : public RenderBackend {
             blur_gather_1d(blurred_rows_.data() + x, height_, width_, y, geometry_[index].camera_sigma_px);
         NoiseKey key = params.key;
         key.pixel = static_cast<std::uint32_t>(index);
-        image_[index] = pixel_digital_number(params.sensor, electrons, key, params.noise);
+        image_[index] = pixel_digital_number(params.sensor, exposed_electrons(params, electrons), key, params.noise);
       }
     }
     if (out != nullptr) std::copy(image_.begin(), image_.end(), out);
@@ -108,6 +108,7 @@ FrameRenderParams frame_params(const SimRig& rig, const Scene& scene, int frame)
   params.cos_reference = std::cos(rig.optics.triangulation_angle_rad);
   params.ambient_electrons = rig.optics.ambient_electrons;
   params.shadow_offset_m = 1e-7;
+  params.material = rig.material;
   const DecodeOptions decode;  // the decoder's defaults: what it keeps
   params.decode_min_modulation_ratio = decode.min_modulation_ratio;
   params.decode_max_phase_sigma_px = decode.max_phase_sigma_px;
@@ -189,10 +190,25 @@ Image16u Renderer::render_pattern(int pattern) {
   return render(pattern_at(rig_, pattern), static_cast<std::uint32_t>(pattern));
 }
 
-Image16u Renderer::render(const PatternDesc& pattern, std::uint32_t image_key) {
+Image16u Renderer::render_pattern(int pattern, double exposure_scale, int exposure_index) {
+  if (exposure_index < 0 || exposure_index > 255) {
+    throw_error(ErrorCode::kInvalidArgument, "renderer: exposure index {} outside 0..255", exposure_index);
+  }
+  // Above the 16 bits of pattern indices (kDepthImage included): another exposure's noise.
+  const std::uint32_t key = static_cast<std::uint32_t>(pattern) | (static_cast<std::uint32_t>(exposure_index) << 16);
+  return render(pattern_at(rig_, pattern), key, exposure_scale);
+}
+
+Image16u Renderer::render(const PatternDesc& pattern, std::uint32_t image_key, double exposure_scale) {
   require_frame();
+  if (!(std::isfinite(exposure_scale) && exposure_scale > 0.0)) {
+    throw_error(ErrorCode::kInvalidArgument, "renderer: exposure scale {} must be finite and positive",
+                exposure_scale);
+  }
   Image16u image(rig_.camera.width, rig_.camera.height);
-  backend_->render_pattern(pattern_params(rig_, frame_, pattern, image_key), image.data());
+  PatternRenderParams params = pattern_params(rig_, frame_, pattern, image_key);
+  params.exposure = exposure_scale;
+  backend_->render_pattern(params, image.data());
   return image;
 }
 

@@ -59,9 +59,15 @@ class Renderer {
 
   // Pattern `pattern` of rig().patterns, as the camera's digital numbers.
   Image16u render_pattern(int pattern);
+  // The same at `exposure_scale` times the rig's exposure time (HDR capture: all light scales,
+  // read noise and the full well do not, so highlights clip at the sensor's full scale), with
+  // the noise of exposure `exposure_index` (0 draws as render_pattern(j); 1.. draw anew).
+  // sls::Error(kInvalidArgument) for a scale that is not finite and positive, an index
+  // outside 0..255.
+  Image16u render_pattern(int pattern, double exposure_scale, int exposure_index);
   // Any pattern (e.g. a dark projector: PatternKind::kBlack); `image_key` selects the noise
   // draw within the frame (render_pattern(j) uses j).
-  Image16u render(const PatternDesc& pattern, std::uint32_t image_key);
+  Image16u render(const PatternDesc& pattern, std::uint32_t image_key, double exposure_scale = 1.0);
   // The same, left in device memory (benchmarks: what a GPU pipeline would decode in place).
   void render_pattern_resident(int pattern);
   // Waits for the device (benchmarks).

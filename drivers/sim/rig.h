@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "drivers/sim/material_shared.h"
 #include "drivers/sim/optics_shared.h"
 #include "drivers/sim/scene.h"
 #include "sdk/core/calibration.h"
@@ -62,6 +63,9 @@ struct SimRig {
   std::vector<ObjectPlacement> placements;
   std::uint64_t noise_seed = 1;
   bool noise = true;           // false: noise-free renders (tests, pictures)
+  // The object's finish: Lambertian with the scene's albedo (painted), or metal's specular
+  // lobe (drivers/sim/material_shared.h).
+  SurfaceMaterial material;
 
   // The calibration a perfect calibration of this rig would give (camera, projector, their
   // pose, the turntable axis in the camera frame).
@@ -92,6 +96,9 @@ struct RigOptions {
   bool noise = true;
   // Project this set instead of the preset's (use_pattern_set: its DMD size wins).
   std::optional<PatternSet> patterns;
+  // The object's finish, "painted" or "metal" (material_shared.h); SimScanner::create sets
+  // SimRig::material from it.
+  std::string material = "painted";
 };
 
 // The rig for a preset looking at `scene` (the focus point is the object's surface nearest

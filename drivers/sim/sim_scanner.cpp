@@ -22,7 +22,11 @@ class SimCamera final : public drivers::Camera {
   }
   void set_exposure_us(double exposure_us) override {
     if (!(exposure_us > 0.0)) throw_error(ErrorCode::kInvalidArgument, "exposure {} us must be positive", exposure_us);
-    exposure_us_ = exposure_us;  // the simulated exposure is set by the rig's optics; recorded only
+    exposure_us_ = exposure_us;
+    // The rig's optics (white_electrons, ambient) are for the nominal exposure; others scale
+    // the light collected (HDR capture).
+    std::lock_guard<std::mutex> lock(scanner_->mutex_);
+    scanner_->exposure_scale_ = exposure_us / kSimNominalExposureUs;
   }
   double exposure_us() const override { return exposure_us_; }
   void set_trigger_source(drivers::TriggerSource source) override { source_ = source; }
@@ -49,7 +53,7 @@ class SimCamera final : public drivers::Camera {
 
  private:
   std::shared_ptr<SimScanner> scanner_;
-  double exposure_us_ = 10000.0;
+  double exposure_us_ = kSimNominalExposureUs;
   drivers::TriggerSource source_ = drivers::TriggerSource::kSoftware;
   bool started_ = false;
   int pending_ = 0;
@@ -138,10 +142,15 @@ std::shared_ptr<SimScanner> SimScanner::create(const std::string& object, const 
                                                const Device& device) {
   Scene scene = make_scene(object);
   SimRig rig = make_rig(rig_options, scene);
+  if (!surface_material_by_name(rig_options.material.c_str(), &rig.material)) {
+    throw_error(ErrorCode::kInvalidArgument, "unknown material '{}' (expected painted or metal)", rig_options.material);
+  }
   std::string uri = "sim://" + object + "?preset=" + rig_options.preset +
                     "&frames=" + std::to_string(rig.turntable.steps_per_revolution) +
                     "&seed=" + std::to_string(rig_options.seed) + "&noise=" + (rig_options.noise ? "1" : "0") +
                     "&projector=" + rig_options.projector;
+  // Only when not the default: the URIs of existing recordings stay what they were.
+  if (rig_options.material != "painted") uri += "&material=" + rig_options.material;
   Renderer renderer(std::move(rig), std::move(scene), device);
   return std::shared_ptr<SimScanner>(new SimScanner(std::move(uri), std::move(renderer)));
 }
@@ -156,10 +165,10 @@ std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
   if (uri.scheme != "sim") throw_error(ErrorCode::kInvalidArgument, "'{}' is not a sim:// URI", text);
   static const std::set<std::string> kKeys = {"preset", "frames",  "seed",   "noise", "device", "width",
                                               "projector", "bits", "gamma", "jitter", "tilt",  "offset_um",
-                                              "calibration", "hand_poses", "head"};
+                                              "calibration", "hand_poses", "head", "material"};
   for (const auto& [key, value] : uri.query) {
     if (kKeys.count(key) == 0) {
-      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector, bits, gamma, jitter, tilt, offset_um, calibration, hand_poses, head)",
+      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector, bits, gamma, jitter, tilt, offset_um, calibration, hand_poses, head, material)",
                   text, key);
     }
   }
@@ -176,6 +185,7 @@ std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
   options.seed = static_cast<std::uint64_t>(uri.get_int("seed", 1));
   options.noise = uri.get_int("noise", 1) != 0;
   options.projector = uri.get("projector", "dlpc350");
+  options.material = uri.get("material", options.material);
   options.bit_depth = uri.get_int("bits", options.bit_depth);
   options.gamma = uri.get_double("gamma", options.gamma);
   options.angle_jitter_deg = uri.get_double("jitter", options.angle_jitter_deg);
@@ -279,7 +289,7 @@ drivers::CapturedImage SimScanner::capture() {
   PatternDesc dark;
   dark.kind = PatternKind::kBlack;
   const PatternDesc& shown = pattern_ >= 0 ? rig().patterns.patterns[static_cast<std::size_t>(pattern_)] : dark;
-  captured.image = renderer_.render(shown, captures_in_frame_);
+  captured.image = renderer_.render(shown, captures_in_frame_, exposure_scale_);
   const std::uint32_t images = static_cast<std::uint32_t>(rig().patterns.size());
   captured.timestamp_ns = frame * kStackPeriodNs +
                           static_cast<std::int64_t>(captures_in_frame_) * (kStackPeriodNs / (images > 0 ? images : 1));

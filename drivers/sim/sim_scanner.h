@@ -28,6 +28,10 @@
 
 namespace sls::sim {
 
+// The exposure time the rig's optics are set for (white_electrons: 70 % of the full well on
+// a white target); the camera's set_exposure_us() scales the light it collects from this.
+constexpr double kSimNominalExposureUs = 10000.0;
+
 class SimScanner : public std::enable_shared_from_this<SimScanner> {
  public:
   // Throws sls::Error(kInvalidArgument) naming the URI's bad part (scheme, object, preset,
@@ -85,6 +89,7 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   int next_hand_ = 0;         // the next of them
   bool homed_ = false;
   std::uint32_t captures_in_frame_ = 0;
+  double exposure_scale_ = 1.0;  // the camera's exposure / kSimNominalExposureUs
   std::uint64_t frame_id_ = 0;
 };
 

@@ -48,7 +48,7 @@ __global__ void blur_columns_and_sense_kernel(const float* blurred_rows, const P
   const float electrons = blur_gather_1d(blurred_rows + x, height, width, y, geometry[index].camera_sigma_px);
   NoiseKey key = params.key;
   key.pixel = static_cast<std::uint32_t>(index);
-  image[index] = pixel_digital_number(params.sensor, electrons, key, params.noise);
+  image[index] = pixel_digital_number(params.sensor, exposed_electrons(params, electrons), key, params.noise);
 }
 
 __global__ void depth_kernel(const PixelGeometry* geometry, NoiseKey key, float* depth, std::size_t count) {
