@@ -37,6 +37,14 @@
 #include "sdk/core/host_device.h"
 #include "sdk/decode/decode_shared.h"
 
+// Loops over a fixed bound with the count as a guard, fully unrolled on the GPU, so that the
+// per-period arrays below stay in registers (a runtime bound would put them in local memory).
+#if defined(__CUDA_ARCH__)
+#define SLS_UNROLL_FULLY _Pragma("unroll")
+#else
+#define SLS_UNROLL_FULLY
+#endif
+
 namespace sls {
 
 // The beat of periods pa < pb.
@@ -82,7 +90,9 @@ SLS_HOST_DEVICE inline AxisDecode decode_heterodyne_axis(const AxisCode& a, cons
   WrappedPhase w[kDecodeMaxPhaseGroups];
   float period[kDecodeMaxPhaseGroups];
   float turn_variance[kDecodeMaxPhaseGroups];  // (sigma / P)^2: the phase noise in turns
-  for (int i = 0; i < count; ++i) {
+  SLS_UNROLL_FULLY
+  for (int i = 0; i < kDecodeMaxPhaseGroups; ++i) {
+    if (i >= count) break;
     const PhaseGroup& g = a.phase[count - 1 - i];  // the layout holds them coarsest first
     w[i] = wrapped_phase(g, t, samples);
     period[i] = g.period_px;
@@ -129,7 +139,9 @@ SLS_HOST_DEVICE inline AxisDecode decode_heterodyne_axis(const AxisCode& a, cons
   // Each real period from the reference, then their inverse-variance mean.
   float u[kDecodeMaxPhaseGroups];
   float weight_sum = 0.0f, weighted = 0.0f;
-  for (int i = 0; i < count; ++i) {
+  SLS_UNROLL_FULLY
+  for (int i = 0; i < kDecodeMaxPhaseGroups; ++i) {
+    if (i >= count) break;
     u[i] = unwrap_coordinate(reference, w[i].wrapped, period[i]);
     if (std::fabs(u[i] - reference) > 0.25f * period[i]) flags |= kDecodeInconsistent;
     const float weight = 1.0f / (w[i].sigma_px * w[i].sigma_px);
@@ -137,7 +149,9 @@ SLS_HOST_DEVICE inline AxisDecode decode_heterodyne_axis(const AxisCode& a, cons
     weighted += weight * u[i];
   }
   const float mean = weighted / weight_sum;
-  for (int i = 0; i < count; ++i) {
+  SLS_UNROLL_FULLY
+  for (int i = 0; i < kDecodeMaxPhaseGroups; ++i) {
+    if (i >= count) break;
     if (std::fabs(u[i] - mean) > t.consistency_tolerance_px) flags |= kDecodeInconsistent;
   }
   const float sigma = 1.0f / std::sqrt(weight_sum);
@@ -181,7 +195,10 @@ SLS_HOST_DEVICE inline AxisDecode decode_micro_phase_axis(const AxisCode& a, con
   float inverse_sigma[kDecodeMaxMicroSingles];
   const float inverse_amplitude = 1.0f / m.modulation;
   const float offset_variance = sample_variance(t, m.mean) / static_cast<float>(g.count);
-  for (int f = 0; f < a.micro_count; ++f) {
+  const int singles = a.micro_count;
+  SLS_UNROLL_FULLY
+  for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
+    if (f >= singles) break;
     const float value = samples(a.micro[f].index);
     if (value >= t.saturation_dn) flags |= kDecodeSaturated;
     measured[f] = (value - m.mean) * inverse_amplitude;
@@ -199,7 +216,9 @@ SLS_HOST_DEVICE inline AxisDecode decode_micro_phase_axis(const AxisCode& a, con
   const int candidates = static_cast<int>(std::ceil((static_cast<float>(a.extent) - 0.5f - first_u) / period));
   float c[kDecodeMaxMicroSingles], s[kDecodeMaxMicroSingles];
   float turn_c[kDecodeMaxMicroSingles], turn_s[kDecodeMaxMicroSingles];
-  for (int f = 0; f < a.micro_count; ++f) {
+  SLS_UNROLL_FULLY
+  for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
+    if (f >= singles) break;
     const float turn = a.micro[f].sign * 6.28318530717958648f * (period / a.micro[f].period_px);
     turn_c[f] = std::cos(turn);
     turn_s[f] = std::sin(turn);
@@ -209,14 +228,18 @@ SLS_HOST_DEVICE inline AxisDecode decode_micro_phase_axis(const AxisCode& a, con
   for (int n = 0; n < candidates; ++n) {
     if (n % kMicroReseedCandidates == 0) {
       const float u = first_u + static_cast<float>(n) * period;
-      for (int f = 0; f < a.micro_count; ++f) {
+      SLS_UNROLL_FULLY
+      for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
+        if (f >= singles) break;
         const float angle = micro_single_angle(a.micro[f], u);
         c[f] = std::cos(angle);
         s[f] = std::sin(angle);
       }
     }
     float cost = 0.0f;
-    for (int f = 0; f < a.micro_count; ++f) {
+    SLS_UNROLL_FULLY
+    for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
+      if (f >= singles) break;
       const float d = (measured[f] - c[f]) * inverse_sigma[f];
       cost += d * d;
       const float rotated = c[f] * turn_c[f] - s[f] * turn_s[f];
@@ -239,7 +262,9 @@ SLS_HOST_DEVICE inline AxisDecode decode_micro_phase_axis(const AxisCode& a, con
     // plane halfway between them (both in noise sigmas).
     const float u_second = first_u + static_cast<float>(second_n) * period;
     float separation = 0.0f;
-    for (int f = 0; f < a.micro_count; ++f) {
+    SLS_UNROLL_FULLY
+    for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
+      if (f >= singles) break;
       const float d = (std::cos(micro_single_angle(a.micro[f], u)) -
                        std::cos(micro_single_angle(a.micro[f], u_second))) * inverse_sigma[f];
       separation += d * d;
