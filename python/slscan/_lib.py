@@ -28,7 +28,7 @@ from . import _types as t
 # compares them). Passed to sls_context_create(), which refuses a library of another major
 # version or of an older minor version.
 API_VERSION_MAJOR = 0
-API_VERSION_MINOR = 4
+API_VERSION_MINOR = 5
 API_VERSION_PATCH = 0
 API_VERSION = API_VERSION_MAJOR * 10000 + API_VERSION_MINOR * 100 + API_VERSION_PATCH
 
@@ -123,13 +123,13 @@ _PROTOTYPES = {
     "sls_error_status": (c_int, [POINTER(t.ErrorC)]),
     "sls_error_free": (None, [POINTER(t.ErrorC)]),
     # sls_context.h
-    "sls_context_config_init": (None, [c_void_p]),
+    "sls_context_config_init_sized": (None, [c_void_p, c_size_t]),
     "sls_context_create": (c_int, [c_int, POINTER(t.ContextConfigC), POINTER(_P), _E]),
     "sls_context_destroy": (None, [_P]),
     "sls_context_uses_cuda": (c_int, [_P, POINTER(c_int), _E]),
     "sls_get_cuda_device_count": (c_int, [POINTER(c_int), _E]),
     # sls_device.h
-    "sls_device_info_init": (None, [c_void_p]),
+    "sls_device_info_init_sized": (None, [c_void_p, c_size_t]),
     "sls_device_list_create": (c_int, [_P, POINTER(_P), _E]),
     "sls_device_list_destroy": (None, [_P]),
     "sls_device_list_count": (c_int, [_P, POINTER(c_size_t), _E]),
@@ -139,15 +139,15 @@ _PROTOTYPES = {
     # sls_camera.h
     "sls_camera_open": (c_int, [_P, c_char_p, POINTER(_P), _E]),
     "sls_camera_close": (None, [_P]),
-    "sls_camera_info_init": (None, [c_void_p]),
+    "sls_camera_info_init_sized": (None, [c_void_p, c_size_t]),
     "sls_camera_get_info": (c_int, [_P, POINTER(t.CameraInfoC), _E]),
     "sls_camera_set_exposure_us": (c_int, [_P, c_double, _E]),
-    "sls_frame_info_init": (None, [c_void_p]),
+    "sls_frame_info_init_sized": (None, [c_void_p, c_size_t]),
     "sls_camera_grab": (c_int, [_P, c_int, POINTER(c_uint16), c_size_t, POINTER(t.FrameInfoC), _E]),
     # sls_projector.h
     "sls_projector_open": (c_int, [_P, c_char_p, POINTER(_P), _E]),
     "sls_projector_close": (None, [_P]),
-    "sls_projector_info_init": (None, [c_void_p]),
+    "sls_projector_info_init_sized": (None, [c_void_p, c_size_t]),
     "sls_projector_get_info": (c_int, [_P, POINTER(t.ProjectorInfoC), _E]),
     "sls_projector_load_scan_patterns": (c_int, [_P, POINTER(c_int), _E]),
     "sls_projector_show_pattern": (c_int, [_P, c_int, _E]),
@@ -161,57 +161,57 @@ _PROTOTYPES = {
     "sls_turntable_get_position_deg": (c_int, [_P, POINTER(c_double), _E]),
     "sls_turntable_get_steps_per_revolution": (c_int, [_P, POINTER(c_int), _E]),
     # sls_scan.h
-    "sls_scan_config_init": (None, [c_void_p]),
+    "sls_scan_config_init_sized": (None, [c_void_p, c_size_t]),
     "sls_scan_create": (c_int, [_P, POINTER(t.ScanConfigC), POINTER(_P), _E]),
     "sls_scan_destroy": (None, [_P]),
     "sls_scan_set_frame_callback": (c_int, [_P, c_void_p, c_void_p, _E]),
     "sls_scan_run_recording": (c_int, [_P, c_char_p, _E]),
-    "sls_capture_config_init": (None, [c_void_p]),
+    "sls_capture_config_init_sized": (None, [c_void_p, c_size_t]),
     "sls_scan_run_devices": (c_int, [_P, POINTER(t.CaptureConfigC), _E]),
     "sls_scan_cancel": (c_int, [_P, _E]),
-    "sls_scan_summary_init": (None, [c_void_p]),
+    "sls_scan_summary_init_sized": (None, [c_void_p, c_size_t]),
     "sls_scan_get_summary": (c_int, [_P, POINTER(t.ScanSummaryC), _E]),
-    "sls_loop_closure_init": (None, [c_void_p]),
+    "sls_loop_closure_init_sized": (None, [c_void_p, c_size_t]),
     "sls_scan_close_loop": (c_int, [_P, POINTER(t.LoopClosureC), _E]),
     "sls_scan_write_cloud": (c_int, [_P, c_char_p, _E]),
     "sls_scan_write_mesh": (c_int, [_P, c_char_p, _E]),
     "sls_scan_write_trajectory": (c_int, [_P, c_char_p, _E]),
-    "sls_frame_report_init": (None, [c_void_p]),
+    "sls_frame_report_init_sized": (None, [c_void_p, c_size_t]),
     # sls_results.h
     "sls_scan_get_cloud": (c_int, [_P, POINTER(_P), _E]),
     "sls_cloud_destroy": (None, [_P]),
-    "sls_cloud_data_init": (None, [c_void_p]),
+    "sls_cloud_data_init_sized": (None, [c_void_p, c_size_t]),
     "sls_cloud_get_data": (c_int, [_P, POINTER(t.CloudDataC), _E]),
     "sls_scan_get_mesh": (c_int, [_P, POINTER(_P), _E]),
     "sls_mesh_destroy": (None, [_P]),
-    "sls_mesh_data_init": (None, [c_void_p]),
+    "sls_mesh_data_init_sized": (None, [c_void_p, c_size_t]),
     "sls_mesh_get_data": (c_int, [_P, POINTER(t.MeshDataC), _E]),
     "sls_scan_get_trajectory": (c_int, [_P, c_void_p, c_void_p, c_size_t, POINTER(c_size_t), _E]),
     "sls_scan_render_preview": (c_int, [_P, c_void_p, c_int, c_int, c_void_p, c_size_t, _E]),
     # sls_feed.h
-    "sls_feed_config_init": (None, [c_void_p]),
+    "sls_feed_config_init_sized": (None, [c_void_p, c_size_t]),
     "sls_scan_start_feed": (c_int, [_P, POINTER(t.FeedConfigC), POINTER(c_int), _E]),
-    "sls_depth_frame_init": (None, [c_void_p]),
+    "sls_depth_frame_init_sized": (None, [c_void_p, c_size_t]),
     "sls_scan_add_depth": (c_int, [_P, POINTER(t.DepthFrameC), c_void_p, _E]),
-    "sls_stack_frame_init": (None, [c_void_p]),
+    "sls_stack_frame_init_sized": (None, [c_void_p, c_size_t]),
     "sls_scan_add_stack": (c_int, [_P, POINTER(t.StackFrameC), c_void_p, _E]),
     # sls_log.h
     "sls_set_log_callback": (c_int, [c_void_p, c_void_p, _E]),
     "sls_set_log_level": (c_int, [c_int, _E]),
     "sls_get_log_level": (c_int, [POINTER(c_int), _E]),
     # sls_calibration.h
-    "sls_calibration_config_init": (None, [c_void_p]),
+    "sls_calibration_config_init_sized": (None, [c_void_p, c_size_t]),
     "sls_calibration_run": (c_int, [_P, c_char_p, POINTER(t.CalibrationConfigC), c_void_p, c_void_p, POINTER(_P),
                                     _E]),
     "sls_calibration_destroy": (None, [_P]),
-    "sls_calibration_summary_init": (None, [c_void_p]),
+    "sls_calibration_summary_init_sized": (None, [c_void_p, c_size_t]),
     "sls_calibration_get_summary": (c_int, [_P, POINTER(t.CalibrationSummaryC), _E]),
-    "sls_intrinsics_init": (None, [c_void_p]),
+    "sls_intrinsics_init_sized": (None, [c_void_p, c_size_t]),
     "sls_calibration_get_intrinsics": (c_int, [_P, c_int, POINTER(t.IntrinsicsC), _E]),
     "sls_calibration_get_extrinsics": (c_int, [_P, POINTER(c_double), _E]),
     "sls_calibration_get_turntable_axis": (c_int, [_P, POINTER(c_double), POINTER(c_double), _E]),
     "sls_calibration_view_count": (c_int, [_P, POINTER(c_size_t), _E]),
-    "sls_calibration_view_init": (None, [c_void_p]),
+    "sls_calibration_view_init_sized": (None, [c_void_p, c_size_t]),
     "sls_calibration_get_view": (c_int, [_P, c_size_t, POINTER(t.CalibrationViewC), _E]),
     "sls_calibration_write": (c_int, [_P, c_char_p, c_int, _E]),
 }
@@ -234,8 +234,9 @@ LOG_CALLBACK = ctypes.CFUNCTYPE(None, c_int, c_char_p, c_void_p)
 
 
 def init(cls, init_name: str):
-    """A mirror of `cls` filled by the library's ``init_name`` (see _types.init_struct)."""
-    return t.init_struct(cls, getattr(lib, init_name))
+    """A mirror of `cls` filled by the library's ``init_name`` (its ``_sized`` form, for the
+    mirror's size: see _types.init_struct)."""
+    return t.init_struct(cls, getattr(lib, init_name + "_sized"))
 
 
 def encode(text: Optional[str]) -> Optional[bytes]:

@@ -4,17 +4,18 @@ from __future__ import annotations
 import ctypes
 import os
 import threading
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from . import _lib, _results
+from . import _lib, _results, _scan_config
 from ._context import Context, Handle, context_or_default
 from ._errors import BusyError, call, make_error
 from ._results import Cloud, Mesh
-from ._types import (CaptureConfigC, DepthFrameC, ErrorC, FeedConfigC, FrameReportC, FrameStatus, FusionMethod,
-                     LoopClosureC, ScanConfigC, ScanSummaryC, StackFrameC, Status, copy_reported, has_field)
+from ._scan_config import ScanConfig
+from ._types import (CaptureConfigC, DepthFrameC, ErrorC, FeedConfigC, FrameReportC, FrameStatus,
+                     LoopClosureC, ScanSummaryC, StackFrameC, Status, copy_reported, has_field)
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -136,24 +137,22 @@ def _dataclass_from_c(cls, value: ctypes.Structure):
 
 FrameCallback = Callable[[FrameReport], Any]
 
-_CONFIG_KEYS = ("fusion", "use_turntable_prior", "voxel_size_m", "volume_size_m", "max_voxels", "online_deformation")
-
-
 class Scan(Handle):
     """A scan (sls_scan_create): its configuration, and after a run its model.
 
     Args:
         context: where it runs (CPU or CUDA); ``None``: a default :class:`Context` made for the
             call (the scan does not keep it).
-        fusion: ``"gtsdf"`` (default: the detail-preserving anisotropic TSDF) or ``"tsdf"``.
-        use_turntable_prior: guess each pose from the recorded turntable angle about the
-            calibrated axis (default False: depth alone).
-        voxel_size_m: 0 (default): automatic.
-        volume_size_m: (x, y, z) extent; (0, 0, 0) (default): the camera's field of view.
-        max_voxels: the largest automatic volume; 0 (default): the library's (256e6 CUDA, 48e6 CPU).
-        online_deformation: the deformation graph (default True; needed by close_loop()).
-    Unset keywords keep the library's defaults (sls_scan_config_init); a bad value raises
-    :class:`InvalidArgumentError` naming the field.
+        config: a :class:`ScanConfig`; ``None``: the library's defaults.
+        **overrides: fields of :class:`ScanConfig` by name, over `config`, e.g.
+            ``Scan(context, use_turntable_prior=True, fusion="tsdf")``: ``fusion``,
+            ``use_turntable_prior``, ``voxel_size_m``, ``volume_size_m``, ``max_voxels``,
+            ``online_deformation``, ``calibration_path``, ``gtsdf_lambda``, ``gtsdf_kappa``,
+            ``gtsdf_penalty``, ``gtsdf_iterations``, ``poses``, ``loop_frames``,
+            ``photometric_weight``, ``icp_crease_deg``, ``icp_weights``, ``loop_closure`` (each
+            documented there, with the ``sls scan`` option it matches).
+    Unset fields keep the library's defaults (sls_scan_config_init); a bad value raises
+    :class:`InvalidArgumentError` naming the field (:class:`TypeError` for an unknown one).
 
     Runs block the calling thread (the C call runs on a worker thread of this package, where
     the frame callback is called, frame after frame); :meth:`cancel` may be called from any
@@ -163,35 +162,22 @@ class Scan(Handle):
 
     _destroy_name = "sls_scan_destroy"
 
-    def __init__(self, context: Optional[Context] = None, **config: Any) -> None:
+    def __init__(self, context: Optional[Context] = None, config: Optional[ScanConfig] = None,
+                 **overrides: Any) -> None:
         super().__init__()
         self._running = False
-        unknown = sorted(set(config) - set(_CONFIG_KEYS))
+        unknown = sorted(set(overrides) - set(_scan_config.FIELD_NAMES))
         if unknown:
-            raise TypeError(f"Scan: unknown config {', '.join(unknown)}; known: {', '.join(_CONFIG_KEYS)}")
-        self._config = _lib.init(ScanConfigC, "sls_scan_config_init")
-        for key, value in config.items():
-            if key == "fusion":
-                value = FusionMethod[value.upper()] if isinstance(value, str) else FusionMethod(value)
-            elif key == "volume_size_m":
-                value = [float(v) for v in value]
-                if len(value) != 3:
-                    raise ValueError(f"volume_size_m: 3 values (x, y, z), not {len(value)}")
-                value = (ctypes.c_double * 3)(*value)
-            elif key in ("use_turntable_prior", "online_deformation"):
-                value = int(bool(value))
-            else:
-                value = float(value)
-            setattr(self._config, key, value)
+            raise TypeError(f"Scan: unknown config {', '.join(unknown)}; known: "
+                            f"{', '.join(_scan_config.FIELD_NAMES)}")
+        self._config = _scan_config.to_c(replace(config or ScanConfig(), **overrides))
         with context_or_default(context) as handle:
             call(_lib.lib.sls_scan_create, handle, ctypes.byref(self._config), ctypes.byref(self._handle))
 
     @property
-    def config(self) -> Dict[str, Any]:
-        """The configuration the scan was made with (defaults filled in)."""
-        return {"fusion": FusionMethod(self._config.fusion), "use_turntable_prior": bool(self._config.use_turntable_prior),
-                "voxel_size_m": self._config.voxel_size_m, "volume_size_m": tuple(self._config.volume_size_m),
-                "max_voxels": self._config.max_voxels, "online_deformation": bool(self._config.online_deformation)}
+    def config(self) -> ScanConfig:
+        """The configuration the scan was made with, every field resolved (defaults filled in)."""
+        return _scan_config.from_c(self._config)
 
     @property
     def running(self) -> bool:
@@ -221,7 +207,7 @@ class Scan(Handle):
         recording without calibration or when no frame could be fused."""
         return self._run(_lib.lib.sls_scan_run_recording, on_frame, with_depth, _lib.encode_path(path))
 
-    def run_devices(self, *, camera: str, projector: str, calibration: PathLike, recording: PathLike,
+    def run_devices(self, *, camera: str, projector: str, recording: PathLike, calibration: Optional[PathLike] = None,
                     turntable: Optional[str] = None, frames: int = 0,
                     on_frame: Optional[FrameCallback] = None, with_depth: bool = False) -> ScanSummary:
         """Captures from devices by URI into a new recording, then scans it
@@ -231,17 +217,19 @@ class Scan(Handle):
         Args:
             camera, projector: device URIs (``slscan.devices()``), e.g. one
                 ``"sim://knurled-knob?preset=ci"`` for both (the simulated head).
-            calibration: calibration.yml of these devices (stored in the recording).
+            calibration: calibration.yml of these devices (stored in the recording); None: with a
+                ``replay://`` camera the replayed recording's (others need one).
             recording: the recording folder to create (must not exist or be empty); it is kept.
             turntable: a turntable URI, or None: every stack at one position.
-            frames: frames per revolution, one revolution; 0: 36 with a turntable, else 1.
+            frames: frames per revolution, one revolution; 0: 36 with a turntable, else 1 (with a
+                ``replay://`` camera the replayed recording's frames).
             on_frame, with_depth: as in :meth:`run_recording`.
         Raises as :meth:`run_recording`, and the device errors of opening a URI."""
         capture = _lib.init(CaptureConfigC, "sls_capture_config_init")
         capture.camera_uri = _lib.encode(camera)
         capture.projector_uri = _lib.encode(projector)
         capture.turntable_uri = _lib.encode(turntable)
-        capture.calibration_path = _lib.encode_path(calibration)
+        capture.calibration_path = None if calibration is None else _lib.encode_path(calibration)
         capture.recording_path = _lib.encode_path(recording)
         capture.frames = int(frames)
         return self._run(_lib.lib.sls_scan_run_devices, on_frame, with_depth, ctypes.byref(capture))

@@ -1,8 +1,8 @@
-"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.4.0).
+"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.5.0).
 
 Each versioned struct (its first field `struct_size`) is mirrored field for field, in the
 order of the header. Fill one with :func:`init_struct`, which calls the library's own
-``*_init()`` (so the defaults are the library's, never duplicated here), and read one the
+``*_init_sized()`` (so the defaults are the library's, never duplicated here), and read one the
 library filled with :func:`copy_reported` (the frame report and the calibration progress,
 whose size the library sets to its own). The test ``tests/python/test_types.py`` compares every
 mirror's size and field offsets with the C compiler's.
@@ -74,6 +74,33 @@ class FusionMethod(enum.IntEnum):
     TSDF = 1
 
 
+class GtsdfPenalty(enum.IntEnum):
+    """sls_gtsdf_penalty (sls_scan.h): GTSDF's penalty; DEFAULT is the library's (Geman-McClure)."""
+    DEFAULT = 0
+    PERONA_MALIK = 1
+    CHARBONNIER = 2
+    GEMAN_MCCLURE = 3
+
+
+class PoseSource(enum.IntEnum):
+    """sls_pose_source (sls_scan.h): tracked poses, or a simulated recording's true ones."""
+    TRACK = 0
+    GROUNDTRUTH = 1
+
+
+class IcpWeights(enum.IntEnum):
+    """sls_icp_weights (sls_scan.h): ICP's per-pixel weights."""
+    CONFIDENCE = 0
+    EQUAL = 1
+
+
+class LoopClosureMode(enum.IntEnum):
+    """sls_loop_closure_mode (sls_scan.h): whether a run ends by closing the loop."""
+    CALLER = 0
+    AUTO = 1
+    ON = 2
+
+
 class FrameStatus(enum.IntEnum):
     """sls_frame_status (sls_scan.h)."""
     FUSED = 0
@@ -118,7 +145,10 @@ class ProjectorInfoC(Structure):
 class ScanConfigC(Structure):
     _fields_ = [("struct_size", c_size_t), ("fusion", c_enum), ("use_turntable_prior", c_int),
                 ("voxel_size_m", c_double), ("volume_size_m", c_double * 3), ("max_voxels", c_double),
-                ("online_deformation", c_int)]
+                ("online_deformation", c_int), ("calibration_path", c_char_p), ("gtsdf_lambda", c_double),
+                ("gtsdf_kappa", c_double), ("gtsdf_penalty", c_enum), ("gtsdf_iterations", c_int),
+                ("poses", c_enum), ("loop_frames", c_int), ("photometric_weight", c_double),
+                ("icp_crease_deg", c_double), ("icp_weights", c_enum), ("loop_closure", c_enum)]
 
 
 class FrameReportC(Structure):
@@ -247,32 +277,15 @@ REPORTED_STRUCTS: dict[str, Type[Structure]] = {
 
 S = TypeVar("S", bound=Structure)
 
-# The largest struct a library's _init() may write: room for every later version's fields.
-_INIT_SCRATCH_BYTES = 4096
-
-
-def library_struct_size(init: Callable[[ctypes.c_void_p], None]) -> int:
-    """The struct_size a library's ``*_init()`` sets: the size of the library's own struct.
-
-    The _init() functions are the library's and write its whole struct, which a newer library
-    may have grown: they write into a scratch buffer large enough for any version, never into
-    a mirror directly."""
-    scratch = (ctypes.c_char * _INIT_SCRATCH_BYTES)()
-    init(ctypes.cast(scratch, ctypes.c_void_p))
-    return c_size_t.from_buffer(scratch).value
-
-
-def init_struct(cls: Type[S], init: Callable[[ctypes.c_void_p], None]) -> S:
-    """A mirror filled by the library's ``*_init()``: its defaults, and struct_size the mirror's
-    own size (the fields of this version; a newer library keeps its defaults for the rest)."""
-    scratch = (ctypes.c_char * _INIT_SCRATCH_BYTES)()
-    init(ctypes.cast(scratch, ctypes.c_void_p))
-    library_size = c_size_t.from_buffer(scratch).value
-    if not 0 < library_size <= _INIT_SCRATCH_BYTES:
-        raise RuntimeError(f"{cls.__name__}: the library's _init set struct_size {library_size}")
+def init_struct(cls: Type[S], init_sized: Callable[[ctypes.c_void_p, int], None]) -> S:
+    """A mirror filled by the library's ``*_init_sized()`` for the mirror's size (what the C
+    headers' ``*_init()`` macro passes): the library's defaults for the fields of this version,
+    struct_size the mirror's size, no byte written past it (a newer library keeps its defaults
+    for the fields it has beyond)."""
     value = cls()
-    ctypes.memmove(ctypes.byref(value), scratch, min(library_size, ctypes.sizeof(cls)))
-    value.struct_size = ctypes.sizeof(cls)
+    init_sized(ctypes.cast(ctypes.byref(value), ctypes.c_void_p), ctypes.sizeof(cls))
+    if value.struct_size != ctypes.sizeof(cls):
+        raise RuntimeError(f"{cls.__name__}: the library's _init_sized set struct_size {value.struct_size}")
     return value
 
 

@@ -10,8 +10,8 @@ stack decoded, tracked and fused with live figures, the loop closed, and the mod
 
 OUT (--out) receives recording/ (the captured stacks: scan it again with `sls scan --input`),
 cloud.ply, mesh.ply, trajectory.txt and report.json (the figures). Without --calibration the
-devices must be the simulator's: its exact calibration is taken from a one-frame recording of
-the `sls` tool (`sls sim`). Ctrl-C stops the scan after the current frame and writes what was
+devices must be the simulator's (its exact calibration is taken from a one-frame recording of
+the `sls` tool, `sls sim`) or replay://REC (REC's calibration and frames). Ctrl-C stops the scan after the current frame and writes what was
 fused. Exit status: 0 done, 1 the scan failed, 2 bad usage, 130 interrupted.
 """
 from __future__ import annotations
@@ -73,8 +73,8 @@ def parse_args(argv: Optional[List[str]]) -> argparse.Namespace:
         args.turntable = args.camera if sim_camera else "none"
     if args.turntable == "none":
         args.turntable = None
-    if args.calibration is None and not sim_camera:
-        parser.error("--calibration is needed with devices that are not sim://")
+    if args.calibration is None and not sim_camera and not args.camera.startswith("replay://"):
+        parser.error("--calibration is needed with devices that are not sim:// or replay://")
     return args
 
 
@@ -94,6 +94,18 @@ def find_sls_tool(explicit: Optional[str]) -> str:
         return found
     raise SystemExit("turntable_scan: cannot find the sls tool for the simulator's calibration: "
                      "give --sls or --calibration")
+
+
+def replayed_recording(camera_uri: str) -> Optional[pathlib.Path]:
+    """The recording a replay:// URI plays (None for other schemes)."""
+    if not camera_uri.startswith("replay://"):
+        return None
+    return pathlib.Path(urllib.parse.unquote(camera_uri[len("replay://"):].split("?", 1)[0]))
+
+
+def replayed_frames(recording: pathlib.Path) -> int:
+    """How many frames a recording holds (its manifest's)."""
+    return len(json.loads((recording / "manifest.json").read_text())["frames"])
 
 
 def simulator_calibration(camera_uri: str, sls: str, folder: pathlib.Path) -> pathlib.Path:
@@ -185,15 +197,19 @@ def main(argv: Optional[List[str]] = None) -> int:
     progress = FrameProgress()
     status = 0
     with tempfile.TemporaryDirectory(prefix="turntable_scan-") as scratch:
-        calibration = args.calibration or simulator_calibration(args.camera, find_sls_tool(args.sls),
-                                                                pathlib.Path(scratch))
-        report["calibration"] = str(args.calibration or "the simulator's (sls sim)")
+        replayed = replayed_recording(args.camera)
+        if args.calibration or replayed:
+            calibration = args.calibration  # None: the replayed recording's (sls_capture_config)
+        else:
+            calibration = simulator_calibration(args.camera, find_sls_tool(args.sls), pathlib.Path(scratch))
+        report["calibration"] = str(args.calibration or ("the replayed recording's" if replayed else
+                                                         "the simulator's (sls sim)"))
         with slscan.Context(device=args.device) as context, \
                 slscan.Scan(context, fusion=args.fusion, use_turntable_prior=not args.no_turntable_prior) as scan:
             print(f"capturing one revolution from {args.camera} on the {'GPU' if context.uses_cuda else 'CPU'} ...",
                   flush=True)
-            # sls_capture_config.frames 0: 36 stops with a turntable, else 1.
-            stops = args.frames or (36 if args.turntable else 1)
+            # sls_capture_config.frames 0: 36 stops with a turntable, else 1; a replay's frames.
+            stops = args.frames or (replayed_frames(replayed) if replayed else 36 if args.turntable else 1)
             watcher = CaptureProgress(recording / "manifest.json", stops)
             watcher.start()
             first_frame: List[float] = []

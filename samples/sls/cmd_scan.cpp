@@ -79,43 +79,6 @@ struct ScanOptions {
 
 using Clock = SteadyClock;
 
-// The volume around the object: the bounding box of the ground truth's reference surface
-// plus a margin of the integration band, at the requested (or automatic) voxel size.
-fusion::VolumeGeometry object_volume(const RecordingReader& recording, const ScanOptions& options,
-                                     const Device& device, const fusion::IntegrationOptions& fusion_options) {
-  const std::string reference_path = recording.groundtruth_folder() + "/reference.ply";
-  if (!std::filesystem::exists(reference_path)) {
-    throw_error(ErrorCode::kInvalidArgument, "{} has no ground-truth reference.ply to place the volume around",
-                recording.folder());
-  }
-  const PointCloud reference = read_ply_cloud(reference_path);
-  if (reference.empty()) throw_error(ErrorCode::kFormat, "{} holds no points", reference_path);
-  Eigen::Vector3d lo = reference.positions[0].cast<double>(), hi = lo;
-  for (const Eigen::Vector3f& p : reference.positions) {
-    lo = lo.cwiseMin(p.cast<double>());
-    hi = hi.cwiseMax(p.cast<double>());
-  }
-  const CameraIntrinsics& camera = recording.calibration().camera;
-  double voxel = options.voxel_um * 1e-6;
-  if (voxel <= 0.0) {
-    // Twice the pixel footprint at the working distance (the median depth is ~ the focus).
-    const double working_distance = 0.1;
-    voxel = 2.0 * working_distance / camera.fx;
-  }
-  const double budget =
-      options.max_voxels_million > 0.0 ? options.max_voxels_million * 1e6 : session::automatic_max_voxels(device);
-  for (;;) {
-    const double margin = (fusion_options.eta_voxels + 2.0) * voxel;
-    const Eigen::Vector3d size = (hi - lo).array() + 2.0 * margin;
-    const Eigen::Vector3i counts = (size / voxel).array().ceil().cast<int>();
-    const double total = static_cast<double>(counts.x()) * counts.y() * counts.z();
-    if (total <= budget || options.voxel_um > 0.0) {
-      return fusion::VolumeGeometry::centred(0.5 * (lo + hi), counts.x(), counts.y(), counts.z(), voxel);
-    }
-    voxel *= std::cbrt(total / budget) * 1.001;
-  }
-}
-
 // Set by SIGINT / SIGTERM: the scan stops after the current frame and writes what it fused.
 std::atomic<bool> g_stop_requested{false};
 extern "C" void request_stop(int) { g_stop_requested.store(true); }
@@ -138,15 +101,9 @@ LoopClosureChoice loop_closure_choice(const RecordingReader& recording, const Sc
   if (!deformation) return {false, options.poses == "groundtruth" ? "known poses" : "--deformation off"};
   if (options.loop_closure == "on") return {true, "--loop-closure on"};
   if (options.loop_closure == "off") return {false, "--loop-closure off"};
-  std::vector<double> angles;
-  for (std::size_t i = 0; i < recording.frame_count(); ++i) {
-    if (recording.frame(i).turntable_angle_deg) angles.push_back(*recording.frame(i).turntable_angle_deg);
-  }
-  if (angles.size() < 3) return {false, "no turntable angles: not a turntable revolution"};
-  const double span = std::abs(angles.back() - angles.front());
-  const double step = span / static_cast<double>(angles.size() - 1);
-  if (span + 2.0 * step >= 360.0 - 1e-6) return {true, fmt::format("a full turntable revolution ({:.1f}°)", span)};
-  return {false, fmt::format("the turntable turned {:.1f}°, not a full revolution", span)};
+  std::string why;
+  const bool full = session::is_full_revolution(recording, &why);
+  return {full, why};
 }
 
 // Decodes, tracks (or takes the true poses) and fuses every frame of the recording through a
@@ -166,21 +123,16 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   if (options.gtsdf_iterations) integration.iterations = *options.gtsdf_iterations;
   std::vector<StampedPose> truth;
   if (groundtruth) {
-    const std::string trajectory_path = recording.groundtruth_folder() + "/trajectory.txt";
-    if (!std::filesystem::exists(trajectory_path)) {
-      throw_error(ErrorCode::kInvalidArgument,
-                  "--poses groundtruth: {} has no ground-truth trajectory (only simulated recordings do)",
-                  recording.folder());
+    try {
+      truth = session::groundtruth_poses(recording);
+    } catch (const Error& error) {
+      if (error.code() != ErrorCode::kInvalidArgument) throw;
+      throw Error(error.code(), fmt::format("--poses groundtruth: {}", error.what()));
     }
-    truth = read_tum_trajectory(trajectory_path);
-    // A capture killed between writing a frame's pose and listing the frame leaves the pose
-    // of that unlisted frame last (drivers/sim/sim_recording.h): not one of the recording's.
-    if (truth.size() == recording.frame_count() + 1) truth.pop_back();
-    if (truth.size() != recording.frame_count()) {
-      throw_error(ErrorCode::kFormat, "{}: {} poses for {} frames", trajectory_path, truth.size(),
-                  recording.frame_count());
-    }
-    session_options.fixed_volume = object_volume(recording, options, device, session_options.integration);
+    const double budget =
+        options.max_voxels_million > 0.0 ? options.max_voxels_million * 1e6 : session::automatic_max_voxels(device);
+    session_options.fixed_volume =
+        session::groundtruth_volume(recording, options.voxel_um * 1e-6, budget, session_options.integration);
   } else {
     session_options.voxel_size_m = options.voxel_um * 1e-6;
     session_options.max_voxels =
@@ -543,7 +495,8 @@ bool capture_for_scan(const Context& context, const ScanOptions& options, const 
   }
   if (!outcome.calibrated) {
     throw_error(ErrorCode::kInvalidArgument,
-                "captured {} frame(s) into {}; without --calibration they cannot be decoded (the recording is kept)",
+                "captured {} frame(s) into {}; without --calibration (or a replayed recording's) they cannot be "
+                "decoded (the recording is kept)",
                 outcome.frames, folder);
   }
   return true;
@@ -607,8 +560,10 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                                      "Scan with devices by URI (see `sls devices`): the camera, e.g. gige://192.168.1.20");
   command->add_option("--projector", options->projector_uri, "With --camera: the projector, e.g. dlpc350://");
   command->add_option("--turntable", options->turntable_uri, "With --camera: the turntable, e.g. headctl://");
-  command->add_option("--calibration", options->calibration, "With --camera: calibration.yml of these devices (stored in the recording); with --input: decode "
-                      "with this calibration instead of the recording's (e.g. a new calibration of the head)");
+  command->add_option("--calibration", options->calibration,
+                      "With --camera: calibration.yml of these devices (stored in the recording; a replay:// camera's "
+                      "default: the replayed recording's); with --input: decode with this calibration instead of the "
+                      "recording's (e.g. a new calibration of the head)");
   input->excludes(sim);
   sim->excludes(input);
   camera->excludes(input);
@@ -624,7 +579,8 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
       ->capture_default_str();
   command->add_option("--frames", options->frames,
-                      "Frames per revolution (--sim: 0 is the preset's; --camera: 0 is 36 with a turntable, else 1)")
+                      "Frames per revolution (--sim: 0 is the preset's; --camera: 0 is 36 with a turntable, else 1, "
+                      "with a replay:// camera the replayed recording's)")
       ->check(CLI::NonNegativeNumber);
   command->add_option("--out", options->out,
                       "Output folder for cloud.ply, mesh.ply, trajectory.txt, report.json, report.html")

@@ -24,41 +24,31 @@
 #include "sdk/core/progress.h"
 #endif
 
+namespace {
+
+sls_calibration_config calibration_config_defaults() {
+  sls_calibration_config config = sls::capi::zeroed<sls_calibration_config>();
+  config.max_obliquity_deg = 65.0;
+  config.min_projector_corner_fraction = 0.5;
+  config.max_rms_px = 1.0;
+  return config;
+}
+
+}  // namespace
+
 extern "C" {
 
 // The _init() functions work in every build: a program fills its structs the same way.
 
-SLS_API void sls_calibration_config_init(sls_calibration_config* config) {
-  if (config == nullptr) return;
-  std::memset(config, 0, sizeof(*config));
-  config->struct_size = sizeof(*config);
-  config->pattern_set = nullptr;
-  config->estimate_k3 = 0;
-  config->max_obliquity_deg = 65.0;
-  config->min_projector_corner_fraction = 0.5;
-  config->max_rms_px = 1.0;
-}
+SLS_CAPI_DEFINE_INIT(sls_calibration_config, max_rms_px, calibration_config_defaults())
 
-SLS_API void sls_calibration_summary_init(sls_calibration_summary* summary) {
-  if (summary == nullptr) return;
-  std::memset(summary, 0, sizeof(*summary));
-  summary->struct_size = sizeof(*summary);
-  summary->pattern_set = nullptr;
-}
+SLS_CAPI_DEFINE_INIT(sls_calibration_summary, axis_point_err_um,
+                     sls::capi::zeroed<sls_calibration_summary>())
 
-SLS_API void sls_intrinsics_init(sls_intrinsics* intrinsics) {
-  if (intrinsics == nullptr) return;
-  std::memset(intrinsics, 0, sizeof(*intrinsics));
-  intrinsics->struct_size = sizeof(*intrinsics);
-}
+SLS_CAPI_DEFINE_INIT(sls_intrinsics, p2, sls::capi::zeroed<sls_intrinsics>())
 
-SLS_API void sls_calibration_view_init(sls_calibration_view* view) {
-  if (view == nullptr) return;
-  std::memset(view, 0, sizeof(*view));
-  view->struct_size = sizeof(*view);
-  view->name = nullptr;
-  view->rejected_reason = nullptr;
-}
+SLS_CAPI_DEFINE_INIT(sls_calibration_view, decoded_fraction,
+                     sls::capi::zeroed<sls_calibration_view>())
 
 }  // extern "C"
 

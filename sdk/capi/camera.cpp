@@ -95,17 +95,9 @@ void grab(sls_camera& camera, int timeout_ms, std::uint16_t* pixels, std::size_t
 
 extern "C" {
 
-SLS_API void sls_camera_info_init(sls_camera_info* info) {
-  if (info == nullptr) return;
-  std::memset(info, 0, sizeof(*info));
-  info->struct_size = sizeof(*info);
-}
+SLS_CAPI_DEFINE_INIT(sls_camera_info, bit_depth, sls::capi::zeroed<sls_camera_info>())
 
-SLS_API void sls_frame_info_init(sls_frame_info* info) {
-  if (info == nullptr) return;
-  std::memset(info, 0, sizeof(*info));
-  info->struct_size = sizeof(*info);
-}
+SLS_CAPI_DEFINE_INIT(sls_frame_info, frames_missed, sls::capi::zeroed<sls_frame_info>())
 
 SLS_API sls_status sls_camera_open(sls_context* context, const char* uri, sls_camera** camera, sls_error** error) {
   SLS_CAPI_REQUIRE(camera != nullptr, error, "camera (the output pointer) is NULL");

@@ -14,6 +14,13 @@
 
 namespace {
 
+sls_context_config context_config_defaults() {
+  sls_context_config config = sls::capi::zeroed<sls_context_config>();
+  config.log_level = SLS_LOG_WARNING;
+  config.device = SLS_DEVICE_AUTO;
+  return config;
+}
+
 // The caller's config, which may come from older headers (smaller struct_size): fields it
 // lacks keep their defaults.
 sls_context_config read_config(const sls_context_config* user) {
@@ -52,14 +59,7 @@ SLS_API int sls_get_api_version(void) { return SLS_API_VERSION; }
 
 SLS_API const char* sls_get_build_info(void) { return SLS_BUILD_INFO; }
 
-SLS_API void sls_context_config_init(sls_context_config* config) {
-  if (config == nullptr) return;
-  std::memset(config, 0, sizeof(*config));
-  config->struct_size = sizeof(*config);
-  config->log_level = SLS_LOG_WARNING;
-  config->device = SLS_DEVICE_AUTO;
-  config->cuda_device_id = 0;
-}
+SLS_CAPI_DEFINE_INIT(sls_context_config, cuda_device_id, context_config_defaults())
 
 SLS_API sls_status sls_context_create(int api_version, const sls_context_config* config, sls_context** context,
                                       sls_error** error) {

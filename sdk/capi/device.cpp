@@ -41,11 +41,7 @@ constexpr std::size_t kDeviceInfoFirstVersionSize = offsetof(sls_device_info, ro
 
 extern "C" {
 
-SLS_API void sls_device_info_init(sls_device_info* info) {
-  if (info == nullptr) return;
-  std::memset(info, 0, sizeof(*info));
-  info->struct_size = sizeof(*info);
-}
+SLS_CAPI_DEFINE_INIT(sls_device_info, roles, sls::capi::zeroed<sls_device_info>())
 
 SLS_API sls_status sls_device_list_create(sls_context* context, sls_device_list** list, sls_error** error) {
   SLS_CAPI_REQUIRE(list != nullptr, error, "list (the output pointer) is NULL");

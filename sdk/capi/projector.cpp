@@ -32,11 +32,7 @@ constexpr std::size_t kProjectorInfoFirstVersionSize = offsetof(sls_projector_in
 
 extern "C" {
 
-SLS_API void sls_projector_info_init(sls_projector_info* info) {
-  if (info == nullptr) return;
-  std::memset(info, 0, sizeof(*info));
-  info->struct_size = sizeof(*info);
-}
+SLS_CAPI_DEFINE_INIT(sls_projector_info, height, sls::capi::zeroed<sls_projector_info>())
 
 SLS_API sls_status sls_projector_open(sls_context* context, const char* uri, sls_projector** projector,
                                       sls_error** error) {

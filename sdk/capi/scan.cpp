@@ -14,11 +14,15 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
+
+#include "drivers/interfaces/device_uri.h"
 #include "fusion/extract.h"
 #include "sdk/capi/capi_guard.h"
 #include "sdk/capi/context_internal.h"
 #include "sdk/capi/scan_internal.h"
 #include "sdk/capi/versioned_struct.h"
+#include "sdk/core/calibration.h"
 #include "sdk/core/error.h"
 #include "sdk/core/log.h"
 #include "sdk/core/ply.h"
@@ -41,7 +45,66 @@ constexpr std::size_t kCaptureConfigFirstVersionSize = offsetof(sls_capture_conf
 constexpr std::size_t kSummaryFirstVersionSize = offsetof(sls_scan_summary, volume_moves) + sizeof(std::size_t);
 constexpr std::size_t kLoopClosureFirstVersionSize = offsetof(sls_loop_closure, ms) + sizeof(double);
 
-sls::session::ScanSessionOptions session_options(const sls_scan_config& config, const sls::Device& device) {
+sls_scan_config scan_config_defaults() {
+  sls_scan_config config = sls::capi::zeroed<sls_scan_config>();
+  config.fusion = SLS_FUSION_GTSDF;
+  config.online_deformation = 1;
+  // `sls scan`'s defaults (the others are 0: the library's, or off).
+  config.loop_frames = sls::session::DeformationOptions().loop_frames;
+  config.icp_crease_deg = sls::fusion::TrackingOptions().crease_angle_deg;
+  return config;
+}
+
+// An API 0.5 field starts past the 0.4 struct, padding included (versioned_struct.h).
+static_assert(offsetof(sls_scan_config, calibration_path) >= SLS_CAPI_SIZE_0_4(sls_scan_config, online_deformation),
+              "a field appended in 0.5 lies in the 0.4 struct's padding");
+
+// Throws kInvalidArgument naming config.FIELD unless lo <= value <= hi, or value is 0 and 0 is
+// allowed (`zero`: what 0 means).
+void check_range(double value, double lo, double hi, const char* field, const char* zero = nullptr) {
+  if (zero != nullptr && value == 0.0) return;
+  if (!(value >= lo && value <= hi)) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.{} {} ({}{} .. {})", field, value,
+                     zero != nullptr ? fmt::format("0: {}, or ", zero) : std::string(), lo, hi);
+  }
+}
+
+// The GTSDF parameters a config sets (0 / SLS_GTSDF_PENALTY_DEFAULT: the library's), over
+// IntegrationOptions::gtsdf(); refused with SLS_FUSION_TSDF, as `sls scan` refuses them.
+void apply_gtsdf(const sls_scan_config& config, sls::fusion::IntegrationOptions* integration) {
+  const long long penalty = sls::capi::c_enum_value(config.gtsdf_penalty);
+  const bool any = config.gtsdf_lambda != 0.0 || config.gtsdf_kappa != 0.0 || penalty != SLS_GTSDF_PENALTY_DEFAULT ||
+                   config.gtsdf_iterations != 0;
+  if (any && !integration->is_gtsdf()) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "config.gtsdf_lambda/_kappa/_penalty/_iterations are set but config.fusion is SLS_FUSION_TSDF "
+                     "(they need SLS_FUSION_GTSDF)");
+  }
+  check_range(config.gtsdf_lambda, 1e-3, 1e3, "gtsdf_lambda", "the library's");
+  check_range(config.gtsdf_kappa, 1e-4, 10.0, "gtsdf_kappa", "the library's");
+  check_range(config.gtsdf_iterations, 1, 100, "gtsdf_iterations", "the library's");
+  if (config.gtsdf_lambda != 0.0) integration->lambda = config.gtsdf_lambda;
+  if (config.gtsdf_kappa != 0.0) integration->kappa = config.gtsdf_kappa;
+  if (config.gtsdf_iterations != 0) integration->iterations = config.gtsdf_iterations;
+  switch (penalty) {
+    case SLS_GTSDF_PENALTY_DEFAULT: break;
+    case SLS_GTSDF_PENALTY_PERONA_MALIK: integration->penalty = sls::fusion::Penalty::kPeronaMalik; break;
+    case SLS_GTSDF_PENALTY_CHARBONNIER: integration->penalty = sls::fusion::Penalty::kCharbonnier; break;
+    case SLS_GTSDF_PENALTY_GEMAN_MCCLURE: integration->penalty = sls::fusion::Penalty::kGemanMcClure; break;
+    default:
+      sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.gtsdf_penalty {} is not an sls_gtsdf_penalty",
+                       penalty);
+  }
+}
+
+// What the C API keeps of a config beside the session's options.
+struct ScanChoices {
+  bool groundtruth = false;
+  sls_loop_closure_mode loop_closure = SLS_LOOP_CLOSURE_CALLER;
+};
+
+sls::session::ScanSessionOptions session_options(const sls_scan_config& config, const sls::Device& device,
+                                                 ScanChoices* choices) {
   sls::session::ScanSessionOptions options;
   options.device = device;
   const long long fusion = sls::capi::c_enum_value(config.fusion);
@@ -52,6 +115,7 @@ sls::session::ScanSessionOptions session_options(const sls_scan_config& config, 
   } else {
     sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.fusion {} is not an sls_fusion_method", fusion);
   }
+  apply_gtsdf(config, &options.integration);
   options.turntable_prior = config.use_turntable_prior != 0;
   if (!(config.voxel_size_m >= 0.0) || !std::isfinite(config.voxel_size_m)) {
     sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.voxel_size_m {} (0: automatic, or positive)",
@@ -73,6 +137,32 @@ sls::session::ScanSessionOptions session_options(const sls_scan_config& config, 
   }
   options.max_voxels = config.max_voxels > 0.0 ? config.max_voxels : sls::session::automatic_max_voxels(device);
   options.deformation.enabled = config.online_deformation != 0;
+  check_range(config.loop_frames, 1, 64, "loop_frames");
+  options.deformation.loop_frames = config.loop_frames;
+  check_range(config.photometric_weight, 0.0, 1e6, "photometric_weight");
+  options.tracking.photometric_weight = config.photometric_weight;
+  check_range(config.icp_crease_deg, 0.0, 179.0, "icp_crease_deg");
+  options.tracking.crease_angle_deg = config.icp_crease_deg;
+  const long long weights = sls::capi::c_enum_value(config.icp_weights);
+  if (weights != SLS_ICP_WEIGHTS_CONFIDENCE && weights != SLS_ICP_WEIGHTS_EQUAL) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.icp_weights {} is not an sls_icp_weights", weights);
+  }
+  options.tracking.weight_by_confidence = weights == SLS_ICP_WEIGHTS_CONFIDENCE;
+  const long long poses = sls::capi::c_enum_value(config.poses);
+  if (poses != SLS_POSES_TRACK && poses != SLS_POSES_GROUNDTRUTH) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.poses {} is not an sls_pose_source", poses);
+  }
+  choices->groundtruth = poses == SLS_POSES_GROUNDTRUTH;
+  if (choices->groundtruth) {
+    // Known poses, as `sls scan --poses groundtruth`: nothing tracked, so no prior and no drift.
+    options.turntable_prior = false;
+    options.deformation.enabled = false;
+  }
+  const long long loop = sls::capi::c_enum_value(config.loop_closure);
+  if (loop != SLS_LOOP_CLOSURE_CALLER && loop != SLS_LOOP_CLOSURE_AUTO && loop != SLS_LOOP_CLOSURE_ON) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.loop_closure {} is not an sls_loop_closure_mode", loop);
+  }
+  choices->loop_closure = static_cast<sls_loop_closure_mode>(loop);
   options.validate();
   return options;
 }
@@ -88,11 +178,23 @@ sls_frame_status to_c(sls::session::FrameStatus status) {
 
 bool cancel_requested(const sls_scan& scan) { return scan.cancel_requested.load(); }
 
+sls_loop_closure close_loop(sls_scan& scan);
+void close_loop_after_run(sls_scan& scan, const sls::RecordingReader& recording);
+
 // Replays the recording at `folder` into a new session (scan.session), the frame callback after
 // each frame; throws kCancelled after a cancel, kInvalidArgument when nothing was fused.
 void scan_recording(sls_scan& scan, const std::string& folder) {
-  const sls::RecordingReader recording = sls::session::open_recording_for_scan(folder);
-  scan.session.emplace(sls::session::make_recording_session(recording, scan.options));
+  const sls::RecordingReader recording = sls::session::open_recording_for_scan(folder, scan.calibration.has_value());
+  sls::session::ScanSessionOptions options = scan.options;
+  std::vector<sls::StampedPose> truth;
+  if (scan.groundtruth) {
+    // As `sls scan --poses groundtruth`: the true poses, one volume around the object.
+    truth = sls::session::groundtruth_poses(recording);
+    options.fixed_volume =
+        sls::session::groundtruth_volume(recording, options.voxel_size_m, options.max_voxels, options.integration);
+  }
+  scan.session.emplace(
+      sls::session::make_recording_session(recording, options, scan.calibration ? &*scan.calibration : nullptr));
   sls::session::ScanSession& session = *scan.session;
   const std::size_t recording_frames = recording.frame_count();
   // Reported from inside the session's add_frame, where the frame's depth map still exists.
@@ -102,7 +204,8 @@ void scan_recording(sls_scan& scan, const std::string& folder) {
   });
   // Asked before every frame: a cancel stops the replay after the frame in progress.
   const sls::ProgressCallback progress = [&scan](const sls::ProgressUpdate&) { return !cancel_requested(scan); };
-  const sls::session::ReplayOutcome outcome = sls::session::run_recording(session, recording, nullptr, {}, progress);
+  const sls::session::ReplayOutcome outcome =
+      sls::session::run_recording(session, recording, scan.groundtruth ? &truth : nullptr, {}, progress);
   if (outcome.interrupted) {
     scan.cancelled = true;
     sls::throw_error(sls::ErrorCode::kCancelled, "{}: {}; the model keeps the {} frame(s) fused", folder,
@@ -117,6 +220,7 @@ void scan_recording(sls_scan& scan, const std::string& folder) {
                                           sls::session::frame_status_name(frames.front().status) + ": " +
                                           frames.front().reason);
   }
+  close_loop_after_run(scan, recording);
 }
 
 void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
@@ -129,7 +233,12 @@ void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
   sls::session::DeviceCaptureRequest request;
   request.camera_uri = required(capture.camera_uri, "camera_uri");
   request.projector_uri = required(capture.projector_uri, "projector_uri");
-  request.calibration_path = required(capture.calibration_path, "calibration_path");
+  // A replay:// camera brings its recording's calibration; other devices need theirs.
+  if (capture.calibration_path != nullptr) request.calibration_path = capture.calibration_path;
+  if (request.calibration_path.empty() && sls::drivers::parse_device_uri(request.camera_uri).scheme != "replay") {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "capture.calibration_path is missing (only a replay:// camera brings its recording's)");
+  }
   const std::string folder = required(capture.recording_path, "recording_path");
   if (capture.turntable_uri != nullptr) request.turntable_uri = capture.turntable_uri;
   if (capture.frames < 0) {
@@ -170,6 +279,21 @@ sls_loop_closure close_loop(sls_scan& scan) {
   result.last_pose_correction_deg = closed.correction_deg;
   result.ms = closed.ms;
   return result;
+}
+
+// config.loop_closure after a run that was not cancelled: SLS_LOOP_CLOSURE_ON always,
+// SLS_LOOP_CLOSURE_AUTO for a full turntable revolution (as `sls scan`). A loop that does not
+// close is a warning, as in the tool: the run's model stands.
+void close_loop_after_run(sls_scan& scan, const sls::RecordingReader& recording) {
+  if (scan.loop_closure == SLS_LOOP_CLOSURE_CALLER || !scan.session->deformation_enabled()) return;
+  std::string why = "config.loop_closure SLS_LOOP_CLOSURE_ON";
+  if (scan.loop_closure == SLS_LOOP_CLOSURE_AUTO && !sls::session::is_full_revolution(recording, &why)) return;
+  try {
+    close_loop(scan);
+  } catch (const sls::Error& error) {
+    if (error.code() != sls::ErrorCode::kInvalidArgument) throw;
+    sls::logger().warn("scan: the loop ({}) was not closed: {}", why, error.what());
+  }
 }
 
 }  // namespace
@@ -270,40 +394,15 @@ void report_frame(sls_scan& scan, const session::FrameReport& frame, std::size_t
 
 extern "C" {
 
-SLS_API void sls_scan_config_init(sls_scan_config* config) {
-  if (config == nullptr) return;
-  std::memset(config, 0, sizeof(*config));
-  config->struct_size = sizeof(*config);
-  config->fusion = SLS_FUSION_GTSDF;
-  config->use_turntable_prior = 0;
-  config->voxel_size_m = 0.0;
-  config->max_voxels = 0.0;
-  config->online_deformation = 1;
-}
+SLS_CAPI_DEFINE_INIT(sls_scan_config, online_deformation, scan_config_defaults())
 
-SLS_API void sls_frame_report_init(sls_frame_report* report) {
-  if (report == nullptr) return;
-  std::memset(report, 0, sizeof(*report));
-  report->struct_size = sizeof(*report);
-}
+SLS_CAPI_DEFINE_INIT(sls_frame_report, depth_device, sls::capi::zeroed<sls_frame_report>())
 
-SLS_API void sls_capture_config_init(sls_capture_config* config) {
-  if (config == nullptr) return;
-  std::memset(config, 0, sizeof(*config));
-  config->struct_size = sizeof(*config);
-}
+SLS_CAPI_DEFINE_INIT(sls_capture_config, frames, sls::capi::zeroed<sls_capture_config>())
 
-SLS_API void sls_scan_summary_init(sls_scan_summary* summary) {
-  if (summary == nullptr) return;
-  std::memset(summary, 0, sizeof(*summary));
-  summary->struct_size = sizeof(*summary);
-}
+SLS_CAPI_DEFINE_INIT(sls_scan_summary, loop_closed, sls::capi::zeroed<sls_scan_summary>())
 
-SLS_API void sls_loop_closure_init(sls_loop_closure* result) {
-  if (result == nullptr) return;
-  std::memset(result, 0, sizeof(*result));
-  result->struct_size = sizeof(*result);
-}
+SLS_CAPI_DEFINE_INIT(sls_loop_closure, ms, sls::capi::zeroed<sls_loop_closure>())
 
 SLS_API sls_status sls_scan_create(sls_context* context, const sls_scan_config* config, sls_scan** scan,
                                    sls_error** error) {
@@ -317,7 +416,13 @@ SLS_API sls_status sls_scan_create(sls_context* context, const sls_scan_config* 
         config == nullptr ? defaults
                           : sls::capi::read_versioned(config, defaults, kScanConfigFirstVersionSize, "sls_scan_config");
     auto created = std::make_unique<sls_scan>();
-    created->options = session_options(resolved, context->device);
+    ScanChoices choices;
+    created->options = session_options(resolved, context->device, &choices);
+    created->groundtruth = choices.groundtruth;
+    created->loop_closure = choices.loop_closure;
+    if (resolved.calibration_path != nullptr && resolved.calibration_path[0] != '\0') {
+      created->calibration = sls::read_calibration(resolved.calibration_path);
+    }
     *scan = created.release();
   });
 }

@@ -22,6 +22,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+sls_feed_config feed_config_defaults() {
+  sls_feed_config config = sls::capi::zeroed<sls_feed_config>();
+  config.bit_depth = 12;
+  return config;
+}
+
 constexpr std::size_t kFeedConfigFirstVersionSize = offsetof(sls_feed_config, bit_depth) + sizeof(int);
 constexpr std::size_t kDepthFrameFirstVersionSize =
     offsetof(sls_depth_frame, turntable_angle_deg) + sizeof(double);
@@ -177,24 +183,11 @@ void require_report(const sls_frame_report* report) {
 
 extern "C" {
 
-SLS_API void sls_feed_config_init(sls_feed_config* config) {
-  if (config == nullptr) return;
-  std::memset(config, 0, sizeof(*config));
-  config->struct_size = sizeof(*config);
-  config->bit_depth = 12;
-}
+SLS_CAPI_DEFINE_INIT(sls_feed_config, bit_depth, feed_config_defaults())
 
-SLS_API void sls_depth_frame_init(sls_depth_frame* frame) {
-  if (frame == nullptr) return;
-  std::memset(frame, 0, sizeof(*frame));
-  frame->struct_size = sizeof(*frame);
-}
+SLS_CAPI_DEFINE_INIT(sls_depth_frame, turntable_angle_deg, sls::capi::zeroed<sls_depth_frame>())
 
-SLS_API void sls_stack_frame_init(sls_stack_frame* frame) {
-  if (frame == nullptr) return;
-  std::memset(frame, 0, sizeof(*frame));
-  frame->struct_size = sizeof(*frame);
-}
+SLS_CAPI_DEFINE_INIT(sls_stack_frame, turntable_angle_deg, sls::capi::zeroed<sls_stack_frame>())
 
 SLS_API sls_status sls_scan_start_feed(sls_scan* scan, const sls_feed_config* config, int* patterns_per_stack,
                                        sls_error** error) {
@@ -208,6 +201,11 @@ SLS_API sls_status sls_scan_start_feed(sls_scan* scan, const sls_feed_config* co
     const sls_feed_config resolved =
         sls::capi::read_versioned(config, defaults, kFeedConfigFirstVersionSize, "sls_feed_config");
     sls::capi::refuse_if_cancelled(*scan);
+    if (scan->groundtruth) {
+      sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                       "config.poses is SLS_POSES_GROUNDTRUTH: fed frames have no ground truth (runs of simulated "
+                       "recordings only)");
+    }
     start_feed(*scan, resolved, patterns_per_stack);
   });
 }

@@ -10,12 +10,18 @@
 #include <thread>
 
 #include "fusion/extract.h"
+#include "sdk/core/calibration.h"
 #include "sdk/core/image.h"
 #include "sdk/session/scan_session.h"
 #include "sls/sls_scan.h"
 
 struct sls_scan {
   sls::session::ScanSessionOptions options;  // from the config and the context's device
+  // The rest of the config: known poses (config.poses), what a run does about the loop, and
+  // the calibration runs decode with instead of the recording's (config.calibration_path).
+  bool groundtruth = false;
+  sls_loop_closure_mode loop_closure = SLS_LOOP_CLOSURE_CALLER;
+  std::optional<sls::ScannerCalibration> calibration;
   sls_frame_callback callback = nullptr;
   void* user = nullptr;
   std::atomic<bool> cancel_requested{false};  // final once set (sls_scan_cancel)

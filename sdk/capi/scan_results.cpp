@@ -125,11 +125,7 @@ SLS_API sls_status sls_scan_get_cloud(const sls_scan* scan, sls_cloud** cloud, s
 
 SLS_API void sls_cloud_destroy(sls_cloud* cloud) { delete cloud; }
 
-SLS_API void sls_cloud_data_init(sls_cloud_data* data) {
-  if (data == nullptr) return;
-  std::memset(data, 0, sizeof(*data));
-  data->struct_size = sizeof(*data);
-}
+SLS_CAPI_DEFINE_INIT(sls_cloud_data, correction, sls::capi::zeroed<sls_cloud_data>())
 
 SLS_API sls_status sls_cloud_get_data(const sls_cloud* cloud, sls_cloud_data* data, sls_error** error) {
   SLS_CAPI_REQUIRE(cloud != nullptr, error, "cloud is NULL");
@@ -158,11 +154,7 @@ SLS_API sls_status sls_scan_get_mesh(const sls_scan* scan, sls_mesh** mesh, sls_
 
 SLS_API void sls_mesh_destroy(sls_mesh* mesh) { delete mesh; }
 
-SLS_API void sls_mesh_data_init(sls_mesh_data* data) {
-  if (data == nullptr) return;
-  std::memset(data, 0, sizeof(*data));
-  data->struct_size = sizeof(*data);
-}
+SLS_CAPI_DEFINE_INIT(sls_mesh_data, indices, sls::capi::zeroed<sls_mesh_data>())
 
 SLS_API sls_status sls_mesh_get_data(const sls_mesh* mesh, sls_mesh_data* data, sls_error** error) {
   SLS_CAPI_REQUIRE(mesh != nullptr, error, "mesh is NULL");

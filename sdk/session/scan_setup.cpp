@@ -6,11 +6,14 @@
 #include <optional>
 #include <utility>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "drivers/device_registry.h"
+#include "drivers/interfaces/device_uri.h"
 #include "sdk/core/calibration.h"
 #include "sdk/core/error.h"
+#include "sdk/core/ply.h"
 
 namespace sls::session {
 
@@ -106,6 +109,20 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
   CaptureOptions capture;
   capture.frames_per_revolution = request.frames > 0 ? request.frames : (turntable ? 36 : 1);
   capture.frames = capture.frames_per_revolution;
+  // A replay:// camera plays a recording that carries what its capture needs: its calibration
+  // (unless one is given, or a resumed capture keeps its own) and, unless a frame count is
+  // given, its frames (a turntable's revolution at the recorded steps).
+  const drivers::DeviceUri camera_uri = drivers::parse_device_uri(request.camera_uri);
+  if (camera_uri.scheme == "replay") {
+    const RecordingReader replayed = RecordingReader::open(camera_uri.target);
+    if (!calibration && !request.resume && replayed.has_calibration()) calibration = replayed.calibration();
+    if (request.frames == 0) {
+      capture.frames = static_cast<int>(replayed.frame_count());
+      // A replay turntable's steps are the recorded ones (drivers/replay).
+      const bool replay_turntable = turntable && drivers::parse_device_uri(request.turntable_uri).scheme == "replay";
+      capture.frames_per_revolution = replay_turntable ? turntable->steps_per_revolution() : capture.frames;
+    }
+  }
   RecordingWriter writer =
       request.resume ? resume_writer(folder, *projector, *camera, turntable.get(), patterns, &capture)
                      : RecordingWriter::create(folder, make_recording_info(*projector, *camera, patterns), calibration);
@@ -144,6 +161,73 @@ ScanSession make_recording_session(const RecordingReader& recording, ScanSession
   if (info.images_per_frame > 0) patterns = pattern_set_from_json(info.pattern_set_json);
   return ScanSession(calibration != nullptr ? *calibration : recording.calibration(), patterns ? &*patterns : nullptr,
                      options);
+}
+
+std::vector<StampedPose> groundtruth_poses(const RecordingReader& recording) {
+  const std::string path = recording.groundtruth_folder() + "/trajectory.txt";
+  if (!std::filesystem::exists(path)) {
+    throw_error(ErrorCode::kInvalidArgument, "{} has no ground-truth trajectory (only simulated recordings do)",
+                recording.folder());
+  }
+  std::vector<StampedPose> poses = read_tum_trajectory(path);
+  // A capture killed between writing a frame's pose and listing the frame leaves the pose of
+  // that unlisted frame last (drivers/sim/sim_recording.h): not one of the recording's.
+  if (poses.size() == recording.frame_count() + 1) poses.pop_back();
+  if (poses.size() != recording.frame_count()) {
+    throw_error(ErrorCode::kFormat, "{}: {} poses for {} frames", path, poses.size(), recording.frame_count());
+  }
+  return poses;
+}
+
+fusion::VolumeGeometry groundtruth_volume(const RecordingReader& recording, double voxel_size_m, double max_voxels,
+                                          const fusion::IntegrationOptions& integration) {
+  const std::string reference_path = recording.groundtruth_folder() + "/reference.ply";
+  if (!std::filesystem::exists(reference_path)) {
+    throw_error(ErrorCode::kInvalidArgument, "{} has no ground-truth reference.ply to place the volume around",
+                recording.folder());
+  }
+  const PointCloud reference = read_ply_cloud(reference_path);
+  if (reference.empty()) throw_error(ErrorCode::kFormat, "{} holds no points", reference_path);
+  Eigen::Vector3d lo = reference.positions[0].cast<double>(), hi = lo;
+  for (const Eigen::Vector3f& p : reference.positions) {
+    lo = lo.cwiseMin(p.cast<double>());
+    hi = hi.cwiseMax(p.cast<double>());
+  }
+  const bool automatic = voxel_size_m <= 0.0;
+  // Twice the pixel footprint at the working distance (the median depth is ~ the focus).
+  double voxel = automatic ? 2.0 * 0.1 / recording.calibration().camera.fx : voxel_size_m;
+  for (;;) {
+    const double margin = (integration.eta_voxels + 2.0) * voxel;
+    const Eigen::Vector3d size = (hi - lo).array() + 2.0 * margin;
+    const Eigen::Vector3i counts = (size / voxel).array().ceil().cast<int>();
+    const double total = static_cast<double>(counts.x()) * counts.y() * counts.z();
+    if (total <= max_voxels || !automatic) {
+      return fusion::VolumeGeometry::centred(0.5 * (lo + hi), counts.x(), counts.y(), counts.z(), voxel);
+    }
+    voxel *= std::cbrt(total / max_voxels) * 1.001;
+  }
+}
+
+bool is_full_revolution(const RecordingReader& recording, std::string* why) {
+  std::vector<double> angles;
+  for (std::size_t i = 0; i < recording.frame_count(); ++i) {
+    if (recording.frame(i).turntable_angle_deg) angles.push_back(*recording.frame(i).turntable_angle_deg);
+  }
+  const auto say = [why](std::string text) {
+    if (why != nullptr) *why = std::move(text);
+  };
+  if (angles.size() < 3) {
+    say("no turntable angles: not a turntable revolution");
+    return false;
+  }
+  const double span = std::abs(angles.back() - angles.front());
+  const double step = span / static_cast<double>(angles.size() - 1);
+  if (span + 2.0 * step >= 360.0 - 1e-6) {
+    say(fmt::format("a full turntable revolution ({:.1f}°)", span));
+    return true;
+  }
+  say(fmt::format("the turntable turned {:.1f}°, not a full revolution", span));
+  return false;
 }
 
 double automatic_max_voxels(const Device& device) { return (device.is_cuda() ? 256.0 : 48.0) * 1e6; }

@@ -10,12 +10,15 @@
 
 #include <cstddef>
 #include <string>
+#include <vector>
 
 #include "drivers/interfaces/camera.h"
 #include "drivers/interfaces/projector.h"
+#include "fusion/volume.h"
 #include "sdk/core/device.h"
 #include "sdk/core/progress.h"
 #include "sdk/core/recording.h"
+#include "sdk/core/trajectory.h"
 #include "sdk/decode/pattern_set.h"
 #include "sdk/session/capture_sequencer.h"
 #include "sdk/session/scan_session.h"
@@ -27,8 +30,11 @@ struct DeviceCaptureRequest {
   std::string camera_uri;
   std::string projector_uri;
   std::string turntable_uri;     // empty: no turntable, every stack at one position
-  std::string calibration_path;  // calibration.yml of these devices, stored in the recording; empty: none
-  // Frames per revolution; one revolution is captured. 0: 36 with a turntable, else 1.
+  // calibration.yml of these devices, stored in the recording; empty: none, or with a replay://
+  // camera the replayed recording's
+  std::string calibration_path;
+  // Frames per revolution; one revolution is captured. 0: 36 with a turntable, else 1; with a
+  // replay:// camera the replayed recording's frames (at its turntable's recorded steps).
   int frames = 0;
   Device sim_device = Device::cpu();  // where sim:// devices render (unless their URI says device=)
   // Continue the recording at the folder, cut off by a signal, a kill or a device error, from
@@ -80,6 +86,24 @@ RecordingReader open_recording_for_scan(const std::string& folder, bool calibrat
 // camera size.
 ScanSession make_recording_session(const RecordingReader& recording, ScanSessionOptions options,
                                    const ScannerCalibration* calibration = nullptr);
+
+// Known poses (`sls scan --poses groundtruth`, sls_scan_config.poses) for a simulated recording:
+// its ground-truth trajectory, one pose per frame (a pose written for a frame the manifest does
+// not list yet, by a capture killed between the two, is dropped). Throws sls::Error:
+// kInvalidArgument when the recording has none (only simulated recordings do), kFormat when it
+// does not hold one pose per frame.
+std::vector<StampedPose> groundtruth_poses(const RecordingReader& recording);
+
+// The fixed volume for known poses: the bounding box of the recording's ground-truth reference
+// surface plus the integration band, at `voxel_size_m` (0: two pixel footprints at 0.1 m, grown
+// until it holds at most `max_voxels`). Throws kInvalidArgument without a reference.ply, kFormat
+// for an empty one.
+fusion::VolumeGeometry groundtruth_volume(const RecordingReader& recording, double voxel_size_m, double max_voxels,
+                                          const fusion::IntegrationOptions& integration);
+
+// Whether a recording is a full turntable revolution (its angles span 360 degrees less at most
+// two steps), as `sls scan` decides to close the loop by default; `why` says so in words.
+bool is_full_revolution(const RecordingReader& recording, std::string* why = nullptr);
 
 // The largest volume (one buffer of a moving volume) an automatic voxel size is grown to fit:
 // 256 million voxels on a GPU, 48 million on the CPU.

@@ -247,8 +247,9 @@ TEST_F(CResults, MistakesAreStatusesNeverCrashes) {
   SLS_FAILS(sls_mesh_get_data(nullptr, &mesh_data, &error_), SLS_ERROR_INVALID_ARGUMENT, "mesh is NULL");
   sls_cloud_destroy(nullptr);
   sls_mesh_destroy(nullptr);
-  sls_cloud_data_init(nullptr);
-  sls_mesh_data_init(nullptr);
+  // The _init macros need a struct (sizeof *s); the functions behind them take NULL.
+  sls_cloud_data_init_sized(nullptr, sizeof(sls_cloud_data));
+  sls_mesh_data_init_sized(nullptr, sizeof(sls_mesh_data));
 
   SLS_OK_CALL(sls_scan_run_recording(scan.get(), recording().c_str(), &error_));
   SLS_OK_CALL(sls_scan_get_cloud(scan.get(), &cloud, &error_));

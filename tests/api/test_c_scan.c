@@ -264,7 +264,7 @@ static void check_loop_closure(sls_context* context, const char* recording, cons
 
   sls_loop_closure_init(&loop);
   CHECK(loop.struct_size == sizeof(loop) && loop.constraints == 0);
-  sls_loop_closure_init(NULL);
+  sls_loop_closure_init_sized(NULL, sizeof(sls_loop_closure)); /* the macro needs a struct */
   status = sls_scan_close_loop(scan, &loop, &error);
   if (!succeeded(status, error, __LINE__)) {
     sls_scan_destroy(scan);
@@ -585,9 +585,10 @@ static void check_mistakes(sls_context* context, const char* scratch) {
   char* missing = path_join(scratch, "no-such-recording");
   sls_scan_config_init(&config);
   CHECK(config.struct_size == sizeof(config) && config.fusion == SLS_FUSION_GTSDF && config.max_voxels == 0.0);
-  sls_scan_config_init(NULL);
-  sls_capture_config_init(NULL);
-  sls_scan_summary_init(NULL);
+  /* NULL to the functions behind the _init macros (which need a struct: sizeof *s). */
+  sls_scan_config_init_sized(NULL, sizeof(sls_scan_config));
+  sls_capture_config_init_sized(NULL, sizeof(sls_capture_config));
+  sls_scan_summary_init_sized(NULL, sizeof(sls_scan_summary));
 
   CHECK_ERROR(sls_scan_create(NULL, NULL, &scan, &error_), SLS_ERROR_INVALID_ARGUMENT, "context");
   CHECK_ERROR(sls_scan_create(context, NULL, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT, "scan");

@@ -1,8 +1,9 @@
 """`sls scan` through replay:// devices (drivers/replay): a scan of a recording captured through
 the replay camera, projector and turntable writes the very bytes of `sls scan --input` of that
 recording (cloud, mesh, trajectory), its OUT/recording is a copy of the recording (images byte
-for byte, timestamps, angles), timing=recorded keeps the recorded pace (a lower bound only), and
-a missing recording or another frame count is a clear error.
+for byte, timestamps, angles, the calibration), with --calibration and --frames defaulting to the
+replayed recording's; timing=recorded keeps the recorded pace (a lower bound only), and a missing
+recording or another frame count is a clear error.
 Usage: test_sls_replay.py SLS"""
 import json
 import os
@@ -46,10 +47,13 @@ class ScanThroughReplayDevices(unittest.TestCase):
     def tearDownClass(cls):
         cls.tmp.cleanup()
 
-    def replay_scan(self, out, query="", frames=FRAMES):
+    def replay_scan(self, out, query="", frames=FRAMES, defaults=False):
+        """`sls scan` through the replay devices; `defaults`: without --calibration and --frames
+        (the recording's)."""
         uri = "replay://" + self.recording + query
-        return run("-q", "scan", "--camera", uri, "--projector", uri, "--turntable", uri,
-                   "--calibration", os.path.join(self.recording, "calibration.yml"), "--frames", str(frames),
+        given = [] if defaults else ["--calibration", os.path.join(self.recording, "calibration.yml"),
+                                     "--frames", str(frames)]
+        return run("-q", "scan", "--camera", uri, "--projector", uri, "--turntable", uri, *given,
                    "--device", "cpu", "--turntable-prior", "--out", os.path.join(self.tmp.name, out))
 
     def expect_same_model(self, out):
@@ -64,11 +68,14 @@ class ScanThroughReplayDevices(unittest.TestCase):
         self.assertGreater(len(read(os.path.join(self.tmp.name, out, "cloud.ply"))), 100000)
 
     def test_the_model_is_bit_identical_to_scanning_the_recording(self):
-        result = self.replay_scan("replayed")
+        # The calibration and the frame count are the recording's (given by hand: the paced test).
+        result = self.replay_scan("replayed", defaults=True)
         self.assertEqual(result.returncode, 0, result.stderr)
         self.expect_same_model("replayed")
-        # OUT/recording is a copy: every image file byte for byte, the frames' timestamps and angles.
+        # OUT/recording is a copy: every image file byte for byte, the frames' timestamps and
+        # angles, and the calibration it was decoded with.
         copy = os.path.join(self.tmp.name, "replayed", "recording")
+        self.assertTrue(os.path.isfile(os.path.join(copy, "calibration.yml")))
         original_manifest = json.loads(read(os.path.join(self.recording, "manifest.json")))
         copy_manifest = json.loads(read(os.path.join(copy, "manifest.json")))
         self.assertEqual(copy_manifest["pattern_set"], original_manifest["pattern_set"])

@@ -1,5 +1,6 @@
 """samples/python/turntable_scan.py on replay:// of the recording it wrote (issue 20's
-acceptance): the same model bit for bit, the replay devices taken by URI as hardware is."""
+acceptance): the same model bit for bit, the replay devices taken by URI as hardware is, the
+calibration and the frame count the replayed recording's (sls_capture_config's defaults)."""
 from __future__ import annotations
 
 import os
@@ -25,8 +26,8 @@ def test_replaying_its_recording_gives_the_same_model(tmp_path: pathlib.Path, sl
     recording = live / "recording"
     uri = f"replay://{recording}"
     replayed = tmp_path / "replayed"
-    result = run_sample("--camera", uri, "--projector", uri, "--turntable", uri, "--calibration",
-                        str(recording / "calibration.yml"), "--frames", "3", "--out", str(replayed), "--device", "cpu")
+    result = run_sample("--camera", uri, "--projector", uri, "--turntable", uri, "--out", str(replayed),
+                        "--device", "cpu")
     assert result.returncode == 0, result.stdout + result.stderr
     assert f"capturing one revolution from {uri}" in result.stdout
     for stop, angle in enumerate((0, 120, 240)):

@@ -26,7 +26,7 @@ def test_run_recording_reports_every_frame(context: slscan.Context, recording: p
         threads.add(threading.get_ident())
 
     with slscan.Scan(context, use_turntable_prior=True) as scan:
-        assert scan.config["use_turntable_prior"] is True and scan.config["online_deformation"] is True
+        assert scan.config.use_turntable_prior is True and scan.config.online_deformation is True
         summary = scan.run_recording(recording, on_frame=on_frame)
         assert (summary.frames, summary.fused, summary.lost, summary.skipped) == (4, 4, 0, 0)
         assert summary.cancelled is False and summary.voxel_size_m > 0
@@ -118,7 +118,7 @@ def test_bad_input_raises_the_c_status(context: slscan.Context, recording: pathl
         slscan.Scan(context, volume_size_m=(0.1, 0.0, 0.1))
     with pytest.raises(TypeError, match="unknown config voxel_size"):
         slscan.Scan(context, voxel_size=1e-4)
-    with pytest.raises(KeyError):
+    with pytest.raises(ValueError, match="fusion: 'marching'"):
         slscan.Scan(context, fusion="marching")
     with slscan.Scan(context) as scan:
         missing = tmp_path / "no-such-recording"
@@ -151,3 +151,57 @@ def test_bad_input_raises_the_c_status(context: slscan.Context, recording: pathl
     (newer / "manifest.json").write_text(json.dumps(manifest))
     with slscan.Scan(context) as scan, pytest.raises(slscan.VersionMismatchError):
         scan.run_recording(newer)
+
+
+def test_every_config_field_round_trips(context: slscan.Context, recording: pathlib.Path):
+    """Every sls_scan_config field by keyword (enums by value or by their `sls scan` spelling)
+    or in a ScanConfig, and read back resolved; the unset ones keep the library's defaults."""
+    defaults = slscan.Scan(context).config
+    assert defaults == slscan.ScanConfig(
+        fusion=slscan.FusionMethod.GTSDF, use_turntable_prior=False, voxel_size_m=0.0, volume_size_m=(0.0, 0.0, 0.0),
+        max_voxels=0.0, online_deformation=True, calibration_path=None, gtsdf_lambda=0.0, gtsdf_kappa=0.0,
+        gtsdf_penalty=slscan.GtsdfPenalty.DEFAULT, gtsdf_iterations=0, poses=slscan.PoseSource.TRACK, loop_frames=2,
+        photometric_weight=0.0, icp_crease_deg=15.0, icp_weights=slscan.IcpWeights.CONFIDENCE,
+        loop_closure=slscan.LoopClosureMode.CALLER)
+    given = dict(fusion="gtsdf", use_turntable_prior=True, voxel_size_m=2e-4, volume_size_m=(0.03, 0.04, 0.05),
+                 max_voxels=2e6, online_deformation=False, calibration_path=str(recording / "calibration.yml"),
+                 gtsdf_lambda=2.5, gtsdf_kappa=0.07, gtsdf_penalty="charbonnier", gtsdf_iterations=5,
+                 poses="groundtruth", loop_frames=4, photometric_weight=0.5, icp_crease_deg=30.0,
+                 icp_weights="equal", loop_closure="auto")
+    assert set(given) == {field.name for field in dataclasses.fields(slscan.ScanConfig)}
+    expected = dict(given, fusion=slscan.FusionMethod.GTSDF, gtsdf_penalty=slscan.GtsdfPenalty.CHARBONNIER,
+                    poses=slscan.PoseSource.GROUNDTRUTH, icp_weights=slscan.IcpWeights.EQUAL,
+                    loop_closure=slscan.LoopClosureMode.AUTO)
+    with slscan.Scan(context, **given) as scan:
+        assert dataclasses.asdict(scan.config) == expected
+    with slscan.Scan(context, slscan.ScanConfig(**given), loop_frames=7) as scan:
+        assert scan.config.loop_frames == 7 and scan.config.poses == slscan.PoseSource.GROUNDTRUTH
+
+
+def test_bad_config_values_name_the_field(context: slscan.Context):
+    for field, value in (("gtsdf_lambda", 1e4), ("gtsdf_kappa", -1.0), ("gtsdf_iterations", 101), ("loop_frames", 0),
+                         ("photometric_weight", -1.0), ("icp_crease_deg", 180.0)):
+        with pytest.raises(slscan.InvalidArgumentError, match=f"config.{field}"):
+            slscan.Scan(context, **{field: value})
+    with pytest.raises(slscan.InvalidArgumentError, match="need SLS_FUSION_GTSDF"):
+        slscan.Scan(context, fusion="tsdf", gtsdf_penalty="perona-malik")
+    with pytest.raises(slscan.NotFoundError, match="no-such.yml"):
+        slscan.Scan(context, calibration_path="no-such.yml")
+    with pytest.raises(ValueError, match="icp_weights: 'median'"):
+        slscan.Scan(context, icp_weights="median")
+    with pytest.raises(ValueError, match="loop_frames"):
+        slscan.Scan(context, loop_frames=2.5)
+
+
+def test_known_poses_give_the_ground_truth_trajectory(context: slscan.Context, recording: pathlib.Path):
+    """poses="groundtruth" reaches the run (`sls scan --poses groundtruth`): the trajectory is the
+    simulated recording's own, in one fixed volume."""
+    with slscan.Scan(context, poses="groundtruth", max_voxels=2e6) as scan:
+        summary = scan.run_recording(recording)
+        assert summary.fused == 4 and summary.volume_moves == 0
+        _, poses = scan.trajectory()
+    truth = [line.split() for line in (recording / "groundtruth" / "trajectory.txt").read_text().splitlines()
+             if line and not line.startswith("#")]
+    assert len(truth) == len(poses) == 4
+    for pose, row in zip(poses, truth):
+        assert np.allclose(pose[:3, 3], [float(v) for v in row[1:4]], atol=1e-6)

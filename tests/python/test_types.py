@@ -43,11 +43,17 @@ def test_every_struct_of_the_headers_is_mirrored():
 
 
 @pytest.mark.parametrize("name", sorted(_types.VERSIONED_STRUCTS))
-def test_mirror_size_is_the_librarys(name):
+def test_init_writes_the_mirror_and_nothing_past_it(name):
     cls, init = _types.VERSIONED_STRUCTS[name]
-    assert _types.library_struct_size(getattr(_lib.lib, init)) == ctypes.sizeof(cls)
     # init_struct gives the mirror the library's defaults and its own size.
     assert _lib.init(cls, init).struct_size == ctypes.sizeof(cls)
+    # The library's _init_sized for a struct of an older, smaller version (the first field
+    # alone here) writes that many bytes and sets struct_size to them: the canary after stays.
+    size = ctypes.sizeof(ctypes.c_size_t)
+    buffer = (ctypes.c_ubyte * (size + 64))(*([0xA5] * (size + 64)))
+    getattr(_lib.lib, init + "_sized")(ctypes.cast(buffer, ctypes.c_void_p), size)
+    assert ctypes.c_size_t.from_buffer(buffer).value == size
+    assert bytes(buffer[size:]) == b"\xa5" * 64
 
 
 def test_library_defaults_are_used():

@@ -5,7 +5,16 @@
  *   comment says who owns what it returns.
  * - Functions return sls_status (SLS_OK = 0, errors negative; sls_status_str()) and take an
  *   optional sls_error** for the message. No C++ exception ever leaves the library.
- * - Config structs carry their size (struct_size) and have an _init() function.
+ * - Versioned structs (configs the caller fills, results the library fills) carry their size in
+ *   their first field, struct_size, and later versions only append fields. Initialise one with
+ *   its NAME_init(&s), a macro for NAME_init_sized(&s, sizeof s) (so it takes a pointer to the
+ *   struct, not NULL): the size is the caller's, as
+ *   compiled, so a newer library writes no byte past an older program's struct (it fills the
+ *   fields that fit, sets struct_size to the caller's size), and reading the struct it gives
+ *   the fields past struct_size their defaults. The exported function NAME_init (which the macro
+ *   hides; a program built against the 0.4 headers calls it) writes the struct as the 0.4
+ *   headers declared it. Fields are appended only past the previous version's sizeof, never
+ *   into its padding.
  * - Callbacks are a function pointer plus a `void* user`; each says on which thread it runs,
  *   and must return normally (no longjmp, no exceptions).
  *

@@ -98,6 +98,9 @@ typedef struct sls_calibration_config {
 
 /* Fills *config with the defaults. */
 SLS_API void sls_calibration_config_init(sls_calibration_config* config);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_calibration_config_init_sized(sls_calibration_config* config, size_t struct_size);
+#define sls_calibration_config_init(config) sls_calibration_config_init_sized((config), sizeof(*(config)))
 
 /* Progress of sls_calibration_run(), handed to its callback. The library fills its own version
  * of the struct and sets struct_size to its size: a field added later is there only when
@@ -177,6 +180,9 @@ typedef struct sls_calibration_summary {
 
 /* Sets struct_size and clears the other fields. */
 SLS_API void sls_calibration_summary_init(sls_calibration_summary* summary);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_calibration_summary_init_sized(sls_calibration_summary* summary, size_t struct_size);
+#define sls_calibration_summary_init(summary) sls_calibration_summary_init_sized((summary), sizeof(*(summary)))
 
 /* Fills *summary (from sls_calibration_summary_init()). */
 SLS_API sls_status sls_calibration_get_summary(const sls_calibration* calibration, sls_calibration_summary* summary,
@@ -196,6 +202,9 @@ typedef struct sls_intrinsics {
 
 /* Sets struct_size and clears the other fields. */
 SLS_API void sls_intrinsics_init(sls_intrinsics* intrinsics);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_intrinsics_init_sized(sls_intrinsics* intrinsics, size_t struct_size);
+#define sls_intrinsics_init(intrinsics) sls_intrinsics_init_sized((intrinsics), sizeof(*(intrinsics)))
 
 /* Which lens of the rig. */
 typedef enum sls_calibration_device {
@@ -245,6 +254,9 @@ typedef struct sls_calibration_view {
 
 /* Sets struct_size and clears the other fields. */
 SLS_API void sls_calibration_view_init(sls_calibration_view* view);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_calibration_view_init_sized(sls_calibration_view* view, size_t struct_size);
+#define sls_calibration_view_init(view) sls_calibration_view_init_sized((view), sizeof(*(view)))
 
 /* Fills *view (from sls_calibration_view_init()) with view `index`; SLS_ERROR_INVALID_ARGUMENT
  * when index >= sls_calibration_view_count(). */

@@ -70,6 +70,9 @@ typedef struct sls_camera_info {
 
 /* Sets struct_size and clears the other fields. */
 SLS_API void sls_camera_info_init(sls_camera_info* info);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_camera_info_init_sized(sls_camera_info* info, size_t struct_size);
+#define sls_camera_info_init(info) sls_camera_info_init_sized((info), sizeof(*(info)))
 
 SLS_API sls_status sls_camera_get_info(const sls_camera* camera, sls_camera_info* info, sls_error** error);
 
@@ -89,6 +92,9 @@ typedef struct sls_frame_info {
 } sls_frame_info;
 
 SLS_API void sls_frame_info_init(sls_frame_info* info);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_frame_info_init_sized(sls_frame_info* info, size_t struct_size);
+#define sls_frame_info_init(info) sls_frame_info_init_sized((info), sizeof(*(info)))
 
 /* Triggers one exposure and copies the image into `pixels`: width x height values, row after
  * row (no padding), each 0 .. 2^bit_depth - 1 (an 8-bit camera's values are not scaled).

@@ -44,6 +44,9 @@ typedef struct sls_context_config {
 
 /* Fills *config with the defaults of the headers compiled against. */
 SLS_API void sls_context_config_init(sls_context_config* config);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_context_config_init_sized(sls_context_config* config, size_t struct_size);
+#define sls_context_config_init(config) sls_context_config_init_sized((config), sizeof(*(config)))
 
 /* Creates a context.
  *   api_version: pass SLS_API_VERSION; a header of another major version, or of a newer

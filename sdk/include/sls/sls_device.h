@@ -71,6 +71,9 @@ typedef struct sls_device_info {
 
 /* Sets struct_size and clears the other fields. */
 SLS_API void sls_device_info_init(sls_device_info* info);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_device_info_init_sized(sls_device_info* info, size_t struct_size);
+#define sls_device_info_init(info) sls_device_info_init_sized((info), sizeof(*(info)))
 
 /* Lists the built-in simulator and every camera, projector and head controller the drivers
  * of this build find now. Blocks for GigE Vision discovery (about a second) when the library

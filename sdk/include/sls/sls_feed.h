@@ -49,13 +49,17 @@ typedef struct sls_feed_config {
 } sls_feed_config;
 
 SLS_API void sls_feed_config_init(sls_feed_config* config);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_feed_config_init_sized(sls_feed_config* config, size_t struct_size);
+#define sls_feed_config_init(config) sls_feed_config_init_sized((config), sizeof(*(config)))
 
 /* Starts a feed: discards the scan's previous model (as a run does) and reads the calibration.
  * patterns_per_stack: optional (NULL); receives the images a pattern stack must have: the set
  * sls_projector_load_scan_patterns() loads into a projector of the calibration's size, in its order.
  * SLS_ERROR_INVALID_ARGUMENT for a missing path or a bad bit_depth or config.struct_size;
  * SLS_ERROR_NOT_FOUND / SLS_ERROR_FORMAT for a calibration that cannot be read; the config's
- * errors of sls_scan_create() (e.g. use_turntable_prior with a calibration without an axis);
+ * errors of sls_scan_create() (e.g. use_turntable_prior with a calibration without an axis), and
+ * a scan whose config.poses is SLS_POSES_GROUNDTRUTH (fed frames have no ground truth);
  * SLS_ERROR_CANCELLED for a cancelled scan; SLS_ERROR_BUSY during a run. */
 SLS_API sls_status sls_scan_start_feed(sls_scan* scan, const sls_feed_config* config, int* patterns_per_stack,
                                        sls_error** error);
@@ -72,6 +76,9 @@ typedef struct sls_depth_frame {
 } sls_depth_frame;
 
 SLS_API void sls_depth_frame_init(sls_depth_frame* frame);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_depth_frame_init_sized(sls_depth_frame* frame, size_t struct_size);
+#define sls_depth_frame_init(frame) sls_depth_frame_init_sized((frame), sizeof(*(frame)))
 
 typedef struct sls_stack_frame {
   size_t struct_size;
@@ -86,6 +93,9 @@ typedef struct sls_stack_frame {
 } sls_stack_frame;
 
 SLS_API void sls_stack_frame_init(sls_stack_frame* frame);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_stack_frame_init_sized(sls_stack_frame* frame, size_t struct_size);
+#define sls_stack_frame_init(frame) sls_stack_frame_init_sized((frame), sizeof(*(frame)))
 
 /* Adds one frame: tracks and fuses it (a stack decoded first), calls the frame callback with its
  * report (and its depth map, sls_scan.h), then returns.

@@ -65,6 +65,9 @@ typedef struct sls_projector_info {
 
 /* Sets struct_size and clears the other fields. */
 SLS_API void sls_projector_info_init(sls_projector_info* info);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_projector_info_init_sized(sls_projector_info* info, size_t struct_size);
+#define sls_projector_info_init(info) sls_projector_info_init_sized((info), sizeof(*(info)))
 
 SLS_API sls_status sls_projector_get_info(const sls_projector* projector, sls_projector_info* info,
                                           sls_error** error);

@@ -70,6 +70,9 @@ typedef struct sls_cloud_data {
 
 /* Sets struct_size and clears the other fields. */
 SLS_API void sls_cloud_data_init(sls_cloud_data* data);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_cloud_data_init_sized(sls_cloud_data* data, size_t struct_size);
+#define sls_cloud_data_init(data) sls_cloud_data_init_sized((data), sizeof(*(data)))
 
 SLS_API sls_status sls_cloud_get_data(const sls_cloud* cloud, sls_cloud_data* data, sls_error** error);
 
@@ -92,6 +95,9 @@ typedef struct sls_mesh_data {
 } sls_mesh_data;
 
 SLS_API void sls_mesh_data_init(sls_mesh_data* data);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_mesh_data_init_sized(sls_mesh_data* data, size_t struct_size);
+#define sls_mesh_data_init(data) sls_mesh_data_init_sized((data), sizeof(*(data)))
 
 SLS_API sls_status sls_mesh_get_data(const sls_mesh* mesh, sls_mesh_data* data, sls_error** error);
 

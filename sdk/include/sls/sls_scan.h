@@ -71,33 +71,124 @@ typedef enum sls_fusion_method {
   SLS_FUSION_TSDF = 1   /* the plain weighted TSDF */
 } sls_fusion_method;
 
+typedef enum sls_gtsdf_penalty {
+  SLS_GTSDF_PENALTY_DEFAULT = 0,       /* the library's: Geman-McClure */
+  SLS_GTSDF_PENALTY_PERONA_MALIK = 1,
+  SLS_GTSDF_PENALTY_CHARBONNIER = 2,
+  SLS_GTSDF_PENALTY_GEMAN_MCCLURE = 3
+} sls_gtsdf_penalty;
+
+typedef enum sls_pose_source {
+  SLS_POSES_TRACK = 0,      /* ICP against the model, into a moving volume */
+  SLS_POSES_GROUNDTRUTH = 1 /* a simulated recording's true poses (groundtruth/trajectory.txt), one
+                             * fixed volume around its reference surface; no deformation */
+} sls_pose_source;
+
+typedef enum sls_icp_weights {
+  SLS_ICP_WEIGHTS_CONFIDENCE = 0, /* the decoder's per-pixel confidence (an inverse predicted variance);
+                                   * depth maps without one count equally */
+  SLS_ICP_WEIGHTS_EQUAL = 1
+} sls_icp_weights;
+
+typedef enum sls_loop_closure_mode {
+  SLS_LOOP_CLOSURE_CALLER = 0, /* a run leaves it to the caller's sls_scan_close_loop() */
+  SLS_LOOP_CLOSURE_AUTO = 1,   /* a run ends by closing the loop when its recording is a full
+                                * turntable revolution (`sls scan`'s default) */
+  SLS_LOOP_CLOSURE_ON = 2      /* a run (not cancelled) always ends by closing the loop */
+} sls_loop_closure_mode;
+
 /* Scan configuration. Versioned by its size: initialise with sls_scan_config_init(), which sets
  * struct_size and the defaults, then change fields. Later library versions only append fields.
- * The volume moves with the camera; it is sized at the first fused frame. */
+ * The volume moves with the camera; it is sized at the first fused frame.
+ *
+ * Every option of `sls scan` that shapes the scan has its field, with `sls scan`'s default
+ * (loop_closure aside: see there); the others are the tool's own choices or live elsewhere:
+ *   --input REC                  sls_scan_run_recording(scan, REC)
+ *   --camera/--projector/--turntable URI, --frames N
+ *                                sls_capture_config (sls_scan_run_devices)
+ *   --calibration FILE           with --camera: sls_capture_config.calibration_path; with
+ *                                --input: calibration_path below
+ *   --sim PRESET, --object NAME  a sim:// camera and projector URI, e.g.
+ *                                "sim://knurled-knob?preset=ci", with sls_scan_run_devices
+ *   --device cpu|cuda[:N]        sls_context_config.device and cuda_device_id
+ *   --fusion                     fusion            --gtsdf-lambda      gtsdf_lambda
+ *   --gtsdf-kappa                gtsdf_kappa       --gtsdf-penalty     gtsdf_penalty
+ *   --gtsdf-iterations           gtsdf_iterations  --poses             poses
+ *   --turntable-prior            use_turntable_prior
+ *   --photometric-weight         photometric_weight
+ *   --icp-weights                icp_weights       --icp-crease-deg    icp_crease_deg
+ *   --deformation on|off         online_deformation
+ *   --loop-closure on|off        loop_closure (SLS_LOOP_CLOSURE_ON, or _CALLER without calling
+ *                                sls_scan_close_loop); unset: SLS_LOOP_CLOSURE_AUTO
+ *   --loop-frames                loop_frames
+ *   --voxel-um U                 voxel_size_m = U * 1e-6
+ *   --max-voxels M               max_voxels = M * 1e6
+ *   --out, --resume, and the global --json, -q, -v: the tool's own (its output folder, its
+ *   recovery of a cut-off capture, its printing); the library writes what the caller asks
+ *   (sls_scan_write_*, sls_results.h) and logs through sls_log.h.
+ * volume_size_m has no option: the tool always takes the automatic extent. */
 typedef struct sls_scan_config {
   size_t struct_size;
-  sls_fusion_method fusion; /* default SLS_FUSION_GTSDF */
-  int use_turntable_prior;  /* 1: the recorded turntable angles about the calibrated axis guess
-                             * each pose (needs a recording with angles and a calibrated axis);
-                             * default 0: depth alone, from a constant-velocity guess */
-  double voxel_size_m;      /* default 0: two pixel footprints at the focus distance, grown until
-                             * the volume fits max_voxels */
+  sls_fusion_method fusion; /* --fusion; default SLS_FUSION_GTSDF */
+  int use_turntable_prior;  /* --turntable-prior. 1: the recorded turntable angles about the
+                             * calibrated axis guess each pose (needs a recording with angles and
+                             * a calibrated axis); default 0: depth alone, from a constant-velocity
+                             * guess */
+  double voxel_size_m;      /* --voxel-um; default 0: two pixel footprints at the focus distance,
+                             * grown until the volume fits max_voxels */
   double volume_size_m[3];  /* extent along the camera's x, y, z; default {0, 0, 0}: the camera's
                              * field of view at the focus distance across, half as deep. All
                              * three 0 or all three positive */
-  double max_voxels;        /* the largest volume (one of the moving volume's two buffers) the
-                             * automatic voxel size is grown to fit; default 0: 256e6 with CUDA,
-                             * 48e6 on the CPU */
+  double max_voxels;        /* --max-voxels; the largest volume (one of the moving volume's two
+                             * buffers) the automatic voxel size is grown to fit; default 0:
+                             * 256e6 with CUDA, 48e6 on the CPU */
   /* Appended later (a caller whose struct_size ends before a field gets its default): */
-  int online_deformation;   /* default 1: a deformation graph, solved on a worker thread beside
-                             * the frame loop, corrects the tracked model's drift (keyframes as
-                             * nodes, revisited surface as constraints); the model, trajectory
-                             * and sls_scan_close_loop() use it. 0: off, the model as tracked,
-                             * and no loop closure */
+  int online_deformation;   /* --deformation; default 1: a deformation graph, solved on a worker
+                             * thread beside the frame loop, corrects the tracked model's drift
+                             * (keyframes as nodes, revisited surface as constraints); the model,
+                             * trajectory and sls_scan_close_loop() use it. 0: off, the model as
+                             * tracked, and no loop closure */
+  /* Appended in API 0.5: */
+  const char* calibration_path; /* --calibration with --input: decode a run's recording with this
+                                 * calibration.yml instead of its own (e.g. a new calibration of
+                                 * the head; its camera must have the recording's size). Read by
+                                 * sls_scan_create(), which fails naming it when it cannot be
+                                 * read. Default NULL: the recording's */
+  double gtsdf_lambda;          /* --gtsdf-lambda, with SLS_FUSION_GTSDF: the anisotropic term's
+                                 * weight (alpha = lambda * beta, beta = 1/6), 1e-3 .. 1e3;
+                                 * default 0: the library's, 4 */
+  double gtsdf_kappa;           /* --gtsdf-kappa, with SLS_FUSION_GTSDF: the penalty's edge-
+                                 * stopping scale in units of the truncated SDF, 1e-4 .. 10;
+                                 * default 0: the library's, 0.03 */
+  sls_gtsdf_penalty gtsdf_penalty; /* --gtsdf-penalty, with SLS_FUSION_GTSDF; default
+                                    * SLS_GTSDF_PENALTY_DEFAULT (Geman-McClure) */
+  int gtsdf_iterations;         /* --gtsdf-iterations, with SLS_FUSION_GTSDF: Gauss-Seidel sweeps
+                                 * per frame, 1 .. 100; default 0: the library's, 3 */
+  sls_pose_source poses;        /* --poses; default SLS_POSES_TRACK. SLS_POSES_GROUNDTRUTH: runs
+                                 * of simulated recordings only (not feeds); as in the tool, the
+                                 * tracking fields, use_turntable_prior and online_deformation
+                                 * are then not used */
+  int loop_frames;              /* --loop-frames: how many of the last fused frames a loop
+                                 * closure registers to the first, 1 .. 64; default 2 */
+  double photometric_weight;    /* --photometric-weight, tracking: the photometric term's weight
+                                 * on each stack's white - black texture, relative to ICP's,
+                                 * 0 .. 1e6; default 0: off */
+  double icp_crease_deg;        /* --icp-crease-deg, tracking: ICP sets aside matches near a model
+                                 * crease turning by more than this, 0 (off) .. 179; default 15 */
+  sls_icp_weights icp_weights;  /* --icp-weights, tracking; default SLS_ICP_WEIGHTS_CONFIDENCE */
+  sls_loop_closure_mode loop_closure; /* --loop-closure; default SLS_LOOP_CLOSURE_CALLER, not the
+                                 * tool's AUTO: a program older than this field closes the loop
+                                 * itself, and a second closure would add its constraints twice.
+                                 * A closure a run makes and that fails (no loop to close) is
+                                 * logged as a warning, the run still SLS_OK: the summary's
+                                 * loop_closed says whether it closed */
 } sls_scan_config;
 
 /* Fills *config with the defaults. */
 SLS_API void sls_scan_config_init(sls_scan_config* config);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_scan_config_init_sized(sls_scan_config* config, size_t struct_size);
+#define sls_scan_config_init(config) sls_scan_config_init_sized((config), sizeof(*(config)))
 
 /* Creates a scan.
  *   context: where it runs (sls_context_uses_cuda: the CUDA GPU or the CPU); sim:// devices of
@@ -105,7 +196,9 @@ SLS_API void sls_scan_config_init(sls_scan_config* config);
  *   config:  NULL for the defaults, or a config from sls_scan_config_init().
  *   scan:    receives the scan; the caller owns it and frees it with sls_scan_destroy(). Left
  *            NULL on failure.
- * Fails with SLS_ERROR_INVALID_ARGUMENT naming the bad config field. Memory for the volume is
+ * Fails with SLS_ERROR_INVALID_ARGUMENT naming the bad config field (a value out of its range,
+ * gtsdf_* set with SLS_FUSION_TSDF), and with the reader's SLS_ERROR_NOT_FOUND / SLS_ERROR_FORMAT
+ * naming config->calibration_path when that cannot be read. Memory for the volume is
  * taken at the first fused frame of a run, not here. */
 SLS_API sls_status sls_scan_create(sls_context* context, const sls_scan_config* config, sls_scan** scan,
                                    sls_error** error);
@@ -180,6 +273,9 @@ typedef struct sls_frame_report {
 
 /* Sets struct_size and clears the other fields (for sls_scan_add_depth()/_add_stack()). */
 SLS_API void sls_frame_report_init(sls_frame_report* report);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_frame_report_init_sized(sls_frame_report* report, size_t struct_size);
+#define sls_frame_report_init(report) sls_frame_report_init_sized((report), sizeof(*(report)))
 
 /* Called after each frame of a run (or of sls_scan_add_depth/_add_stack, sls_feed.h), in frame
  * order, on the thread running it. `report`, its strings and its depth map are valid during the
@@ -219,16 +315,21 @@ typedef struct sls_capture_config {
   const char* camera_uri;       /* required, e.g. "gige://192.168.1.20", "sim://knurled-knob?preset=ci" */
   const char* projector_uri;    /* required, e.g. "dlpc350://" */
   const char* turntable_uri;    /* NULL or "": none, every stack at one position; e.g. "headctl://" */
-  const char* calibration_path; /* required: calibration.yml of these devices, stored in the
-                                 * recording (without one the stacks cannot be decoded) */
+  const char* calibration_path; /* calibration.yml of these devices, stored in the recording
+                                 * (without one the stacks cannot be decoded). NULL or "": none,
+                                 * or with a replay:// camera the replayed recording's */
   const char* recording_path;   /* required: the recording folder to create; it must not exist
                                  * or be empty. It is kept: scan it again with sls_scan_run_recording */
   int frames;                   /* frames per revolution, one revolution captured; default 0:
-                                 * 36 with a turntable, else 1 */
+                                 * 36 with a turntable, else 1; with a replay:// camera the
+                                 * replayed recording's frames */
 } sls_capture_config;
 
 /* Sets struct_size and the defaults (NULL strings, frames 0). */
 SLS_API void sls_capture_config_init(sls_capture_config* config);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_capture_config_init_sized(sls_capture_config* config, size_t struct_size);
+#define sls_capture_config_init(config) sls_capture_config_init_sized((config), sizeof(*(config)))
 
 /* Captures from devices by URI, then scans the recording: opens the projector, camera and
  * turntable (sls_device.h's URIs; sim:// devices render on the context's device), homes the
@@ -271,6 +372,9 @@ typedef struct sls_scan_summary {
 
 /* Sets struct_size and clears the other fields. */
 SLS_API void sls_scan_summary_init(sls_scan_summary* summary);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_scan_summary_init_sized(sls_scan_summary* summary, size_t struct_size);
+#define sls_scan_summary_init(summary) sls_scan_summary_init_sized((summary), sizeof(*(summary)))
 
 /* The last run's summary; all zero before the first run. */
 SLS_API sls_status sls_scan_get_summary(const sls_scan* scan, sls_scan_summary* summary, sls_error** error);
@@ -294,6 +398,9 @@ typedef struct sls_loop_closure {
 
 /* Sets struct_size and clears the other fields. */
 SLS_API void sls_loop_closure_init(sls_loop_closure* result);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_loop_closure_init_sized(sls_loop_closure* result, size_t struct_size);
+#define sls_loop_closure_init(result) sls_loop_closure_init_sized((result), sizeof(*(result)))
 
 /* Closes the loop of the last run, after it (e.g. a full turntable revolution): waits for the
  * deformation worker, registers the last fused frame to the first frame's surface (ICP from the
