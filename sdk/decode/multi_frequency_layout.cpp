@@ -150,6 +150,13 @@ void fill_micro_phase_axis(const PatternSet& set, PatternAxis axis, AxisCode* co
                 "micro phase-shifting set: {} single-image periods besides the {:g} px one on the {} (need 1..{})",
                 singles, main->period, axis_name, kDecodeMaxMicroSingles);
   }
+  const double candidates = std::ceil(extent / main->period);
+  if (candidates > kMicroMaxCandidates) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "micro phase-shifting set: {} periods of {:g} px along the {} {}; the search tries at most {} (choose "
+                "a longer period)",
+                candidates, main->period, extent, axis_name, kMicroMaxCandidates);
+  }
   AxisCode out;
   out.extent = extent;
   PhaseGroup& g = out.phase[0];

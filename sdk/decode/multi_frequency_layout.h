@@ -29,5 +29,8 @@ double micro_phase_code_distance(const AxisCode& code, double* first = nullptr, 
 // Below this the search cannot tell two periods apart even without noise (a single image's
 // period equal to a harmonic of another's, or a band too narrow for the axis).
 constexpr double kMicroMinCodeDistance = 0.05;
+// The most periods of the N-step period along an axis: each pixel tries every one (4096
+// columns at a period of 4 px; DMDs in use have far fewer).
+constexpr int kMicroMaxCandidates = 1024;
 
 }  // namespace sls::detail

@@ -321,6 +321,8 @@ TEST(PatternFamilies, BadHeterodyneAndMicroPhaseDescriptionsAreRefused) {
       {R"({"family":"micro_phase","periods_px":[16,32]})", ErrorCode::kInvalidArgument,
        "cannot tell the periods of 16 px apart"},
       {R"({"family":"micro_phase","steps":2})", ErrorCode::kInvalidArgument, "2 steps (need 3..32)"},
+      {R"({"family":"micro_phase","projector":{"width":8192},"periods_px":[4,4.1]})", ErrorCode::kInvalidArgument,
+       "2048 periods of 4 px along the 8192 columns; the search tries at most 1024"},
       {R"({"family":"micro_phase","unwrap":"gray"})", ErrorCode::kFormat, "has no parameter \"unwrap\""},
   };
   for (const Case& c : cases) {
