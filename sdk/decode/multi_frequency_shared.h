@@ -8,8 +8,10 @@
 // so the difference of their wrapped phases is the phase of a fringe of period P01. With three,
 // the pair beats P01 and P12 beat again at P012 = P01 P12 / |P12 - P01| (the classic
 // 70/64/59 periods across a width: beats of 6 and 5, and 1). The coarsest beat must span the
-// axis (the layout refuses a set whose does not); it is unwrapped about the axis' centre, the
-// finer pair beat from it, then each real period from that, and the coordinate is the
+// axis (the layout refuses a set whose does not); it is unwrapped about the axis' centre, both
+// pair beats from it, then each real period from their best linear combination (the two share
+// the middle period's error with opposite signs, so it partly cancels: 1.8x less noise than
+// the finer pair beat alone for the classic periods), and the coordinate is the
 // inverse-variance mean of the real periods' (their noise is what the confidence sees). The
 // beats' noise is the real phases' amplified by P_beat / P: each level must be precise enough
 // to unwrap the next (a tenth of its period, as for multi-period Gray/phase sets), and a level
@@ -127,14 +129,24 @@ SLS_HOST_DEVICE inline AxisDecode decode_heterodyne_axis(const AxisCode& a, cons
     // u / P012 = +-(u/P0 - 2 u/P1 + u/P2): the middle period's noise counts twice.
     const float span_sigma =
         beats.spanning_px * std::sqrt(turn_variance[0] + 4.0f * turn_variance[1] + turn_variance[2]);
-    const float pair_sigma = beats.intermediate_px * std::sqrt(pair0 ? turn_variance[0] + turn_variance[1]
-                                                                     : turn_variance[1] + turn_variance[2]);
-    if (!(span_sigma <= 0.1f * beats.intermediate_px) || !(pair_sigma <= 0.1f * period[0])) {
+    const float coarse = unwrap_coordinate(centre, span, beats.spanning_px);
+    const float u01 = unwrap_coordinate(coarse, w01, p01);
+    const float u12 = unwrap_coordinate(coarse, w12, p12);
+    if (std::fabs(u01 - coarse) > 0.25f * p01 || std::fabs(u12 - coarse) > 0.25f * p12) {
+      flags |= kDecodeInconsistent;
+    }
+    // Their best linear unbiased combination: errors p01 (e0 - e1) and p12 (e1 - e2) in turns,
+    // covariant through e1.
+    const float var01 = p01 * p01 * (turn_variance[0] + turn_variance[1]);
+    const float var12 = p12 * p12 * (turn_variance[1] + turn_variance[2]);
+    const float covariance = -p01 * p12 * turn_variance[1];
+    const float spread = var01 + var12 - 2.0f * covariance;
+    const float weight01 = (var12 - covariance) / spread;
+    reference = weight01 * u01 + (1.0f - weight01) * u12;
+    const float reference_sigma = std::sqrt((var01 * var12 - covariance * covariance) / spread);
+    if (!(span_sigma <= 0.1f * beats.intermediate_px) || !(reference_sigma <= 0.1f * period[0])) {
       flags |= kDecodeLowModulation;
     }
-    const float coarse = unwrap_coordinate(centre, span, beats.spanning_px);
-    reference = unwrap_coordinate(coarse, pair0 ? w01 : w12, beats.intermediate_px);
-    if (std::fabs(reference - coarse) > 0.25f * beats.intermediate_px) flags |= kDecodeInconsistent;
   }
   // Each real period from the reference, then their inverse-variance mean.
   float u[kDecodeMaxPhaseGroups];
