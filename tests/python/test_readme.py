@@ -1,0 +1,103 @@
+"""The README's copy-paste examples, run as they are written, one test per audience: the C
+example of "OEM integration: C and C++" compiled as C99 and as C++ against the build tree's
+headers and libsls, the Python example of "Python scripting", and the shell and Python examples
+of "Replay testing". Each section's `sls sim` command makes its input first (the build tree's
+`sls`, $SLS_TOOL, first on PATH)."""
+from __future__ import annotations
+
+import os
+import pathlib
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from typing import Dict, List
+
+import pytest
+
+import slscan
+from conftest import REPO
+
+
+def section(title: str) -> str:
+    """The README's section `## title`, up to the next one."""
+    text = (REPO / "README.md").read_text()
+    assert f"\n## {title}\n" in text, f"README.md has no section '{title}'"
+    return text.split(f"\n## {title}\n", 1)[1].split("\n## ", 1)[0]
+
+
+def blocks(text: str, language: str) -> List[str]:
+    """The fenced code blocks of `language` in `text`."""
+    return re.findall(rf"```{language}\n(.*?)```", text, re.S)
+
+
+def tool_env(sls_tool: str, folder: pathlib.Path) -> Dict[str, str]:
+    """The environment with the `sls` under test first on PATH, as a user's shell has it (a link
+    named `sls` in `folder`)."""
+    folder.mkdir()
+    (folder / "sls").symlink_to(pathlib.Path(sls_tool).resolve())
+    return {**os.environ, "PATH": f"{folder}{os.pathsep}{os.environ['PATH']}", "PYTHONDONTWRITEBYTECODE": "1"}
+
+
+def make_input(text: str, cwd: pathlib.Path, sls_tool: str) -> None:
+    """Runs the section's inline `sls sim ...` command in `cwd`."""
+    command = shlex.split(re.search(r"`(sls sim [^`]+)`", text).group(1))  # type: ignore[union-attr]
+    subprocess.run([sls_tool, *command[1:]], cwd=cwd, check=True, capture_output=True, timeout=120)
+
+
+def test_c_example(tmp_path: pathlib.Path, sls_tool: str):
+    text = section("OEM integration: C and C++")
+    make_input(text, tmp_path, sls_tool)
+    (source,) = blocks(text, "c")
+    (tmp_path / "scan.c").write_text(source)
+    library = pathlib.Path(slscan.library_path).resolve()
+    headers = REPO / "sdk" / "include"
+    for compiler, flags in (("cc", ["-std=c99", "-Wall", "-Wextra", "-pedantic-errors", "-Werror"]),
+                            ("c++", ["-x", "c++", "-std=c++17", "-Wall", "-Wextra", "-Werror"])):
+        found = shutil.which(compiler)
+        if found is None:
+            pytest.skip(f"no {compiler}")
+        program = tmp_path / f"scan-{compiler}"
+        subprocess.run([found, *flags, f"-I{headers}", str(tmp_path / "scan.c"), "-x", "none", str(library),
+                        f"-Wl,-rpath,{library.parent}", "-o", str(program)], check=True, timeout=120)
+        mesh = tmp_path / f"knob-{compiler}.ply"
+        result = subprocess.run([str(program), "knob", str(mesh)], cwd=tmp_path, capture_output=True, text=True,
+                                timeout=120)
+        assert result.returncode == 0, result.stdout + result.stderr
+        assert "frame 0 fused" in result.stdout and "fused 4 of 4 frames" in result.stdout
+        assert mesh.read_bytes().startswith(b"ply\n")
+        # A recording that is not there: the status and the message, exit status 1.
+        missing = subprocess.run([str(program), "no-such-recording", str(mesh)], cwd=tmp_path, capture_output=True,
+                                 text=True, timeout=60)
+        assert missing.returncode == 1 and "no-such-recording" in missing.stderr, missing.stderr
+
+
+def test_python_example(tmp_path: pathlib.Path, sls_tool: str):
+    text = section("Python scripting")
+    make_input(text, tmp_path, sls_tool)
+    (code,) = blocks(text, "python")
+    result = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "(300, 400) uint16" in result.stdout and "fused 4 of 4 frames" in result.stdout
+    assert "3 FUSED" in result.stdout and "NOT_FOUND sls_scan_run_recording" in result.stdout
+    assert (tmp_path / "knob.ply").read_bytes().startswith(b"ply\n")
+
+
+def test_replay_examples(tmp_path: pathlib.Path, sls_tool: str):
+    """The shell lines (the recording, its replay and its direct scan: identical meshes), then the
+    Python example on what they wrote (the same mesh through sls_scan_run_devices)."""
+    text = section("Replay testing")
+    (shell,) = blocks(text, "sh")
+    env = tool_env(sls_tool, tmp_path / "bin")
+    work = tmp_path / "work"
+    work.mkdir()
+    for line in shell.strip().splitlines():
+        result = subprocess.run(line, shell=True, cwd=work, env=env, capture_output=True, text=True, timeout=300)
+        assert result.returncode == 0, f"{line}: {result.stdout}{result.stderr}"
+    assert result.stdout.strip() == "identical"
+    (code,) = blocks(text, "python")
+    result = subprocess.run([sys.executable, "-c", code], cwd=work, env=env, capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "replayed 3 of 3 frames" in result.stdout and "identical: True" in result.stdout
