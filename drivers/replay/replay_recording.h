@@ -39,8 +39,9 @@
 //    model (a capture's "projector + camera"; a model without " + ", as the simulator's, is
 //    taken by both and comes back joined); it differs in device.uri (replay://PATH: what it was
 //    captured from), created_utc, the capture counters and notes (the sequencer's of this
-//    capture) and in calibration.yml, which the capture stores only when given (`sls scan
-//    --calibration PATH/calibration.yml`).
+//    capture) and in calibration.yml, which the capture stores only when given (the devices
+//    alone carry none; session::capture_from_devices, behind `sls scan --camera replay://` and
+//    sls_scan_run_devices, gives the replayed recording's unless told another).
 //
 // Devices opened from one URI (the registry, drivers/device_registry.h) share one
 // ReplayRecording while any of them is open, as sim:// devices share their scanner.
