@@ -315,9 +315,10 @@ typedef struct sls_capture_config {
   const char* camera_uri;       /* required, e.g. "gige://192.168.1.20", "sim://knurled-knob?preset=ci" */
   const char* projector_uri;    /* required, e.g. "dlpc350://" */
   const char* turntable_uri;    /* NULL or "": none, every stack at one position; e.g. "headctl://" */
-  const char* calibration_path; /* calibration.yml of these devices, stored in the recording
-                                 * (without one the stacks cannot be decoded). NULL or "": none,
-                                 * or with a replay:// camera the replayed recording's */
+  const char* calibration_path; /* required (the stacks cannot be decoded without it):
+                                 * calibration.yml of these devices, stored in the recording;
+                                 * with a replay:// camera NULL or "" takes the replayed
+                                 * recording's */
   const char* recording_path;   /* required: the recording folder to create; it must not exist
                                  * or be empty. It is kept: scan it again with sls_scan_run_recording */
   int frames;                   /* frames per revolution, one revolution captured; default 0:
