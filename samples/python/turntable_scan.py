@@ -49,10 +49,11 @@ def parse_args(argv: Optional[List[str]]) -> argparse.Namespace:
     parser.add_argument("--projector", help="projector URI (default: the camera's when it is sim://)")
     parser.add_argument("--turntable", help="turntable URI, or 'none' (default: the camera's when it is sim://)")
     parser.add_argument("--frames", type=int, default=0,
-                        help="stops per revolution (0: the turntable's, 36 for the simulator)")
+                        help="stops per revolution (0: the turntable's, 36 for the simulator, a replay's frames)")
     parser.add_argument("--out", default="out/turntable_scan", help="output folder")
     parser.add_argument("--overwrite", action="store_true", help="replace OUT/recording when it exists")
-    parser.add_argument("--calibration", help="the head's calibration.yml (default: the simulator's, from `sls sim`)")
+    parser.add_argument("--calibration", help="the head's calibration.yml (default: the simulator's, from `sls sim`, "
+                                              "or a replay:// camera's recording's)")
     parser.add_argument("--sls", help="the sls tool, for the simulator's calibration (default: $SLS_TOOL, beside "
                                       "libsls in its prefix or build tree, or on PATH)")
     parser.add_argument("--device", default="auto", help="where to fuse: auto, cpu, cuda or cuda:N")
