@@ -15,6 +15,7 @@
 #include "sdk/core/ply.h"
 #include "sdk/core/recording.h"
 #include "sdk/core/trajectory.h"
+#include "sdk/decode/hdr_fusion.h"
 
 namespace sls::sim {
 namespace {
@@ -108,11 +109,11 @@ RecordingWriter resume_recording(const std::string& folder, const RecordingInfo&
       recorded.camera.bit_depth == info.camera.bit_depth && recorded.images_per_frame == info.images_per_frame &&
       nlohmann::json::parse(recorded.pattern_set_json) == nlohmann::json::parse(info.pattern_set_json) &&
       recorded.depth_offset_m == info.depth_offset_m && recorded.depth_unit_m == info.depth_unit_m &&
-      recorded.has_groundtruth;
+      recorded.exposures == info.exposures && recorded.has_groundtruth;
   if (!same_format) {
     throw_error(ErrorCode::kInvalidArgument,
                 "cannot resume {}: it holds {}x{} {}-bit frames of {} images{}; these options give {}x{} {}-bit "
-                "frames of {} images with ground truth (another --mode, --bit-depth or --projector?)",
+                "frames of {} images with ground truth (another --mode, --bit-depth, --projector or --exposures?)",
                 writer.folder(), recorded.camera.width, recorded.camera.height, recorded.camera.bit_depth,
                 recorded.images_per_frame, recorded.has_groundtruth ? " with ground truth" : " without ground truth",
                 info.camera.width, info.camera.height, info.camera.bit_depth, info.images_per_frame);
@@ -182,7 +183,13 @@ SimRecordingSummary write_sim_recording(const std::string& folder, const SimReco
   info.device = {scanner->uri(), "slscan simulated scanner", "SIM-0"};
   info.camera = {rig.camera.width, rig.camera.height, rig.optics.camera_sensor.bit_depth};
   info.pattern_set_json = depth_mode ? "{}" : pattern_set_to_json(rig.patterns);
-  info.images_per_frame = depth_mode ? 0 : static_cast<int>(rig.patterns.size());
+  const HdrExposures exposures = options.exposures.empty() ? HdrExposures{} : HdrExposures{options.exposures};
+  exposures.validate();
+  if (depth_mode && exposures.is_hdr()) {
+    throw_error(ErrorCode::kInvalidArgument, "HDR exposures are for pattern images, not the depth-only mode");
+  }
+  if (exposures.is_hdr()) info.exposures = exposures.scales;
+  info.images_per_frame = depth_mode ? 0 : static_cast<int>(rig.patterns.size() * exposures.count());
   info.has_groundtruth = true;
   // Depth maps around the 100 mm working distance: store 70 .. 135.5 mm at 1 µm steps.
   info.depth_offset_m = rig.optics.working_distance_m - 0.030;
@@ -212,7 +219,15 @@ SimRecordingSummary write_sim_recording(const std::string& folder, const SimReco
       depth = scanner->depth_map();
       metadata.timestamp_ns = static_cast<std::int64_t>(frame) * 333'333'333;
     } else {
-      images = capture_pattern_stack(devices, static_cast<int>(rig.patterns.size()), &metadata.timestamp_ns);
+      // Exposure-major: the whole stack at each exposure in turn, as the capture sequencer does.
+      for (std::size_t e = 0; e < exposures.count(); ++e) {
+        if (exposures.is_hdr()) devices.camera->set_exposure_us(kSimNominalExposureUs * exposures.scales[e]);
+        std::int64_t timestamp_ns = 0;
+        std::vector<Image16u> stack =
+            capture_pattern_stack(devices, static_cast<int>(rig.patterns.size()), &timestamp_ns);
+        if (e == 0) metadata.timestamp_ns = timestamp_ns;
+        for (Image16u& image : stack) images.push_back(std::move(image));
+      }
     }
     step(SimFrameStep::kCaptured, frame);
     // Everything of the frame goes to disk before the manifest lists it (sim_recording.h).

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "drivers/sim/rig.h"
 #include "sdk/core/device.h"
@@ -34,6 +35,10 @@ struct SimRecordingOptions {
   RigOptions rig;                     // preset, frames, projector, sensor, turntable, seed, noise
   bool depth_mode = false;            // depth maps instead of pattern images
   double reference_spacing_m = 0.0;   // 0: per preset (ci 100 µm, demo 30 µm, paper 10 µm)
+  // HDR capture (sdk/decode/hdr_fusion.h): the whole stack at each of these exposure times
+  // relative to the rig's (2..4 of them; the camera's exposure set to kSimNominalExposureUs x
+  // each), stored exposure-major with RecordingInfo::exposures. Empty: one exposure.
+  std::vector<double> exposures;
   // Continue a recording of these same options that was cut off (see write_sim_recording).
   bool resume = false;
   // Tests: called at each step of each frame; one that throws there stops the writer as a

@@ -20,6 +20,7 @@
 #include "sdk/core/recording.h"
 #include "sdk/decode/decode_metrics.h"
 #include "sdk/decode/decoder.h"
+#include "sdk/decode/hdr_fusion.h"
 
 namespace sls::cli {
 namespace {
@@ -84,6 +85,12 @@ int run_decode(const Context& context, const DecodeCommandOptions& options) {
   DecodeOptions decode_options;
   decode_options.bit_depth = info.camera.bit_depth;
   Decoder decoder(pattern_set_from_json(info.pattern_set_json), calibration, device, decode_options);
+  const HdrExposures exposures = info.exposures.empty() ? HdrExposures{} : HdrExposures{info.exposures};
+  const std::size_t patterns = decoder.pattern_set().size();
+  if (exposures.is_hdr() && static_cast<std::size_t>(info.images_per_frame) != patterns * exposures.count()) {
+    throw_error(ErrorCode::kFormat, "{}: {} images per frame for {} patterns at {} exposure(s)", options.input,
+                info.images_per_frame, patterns, exposures.count());
+  }
   create_directories(options.out);
 
   nlohmann::json frames = nlohmann::json::array();
@@ -109,7 +116,10 @@ int run_decode(const Context& context, const DecodeCommandOptions& options) {
     DecodedFrame decoded;
     const auto start = std::chrono::steady_clock::now();
     try {
-      decoded = decoder.decode(recording.load_images(i));
+      std::vector<Image16u> images = recording.load_images(i);
+      // HDR: the exposures' stacks fused per pixel (sdk/decode/hdr_fusion.h).
+      if (exposures.is_hdr()) images = fuse_hdr_stack(images, patterns, exposures, decode_options).images;
+      decoded = decoder.decode(images);
     } catch (const Error& error) {
       if (!is_frame_problem(error)) throw;
       entry["status"] = "skipped";

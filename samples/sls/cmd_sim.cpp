@@ -13,6 +13,7 @@
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/core/recording.h"
+#include "sdk/decode/hdr_fusion.h"
 #include "sdk/decode/pattern_families.h"
 
 namespace sls::cli {
@@ -33,6 +34,7 @@ struct SimOptions {
   bool resume = false;
   int hand_poses = sim::SimCalibrationOptions{}.hand_poses;
   int turntable_poses = sim::SimCalibrationOptions{}.turntable_poses;
+  std::string exposures;  // HDR: relative exposure times, "1,0.25"; empty: one exposure
 };
 
 int run_sim(const Context& context, const SimOptions& options) {
@@ -69,6 +71,7 @@ int run_sim(const Context& context, const SimOptions& options) {
       sim_options.depth_mode = options.mode == "depth";
       sim_options.reference_spacing_m = options.reference_spacing_um * 1e-6;
       sim_options.resume = options.resume;
+      if (!options.exposures.empty()) sim_options.exposures = parse_hdr_exposures(options.exposures).scales;
       summary = sim::write_sim_recording(options.out, sim_options, device, counting);
     }
   } catch (const Error& error) {
@@ -101,6 +104,7 @@ int run_sim(const Context& context, const SimOptions& options) {
                            {"frames", summary.frames},
                            {"resumed_from", summary.resumed_from},
                            {"images_per_frame", summary.images_per_frame},
+                           {"material", options.rig.material},
                            {"camera", {summary.width, summary.height}},
                            {"device", device.to_string()}};
   if (options.calibration) {
@@ -153,6 +157,17 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       "--patterns", options->patterns,
       "A pattern description (JSON, sdk/decode/README.md; examples in samples/patterns/) to project instead of the "
       "preset's Gray code + phase shift; a description for another DMD size gets a DMD of that size");
+  command->add_option("--material", options->rig.material,
+                      "The object's finish: painted (Lambertian, the scene's albedo) or metal (machined steel: a "
+                      "quarter of the albedo diffuse plus a Blinn-Phong specular lobe that saturates the camera at the "
+                      "rig's exposure; docs/simulator.md)")
+      ->check(CLI::IsMember({"painted", "metal"}))
+      ->capture_default_str();
+  CLI::Option* exposures = command->add_option(
+      "--exposures", options->exposures,
+      "HDR capture: the whole stack at each of these exposure times relative to the rig's, comma separated (2 to 4, "
+      "e.g. 4,1,0.25), stored exposure-major in one frame; sls decode and sls scan fuse them per pixel "
+      "(sdk/decode/hdr_fusion.h). Default: one exposure");
   command->add_option("--projector", options->rig.projector,
                       "dlpc350: DLP4500 912x1140 (as the DLPC350 drives it); 1080p: a 1920x1080 DMD")
       ->check(CLI::IsMember({"dlpc350", "1080p"}))
@@ -201,7 +216,7 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       "(--turntable-poses); patterns code projector columns and rows. Recorded uncalibrated; groundtruth/ holds the "
       "exact calibration, board, board poses and corners (docs/simulator.md). --object then names the object the "
       "head is set up for (it focuses on its surface; the axis calibrated is its scans'). Not with --frames, --mode, "
-      "--mount-tilt-deg, --mount-offset-um, --reference-spacing-um or --patterns");
+      "--mount-tilt-deg, --mount-offset-um, --reference-spacing-um, --patterns or --exposures");
   command->add_option("--hand-poses", options->hand_poses, "With --calibration: board poses by hand")
       ->check(CLI::Range(0, 1000))
       ->needs(calibration)
@@ -211,7 +226,8 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::Range(0, 1000))
       ->needs(calibration)
       ->capture_default_str();
-  for (CLI::Option* scan_only : {frames, mode, mount_tilt, mount_offset, reference_spacing, resume, patterns}) {
+  for (CLI::Option* scan_only :
+       {frames, mode, mount_tilt, mount_offset, reference_spacing, resume, patterns, exposures}) {
     scan_only->excludes(calibration);
   }
   command->callback([&context, exit_code, options, mount_offset] {

@@ -136,6 +136,20 @@ void validate_info(const RecordingInfo& info, const std::string& folder) {
     throw_error(ErrorCode::kInvalidArgument, "recording {}: images_per_frame {} is negative", folder,
                 info.images_per_frame);
   }
+  if (!info.exposures.empty()) {
+    if (info.exposures.size() > 4 || info.images_per_frame <= 0 ||
+        info.images_per_frame % static_cast<int>(info.exposures.size()) != 0) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "recording {}: {} exposures with {} images per frame (1..4 exposures, each a whole pattern stack)",
+                  folder, info.exposures.size(), info.images_per_frame);
+    }
+    for (const double scale : info.exposures) {
+      if (!(std::isfinite(scale) && scale > 0.0)) {
+        throw_error(ErrorCode::kInvalidArgument, "recording {}: exposure scale {} must be finite and positive", folder,
+                    scale);
+      }
+    }
+  }
   if (!(std::isfinite(info.depth_unit_m) && info.depth_unit_m > 0.0) ||
       !(std::isfinite(info.depth_offset_m) && info.depth_offset_m >= 0.0)) {
     throw_error(ErrorCode::kInvalidArgument, "recording {}: depth unit {} m / offset {} m is invalid (unit > 0, offset >= 0)",
@@ -466,13 +480,14 @@ int RecordingWriter::append_any(const std::vector<Image<T>>& images, const Frame
 void RecordingWriter::write_manifest() const {
   Json manifest;
   manifest["format"] = kFormatName;
-  manifest["format_version"] = RecordingInfo::kFormatVersion;
+  manifest["format_version"] = info_.exposures.empty() ? 1 : 2;  // 2: what older readers cannot decode
   manifest["created_utc"] = info_.created_utc;
   manifest["device"] = {{"uri", info_.device.uri}, {"model", info_.device.model}, {"serial", info_.device.serial}};
   manifest["camera"] = {
       {"width", info_.camera.width}, {"height", info_.camera.height}, {"bit_depth", info_.camera.bit_depth}};
   manifest["pattern_set"] = Json::parse(info_.pattern_set_json);
   manifest["images_per_frame"] = info_.images_per_frame;
+  if (!info_.exposures.empty()) manifest["exposures"] = info_.exposures;
   manifest["calibration"] = has_calibration_ ? Json(kCalibrationName) : Json(nullptr);
   if (info_.has_groundtruth) manifest["groundtruth"] = kGroundtruthName;
   manifest["depth_encoding"] = {

@@ -12,6 +12,8 @@
 //    "device": {"uri", "model", "serial"}, "camera": {"width", "height", "bit_depth"},
 //    "pattern_set": {...caller's JSON object...}, "images_per_frame": N,
 //    (images_per_frame 0: a depth-only recording, every frame has a depth map),
+//    "exposures": [1.0, 0.25] (optional, format_version 2: an HDR capture; each frame holds
+//      the whole stack at each exposure in turn, images_per_frame = patterns x exposures),
 //    "calibration": "calibration.yml" | null, "groundtruth": "groundtruth" (optional),
 //    "depth_encoding": {"format": "png16", "unit_m": 1e-6, "offset_m": 0.0},
 //    "frames": [{"index", "timestamp_ns", "turntable_angle_deg": number|null,
@@ -65,7 +67,9 @@ struct RecordingCamera {
 };
 
 struct RecordingInfo {
-  static constexpr int kFormatVersion = 1;
+  // The newest format this SDK reads and writes. A recording is written as version 1 unless
+  // it needs 2 (exposures), so older readers keep reading what they can decode.
+  static constexpr int kFormatVersion = 2;
 
   RecordingDevice device;
   RecordingCamera camera;
@@ -77,6 +81,10 @@ struct RecordingInfo {
   double depth_unit_m = 1e-6;   // size of one depth step on disk
   double depth_offset_m = 0.0;  // depth of step 0 (step 0 itself means invalid)
   std::string created_utc;      // ISO 8601, set by the writer; read back by the reader
+  // HDR (sdk/decode/hdr_fusion.h): the frame's stack was captured at these exposure times
+  // relative to the camera's configured one, 1..4 of them; images_per_frame counts all the
+  // images (patterns x exposures, exposure-major). Empty: one exposure, as before.
+  std::vector<double> exposures;
 };
 
 // A frame's figures from the cameras' transport (GigE Vision streams), summed over the cameras:

@@ -1,5 +1,6 @@
 #include "sdk/core/recording_manifest.h"
 
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <limits>
@@ -187,6 +188,20 @@ RecordingManifest parse_recording_manifest(const std::string& text, const std::s
   info.pattern_set_json = parser.object(root, "pattern_set", "").dump();
   info.images_per_frame =
       static_cast<int>(parser.integer(root, "images_per_frame", "", 0, std::numeric_limits<int>::max()));
+  if (const Json* exposures = parser.optional_member(root, "exposures")) {
+    if (!exposures->is_array() || exposures->empty() || exposures->size() > 4) {
+      parser.fail("'exposures' must be an array of 1 to 4 exposure scales");
+    }
+    for (std::size_t i = 0; i < exposures->size(); ++i) {
+      const double scale = parser.number((*exposures)[i], fmt::format("exposures[{}]", i));
+      if (!(std::isfinite(scale) && scale > 0.0)) parser.fail(fmt::format("exposures[{}] must be positive", i));
+      info.exposures.push_back(scale);
+    }
+    if (info.images_per_frame % static_cast<int>(info.exposures.size()) != 0) {
+      parser.fail(fmt::format("images_per_frame {} is not a whole stack per exposure ({} exposures)",
+                              info.images_per_frame, info.exposures.size()));
+    }
+  }
   if (const Json* encoding = parser.optional_member(root, "depth_encoding")) {
     if (!encoding->is_object()) parser.fail("'depth_encoding' must be an object");
     const std::string depth_format = parser.string(*encoding, "format", "depth_encoding");

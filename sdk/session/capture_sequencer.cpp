@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "sdk/core/error.h"
+#include "sdk/decode/hdr_fusion.h"
 #include "sdk/core/host_memory.h"
 
 namespace sls::session {
@@ -49,6 +50,7 @@ void CaptureOptions::validate() const {
     throw_error(ErrorCode::kInvalidArgument, "capture: exposure_us = {} must be finite and >= 0 (0: leave as is)",
                 exposure_us);
   }
+  if (!exposures.empty()) HdrExposures{exposures}.validate();
   if (image_timeout.count() <= 0 || turntable_timeout.count() <= 0) {
     throw_error(ErrorCode::kInvalidArgument, "capture: image_timeout ({} ms) and turntable_timeout ({} ms) must be > 0",
                 image_timeout.count(), turntable_timeout.count());
@@ -67,7 +69,7 @@ std::int64_t CapturedFrame::timestamp_ns() const {
 }
 
 RecordingInfo make_recording_info(const drivers::Projector& projector, const drivers::Camera& camera,
-                                  const PatternSet& patterns) {
+                                  const PatternSet& patterns, const std::vector<double>& exposures) {
   const drivers::ProjectorInfo projector_info = projector.info();
   const drivers::CameraInfo camera_info = camera.info();
   RecordingInfo info;
@@ -75,7 +77,9 @@ RecordingInfo make_recording_info(const drivers::Projector& projector, const dri
                  camera_info.serial};
   info.camera = {camera_info.width, camera_info.height, camera_info.bit_depth};
   info.pattern_set_json = pattern_set_to_json(patterns);
-  info.images_per_frame = static_cast<int>(patterns.size());
+  if (!exposures.empty()) HdrExposures{exposures}.validate();
+  if (exposures.size() > 1) info.exposures = exposures;
+  info.images_per_frame = static_cast<int>(patterns.size() * std::max<std::size_t>(1, exposures.size()));
   return info;
 }
 
@@ -134,12 +138,16 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
     if (writer == nullptr) throw_error(ErrorCode::kInvalidArgument, "capture: the recording of camera {} is null", c);
     const drivers::CameraInfo info = cameras_[c]->info();
     const RecordingInfo& recording = writer->info();
-    if (writer->is_closed() || recording.images_per_frame != static_cast<int>(patterns_.size()) ||
-        recording.camera.width != info.width || recording.camera.height != info.height) {
+    const std::vector<double> hdr = options_.exposures.size() > 1 ? options_.exposures : std::vector<double>{};
+    if (writer->is_closed() ||
+        recording.images_per_frame != static_cast<int>(patterns_.size() * exposure_count()) ||
+        recording.exposures != hdr || recording.camera.width != info.width || recording.camera.height != info.height) {
       throw_error(ErrorCode::kInvalidArgument,
-                  "capture: recording {} ({}x{}, {} images per frame{}) does not fit {} ({}x{}) with {} patterns",
+                  "capture: recording {} ({}x{}, {} images per frame at {} exposure(s){}) does not fit {} ({}x{}) with "
+                  "{} patterns at {} exposure(s)",
                   writer->folder(), recording.camera.width, recording.camera.height, recording.images_per_frame,
-                  writer->is_closed() ? ", closed" : "", camera_name(c), info.width, info.height, patterns_.size());
+                  std::max<std::size_t>(1, recording.exposures.size()), writer->is_closed() ? ", closed" : "",
+                  camera_name(c), info.width, info.height, patterns_.size(), exposure_count());
     }
     if (writer->frame_count() != static_cast<std::size_t>(options_.first_frame)) {
       throw_error(ErrorCode::kInvalidArgument,
@@ -154,7 +162,7 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
   std::uint64_t stack_bytes = 0;
   for (drivers::Camera* camera : cameras_) {
     const drivers::CameraInfo info = camera->info();
-    stack_bytes += static_cast<std::uint64_t>(patterns_.size()) * static_cast<std::uint64_t>(info.width) *
+    stack_bytes += static_cast<std::uint64_t>(patterns_.size() * exposure_count()) * static_cast<std::uint64_t>(info.width) *
                    static_cast<std::uint64_t>(info.height) * sizeof(std::uint16_t);
   }
   admit_host_allocation(stack_bytes,
@@ -259,6 +267,24 @@ void CaptureSequencer::prepare() {
       fail(camera_name(c), "setup", error);
     }
   }
+  exposure_us_.clear();
+  base_exposure_us_.clear();
+  if (!options_.exposures.empty()) {
+    for (std::size_t c = 0; c < cameras_.size(); ++c) {
+      double base = options_.exposure_us;
+      if (!(base > 0.0)) {
+        try {
+          base = cameras_[c]->exposure_us();
+        } catch (const Error& error) {
+          fail(camera_name(c), "setup, reading the exposure for HDR", error);
+        }
+      }
+      base_exposure_us_.push_back(base);
+      std::vector<double> passes;
+      for (const double scale : options_.exposures) passes.push_back(base * scale);
+      exposure_us_.push_back(std::move(passes));
+    }
+  }
   if (turntable_ != nullptr && options_.home_turntable) {
     try {
       turntable_->home(options_.turntable_timeout);
@@ -291,6 +317,9 @@ void CaptureSequencer::finish(bool after_error) {
   };
   for (std::size_t c = 0; c < cameras_.size(); ++c) {
     attempt(camera_name(c), "end, stopping the acquisition", [&] { cameras_[c]->stop(); });
+    if (c < base_exposure_us_.size()) {
+      attempt(camera_name(c), "end, restoring the exposure", [&] { cameras_[c]->set_exposure_us(base_exposure_us_[c]); });
+    }
   }
   attempt(projector_name_, "end, going dark", [&] { projector_.go_dark(); });
 }
@@ -342,8 +371,10 @@ CapturedFrame CaptureSequencer::capture_frame(int frame) {
     stack.metadata.resize(whole);
   }
   captured.complete = false;
-  captured.note = fmt::format("incomplete after {} attempt(s): {} of {} patterns whole; first problem: {}; last: {}",
-                              captured.attempts, whole, patterns_.size(), first_problem, best->problem);
+  captured.note = fmt::format("incomplete after {} attempt(s): {} of {} {} whole; first problem: {}; last: {}",
+                              captured.attempts, whole, patterns_.size() * exposure_count(),
+                              exposure_count() > 1 ? "images (patterns x exposures)" : "patterns", first_problem,
+                              best->problem);
   return captured;
 }
 
@@ -351,33 +382,47 @@ CaptureSequencer::Attempt CaptureSequencer::capture_attempt(int frame) {
   Attempt attempt;
   attempt.cameras.resize(cameras_.size());
   const bool software = options_.trigger == drivers::TriggerSource::kSoftware;
-  for (int pattern = 0; pattern < static_cast<int>(patterns_.size()); ++pattern) {
-    const Clock::time_point show_start = Clock::now();
-    try {
-      projector_.show_pattern(pattern);
-    } catch (const Error& error) {
-      fail(projector_name_, where(frame, pattern), error);
-    }
-    const Clock::time_point shown = Clock::now();
-    statistics_.projector_seconds += std::chrono::duration<double>(shown - show_start).count();
-    // Counted when the scope ends, however the cameras' part ends.
-    struct CameraTime {
-      double& total;
-      Clock::time_point since;
-      ~CameraTime() { total += seconds_since(since); }
-    } camera_time{statistics_.camera_seconds, shown};
-    for (std::size_t c = 0; c < cameras_.size(); ++c) {
-      if (software) {
+  for (std::size_t exposure = 0; exposure < exposure_count(); ++exposure) {
+    if (!exposure_us_.empty()) {
+      for (std::size_t c = 0; c < cameras_.size(); ++c) {
         try {
-          cameras_[c]->software_trigger();
+          cameras_[c]->set_exposure_us(exposure_us_[c][exposure]);
         } catch (const Error& error) {
-          fail(camera_name(c), where(frame, pattern), error);
+          fail(camera_name(c), where(frame, -1) + fmt::format(", setting exposure {} ({} us)", exposure,
+                                                              exposure_us_[c][exposure]),
+               error);
         }
       }
-      ++tracks_[c].triggers;  // software, or the one pulse show_pattern fired
     }
-    for (std::size_t c = 0; c < cameras_.size(); ++c) {
-      if (!collect_image(c, frame, pattern, attempt)) return attempt;
+    for (int pattern = 0; pattern < static_cast<int>(patterns_.size()); ++pattern) {
+      const Clock::time_point show_start = Clock::now();
+      try {
+        projector_.show_pattern(pattern);
+      } catch (const Error& error) {
+        fail(projector_name_, where(frame, pattern), error);
+      }
+      const Clock::time_point shown = Clock::now();
+      statistics_.projector_seconds += std::chrono::duration<double>(shown - show_start).count();
+      // Counted when the scope ends, however the cameras' part ends.
+      struct CameraTime {
+        double& total;
+        Clock::time_point since;
+        ~CameraTime() { total += seconds_since(since); }
+      } camera_time{statistics_.camera_seconds, shown};
+      for (std::size_t c = 0; c < cameras_.size(); ++c) {
+        if (software) {
+          try {
+            cameras_[c]->software_trigger();
+          } catch (const Error& error) {
+            fail(camera_name(c), where(frame, pattern), error);
+          }
+        }
+        ++tracks_[c].triggers;  // software, or the one pulse show_pattern fired
+      }
+      for (std::size_t c = 0; c < cameras_.size(); ++c) {
+        if (!collect_image(c, frame, pattern, attempt)) return attempt;
+        attempt.cameras[c].metadata.back().exposure = static_cast<int>(exposure);
+      }
     }
   }
   return attempt;
@@ -438,7 +483,7 @@ bool CaptureSequencer::collect_image(std::size_t camera, int frame, int pattern,
     }
     CameraStack& stack = attempt.cameras[camera];
     stack.images.push_back(std::move(captured.image));
-    stack.metadata.push_back({pattern, captured.timestamp_ns, captured.frame_id});
+    stack.metadata.push_back({pattern, captured.timestamp_ns, captured.frame_id, 0});
     return true;
   }
 }

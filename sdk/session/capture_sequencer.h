@@ -80,6 +80,12 @@ struct CaptureOptions {
   bool home_turntable = true;  // home before the first stack (ignored without a turntable)
   // > 0: set on every camera before capturing; 0 leaves the cameras' exposure as it is.
   double exposure_us = 0.0;
+  // HDR (sdk/decode/hdr_fusion.h): capture the whole stack at each of these exposure times,
+  // relative to the base exposure (exposure_us, or each camera's own when the capture starts),
+  // setting every camera's exposure before each pass; a frame then holds patterns x exposures
+  // images, exposure-major (recordings: RecordingInfo::exposures). 1..4 finite positive
+  // distinct scales; empty: one exposure, as set. The base is restored when the capture ends.
+  std::vector<double> exposures;
   // kSoftware: the sequencer triggers each camera after the projector shows a pattern.
   // kHardwareLine: the cameras wait for the projector's trigger output (show_pattern fires it
   // once per pattern, per the Projector interface); the sequencer only shows patterns. The line
@@ -102,10 +108,12 @@ struct ImageMetadata {
   int pattern = 0;                // index in the pattern set
   std::int64_t timestamp_ns = 0;  // the camera's clock at the start of the exposure
   std::uint64_t frame_id = 0;     // the camera's frame number
+  int exposure = 0;               // index in CaptureOptions::exposures (0 without HDR)
 };
 
-// One camera's stack: images and their metadata, parallel, in pattern order. Complete: one per
-// pattern; incomplete: the first images of the sequence only.
+// One camera's stack: images and their metadata, parallel, in pattern order (HDR: the whole
+// stack per exposure in turn). Complete: one per pattern (and exposure); incomplete: the first
+// images of the sequence only.
 struct CameraStack {
   std::vector<Image16u> images;
   std::vector<ImageMetadata> metadata;
@@ -150,9 +158,10 @@ struct CaptureStatistics {
 using FrameCallback = std::function<void(const CapturedFrame& frame)>;
 
 // A recording's description for camera `camera` of a projector and pattern set: device from the
-// projector, camera size and bit depth from the camera, the pattern set, images per frame.
+// projector, camera size and bit depth from the camera, the pattern set, images per frame
+// (patterns x exposures) and, for HDR (2..4 exposures: CaptureOptions::exposures), the exposures.
 RecordingInfo make_recording_info(const drivers::Projector& projector, const drivers::Camera& camera,
-                                  const PatternSet& patterns);
+                                  const PatternSet& patterns, const std::vector<double>& exposures = {});
 
 class CaptureSequencer {
  public:
@@ -162,7 +171,8 @@ class CaptureSequencer {
                    drivers::Turntable* turntable, PatternSet patterns, CaptureOptions options);
 
   // Captures the scan (see the file comment). `recordings` is empty (callbacks only) or holds one
-  // writer per camera, each with images_per_frame = the set's size, the camera's image size and
+  // writer per camera, each with images_per_frame = the set's size (x exposures), the
+  // exposures of the options (HDR), the camera's image size and
   // options.first_frame frames (kInvalidArgument otherwise, before any device is touched). With
   // first_frame = the frame count there is nothing to capture and no device is touched. Returns what happened; throws
   // sls::Error as the file comment says. Cameras are stopped and the projector goes dark before
@@ -207,6 +217,10 @@ class CaptureSequencer {
   std::string failed_device_;  // the device whose error ended the scan, left alone in cleanup
   CaptureStatistics statistics_;
   std::optional<double> angle_deg_;
+  // HDR: each camera's exposure (µs) per pass, and the base to restore at the end.
+  std::vector<std::vector<double>> exposure_us_;
+  std::vector<double> base_exposure_us_;
+  std::size_t exposure_count() const { return options_.exposures.empty() ? 1 : options_.exposures.size(); }
   // The cameras' transport counters (summed) when the previous frame ended, and the deepest
   // output queue seen during the current frame.
   std::optional<drivers::TransportStatistics> transport_mark_;

@@ -11,6 +11,7 @@
 
 #include "sdk/core/error.h"
 #include "sdk/core/stopwatch.h"
+#include "sdk/session/hdr_frame.h"
 
 
 namespace sls::session {
@@ -407,6 +408,8 @@ ReplayOutcome run_recording(ScanSession& session, const RecordingReader& recordi
                 recording.frame_count(), recording.folder());
   }
   ReplayOutcome outcome;
+  DecodeOptions hdr_decode;
+  hdr_decode.bit_depth = recording.info().camera.bit_depth;
   const std::size_t count = recording.frame_count();
   try {
     for (std::size_t i = 0; i < count; ++i) {
@@ -423,6 +426,8 @@ ReplayOutcome run_recording(ScanSession& session, const RecordingReader& recordi
           frame.problem = "incomplete pattern stack" + (info.note.empty() ? std::string() : ": " + info.note);
         } else if (recording.info().images_per_frame > 0) {
           frame.images = recording.load_images(i);
+          // HDR: the exposures' stacks fused into one; the decode options are scan_setup's.
+          if (recording.info().exposures.size() > 1) fuse_hdr_frame(recording.info(), hdr_decode, &frame);
         } else {
           frame.depth_m = recording.load_depth_m(i);
           if (!frame.depth_m) frame.problem = "no depth map";

@@ -551,7 +551,7 @@ TEST_F(DamagedRecording, WrongSizeImageNamesTheFile) {
 }
 
 TEST_F(DamagedRecording, FutureVersionIsAVersionMismatch) {
-  replace_in_file(file("manifest.json"), "\"format_version\": 1", "\"format_version\": 2");
+  replace_in_file(file("manifest.json"), "\"format_version\": 1", "\"format_version\": 3");
   expect_error([&] { RecordingReader::open(folder); }, ErrorCode::kVersionMismatch, "manifest.json");
 }
 
