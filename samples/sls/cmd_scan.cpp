@@ -37,6 +37,7 @@
 #include "sdk/core/image_io.h"
 #include "sdk/core/ply.h"
 #include "sdk/core/recording.h"
+#include "sdk/decode/hdr_fusion.h"
 #include "sdk/core/trajectory.h"
 #include "sdk/session/capture_sequencer.h"
 #include "sdk/session/scan_session.h"
@@ -51,6 +52,7 @@ struct ScanOptions {
   std::string camera_uri;      // devices by URI (sls devices lists them): capture through the sequencer
   std::string projector_uri;
   std::string turntable_uri;
+  std::string exposures;       // HDR with those devices: relative exposure times, "4,1,0.25"
   std::string calibration;     // calibration.yml of those devices, stored in the recording
   std::string object = "knurled-screw";
   int frames = 0;
@@ -443,6 +445,7 @@ bool capture_for_scan(const Context& context, const ScanOptions& options, const 
     request.camera_uri = options.camera_uri;
     request.projector_uri = options.projector_uri;
     request.turntable_uri = options.turntable_uri;
+    if (!options.exposures.empty()) request.exposures = parse_hdr_exposures(options.exposures).scales;
     request.calibration_path = options.calibration;
     request.frames = options.frames;
     request.sim_device = device;
@@ -460,6 +463,7 @@ bool capture_for_scan(const Context& context, const ScanOptions& options, const 
   if (!options.camera_uri.empty()) {
     resume_command += " --camera " + options.camera_uri + " --projector " + options.projector_uri;
     if (!options.turntable_uri.empty()) resume_command += " --turntable " + options.turntable_uri;
+    if (!options.exposures.empty()) resume_command += " --exposures " + options.exposures;
     if (options.frames > 0) resume_command += fmt::format(" --frames {}", options.frames);
   }
   resume_command += " --out " + options.out;
@@ -560,6 +564,9 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                                      "Scan with devices by URI (see `sls devices`): the camera, e.g. gige://192.168.1.20");
   command->add_option("--projector", options->projector_uri, "With --camera: the projector, e.g. dlpc350://");
   command->add_option("--turntable", options->turntable_uri, "With --camera: the turntable, e.g. headctl://");
+  command->add_option("--exposures", options->exposures,
+                      "With --camera: HDR, the whole stack at each of these exposure times relative to the camera's, "
+                      "comma separated (1 to 4, e.g. 4,1,0.25), fused per pixel for decoding (sdk/decode/hdr_fusion.h)");
   command->add_option("--calibration", options->calibration,
                       "With --camera: calibration.yml of these devices (stored in the recording; a replay:// camera's "
                       "default: the replayed recording's); with --input: decode with this calibration instead of the "
@@ -652,6 +659,9 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   command->callback([&context, exit_code, options, command] {
     if (!options->input.empty() && options->frames > 0) {
       throw CLI::ValidationError("--frames", "not with --input: a recording's frames are all scanned");
+    }
+    if (!options->exposures.empty() && options->camera_uri.empty()) {
+      throw CLI::ValidationError("--exposures", "needs --camera (an HDR recording says its own exposures)");
     }
     const bool gtsdf_parameters = options->gtsdf_lambda || options->gtsdf_kappa || !options->gtsdf_penalty.empty() ||
                                   options->gtsdf_iterations;

@@ -33,7 +33,7 @@ namespace {
 RecordingWriter resume_writer(const std::string& folder, const drivers::Projector& projector,
                               const drivers::Camera& camera, const drivers::Turntable* turntable,
                               const PatternSet& patterns, CaptureOptions* capture) {
-  RecordingWriter writer = append_to_recording_of(folder, projector, camera, patterns);
+  RecordingWriter writer = append_to_recording_of(folder, projector, camera, patterns, capture->exposures);
   const int listed = static_cast<int>(writer.frame_count());
   if (listed > capture->frames) {
     throw_error(ErrorCode::kInvalidArgument, "resume: {} holds {} frames, more than the {} asked for", folder, listed,
@@ -62,16 +62,18 @@ RecordingWriter resume_writer(const std::string& folder, const drivers::Projecto
 }  // namespace
 
 RecordingWriter append_to_recording_of(const std::string& folder, const drivers::Projector& projector,
-                                       const drivers::Camera& camera, const PatternSet& patterns) {
+                                       const drivers::Camera& camera, const PatternSet& patterns,
+                                       const std::vector<double>& exposures) {
   RecordingWriter writer = RecordingWriter::append_to(folder);
   const RecordingInfo& recorded = writer.info();
-  const RecordingInfo now = make_recording_info(projector, camera, patterns);
+  const RecordingInfo now = make_recording_info(projector, camera, patterns, exposures);
   if (recorded.device.uri != now.device.uri) {
     throw_error(ErrorCode::kInvalidArgument, "resume: {} was captured with projector {}, not {}", folder,
                 recorded.device.uri, now.device.uri);
   }
   if (recorded.camera.width != now.camera.width || recorded.camera.height != now.camera.height ||
       recorded.camera.bit_depth != now.camera.bit_depth || recorded.images_per_frame != now.images_per_frame ||
+      recorded.exposures != now.exposures ||
       nlohmann::json::parse(recorded.pattern_set_json) != nlohmann::json::parse(now.pattern_set_json)) {
     throw_error(ErrorCode::kInvalidArgument,
                 "resume: {} holds {}x{} {}-bit frames of {} patterns; this camera and pattern set give {}x{} {}-bit "
@@ -109,6 +111,7 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
   CaptureOptions capture;
   capture.frames_per_revolution = request.frames > 0 ? request.frames : (turntable ? 36 : 1);
   capture.frames = capture.frames_per_revolution;
+  capture.exposures = request.exposures;
   // A replay:// camera plays a recording that carries what its capture needs: its calibration
   // (unless one is given, or a resumed capture keeps its own) and, unless a frame count is
   // given, its frames (a turntable's revolution at the recorded steps).
@@ -125,7 +128,8 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
   }
   RecordingWriter writer =
       request.resume ? resume_writer(folder, *projector, *camera, turntable.get(), patterns, &capture)
-                     : RecordingWriter::create(folder, make_recording_info(*projector, *camera, patterns), calibration);
+                     : RecordingWriter::create(
+                           folder, make_recording_info(*projector, *camera, patterns, request.exposures), calibration);
   CaptureSequencer sequencer(*projector, {camera.get()}, turntable.get(), patterns, capture);
 
   DeviceCapture result;

@@ -42,6 +42,9 @@ struct DeviceCaptureRequest {
   // keeps the calibration it was captured with (calibration_path must be empty) and is refused,
   // naming the difference, when the devices or the frame count contradict it.
   bool resume = false;
+  // HDR: the stack at each of these exposures relative to the camera's (CaptureOptions::exposures);
+  // empty: one exposure.
+  std::vector<double> exposures;
 };
 
 struct DeviceCapture {
@@ -69,9 +72,10 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
 
 // Continues the recording at `folder` (RecordingWriter::append_to) for a capture with these
 // devices and pattern set: throws sls::Error(kInvalidArgument) naming the difference when it
-// was captured with another projector, camera size or bit depth, or pattern set.
+// was captured with another projector, camera size or bit depth, pattern set, or exposures (HDR).
 RecordingWriter append_to_recording_of(const std::string& folder, const drivers::Projector& projector,
-                                       const drivers::Camera& camera, const PatternSet& patterns);
+                                       const drivers::Camera& camera, const PatternSet& patterns,
+                                       const std::vector<double>& exposures = {});
 
 // Opens a recording for a scan: reads and checks its manifest and, unless the caller brings its
 // own (`calibration_given`), requires a calibration. The frames' images are read (and a bad one
