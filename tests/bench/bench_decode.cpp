@@ -137,12 +137,8 @@ struct PinnedStack {
   PinnedStack& operator=(const PinnedStack&) = delete;
 };
 
-void BM_DecodeCudaResident(benchmark::State& state) {
-  if (cuda_device_count() == 0) {
-    state.SkipWithError("no CUDA device");
-    return;
-  }
-  const Stack& stack = paper_stack();
+// The stack resident on the device, decoded and triangulated per iteration (CUDA events).
+void time_resident_decode(benchmark::State& state, const Stack& stack) {
   const Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu());  // for its parameters
   const RayMap& rays = decoder.rays();
   detail::CudaDecodeContext context(decoder.decode_params(), decoder.triangulation_params(), rays.width, rays.height,
@@ -159,10 +155,20 @@ void BM_DecodeCudaResident(benchmark::State& state) {
     context.decode_resident(device_stack.data(), pixels);
     state.SetIterationTime(events.stop_ms(context.stream()) * 1e-3);
   }
+  state.counters["Mpixel"] = static_cast<double>(pixels) / 1e6;
+}
+
+void BM_DecodeCudaResident(benchmark::State& state) {
+  if (cuda_device_count() == 0) {
+    state.SkipWithError("no CUDA device");
+    return;
+  }
+  const Stack& stack = paper_stack();
+  time_resident_decode(state, stack);
+  const std::size_t pixels = stack.images[0].pixel_count();
   const std::size_t stack_bytes = stack.images.size() * pixels * sizeof(std::uint16_t);
   // The fewest bytes: the stack read once, the ray map (16 B/px) read, the outputs (17 B/px) written.
   state.counters["floor_MB"] = static_cast<double>(stack_bytes + pixels * (16 + 17)) / 1e6;
-  state.counters["Mpixel"] = static_cast<double>(pixels) / 1e6;
 }
 BENCHMARK(BM_DecodeCudaResident)->Unit(benchmark::kMillisecond)->UseManualTime();
 
@@ -174,27 +180,12 @@ void BM_DecodeFamilyCudaResident(benchmark::State& state) {
     return;
   }
   const Stack& stack = paper_stack(kFamilies[state.range(0)]);
-  Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cuda());
-  const RayMap& rays = decoder.rays();
-  detail::CudaDecodeContext context(decoder.decode_params(), decoder.triangulation_params(), rays.width, rays.height,
-                                    rays.rays.data(), rays.valid.data());
-  const std::size_t pixels = stack.images[0].pixel_count();
-  const PinnedStack pinned(stack.images);
-  DeviceBuffer<std::uint16_t> device_stack(stack.images.size() * pixels);
-  device_stack.upload(pinned.data, stack.images.size() * pixels, context.stream());
-  context.decode_resident(device_stack.data(), pixels);  // warm-up
-  SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
-  CudaEvents events;
-  for (auto _ : state) {
-    events.start(context.stream());
-    context.decode_resident(device_stack.data(), pixels);
-    state.SetIterationTime(events.stop_ms(context.stream()) * 1e-3);
-  }
+  time_resident_decode(state, stack);
   state.SetLabel(stack.rig.patterns.name);
   state.counters["images"] = static_cast<double>(stack.images.size());
-  state.counters["Mpixel"] = static_cast<double>(pixels) / 1e6;
-  state.counters["valid_fraction"] =
-      static_cast<double>(decoder.decode(stack.images).ok_count()) / static_cast<double>(pixels);
+  Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cuda());
+  state.counters["valid_fraction"] = static_cast<double>(decoder.decode(stack.images).ok_count()) /
+                                     static_cast<double>(stack.images[0].pixel_count());
 }
 BENCHMARK(BM_DecodeFamilyCudaResident)
     ->ArgName("family")

@@ -34,4 +34,13 @@ std::string shared_data_path(const std::string& relative) { return std::string(S
 
 bool has_cuda_device() { return sls::cuda_device_count() > 0; }
 
+ErrorCode code_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& error) {
+    return error.code();
+  }
+  return ErrorCode::kInternal;
+}
+
 }  // namespace sls::test

@@ -1,9 +1,12 @@
 // Helpers shared by the tests: temporary folders, paths to test data, GPU skipping.
 #pragma once
 
+#include <functional>
 #include <string>
 
 #include <gtest/gtest.h>
+
+#include "sdk/core/error.h"
 
 namespace sls::test {
 
@@ -26,6 +29,9 @@ class TemporaryDirectory {
 std::string shared_data_path(const std::string& relative);
 
 bool has_cuda_device();
+
+// The code of the sls::Error that `f` throws; ErrorCode::kInternal when it throws none.
+ErrorCode code_of(const std::function<void()>& f);
 
 }  // namespace sls::test
 

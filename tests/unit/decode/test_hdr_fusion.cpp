@@ -10,20 +10,13 @@
 #include "sdk/core/error.h"
 #include "sdk/decode/decode_metrics.h"
 #include "sdk/decode/hdr_fusion.h"
+#include "tests/support/test_support.h"
 #include "tests/unit/sim/sim_test_rig.h"
 
 namespace sls {
 namespace {
 
-// The code of the sls::Error `f` throws; kInternal when it throws none.
-ErrorCode code_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& error) {
-    return error.code();
-  }
-  return ErrorCode::kInternal;
-}
+using test::code_of;
 
 TEST(HdrExposures, ParsesAndRefusesBadSettings) {
   EXPECT_EQ(parse_hdr_exposures("1").scales, std::vector<double>({1.0}));

@@ -21,14 +21,7 @@
 namespace sls::session {
 namespace {
 
-ErrorCode code_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& error) {
-    return error.code();
-  }
-  return ErrorCode::kInternal;  // nothing thrown
-}
+using test::code_of;
 
 sim::SimRecordingOptions metal_screw(const std::vector<double>& exposures) {
   sim::SimRecordingOptions options;
