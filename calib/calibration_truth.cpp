@@ -43,6 +43,14 @@ CalibrationErrors compare_calibrations(const ScannerCalibration& estimated, cons
     errors.axis_direction_err_deg = std::acos(std::clamp(d.dot(d_exact), -1.0, 1.0)) / kDegree;
     const Eigen::Vector3d offset = estimated.turntable->point_camera - exact.turntable->point_camera;
     errors.axis_point_err_um = (offset - d_exact * d_exact.dot(offset)).norm() * 1e6;
+    if (estimated.turntable->angle_sigma_deg && exact.turntable->angle_sigma_deg) {
+      errors.angle_sigma_true_deg = exact.turntable->angle_sigma_deg;
+      errors.angle_sigma_estimated_deg = estimated.turntable->angle_sigma_deg;
+    }
+    if (estimated.turntable->tilt_sigma_deg && exact.turntable->tilt_sigma_deg) {
+      errors.tilt_sigma_true_deg = exact.turntable->tilt_sigma_deg;
+      errors.tilt_sigma_estimated_deg = estimated.turntable->tilt_sigma_deg;
+    }
   }
   return errors;
 }

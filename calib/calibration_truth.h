@@ -19,6 +19,10 @@ struct CalibrationErrors {
   double rotation_err_deg = 0.0;           // angle of R_est^T R_exact
   std::optional<double> axis_direction_err_deg;  // both calibrations have an axis
   std::optional<double> axis_point_err_um;
+  // The table's true angle and tilt σ (the exact calibration's TurntableAxis::angle_sigma_deg,
+  // tilt_sigma_deg) beside the estimated ones, when both calibrations have them.
+  std::optional<double> angle_sigma_true_deg, angle_sigma_estimated_deg;
+  std::optional<double> tilt_sigma_true_deg, tilt_sigma_estimated_deg;
 
   double focal_rel_err() const;            // the larger of camera and projector
   double principal_point_err_px() const;

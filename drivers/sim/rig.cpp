@@ -242,6 +242,8 @@ ScannerCalibration SimRig::calibration() const {
   const Pose T_camera_world = T_world_camera.inverse();
   axis.point_camera = T_camera_world * Eigen::Vector3d::Zero();
   axis.direction_camera = T_camera_world.rotation() * Eigen::Vector3d::UnitZ();
+  axis.angle_sigma_deg = turntable.angle_jitter_deg;  // the true angle's σ about the recorded one
+  axis.tilt_sigma_deg = 0.0;  // it turns about its axis and nothing else (the mount's tilt turns with it)
   calibration.turntable = axis;
   calibration.reprojection_rms_px = 0.0;
   calibration.description = "slscan simulator, preset " + preset + " (exact calibration of the simulated rig)";

@@ -1,6 +1,7 @@
 #include "samples/sls/calibration_report.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -179,6 +180,18 @@ nlohmann::json calibration_json(const calib::CalibrateCaptureResult& result) {
     json["turntable_axis"]["views"] = result.axis.views;
     json["turntable_axis"]["rms_px"] = result.axis.rms_px;
     json["turntable_axis"]["angle_span_deg"] = result.axis.angle_span_deg;
+    // The table's repeatability (calib/turntable_axis.h): the bounds stored, the board poses'
+    // noise in them, the two told apart, and the views' turns against their angles.
+    nlohmann::json tilts = nlohmann::json::array();
+    for (const std::array<double, 2>& t : result.axis.tilt_residuals_deg) tilts.push_back({t[0], t[1]});
+    json["turntable_axis"].update({{"angle_sigma_deg", result.axis.angle_sigma_deg},
+                                   {"angle_noise_deg", result.axis.angle_noise_deg},
+                                   {"angle_jitter_deg", result.axis.angle_jitter_deg},
+                                   {"angle_residuals_deg", result.axis.angle_residuals_deg},
+                                   {"tilt_sigma_deg", result.axis.tilt_sigma_deg},
+                                   {"tilt_noise_deg", result.axis.tilt_noise_deg},
+                                   {"tilt_wobble_deg", result.axis.tilt_wobble_deg},
+                                   {"tilt_residuals_deg", tilts}});
   } else {
     json["turntable_axis"]["reason"] = result.axis.reason;
   }
@@ -193,6 +206,10 @@ nlohmann::json calibration_json(const calib::CalibrateCaptureResult& result) {
                      {"rotation_err_deg", e.rotation_err_deg},
                      {"axis_direction_err_deg", optional(e.axis_direction_err_deg)},
                      {"axis_point_err_um", optional(e.axis_point_err_um)},
+                     {"turntable_angle_sigma_true_deg", optional(e.angle_sigma_true_deg)},
+                     {"turntable_angle_sigma_deg", optional(e.angle_sigma_estimated_deg)},
+                     {"turntable_tilt_sigma_true_deg", optional(e.tilt_sigma_true_deg)},
+                     {"turntable_tilt_sigma_deg", optional(e.tilt_sigma_estimated_deg)},
                      {"camera_focal_rel_err", e.camera_focal_rel_err},
                      {"projector_focal_rel_err", e.projector_focal_rel_err},
                      {"camera_principal_point_err_px", e.camera_principal_point_err_px},
@@ -229,8 +246,13 @@ void write_calibration_report(const std::string& folder, const calib::CalibrateC
                       calibration.projector.k1, calibration.projector.k2));
   add_row(html, "baseline", fmt::format("{:.6f} m", calibration.T_camera_projector.translation().norm()));
   add_row(html, "turntable axis",
-          result.axis.fitted ? fmt::format("from {} views over {:.0f}°, residual {:.3f} px", result.axis.views,
-                                           result.axis.angle_span_deg, result.axis.rms_px)
+          result.axis.fitted ? fmt::format("from {} views over {:.0f}°, residual {:.3f} px; angle σ ≤ {:.4f}° "
+                                           "(board noise {:.4f}°, without it {:.4f}°), tilt σ ≤ {:.4f}° (board "
+                                           "noise {:.4f}°, without it {:.4f}°)",
+                                           result.axis.views, result.axis.angle_span_deg, result.axis.rms_px,
+                                           result.axis.angle_sigma_deg, result.axis.angle_noise_deg,
+                                           result.axis.angle_jitter_deg, result.axis.tilt_sigma_deg,
+                                           result.axis.tilt_noise_deg, result.axis.tilt_wobble_deg)
                              : "not fitted: " + result.axis.reason);
   if (json.contains("truth")) {
     for (const auto& [key, value] : json["truth"].items()) add_row(html, "truth: " + key, value.dump());

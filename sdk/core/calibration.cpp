@@ -71,6 +71,17 @@ void validate_intrinsics(const CameraIntrinsics& c, const DeviceKeys& keys) {
 
 bool all_finite(const Eigen::Vector3d& v) { return v.allFinite(); }
 
+// The turntable's optional σ keys: file key, what it is, the field.
+struct SigmaKey {
+  const char* key;
+  const char* what;
+  const std::optional<double>& value;
+};
+std::array<SigmaKey, 2> turntable_sigmas(const TurntableAxis& axis) {
+  return {SigmaKey{"turntable_angle_sigma_deg", "angle repeatability", axis.angle_sigma_deg},
+          SigmaKey{"turntable_tilt_sigma_deg", "tilt (wobble) about axes across its own", axis.tilt_sigma_deg}};
+}
+
 // ---- writing --------------------------------------------------------------------------------
 
 // Shortest text that reads back to the same double; always with a '.' or exponent so both
@@ -287,6 +298,14 @@ void ScannerCalibration::validate() const {
                   "turntable_axis_direction: length {} (expected a unit vector; a zero axis has no direction)",
                   length);
     }
+    for (const auto& [key, what, value] : turntable_sigmas(*turntable)) {
+      if (value && (!std::isfinite(*value) || *value < 0.0 || *value > TurntableAxis::kMaxSigmaDeg)) {
+        throw_error(ErrorCode::kInvalidArgument,
+                    "{}: {} (expected the table's {} in degrees, finite, 0 .. {}; leave the key out when it is not "
+                    "known)",
+                    key, *value, what, TurntableAxis::kMaxSigmaDeg);
+      }
+    }
   }
   const std::pair<const char*, double> rms_values[] = {{"reprojection_rms_px", reprojection_rms_px},
                                                        {"camera_rms_px", camera_rms_px},
@@ -316,6 +335,9 @@ void write_calibration(const std::string& path, const ScannerCalibration& calibr
   if (calibration.turntable) {
     write_matrix(out, "turntable_axis_point", 3, 1, calibration.turntable->point_camera.data());
     write_matrix(out, "turntable_axis_direction", 3, 1, calibration.turntable->direction_camera.data());
+    for (const auto& [key, what, value] : turntable_sigmas(*calibration.turntable)) {
+      if (value) fmt::format_to(it, "{}: {}\n", key, format_real(*value));
+    }
   }
   fmt::format_to(it, "reprojection_rms_px: {}\n", format_real(calibration.reprojection_rms_px));
   if (calibration.camera_rms_px >= 0.0) fmt::format_to(it, "camera_rms_px: {}\n", format_real(calibration.camera_rms_px));
@@ -378,6 +400,18 @@ ScannerCalibration parse_calibration(const std::string& file_text, const std::st
   if (has_point) {
     calibration.turntable = TurntableAxis{read_vector3(reader, "turntable_axis_point"),
                                           read_vector3(reader, "turntable_axis_direction")};
+    if (reader.has("turntable_angle_sigma_deg")) {
+      calibration.turntable->angle_sigma_deg = reader.read_real("turntable_angle_sigma_deg");
+    }
+    if (reader.has("turntable_tilt_sigma_deg")) {
+      calibration.turntable->tilt_sigma_deg = reader.read_real("turntable_tilt_sigma_deg");
+    }
+  } else {
+    for (const char* key : {"turntable_angle_sigma_deg", "turntable_tilt_sigma_deg"}) {
+      if (!reader.has(key)) continue;
+      const YAML::Node node = reader.required(key);
+      reader.fail(key, &node, "given without a turntable axis (turntable_axis_point and turntable_axis_direction)");
+    }
   }
   if (reader.has("reprojection_rms_px")) calibration.reprojection_rms_px = reader.read_real("reprojection_rms_px");
   if (reader.has("camera_rms_px")) calibration.camera_rms_px = reader.read_real("camera_rms_px");

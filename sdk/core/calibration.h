@@ -14,10 +14,25 @@
 
 namespace sls {
 
-// The turntable's rotation axis in the camera frame.
+// The turntable's rotation axis in the camera frame, and how well the table keeps to it.
 struct TurntableAxis {
+  // Largest σ accepted (degrees): worse is no measuring turntable, or a value not in degrees
+  // (arcseconds, say).
+  static constexpr double kMaxSigmaDeg = 1.0;
+
   Eigen::Vector3d point_camera = Eigen::Vector3d::Zero();       // a point on the axis (m)
   Eigen::Vector3d direction_camera = Eigen::Vector3d::UnitY();  // unit direction, right-handed turn
+  // How well the table repeats, when known (degrees, per position: the difference of two
+  // positions has √2 σ): angle_sigma_deg, the σ of its true angle about the recorded one;
+  // tilt_sigma_deg, the σ of its turn about each axis perpendicular to its own (wobble: the
+  // table turns about nothing but its axis to this). `sls calibrate` measures both from the
+  // board's poses at the recorded angles (upper bounds: the board poses' own noise is in them;
+  // calib/turntable_axis.h); the simulator's exact calibration carries its jitter and its zero
+  // wobble. The turntable prior weighs the table's motion by them (fusion/pose_prior.h). File
+  // keys turntable_angle_sigma_deg and turntable_tilt_sigma_deg, optional; finite,
+  // 0 .. kMaxSigmaDeg.
+  std::optional<double> angle_sigma_deg = std::nullopt;
+  std::optional<double> tilt_sigma_deg = std::nullopt;
 };
 
 struct ScannerCalibration {
@@ -35,7 +50,8 @@ struct ScannerCalibration {
   std::string description;            // free text: rig name, date, tool
 
   // Throws sls::Error (invalid argument) naming the first problem: non-positive image size
-  // or focal length, principal point far outside the image, non-finite values, a zero axis.
+  // or focal length, principal point far outside the image, non-finite values, a zero axis,
+  // a turntable angle or tilt σ negative, not finite or above TurntableAxis::kMaxSigmaDeg.
   void validate() const;
 };
 

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <random>
 #include <string>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -80,6 +81,8 @@ ScannerCalibration awkward_calibration() {
                               Eigen::Vector3d(0.1 * u(rng), 1e-9 * u(rng), -0.3));
   c.turntable = TurntableAxis{Eigen::Vector3d(0.01 * u(rng), -0.02, 0.35 + 0.01 * u(rng)),
                               Eigen::Vector3d(0.01 * u(rng), 1.0, 0.02 * u(rng)).normalized()};
+  c.turntable->angle_sigma_deg = 0.0021 + 1e-4 * u(rng);
+  c.turntable->tilt_sigma_deg = 3e-4 + 1e-5 * u(rng);
   c.reprojection_rms_px = 0.123456789012345678;
   c.description = "rig \"B\" \\ 2024-05-01: 10×8×6 mm µ-volume\n\tline two # not a comment";
   return c;
@@ -103,6 +106,13 @@ void expect_calibrations_equal(const ScannerCalibration& written, const ScannerC
   if (written.turntable) {
     EXPECT_EQ(written.turntable->point_camera, read.turntable->point_camera);
     EXPECT_EQ(written.turntable->direction_camera, read.turntable->direction_camera);
+    for (const auto& [w, r] : {std::pair{written.turntable->angle_sigma_deg, read.turntable->angle_sigma_deg},
+                               std::pair{written.turntable->tilt_sigma_deg, read.turntable->tilt_sigma_deg}}) {
+      ASSERT_EQ(w.has_value(), r.has_value());
+      if (w) {
+        EXPECT_EQ(bits(*w), bits(*r));
+      }
+    }
   }
   EXPECT_EQ(bits(written.reprojection_rms_px), bits(read.reprojection_rms_px));
   EXPECT_EQ(written.description, read.description);
@@ -152,6 +162,38 @@ TEST(CalibrationFile, OptionalKeysMayBeAbsent) {
   EXPECT_LT(read.reprojection_rms_px, 0.0);
 }
 
+// The turntable's angle and tilt σ (turntable_angle_sigma_deg, turntable_tilt_sigma_deg) are
+// optional: a file written before they existed reads with none; one with them reads them back;
+// 0 (an exact table) is valid.
+TEST(CalibrationFile, TurntableSigmasAreOptional) {
+  test::TemporaryDirectory directory;
+  const std::string path = directory.file("calibration.yml");
+  ScannerCalibration calibration = simple_calibration();
+  calibration.turntable = TurntableAxis{Eigen::Vector3d(0.0, 0.0, 0.25), Eigen::Vector3d(0.0, 1.0, 0.0)};
+  write_calibration(path, calibration);
+  EXPECT_EQ(read_file_text(path).find("_sigma_deg"), std::string::npos);
+  ScannerCalibration read = read_calibration(path);
+  ASSERT_TRUE(read.turntable.has_value());
+  EXPECT_FALSE(read.turntable->angle_sigma_deg.has_value());
+  EXPECT_FALSE(read.turntable->tilt_sigma_deg.has_value());
+  for (const double sigma : {0.002, 0.0, TurntableAxis::kMaxSigmaDeg}) {
+    calibration.turntable->angle_sigma_deg = sigma;
+    calibration.turntable->tilt_sigma_deg.reset();
+    write_calibration(path, calibration);
+    EXPECT_NE(read_file_text(path).find("turntable_angle_sigma_deg: "), std::string::npos);
+    EXPECT_EQ(read_file_text(path).find("turntable_tilt_sigma_deg"), std::string::npos);
+    read = read_calibration(path);
+    ASSERT_TRUE(read.turntable->angle_sigma_deg.has_value());
+    EXPECT_EQ(*read.turntable->angle_sigma_deg, sigma);
+    EXPECT_FALSE(read.turntable->tilt_sigma_deg.has_value());
+    calibration.turntable->tilt_sigma_deg = 0.5 * sigma;
+    write_calibration(path, calibration);
+    read = read_calibration(path);
+    ASSERT_TRUE(read.turntable->tilt_sigma_deg.has_value());
+    EXPECT_EQ(*read.turntable->tilt_sigma_deg, 0.5 * sigma);
+  }
+}
+
 // Writes the simple calibration with `from` replaced by `to` (which must occur), reads it,
 // and checks the error's code and that its message contains each expected fragment.
 class BrokenCalibration : public ::testing::Test {
@@ -190,6 +232,30 @@ class BrokenCalibration : public ::testing::Test {
   test::TemporaryDirectory directory_;
   std::string path_ = directory_.file("broken.yml");
 };
+
+TEST_F(BrokenCalibration, BadTurntableAngleSigma) {
+  const std::string axis_end = "turntable_axis_direction: !!opencv-matrix\n   rows: 3\n   cols: 1\n   dt: d\n"
+                               "   data: [ 0., 1., 0. ]\n";
+  for (const char* value : {"-0.001", ".nan", ".inf", "1.5", "7.2"}) {
+    expect_error(axis_end, axis_end + "turntable_angle_sigma_deg: " + value + "\n", ErrorCode::kFormat,
+                 {"turntable_angle_sigma_deg", "angle repeatability in degrees"});
+    expect_error(axis_end, axis_end + "turntable_tilt_sigma_deg: " + value + "\n", ErrorCode::kFormat,
+                 {"turntable_tilt_sigma_deg", "tilt (wobble)", "in degrees"});
+  }
+  expect_error(axis_end, axis_end + "turntable_angle_sigma_deg: fast\n", ErrorCode::kFormat,
+               {"key 'turntable_angle_sigma_deg'", "a number"});
+  // A σ without an axis has nothing to belong to.
+  std::string text = good_text();
+  for (const char* key : {"turntable_axis_point:", "turntable_axis_direction:"}) {
+    const std::size_t start = text.find(key);
+    ASSERT_NE(start, std::string::npos);
+    text.erase(start, text.find("]\n", start) + 2 - start);
+  }
+  expect_error_for_text(text + "turntable_angle_sigma_deg: 0.002\n", ErrorCode::kFormat,
+                        {"key 'turntable_angle_sigma_deg'", "without a turntable axis"});
+  expect_error_for_text(text + "turntable_tilt_sigma_deg: 0.001\n", ErrorCode::kFormat,
+                        {"key 'turntable_tilt_sigma_deg'", "without a turntable axis"});
+}
 
 TEST_F(BrokenCalibration, MissingKey) {
   expect_error("projector_height: 768\n", "", ErrorCode::kFormat, {"key 'projector_height'", "missing"});
@@ -318,6 +384,15 @@ TEST(CalibrationValidate, AcceptsGoodAndRejectsBad) {
   c = simple_calibration();
   c.turntable = TurntableAxis{Eigen::Vector3d(0, std::nan(""), 0), Eigen::Vector3d::UnitY()};
   expect_invalid(c, "turntable_axis_point");
+  for (const double sigma : {-1e-9, std::nan(""), HUGE_VAL, 1.0001}) {
+    c = simple_calibration();
+    c.turntable = TurntableAxis{Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitY()};
+    c.turntable->angle_sigma_deg = sigma;
+    expect_invalid(c, "turntable_angle_sigma_deg");
+    c.turntable->angle_sigma_deg.reset();
+    c.turntable->tilt_sigma_deg = sigma;
+    expect_invalid(c, "turntable_tilt_sigma_deg");
+  }
   c = simple_calibration();
   c.reprojection_rms_px = HUGE_VAL;
   expect_invalid(c, "reprojection_rms_px");
