@@ -28,6 +28,19 @@ namespace sls::fusion {
 
 using namespace tracking_detail;
 
+Matrix6d tracking_detail::normal_matrix(const double* sums) {
+  Matrix6d a;
+  int k = 0;
+  for (int r = 0; r < 6; ++r) {
+    for (int c = r; c < 6; ++c) {
+      a(r, c) = sums[k];
+      a(c, r) = sums[k];
+      ++k;
+    }
+  }
+  return a;
+}
+
 void TrackingOptions::validate() const {
   if (iterations.empty() || iterations.size() > 8) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: {} pyramid levels (iterations) outside 1..8",
@@ -131,20 +144,6 @@ struct Step {
   int degenerate = 0;
   double condition = 0.0;
 };
-
-// JᵀJ from the first 21 sums (the upper triangle, row-major).
-Matrix6d normal_matrix(const double* sums) {
-  Matrix6d a;
-  int k = 0;
-  for (int r = 0; r < 6; ++r) {
-    for (int c = r; c < 6; ++c) {
-      a(r, c) = sums[k];
-      a(c, r) = sums[k];
-      ++k;
-    }
-  }
-  return a;
-}
 
 Step solve(const Sums& sums, double degenerate_ratio) {
   const Matrix6d a = normal_matrix(sums.data());
@@ -264,6 +263,7 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
   params.min_normal_cos = static_cast<float>(std::cos(options.max_normal_angle_deg * M_PI / 180.0));
   bool finest_reduced = false;
   Sums last{};
+  PriorStep finest_prior;  // with a pose prior: its last step at the finest level
   PhotometricParams photo;
   if (photometric != nullptr) {
     photo.T_model_ref = photometric->T_model_ref.to_rigid3f();
@@ -313,7 +313,15 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
         }
         if (add_photometric(system, p, options.photometric_weight)) result.photometric = true;
       }
-      const Step step = solve(system, options.degenerate_eigen_ratio);
+      Step step;
+      if (pose_prior != nullptr) {  // with s² of this reduction's residuals (pose_prior.h)
+        const PriorStep p = solve_with_pose_prior(system.data(), *pose_prior, sums[kTrackResidual2] / count,
+                                                  T_world_model, T_model_live, frame.scale, options.degenerate_eigen_ratio);
+        step = {p.twist, p.degenerate, p.condition};
+        if (level == 0) finest_prior = p;
+      } else {
+        step = solve(system, options.degenerate_eigen_ratio);
+      }
       if (level == 0) {
         result.condition = step.condition;
         result.degenerate_directions = step.degenerate;
@@ -328,6 +336,7 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
     }
   }
   const Pose estimate = T_world_model * T_model_live;
+  if (pose_prior != nullptr) report_pose_prior(*pose_prior, estimate, finest_prior, &result);
   if (photometric != nullptr && !result.photometric) {
     result.photometric_skipped = "too few reference pixels with a texture gradient matched the live frame";
   }
@@ -619,8 +628,9 @@ void Tracker::Impl::keep_reference(const float* const level_depth[8], const floa
 
 TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
                               const Pose& T_world_camera_guess, const Image32f* texture,
-                              const Image32f* confidence) {
+                              const Image32f* confidence, const PosePrior* prior) {
   Impl& s = *impl_;
+  const Impl::PriorScope prior_scope(s, prior);
   const int width = s.camera.width, height = s.camera.height;
   const std::size_t pixels = s.levels[0].pixels();
   if (depth_m.width() != s.live_camera.width || depth_m.height() != s.live_camera.height) {

@@ -25,7 +25,14 @@
 // against the reference frame's, warped through the reference's depth, added to the same
 // 6x6 system at every level (a texture pyramid beside the depth pyramid). It pins what the
 // geometry leaves free (a textured plane sliding in itself) and tells periodic geometry apart
-// when the texture is not periodic too. The reference frame is the last one tracked (not
+// when the texture is not periodic too.
+//
+// Optional pose prior (fusion/pose_prior.h, track()'s `prior`): the rotation expected at a
+// pose, about an axis with one σ and about the perpendicular axes with another (a turntable's
+// recorded angles and its wobble), added to the same 6x6 system in information form (s²Λ
+// against the ICP normal equations, s² their residuals' variance), so the directions the
+// surface constrains well follow the surface and the ones it leaves weak (a knob's spin)
+// follow the prior. The reference frame is the last one tracked (not
 // lost) with a texture, kept by the tracker with its pose, or one given by
 // set_reference_frame (a frame fused without tracking: the first one, a known pose).
 // Brightness constancy holds for albedo, not for shading: the projector moves with the
@@ -38,6 +45,7 @@
 #include <string>
 #include <vector>
 
+#include "fusion/pose_prior.h"
 #include "fusion/raycaster.h"
 #include "sdk/core/camera_model_shared.h"
 #include "sdk/core/device.h"
@@ -152,6 +160,19 @@ struct TrackingResult {
   std::size_t photometric_pixels = 0;
   double photometric_rms = 0.0;
   double photometric_gain = 1.0;
+  // The pose prior (track()'s `prior`, when active): the registered pose's rotation beyond the
+  // prior's (degrees) about its axis (signed) and about the perpendicular axes (the tilt's
+  // size), the σ of each that the surface alone gives (the ICP normal matrix over its
+  // residuals' variance, finest level, last iteration, the pixels taken as independent; the
+  // tilt's the RMS of the two axes; infinity where the surface leaves it free), and the
+  // prior's own (infinity: that rotation free).
+  bool prior = false;
+  double prior_offset_deg = 0.0;
+  double prior_tilt_offset_deg = 0.0;
+  double prior_surface_sigma_deg = 0.0;
+  double prior_surface_tilt_sigma_deg = 0.0;
+  double prior_sigma_deg = 0.0;
+  double prior_tilt_sigma_deg = 0.0;
 };
 
 class Tracker {
@@ -176,10 +197,11 @@ class Tracker {
   // so (photometric_skipped); a frame tracked with a texture becomes the next reference.
   // `confidence`: the live pixels' measurement weights (the camera's size; see
   // TrackingOptions::weight_by_confidence), or null for equal weights; pixels of weight 0,
-  // negative or not finite are not used.
+  // negative or not finite are not used. `prior`: a pose prior (pose_prior.h; null or σ = ∞:
+  // none), validated (sls::Error(kInvalidArgument) naming the problem).
   TrackingResult track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
                        const Pose& T_world_camera_guess, const Image32f* texture = nullptr,
-                       const Image32f* confidence = nullptr);
+                       const Image32f* confidence = nullptr, const PosePrior* prior = nullptr);
   // The photometric term's reference for the next track(): a frame fused without tracking
   // (its depth map and texture, the camera's size, and the pose it was fused at). Ignored when
   // photometric_weight is 0. sls::Error(kInvalidArgument) for images of another size.
@@ -193,9 +215,10 @@ class Tracker {
   // stream is synchronized here. No allocation: the pyramid lives in buffers made once.
   // `texture_device`: as track()'s texture, on the GPU (complete when called), or null; the
   // reference frame stays on the GPU. `confidence_device`: as track()'s confidence, on the GPU.
+  // `prior`: as track()'s (added to the 6x6 system on the host, as on the CPU).
   TrackingResult track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
                               const Pose& T_world_camera_guess, const float* texture_device = nullptr,
-                              const float* confidence_device = nullptr);
+                              const float* confidence_device = nullptr, const PosePrior* prior = nullptr);
   // set_reference_frame with both maps on the GPU (width x height floats, complete when called).
   void set_reference_frame_device(const float* depth_device, const float* texture_device,
                                   const Pose& T_world_camera);

@@ -13,8 +13,9 @@ using namespace tracking_detail;
 
 TrackingResult Tracker::track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
                                      const Pose& T_world_camera_guess, const float* texture_device,
-                                     const float* confidence_device) {
+                                     const float* confidence_device, const PosePrior* prior) {
   Impl& s = *impl_;
+  const Impl::PriorScope prior_scope(s, prior);
   if (!s.device.is_cuda()) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: track_device on a tracker for {}; make it for CUDA",
                 s.device.to_string());

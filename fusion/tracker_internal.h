@@ -1,6 +1,6 @@
 // The Tracker's state and the types its two halves share: tracker.cpp (options, the
 // Gauss–Newton loop and its tests, the CPU path) and tracker_device.cpp (the CUDA path).
-// Internal to fusion/: included by those two files only.
+// Internal to fusion/: included by those two files and pose_prior.cpp only.
 #pragma once
 
 #include <Eigen/Core>
@@ -33,6 +33,9 @@ using FrameSums = std::array<double, kFrameSums>;
 using PhotometricSums = std::array<double, kPhotometricSums>;
 using TextureSums = std::array<double, kTextureSums>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+// JᵀJ from a reduction's first 21 sums (the upper triangle, row-major; track_shared.h).
+Matrix6d normal_matrix(const double* sums);
 
 // One level of the live pyramid: its camera and ray map (host), and on the CPU its depth,
 // measurement weights and normals (level 0's depth and weights are the caller's).
@@ -76,6 +79,18 @@ struct Tracker::Impl {
   CameraIntrinsics live_camera;  // the live depth maps' camera
   CameraIntrinsics camera;       // ICP's finest level, the model maps' camera
   TrackingOptions options;
+  // The current track() call's pose prior (null: none); set for the call only (PriorScope).
+  const PosePrior* pose_prior = nullptr;
+  struct PriorScope {
+    Impl& impl;
+    PriorScope(Impl& i, const PosePrior* prior) : impl(i) {
+      if (prior != nullptr) prior->validate();
+      impl.pose_prior = prior != nullptr && prior->active() ? prior : nullptr;
+    }
+    ~PriorScope() { impl.pose_prior = nullptr; }
+    PriorScope(const PriorScope&) = delete;
+    PriorScope& operator=(const PriorScope&) = delete;
+  };
   // The live camera halved down to `camera` (empty when they are the same), and the host
   // buffers of those halvings (the last is ICP's finest live depth).
   std::vector<CameraIntrinsics> input_cameras;

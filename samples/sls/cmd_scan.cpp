@@ -324,6 +324,12 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
                            {"residual_rms_um", frame.tracking->residual_rms_m * 1e6},
                            {"degenerate_directions", frame.tracking->degenerate_directions},
                            {"iterations", frame.tracking->iterations}};
+      // The turntable's motion as the registration's prior (its σ known): where the registration
+      // ended beyond it, about the axis (signed) and across it.
+      if (frame.tracking->prior) {
+        entry["tracking"]["prior"] = {{"offset_deg", frame.tracking->prior_offset_deg},
+                                      {"tilt_offset_deg", frame.tracking->prior_tilt_offset_deg}};
+      }
     }
     if (frame.move.moved) {
       entry["move"] = {{"translation_mm", frame.move.translation_m * 1e3}, {"rotation_deg", frame.move.rotation_deg},

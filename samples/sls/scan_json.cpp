@@ -2,6 +2,7 @@
 // capture counters, the loop closure, the deformation graph, and the warnings of a finished scan.
 #include "samples/sls/scan_json.h"
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -31,16 +32,38 @@ nlohmann::json capture_json(const FrameCaptureCounters& counters) {
 nlohmann::json loop_closure_json(const session::LoopClosureReport& loop) {
   nlohmann::json unregistered = nlohmann::json::array();
   for (const auto& [frame, reason] : loop.unregistered) unregistered.push_back({{"frame", frame}, {"reason", reason}});
+  // The turntable's motion as the registrations' prior (null without): the prior's σ about the
+  // axis and across it (√2 times the table's), the surface's own σ of those rotations, and
+  // where the registration ended beyond the prior's (about the axis, signed; the tilt's size).
+  const auto finite_or_null = [](double value) {
+    return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
+  };
+  const auto optional = [](const std::optional<double>& value) {
+    return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
+  };
+  nlohmann::json prior = nullptr;
+  if (loop.registration.prior) {
+    const fusion::TrackingResult& r = loop.registration;
+    prior = {{"sigma_deg", finite_or_null(r.prior_sigma_deg)},
+             {"tilt_sigma_deg", finite_or_null(r.prior_tilt_sigma_deg)},
+             {"surface_sigma_deg", finite_or_null(r.prior_surface_sigma_deg)},
+             {"surface_tilt_sigma_deg", finite_or_null(r.prior_surface_tilt_sigma_deg)},
+             {"offset_deg", r.prior_offset_deg},
+             {"tilt_offset_deg", r.prior_tilt_offset_deg}};
+  }
   return {{"closed", true},
           {"first_frame", loop.first_frame},
           {"last_frame", loop.last_frame},
+          {"turntable_sigma_deg", optional(loop.turntable_sigma_deg)},
+          {"turntable_tilt_sigma_deg", optional(loop.turntable_tilt_sigma_deg)},
           {"registration",
            {{"inlier_fraction", loop.registration.inlier_fraction},
             {"residual_rms_um", loop.registration.residual_rms_m * 1e6},
             {"degenerate_directions", loop.registration.degenerate_directions},
             {"iterations", loop.registration.iterations},
             {"moved_from_guess_um", loop.guess_moved_m * 1e6},
-            {"moved_from_guess_deg", loop.guess_moved_deg}}},
+            {"moved_from_guess_deg", loop.guess_moved_deg},
+            {"prior", prior}}},
           {"registered_frames", loop.registered_frames},
           {"unregistered_frames", unregistered},
           {"constraints", loop.constraints},

@@ -245,15 +245,22 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     const Pose guess = s.predict(frame);
     const Clock::time_point start = Clock::now();
     fusion::TrackingResult tracked;
+    // With the turntable prior and the table's repeatability known, the table's motion since
+    // the last fused frame is also a prior on the registration's rotation (fusion/pose_prior.h),
+    // weighed against the surface; without its σ, the turntable's pose is the start only.
+    fusion::PosePrior prior;
+    if (s.turntable_guess(frame)) {
+      if (const std::optional<fusion::PosePrior> p = s.turntable_pose_prior(s.last->T_world_camera, guess)) prior = *p;
+    }
 #if defined(SLS_HAVE_CUDA)
     if (s.options.device.is_cuda()) {
       tracked = s.tracker.track_device(depth_device, s.raycaster, s.T_world_model, guess, texture_device,
-                                       confidence_device);
+                                       confidence_device, &prior);
     } else {
-      tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence);
+      tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence, &prior);
     }
 #else
-    tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence);
+    tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence, &prior);
 #endif
     report.times.track_ms = ms_since(start);
     if (!tracked.lost && s.options.verify_with_turntable) {

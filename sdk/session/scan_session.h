@@ -152,6 +152,11 @@ struct LoopClosureReport {
   // How far that registration moved the frame from its guess (the turntable's pose with the
   // prior, else the online deformation's estimate).
   double guess_moved_m = 0.0, guess_moved_deg = 0.0;
+  // The table's repeatability (TurntableAxis::angle_sigma_deg, tilt_sigma_deg) when its motion
+  // was the registrations' pose prior (fusion/pose_prior.h: the rotation about the axis and
+  // across it, σ √2 times these), else nullopt; the registration's prior_* fields say what it
+  // did.
+  std::optional<double> turntable_sigma_deg, turntable_tilt_sigma_deg;
   std::size_t constraints = 0;            // E_con terms added (all registered frames')
   fusion::deformation::SolveStats solve;
   // The last pose: how far the loop closure moved it (from the online deformation's estimate),

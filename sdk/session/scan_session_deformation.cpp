@@ -239,9 +239,17 @@ LoopClosureReport ScanSession::close_loop() {
   std::vector<Registered> registered;
   for (const Impl::LoopFrame* frame : kept) {
     Pose guess = s.deformation->deform_pose(frame->index, frame->T_world_camera, s.focus_point(frame->T_world_camera));
+    fusion::PosePrior prior;  // none unless the turntable's angles and their σ are known
     if (s.options.turntable_prior && s.calibration.turntable && frame->angle_deg && first.angle_deg) {
       guess = first.T_world_camera *
               turntable_camera_motion(*s.calibration.turntable, *frame->angle_deg - *first.angle_deg);
+      // With the table's repeatability known, its motion is a prior on the registration's
+      // rotation (about the axis and across it) rather than only a start.
+      if (const std::optional<fusion::PosePrior> p = s.turntable_pose_prior(first.T_world_camera, guess)) {
+        prior = *p;
+        report.turntable_sigma_deg = s.calibration.turntable->angle_sigma_deg;
+        report.turntable_tilt_sigma_deg = s.calibration.turntable->tilt_sigma_deg;
+      }
     }
     fusion::TrackingResult registration;
     Image32f depth = frame->depth;
@@ -249,17 +257,18 @@ LoopClosureReport ScanSession::close_loop() {
     if (s.options.device.is_cuda()) {
       registration = s.tracker.track_device(frame->depth_device.data(), *s.reference_raycaster, first.T_world_camera,
                                             guess, nullptr,
-                                            frame->confidence_on_device ? frame->confidence_device.data() : nullptr);
+                                            frame->confidence_on_device ? frame->confidence_device.data() : nullptr,
+                                            &prior);
       depth = Image32f(s.calibration.camera.width, s.calibration.camera.height, 0.0f);
       frame->depth_device.download(depth.data(), depth.pixel_count(), nullptr);
       SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
     } else {
       registration = s.tracker.track(frame->depth, s.reference_model, first.T_world_camera, guess, nullptr,
-                                     frame->confidence ? &*frame->confidence : nullptr);
+                                     frame->confidence ? &*frame->confidence : nullptr, &prior);
     }
 #else
     registration = s.tracker.track(frame->depth, s.reference_model, first.T_world_camera, guess, nullptr,
-                                   frame->confidence ? &*frame->confidence : nullptr);
+                                   frame->confidence ? &*frame->confidence : nullptr, &prior);
 #endif
     if (registration.lost) {
       report.unregistered.push_back({frame->index, registration.reason});

@@ -3,6 +3,7 @@
 // deformed model and trajectory, the loop closure). Internal to sdk/session.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -124,6 +125,28 @@ struct ScanSession::Impl {
     const double frames_ahead = static_cast<double>(frame.index - last->index);
     if (!(frames_between > 0.0) || !(frames_ahead > 0.0)) return base;
     return base * Pose::exp(step.log() * (frames_ahead / frames_between));
+  }
+
+  // The turntable's motion as a pose prior (fusion/pose_prior.h) for a camera the table turned
+  // from T_world_reference to T_world_expected (turntable_camera_motion of the two recorded
+  // angles): its rotation about the axis with σ √2 · the table's angle repeatability, about
+  // the axes across it with √2 · its tilt σ (the difference of two positions; a σ of 0 is
+  // taken as 1e-6°: the table then decides that rotation; one the calibration lacks leaves
+  // that rotation to the surface). nullopt without the prior, an axis or either σ.
+  std::optional<fusion::PosePrior> turntable_pose_prior(const Pose& T_world_reference,
+                                                        const Pose& T_world_expected) const {
+    if (!options.turntable_prior || !calibration.turntable) return std::nullopt;
+    const TurntableAxis& axis = *calibration.turntable;
+    if (!axis.angle_sigma_deg && !axis.tilt_sigma_deg) return std::nullopt;
+    const auto sigma_rad = [](const std::optional<double>& sigma_deg) {
+      return sigma_deg ? std::sqrt(2.0) * std::max(*sigma_deg, 1e-6) * M_PI / 180.0 : fusion::PosePrior::kNone;
+    };
+    fusion::PosePrior prior;
+    prior.T_world_camera = T_world_expected;
+    prior.axis_world = (T_world_reference.rotation() * axis.direction_camera).normalized();
+    prior.sigma_rad = sigma_rad(axis.angle_sigma_deg);
+    prior.tilt_sigma_rad = sigma_rad(axis.tilt_sigma_deg);
+    return prior;
   }
 
   // Whether predict() gives the turntable's pose for this frame.
