@@ -89,9 +89,9 @@ SLS_HOST_DEVICE inline AxisDecode decode_heterodyne_axis(const AxisCode& a, cons
   AxisDecode out{NAN, 0.0f, 0u};
   std::uint8_t flags = 0u;
   const int count = a.phase_group_count;  // 2 or 3 (the layout's check)
-  WrappedPhase w[kDecodeMaxPhaseGroups];
-  float period[kDecodeMaxPhaseGroups];
-  float turn_variance[kDecodeMaxPhaseGroups];  // (sigma / P)^2: the phase noise in turns
+  WrappedPhase w[kDecodeMaxPhaseGroups] = {};  // zeroed: at -O1 GCC cannot see the loop sets w[0] (count >= 2)
+  float period[kDecodeMaxPhaseGroups] = {};
+  float turn_variance[kDecodeMaxPhaseGroups] = {};  // (sigma / P)^2: the phase noise in turns
   SLS_UNROLL_FULLY
   for (int i = 0; i < kDecodeMaxPhaseGroups; ++i) {
     if (i >= count) break;
