@@ -252,6 +252,10 @@ SimRecordingSummary write_sim_recording(const std::string& folder, const SimReco
       throw;
     }
     step(SimFrameStep::kListed, frame);
+    if (options.on_recorded) {
+      if (depth_mode) depth = recorded_depth_m(depth, writer.info());  // as a replay reads it back
+      options.on_recorded(frame, images, metadata, depth_mode ? &depth : nullptr);
+    }
     report_progress(progress, {"capture", static_cast<std::size_t>(frame + 1), static_cast<std::size_t>(frames), ""});
   }
   stop_sim_devices(devices);

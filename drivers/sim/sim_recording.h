@@ -17,7 +17,9 @@
 
 #include "drivers/sim/rig.h"
 #include "sdk/core/device.h"
+#include "sdk/core/image.h"
 #include "sdk/core/progress.h"
+#include "sdk/core/recording.h"
 
 namespace sls::sim {
 
@@ -44,6 +46,13 @@ struct SimRecordingOptions {
   // Tests: called at each step of each frame; one that throws there stops the writer as a
   // crash or a full disk would at that point.
   std::function<void(SimFrameStep step, int frame)> step_hook;
+  // Called with each frame once the manifest lists it (fusing while capturing: a scan session
+  // takes it): its position in the recording, its images (empty in depth mode) and metadata,
+  // and in depth mode its depth map as the recording stores it (recorded_depth_m). It may take (move out) the images and the depth map; the
+  // writer does not use them afterwards. An exception from it ends the capture after that frame,
+  // which stays recorded, and propagates unchanged.
+  std::function<void(int frame, std::vector<Image16u>& images, const FrameMetadata& metadata, Image32f* depth_m)>
+      on_recorded;
 };
 
 struct SimRecordingSummary {

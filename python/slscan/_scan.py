@@ -210,9 +210,10 @@ class Scan(Handle):
     def run_devices(self, *, camera: str, projector: str, recording: PathLike, calibration: Optional[PathLike] = None,
                     turntable: Optional[str] = None, frames: int = 0,
                     on_frame: Optional[FrameCallback] = None, with_depth: bool = False) -> ScanSummary:
-        """Captures from devices by URI into a new recording, then scans it
-        (sls_scan_run_devices): per turntable position one pattern stack, then every frame as
-        :meth:`run_recording`, calling `on_frame` after the capture.
+        """Captures from devices by URI into a new recording and scans each stack as it is
+        recorded (sls_scan_run_devices): per turntable position one pattern stack, fused while
+        the next is captured, the model as :meth:`run_recording` of the recording gives,
+        calling `on_frame` as each frame is fused, during the capture.
 
         Args:
             camera, projector: device URIs (``slscan.devices()``), e.g. one

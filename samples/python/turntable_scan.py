@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """A turntable scan from Python (the `slscan` package over libsls): one revolution of the
-scanner's turntable, step by step (move, project the patterns, capture a stack), then every
-stack decoded, tracked and fused with live figures, the loop closed, and the model written.
+scanner's turntable, step by step (move, project the patterns, capture a stack), each stack
+decoded, tracked and fused with live figures while the next is captured, the loop closed, and
+the model written.
 
     python3 samples/python/turntable_scan.py                        # the simulated knurled knob
     python3 samples/python/turntable_scan.py --frames 12 --out out/knob
@@ -125,8 +126,9 @@ def simulator_calibration(camera_uri: str, sls: str, folder: pathlib.Path) -> pa
 
 class CaptureProgress(threading.Thread):
     """Prints each stack as the capture appends it to the recording. The C API reports frames
-    only once they are scanned, so this reads the recording's manifest.json, which the capture
-    replaces atomically after each stack (README, "File formats")."""
+    as they are fused, which may be a little behind the capture, so this reads the recording's
+    manifest.json, which the capture replaces atomically after each stack (README, "File
+    formats")."""
 
     def __init__(self, manifest: pathlib.Path, frames: int) -> None:
         super().__init__(name="capture-progress", daemon=True)
@@ -207,8 +209,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                                                          "the simulator's (sls sim)"))
         with slscan.Context(device=args.device) as context, \
                 slscan.Scan(context, fusion=args.fusion, use_turntable_prior=not args.no_turntable_prior) as scan:
-            print(f"capturing one revolution from {args.camera} on the {'GPU' if context.uses_cuda else 'CPU'} ...",
-                  flush=True)
+            print(f"capturing and fusing one revolution from {args.camera} on the "
+                  f"{'GPU' if context.uses_cuda else 'CPU'} ...", flush=True)
             # sls_capture_config.frames 0: 36 stops with a turntable, else 1; a replay's frames.
             stops = args.frames or (replayed_frames(replayed) if replayed else 36 if args.turntable else 1)
             watcher = CaptureProgress(recording / "manifest.json", stops)
@@ -217,9 +219,7 @@ def main(argv: Optional[List[str]] = None) -> int:
 
             def on_frame(frame: slscan.FrameReport) -> None:
                 if not first_frame:
-                    watcher.done.set()
-                    first_frame.append(time.monotonic())
-                    print("scanning:", flush=True)
+                    first_frame.append(time.monotonic())  # fused while the capture goes on
                 progress(frame)
 
             try:
@@ -240,8 +240,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                 watcher.join()
             scanned = time.monotonic()
             report["summary"] = asdict(summary)
-            report["capture_s"] = (first_frame[0] if first_frame else scanned) - started
-            report["scan_s"] = scanned - (first_frame[0] if first_frame else scanned)
+            report["first_frame_s"] = (first_frame[0] if first_frame else scanned) - started
+            report["scan_s"] = scanned - started
             print(f"fused {summary.fused} of {summary.frames} frames ({summary.lost} lost, {summary.skipped} "
                   f"skipped), voxels of {summary.voxel_size_m * 1e6:.1f} um, {summary.volume_moves} volume moves")
             tracked = [frame for frame in progress.frames if frame["tracked"] and not frame["unverified"]]

@@ -100,7 +100,8 @@ ProgressCallback StopOnSignal::wrap(const ProgressCallback& display) const {
 }
 
 CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& request, bool resume,
-                           const Device& device, const ProgressCallback& display, const StopOnSignal& stop) {
+                           const Device& device, const ProgressCallback& display, const StopOnSignal& stop,
+                           const session::RecordedFrame& on_recorded) {
   check_folder(folder, resume);
   sim::SimRecordingOptions options;
   options.resume = resume;
@@ -125,6 +126,21 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
     options.rig.seed = static_cast<std::uint64_t>(parsed.get_int("seed", static_cast<int>(options.rig.seed)));
     options.rig.noise = parsed.get_int("noise", 1) != 0;
     options.rig.projector = parsed.get("projector", options.rig.projector);
+  }
+  if (on_recorded) {
+    options.on_recorded = [&on_recorded](int frame, std::vector<Image16u>& images, const FrameMetadata& metadata,
+                                      Image32f* depth_m) {
+      session::ScanFrame scan_frame;
+      scan_frame.index = frame;
+      scan_frame.timestamp_ns = metadata.timestamp_ns;
+      scan_frame.turntable_angle_deg = metadata.turntable_angle_deg;
+      if (depth_m != nullptr) {
+        scan_frame.depth_m = std::move(*depth_m);
+      } else {
+        scan_frame.images = std::move(images);
+      }
+      on_recorded(std::move(scan_frame));
+    };
   }
   CaptureOutcome outcome;
   outcome.recording = folder;
@@ -157,7 +173,8 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
 }
 
 CaptureOutcome capture_devices(const std::string& folder, const session::DeviceCaptureRequest& request, bool resume,
-                               const ProgressCallback& display, const StopOnSignal& stop) {
+                               const ProgressCallback& display, const StopOnSignal& stop,
+                               const session::RecordedFrame& on_recorded) {
   check_folder(folder, resume);
   CaptureOutcome outcome;
   outcome.recording = folder;
@@ -166,7 +183,7 @@ CaptureOutcome capture_devices(const std::string& folder, const session::DeviceC
   try {
     session::DeviceCaptureRequest resumable = request;
     resumable.resume = resume;
-    const session::DeviceCapture captured = session::capture_from_devices(folder, resumable, progress);
+    const session::DeviceCapture captured = session::capture_from_devices(folder, resumable, progress, on_recorded);
     outcome.statistics = captured.statistics;
     outcome.resumed_from = captured.resumed_from;
   } catch (const Error& error) {

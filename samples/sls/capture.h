@@ -3,10 +3,13 @@
 // off (a signal, kill -9, a device error) is resumed into the same recording.
 #pragma once
 
+#include <atomic>
+#include <cstddef>
 #include <string>
 
 #include "sdk/core/device.h"
 #include "sdk/core/progress.h"
+#include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_setup.h"
 
 namespace sls::cli {
@@ -54,14 +57,34 @@ struct SimCaptureRequest {
 // there). A signal (`stop`) ends it after the current frame with outcome.interrupted.
 // Throws sls::Error: kInvalidArgument when `folder` holds a recording and `resume` is not
 // set, or `resume` is set and it holds none or one of other options (the message says which).
+// `on_recorded`, when given: each frame once recorded, as a scan session takes it (fusing while
+// capturing: session::captured_frames), on the capturing thread.
 CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& request, bool resume,
-                           const Device& device, const ProgressCallback& display, const StopOnSignal& stop);
+                           const Device& device, const ProgressCallback& display, const StopOnSignal& stop,
+                           const session::RecordedFrame& on_recorded = {});
 
 // Captures one revolution from devices by URI into `folder` (session::capture_from_devices),
 // or with `resume` the frames the recording there lacks: the devices must be those it was
 // made with (projector URI, camera size and depth, pattern set) and the frame count must fit
 // its turntable angles; the turntable goes on from the first missing frame's angle.
+// `on_recorded` as capture_sim's.
 CaptureOutcome capture_devices(const std::string& folder, const session::DeviceCaptureRequest& request, bool resume,
-                               const ProgressCallback& display, const StopOnSignal& stop);
+                               const ProgressCallback& display, const StopOnSignal& stop,
+                               const session::RecordedFrame& on_recorded = {});
+
+// `sls scan --sim/--camera` fused while it records (cmd_scan.cpp): the capture as a frame
+// source (session::captured_frames over capture_sim or capture_devices, given `stop`), and its
+// outcome, written on the source's thread before the source returns (read it once the pipeline
+// has returned). A SIGINT or SIGTERM stops the capture after the frame it is taking; what it
+// recorded is still fused. Not movable (StopOnSignal): make it in place.
+struct LiveCapture {
+  StopOnSignal stop;
+  CaptureOutcome outcome;
+  session::FrameSource frames;
+  std::string resume_command;  // what continues the capture when it was cut off
+  // The frames the capture will hold once complete, as its progress says (0 until it does):
+  // the scan's progress total.
+  std::atomic<std::size_t> planned_frames{0};
+};
 
 }  // namespace sls::cli

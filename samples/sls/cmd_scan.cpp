@@ -1,7 +1,8 @@
 // sls scan: the scan pipeline, from a recording, the built-in simulator or devices by URI, to
 // a model. Devices given by URI (--camera/--projector/--turntable, hardware or sim://) are
-// scanned through the capture sequencer into OUT/recording first; the simulator writes its
-// capture there too. Then every frame goes through the scan session (sdk/session): decode,
+// scanned through the capture sequencer into OUT/recording; the simulator writes its capture
+// there too; each frame is fused as it is recorded (sdk/session/frame_pipeline.h) when it can be
+// (can_fuse_while_capturing), else after the capture. Every frame goes through the scan session (sdk/session): decode,
 // track (--poses track: ICP against the model, a moving volume) or take the true pose
 // (--poses groundtruth: simulated recordings, one fixed volume around the object), integrate,
 // move, raycast; the model, trajectory and report are written to OUT.
@@ -19,6 +20,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "drivers/interfaces/device_uri.h"
 #include "drivers/sim/sim_recording.h"
 #include "fusion/extract.h"
 #include "fusion/integrator.h"
@@ -28,6 +30,7 @@
 #include "samples/sls/commands.h"
 #include "samples/sls/evaluate.h"
 #include "samples/sls/output_files.h"
+#include "samples/sls/scan_capture.h"
 #include "samples/sls/scan_json.h"
 #include "samples/sls/scan_report.h"
 #include "sdk/core/device.h"
@@ -40,44 +43,13 @@
 #include "sdk/decode/hdr_fusion.h"
 #include "sdk/core/trajectory.h"
 #include "sdk/session/capture_sequencer.h"
+#include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_session.h"
 #include "sdk/session/scan_setup.h"
 
 namespace sls::cli {
 namespace {
 
-struct ScanOptions {
-  std::string input;
-  std::string sim_preset;
-  std::string camera_uri;      // devices by URI (sls devices lists them): capture through the sequencer
-  std::string projector_uri;
-  std::string turntable_uri;
-  std::string exposures;       // HDR with those devices: relative exposure times, "4,1,0.25"
-  std::string calibration;     // calibration.yml of those devices, stored in the recording
-  std::string object = "knurled-screw";
-  int frames = 0;
-  std::string out;
-  std::string device = "cuda";
-  std::string fusion = "gtsdf";
-  // --fusion gtsdf: the anisotropic term's parameters (unset: IntegrationOptions::gtsdf()'s)
-  std::optional<double> gtsdf_lambda;
-  std::optional<double> gtsdf_kappa;
-  std::string gtsdf_penalty;
-  std::optional<int> gtsdf_iterations;
-  std::string poses = "track";
-  double voxel_um = 0.0;          // 0: twice the camera's pixel footprint, grown to fit max_voxels
-  double max_voxels_million = 0;  // 0: 256 on a GPU, 48 on the CPU
-  bool turntable_prior = false;   // --poses track: the recording's turntable angles as the pose guess
-  double photometric_weight = 0;  // --poses track: the tracker's photometric term (0: off)
-  std::string icp_weights = "confidence";  // --poses track: ICP's per-pixel weights
-  double icp_crease_deg = fusion::TrackingOptions{}.crease_angle_deg;  // --poses track: the crease test (0: off)
-  std::string deformation = "on";   // --poses track: online deformation (the graph)
-  std::string loop_closure;         // on | off; empty: on for a full turntable revolution
-  int loop_frames = session::DeformationOptions().loop_frames;  // last frames the loop closure registers
-  bool resume = false;              // continue the capture in OUT/recording, then fuse it all
-  bool object_given = false;
-  bool device_given = false;
-};
 
 using Clock = SteadyClock;
 
@@ -108,12 +80,16 @@ LoopClosureChoice loop_closure_choice(const RecordingReader& recording, const Sc
   return {full, why};
 }
 
-// Decodes, tracks (or takes the true poses) and fuses every frame of the recording through a
-// scan session, then writes the model, the trajectory and the report; returns the report.
-// A frame that cannot be read, decoded or registered is reported and skipped; a SIGINT stops
-// after the current frame, and what was fused is written as a valid partial model.
-nlohmann::json scan_recording(const Context& context, const RecordingReader& recording, const ScanOptions& options,
-                              const Device& device) {
+// Decodes, tracks (or takes the true poses) and fuses every frame of the recording at `folder`
+// through a scan session, then writes the model, the trajectory and the report; returns the
+// report. A replay (`live` null) reads the recording's frames a little ahead of fusing them; a
+// live capture (--sim/--camera, capture.h's LiveCapture) is fused as it records, the session made
+// once its first frame is in the recording. A frame that cannot be read, decoded or registered is
+// reported and skipped; a SIGINT stops after the current frame (a live capture: stops the capture
+// after the frame it is taking, and fuses what it recorded), and what was fused is written as a
+// valid partial model.
+nlohmann::json scan_recording(const Context& context, const std::string& folder, const ScanOptions& options,
+                              const Device& device, LiveCapture* live) {
   const bool groundtruth = options.poses == "groundtruth";
   session::ScanSessionOptions session_options;
   session_options.device = device;
@@ -123,19 +99,7 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   if (options.gtsdf_kappa) integration.kappa = *options.gtsdf_kappa;
   if (!options.gtsdf_penalty.empty()) integration.penalty = fusion::parse_penalty(options.gtsdf_penalty);
   if (options.gtsdf_iterations) integration.iterations = *options.gtsdf_iterations;
-  std::vector<StampedPose> truth;
-  if (groundtruth) {
-    try {
-      truth = session::groundtruth_poses(recording);
-    } catch (const Error& error) {
-      if (error.code() != ErrorCode::kInvalidArgument) throw;
-      throw Error(error.code(), fmt::format("--poses groundtruth: {}", error.what()));
-    }
-    const double budget =
-        options.max_voxels_million > 0.0 ? options.max_voxels_million * 1e6 : session::automatic_max_voxels(device);
-    session_options.fixed_volume =
-        session::groundtruth_volume(recording, options.voxel_um * 1e-6, budget, session_options.integration);
-  } else {
+  if (!groundtruth) {
     session_options.voxel_size_m = options.voxel_um * 1e-6;
     session_options.max_voxels =
         options.max_voxels_million > 0.0 ? options.max_voxels_million * 1e6 : session::automatic_max_voxels(device);
@@ -149,27 +113,60 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   // --calibration with --input: decode with that calibration instead of the recording's.
   std::optional<ScannerCalibration> calibration;
   if (!options.calibration.empty() && options.camera_uri.empty()) calibration = read_calibration(options.calibration);
-  session::ScanSession session =
-      session::make_recording_session(recording, session_options, calibration ? &*calibration : nullptr);
+  // The recording and the session made for it: at once for a replay, at the first frame for a
+  // live capture (its recording exists by then).
+  std::optional<RecordingReader> opened;
+  std::optional<session::ScanSession> made;
+  std::vector<StampedPose> truth;
+  const auto make_session = [&]() -> session::ScanSession& {
+    opened.emplace(session::open_recording_for_scan(folder, calibration.has_value()));
+    if (groundtruth) {
+      try {
+        truth = session::groundtruth_poses(*opened);
+      } catch (const Error& error) {
+        if (error.code() != ErrorCode::kInvalidArgument) throw;
+        throw Error(error.code(), fmt::format("--poses groundtruth: {}", error.what()));
+      }
+      const double budget = options.max_voxels_million > 0.0 ? options.max_voxels_million * 1e6
+                                                              : session::automatic_max_voxels(device);
+      session_options.fixed_volume =
+          session::groundtruth_volume(*opened, options.voxel_um * 1e-6, budget, session_options.integration);
+    }
+    made.emplace(session::make_recording_session(*opened, session_options, calibration ? &*calibration : nullptr));
+    return *made;
+  };
+  if (live == nullptr) make_session();
 
+  // A replay stops on SIGINT/SIGTERM here; a live capture's signals stop the capture (its
+  // StopOnSignal), and what it recorded is still fused.
   g_stop_requested.store(false);
-  const auto previous_int = std::signal(SIGINT, request_stop);
-  const auto previous_term = std::signal(SIGTERM, request_stop);
+  using Handler = void (*)(int);
+  const Handler previous_int = live == nullptr ? std::signal(SIGINT, request_stop) : SIG_ERR;
+  const Handler previous_term = live == nullptr ? std::signal(SIGTERM, request_stop) : SIG_ERR;
+  const auto restore_signals = [&] {
+    if (previous_int != SIG_ERR) std::signal(SIGINT, previous_int);
+    if (previous_term != SIG_ERR) std::signal(SIGTERM, previous_term);
+  };
   const ProgressCallback display = context.progress_callback("scan");
-  const ProgressCallback progress = [&display](const ProgressUpdate& update) {
+  const ProgressCallback progress = [&display, live](const ProgressUpdate& update) {
     if (g_stop_requested.load()) return false;
-    return !display || display(update);
+    if (!display) return true;
+    if (live == nullptr) return display(update);
+    ProgressUpdate shown = update;  // a live capture's total is what it plans to record
+    shown.total = live->planned_frames.load();
+    return display(shown);
   };
   bool printed_volume = false;
   const auto on_frame = [&](const session::FrameReport& frame) {
     if (context.after_frame) context.after_frame(frame.index);
     if (context.options.json) return;
     if (!printed_volume && frame.status == session::FrameStatus::kFused) {
-      const fusion::VolumeGeometry& geometry = session.volume_geometry();
-      std::cerr << fmt::format("\nvolume {} x {} x {} voxels of {:.1f} um ({:.0f} MiB, {}), {} fusion on {}, poses: {}\n",
+      const fusion::VolumeGeometry& geometry = made->volume_geometry();
+      std::cerr << fmt::format("\nvolume {} x {} x {} voxels of {:.1f} um ({:.0f} MiB, {}), {} fusion on {}, poses: {}{}\n",
                                geometry.nx, geometry.ny, geometry.nz, geometry.voxel_size_m * 1e6,
-                               static_cast<double>(session.volume_bytes()) / 1048576.0,
-                               groundtruth ? "fixed" : "moving", options.fusion, device.to_string(), options.poses);
+                               static_cast<double>(made->volume_bytes()) / 1048576.0,
+                               groundtruth ? "fixed" : "moving", options.fusion, device.to_string(), options.poses,
+                               live != nullptr ? ", fused while capturing" : "");
       printed_volume = true;
     }
     if (frame.status != session::FrameStatus::kFused || frame.unverified) {
@@ -177,42 +174,64 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
                                frame.reason);
     }
   };
-  session::ReplayOutcome outcome;
-  // A fault of the machine part-way (memory, the GPU, a disk) after frames were fused: what was
-  // fused is written as a partial model, and the scan then fails naming the fault and where the
-  // model is.
+  session::PipelineOutcome outcome;
+  // A fault of the machine part-way (memory, the GPU, a disk) after frames were fused — or a
+  // live capture's device that stopped answering —: what was fused is written as a partial
+  // model, and the scan then fails naming the fault and where the model is.
   std::optional<Error> failure;
+  const auto fused_count = [&made] { return made ? made->fused_count() : std::size_t{0}; };
   try {
     try {
-      outcome = session::run_recording(session, recording, groundtruth ? &truth : nullptr, on_frame, progress);
+      if (live != nullptr) {
+        outcome = session::run_pipeline(make_session, live->frames, session::PipelineOptions{}, on_frame, progress);
+      } else {
+        outcome = session::run_recording(*made, *opened, groundtruth ? &truth : nullptr, on_frame, progress);
+      }
     } catch (const std::bad_alloc&) {
       // An allocation the admission could not foresee failed: a fault of the machine as any other.
-      throw_error(ErrorCode::kOutOfMemory, "out of host memory after {} of {} frame(s)", session.frames().size(),
-                  recording.frame_count());
+      if (live == nullptr) {
+        throw_error(ErrorCode::kOutOfMemory, "out of host memory after {} of {} frame(s)", made->frames().size(),
+                    opened->frame_count());
+      }
+      throw_error(ErrorCode::kOutOfMemory, "out of host memory after {} frame(s) of the capture",
+                  made ? made->frames().size() : std::size_t{0});
     }
   } catch (const Error& error) {
-    std::signal(SIGINT, previous_int);
-    std::signal(SIGTERM, previous_term);
-    if (error.code() == ErrorCode::kOutOfMemory && session.fused_count() == 0) {
+    restore_signals();
+    if (error.code() == ErrorCode::kOutOfMemory && fused_count() == 0) {
       throw Error(error.code(), fmt::format("{}; sls scan: a larger --voxel-um, or a smaller --max-voxels for the "
                                             "automatic voxel size",
                                             error.what()));
     }
-    if (session.fused_count() == 0) throw;
+    if (fused_count() == 0) throw;
     failure = error;
     outcome.interrupted = true;
     outcome.interruption = fmt::format("stopped by an error: {}", error.what());
   } catch (...) {
-    std::signal(SIGINT, previous_int);
-    std::signal(SIGTERM, previous_term);
+    restore_signals();
     throw;
   }
-  std::signal(SIGINT, previous_int);
-  std::signal(SIGTERM, previous_term);
-  if (session.fused_count() == 0) {
-    throw_error(ErrorCode::kInvalidArgument, "{}: no frame could be fused ({} frames{})", recording.folder(),
-                session.frames().size(), outcome.interrupted ? ", interrupted" : "");
+  restore_signals();
+  if (live != nullptr) {
+    // The recording as the capture left it (the session was made from it at its first frame).
+    if (made) opened.emplace(RecordingReader::open(folder));
+    if (live->outcome.interrupted && !failure) {
+      outcome.interrupted = true;
+      outcome.interruption = fmt::format(
+          "interrupted by {} during the capture: {} of {} frame(s) captured into {} and fused (a valid recording; "
+          "continue the capture and fuse it all with: {})",
+          live->stop.signal_name(), live->outcome.frames, live->outcome.planned, folder, live->resume_command);
+    }
   }
+  if (fused_count() == 0) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: no frame could be fused ({} frames{})", folder,
+                made ? made->frames().size() : std::size_t{0}, outcome.interrupted ? ", interrupted" : "");
+  }
+  const RecordingReader& recording = *opened;
+  session::ScanSession& session = *made;
+  // After a fault part-way, what stops the outputs too (the same full disk) is said with it.
+  bool failure_said = false;
+  try {
 
   // The loop closure, after the revolution: asked for, or by default when the recording is a
   // full turntable revolution (its angles span 360° less at most two steps).
@@ -301,6 +320,20 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   report["frames_fused"] = session.fused_count();
   report["interrupted"] = outcome.interrupted;
   if (outcome.interrupted) report["interruption"] = outcome.interruption;
+  report["pipeline"] = pipeline_json(outcome, live != nullptr);
+  if (live != nullptr) {
+    // The capture this scan fused while it recorded: how far it got, and how to continue it.
+    report["live_capture"] = {{"frames_captured", live->outcome.frames},
+                              {"frames_planned", live->outcome.planned},
+                              {"resumed_from", live->outcome.resumed_from},
+                              {"interrupted", live->outcome.interrupted},
+                              {"signal", live->stop.signal_name()},
+                              {"resume", live->resume_command}};
+  }
+  // When each frame reached the session and left it (seconds since the frames began): a live
+  // capture's frames as recorded, a replay's as read.
+  std::map<int, const session::FrameTiming*> timings;
+  for (const session::FrameTiming& timing : outcome.timings) timings[timing.index] = &timing;
   nlohmann::json lost = nlohmann::json::array();
   nlohmann::json per_frame = nlohmann::json::array();
   std::vector<double> pipeline_ms;  // track + integrate + move + raycast of each fused frame
@@ -315,6 +348,11 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
                             {"ms", stage_json(frame.times)}};
     if (!frame.reason.empty()) entry["reason"] = frame.reason;
     if (frame.unverified) entry["unverified"] = true;
+    if (const auto timing = timings.find(frame.index); timing != timings.end()) {
+      entry["captured_s"] = timing->second->delivered_s;
+      entry["fused_s"] = timing->second->fused_s;
+      if (timing->second->waited_s > 0.0) entry["waited_s"] = timing->second->waited_s;
+    }
     if (const auto counters = capture_counters.find(frame.index); counters != capture_counters.end()) {
       entry["capture"] = capture_json(counters->second);
     }
@@ -425,91 +463,17 @@ nlohmann::json scan_recording(const Context& context, const RecordingReader& rec
   html.title = fmt::format("Scan of {}", recording.folder());
   outputs.write("report.html", [&](const std::string&) { sls::report::write_scan_report_html(options.out, html); });
   if (failure) {
+    failure_said = true;
     throw Error(failure->code(), fmt::format("{}; the {} frame(s) fused before it are written as a valid partial "
                                              "model: {}", failure->what(), session.fused_count(),
                                              outputs.describe_written()));
   }
   return report;
-}
-
-// Captures into `folder` (OUT/recording): the simulator (--sim), devices by URI (--camera),
-// or with --resume the rest of the capture there (the simulator's options read from its
-// manifest unless given). A SIGINT/SIGTERM stops it after the current frame: the recording is
-// kept and said, with how to resume, and the scan stops there (false) instead of fusing a
-// part of the object. A capture resumed when it was complete already captures nothing.
-bool capture_for_scan(const Context& context, const ScanOptions& options, const Device& device,
-                      const std::string& folder) {
-  const StopOnSignal stop;
-  CaptureOutcome outcome;
-  if (!options.camera_uri.empty()) {
-    // Devices by URI (hardware or sim://): the capture sequencer scans into OUT/recording,
-    // appending every stack as it arrives, so an interrupted scan keeps what it captured.
-    if (options.projector_uri.empty()) {
-      throw_error(ErrorCode::kInvalidArgument, "--camera needs --projector (the device that shows the patterns)");
-    }
-    session::DeviceCaptureRequest request;
-    request.camera_uri = options.camera_uri;
-    request.projector_uri = options.projector_uri;
-    request.turntable_uri = options.turntable_uri;
-    if (!options.exposures.empty()) request.exposures = parse_hdr_exposures(options.exposures).scales;
-    request.calibration_path = options.calibration;
-    request.frames = options.frames;
-    request.sim_device = device;
-    outcome = capture_devices(folder, request, options.resume, context.progress_callback("capture"), stop);
-  } else {
-    // The simulated scanner, as a hardware scan would record.
-    SimCaptureRequest request;
-    request.preset = options.sim_preset;
-    request.object = options.object_given || !options.resume ? options.object : std::string();
-    request.frames = options.frames;
-    outcome = capture_sim(folder, request, options.resume, device, context.progress_callback("capture"), stop);
+  } catch (const Error& error) {
+    if (!failure || failure_said) throw;
+    throw Error(failure->code(), fmt::format("{}; the {} frame(s) fused before it could not be written either: {}",
+                                             failure->what(), session.fused_count(), error.what()));
   }
-  const bool interrupted = outcome.interrupted || stop.requested();
-  std::string resume_command = "sls scan --resume";
-  if (!options.camera_uri.empty()) {
-    resume_command += " --camera " + options.camera_uri + " --projector " + options.projector_uri;
-    if (!options.turntable_uri.empty()) resume_command += " --turntable " + options.turntable_uri;
-    if (!options.exposures.empty()) resume_command += " --exposures " + options.exposures;
-    if (options.frames > 0) resume_command += fmt::format(" --frames {}", options.frames);
-  }
-  resume_command += " --out " + options.out;
-  if (interrupted) {
-    const nlohmann::json result = {{"ok", false},
-                                   {"interrupted", true},
-                                   {"stage", "capture"},
-                                   {"signal", stop.signal_name()},
-                                   {"recording", folder},
-                                   {"frames_captured", outcome.frames},
-                                   {"frames_planned", outcome.planned},
-                                   {"resume", resume_command}};
-    if (context.options.json) {
-      std::cout << result.dump(2) << "\n";
-    }
-    std::cerr << fmt::format("\ninterrupted by {} during the capture: {} of {} frame(s) captured into {} (a valid "
-                             "recording, nothing fused).\nResume the capture and fuse with the same options and "
-                             "--resume: {}\n",
-                             stop.signal_name(), outcome.frames, outcome.planned, folder, resume_command);
-    return false;
-  }
-  if (!context.options.json && options.resume && outcome.resumed_from == outcome.frames) {
-    std::cerr << fmt::format("{} is complete ({} frames): fusing it (fusion keeps no checkpoint; it runs from the "
-                             "first frame)\n", folder, outcome.frames);
-  } else if (!context.options.json) {
-    std::string how = outcome.resumed_from > 0 ? fmt::format(" (resumed at frame {})", outcome.resumed_from) : "";
-    if (!options.camera_uri.empty()) {
-      const session::CaptureStatistics& stats = outcome.statistics;
-      how += fmt::format(" ({} incomplete, {} re-captured stacks this run)", stats.incomplete_frames, stats.retries);
-    }
-    std::cerr << fmt::format("captured {} frame(s){} x {} images from {} into {}\n", outcome.frames, how,
-                             outcome.images_per_frame, outcome.source, folder);
-  }
-  if (!outcome.calibrated) {
-    throw_error(ErrorCode::kInvalidArgument,
-                "captured {} frame(s) into {}; without --calibration (or a replayed recording's) they cannot be "
-                "decoded (the recording is kept)",
-                outcome.frames, folder);
-  }
-  return true;
 }
 
 int run_scan(const Context& context, const ScanOptions& options) {
@@ -526,16 +490,25 @@ int run_scan(const Context& context, const ScanOptions& options) {
   }
   ensure_writable_directory(options.out, kFirstOutputsBytes);
 
+  // A capture (--sim, --camera, --resume) is fused while it records when it can be, else
+  // captured first; a recording is read and checked (manifest, calibration), then every frame
+  // decoded.
   std::string input = options.input;
+  std::optional<LiveCapture> live;
   if (!options.camera_uri.empty() || !options.sim_preset.empty() || options.resume) {
     input = options.out + "/recording";
-    if (!capture_for_scan(context, options, device, input)) return kExitInterrupted;
+    if (can_fuse_while_capturing(options)) {
+      live.emplace();
+      start_live_capture(context, options, device, input, &*live);
+    } else if (!capture_for_scan(context, options, device, input)) {
+      return kExitInterrupted;
+    }
   }
-
-  // The recording is read and checked (manifest, calibration), then every frame decoded.
-  const RecordingReader recording =
-      session::open_recording_for_scan(input, !options.calibration.empty() && options.camera_uri.empty());
-  const nlohmann::json report = scan_recording(context, recording, options, device);
+  const nlohmann::json report = scan_recording(context, input, options, device, live ? &*live : nullptr);
+  if (live) {
+    print_capture(context, options, live->outcome, input);
+    if (live->outcome.interrupted) std::cerr << report["interruption"].get<std::string>() << "\n";
+  }
   if (context.options.json) {
     std::cout << report.dump(2) << "\n";
   } else {
@@ -558,10 +531,13 @@ int run_scan(const Context& context, const ScanOptions& options) {
 void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   CLI::App* command = app.add_subcommand("scan", "Scan an object: recording or simulator -> decode -> track -> fuse -> model");
   command->footer(
-      "SIGINT/SIGTERM during the capture (--sim, --camera) stops it after the current frame: OUT/recording is kept "
-      "(valid, every frame flushed), nothing is fused, exit status 4, and --resume continues it (a second signal "
-      "ends at once; the recording stays valid). During fusion: the frames fused so far are written as a valid "
-      "partial model, exit status 4.");
+      "A capture (--sim, --camera) is fused while it records (with --poses track and a calibration known before "
+      "its first frame: the simulator's, --calibration, a replay:// camera's or a resumed recording's; otherwise it "
+      "is captured first). SIGINT/SIGTERM during the capture stops it after the current frame: OUT/recording is kept "
+      "(valid, every frame flushed), what it recorded is fused and written as a valid partial model, exit status 4, "
+      "and --resume continues the capture and fuses it all (a capture not fused while recording: nothing is fused). "
+      "A second signal ends at once; the recording stays valid. During the fusion of a recording: the frames fused so "
+      "far are written as a valid partial model, exit status 4.");
   auto options = std::make_shared<ScanOptions>();
   auto* input = command->add_option("--input", options->input, "Recording folder to scan");
   auto* sim = command->add_option("--sim", options->sim_preset, "Scan the simulated scanner with this preset")
@@ -623,7 +599,9 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::IsMember({"track", "groundtruth"}))
       ->capture_default_str();
   command->add_flag("--turntable-prior", options->turntable_prior,
-                    "With --poses track: use the recording's turntable angles about the calibrated axis as the pose guess "
+                    "With --poses track: use the recording's turntable angles about the calibrated axis as the pose guess, "
+                    "and, when the calibration records the table's repeatability (turntable_angle_sigma_deg, "
+                    "turntable_tilt_sigma_deg), as a prior on each registration's rotation weighed against the surface "
                     "(default: depth alone, constant-velocity guess)");
   command->add_option("--photometric-weight", options->photometric_weight,
                       "With --poses track: weight of the tracker's photometric term on each pattern stack's white - "

@@ -16,6 +16,16 @@ nlohmann::json stage_json(const session::StageTimes& times) {
           {"deform", times.deform_ms}};
 }
 
+nlohmann::json pipeline_json(const session::PipelineOutcome& outcome, bool live) {
+  return {{"source", live ? "capture" : "recording"},
+          {"queue_frames", session::PipelineOptions{}.queue_frames},
+          {"delivered", outcome.delivered},
+          {"waits", outcome.waits},
+          {"wait_s", outcome.wait_s},
+          {"deepest_queue", outcome.deepest_queue},
+          {"source_s", outcome.source_s}};
+}
+
 nlohmann::json capture_json(const FrameCaptureCounters& counters) {
   nlohmann::json json = {{"attempts", counters.attempts},
                          {"incomplete_images", counters.incomplete_images},

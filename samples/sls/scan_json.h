@@ -6,12 +6,19 @@
 #include <nlohmann/json.hpp>
 
 #include "sdk/core/recording.h"
+#include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_session.h"
 
 namespace sls::cli {
 
 // Milliseconds per stage: read, decode, track, integrate, move, raycast, deform.
 nlohmann::json stage_json(const session::StageTimes& times);
+
+// How the frames flowed to the session (frame_pipeline.h): live (fused while capturing) or
+// read from a recording, the queue's size, frames handed over, how many had to wait for room
+// and for how long in all, the deepest the queue got, and the source's (capture's, or
+// reader's) seconds.
+nlohmann::json pipeline_json(const session::PipelineOutcome& outcome, bool live);
 
 // A frame's capture counters (recording.h): re-captures, spoiled images and, from a GigE
 // Vision stream, packets and queue depth.

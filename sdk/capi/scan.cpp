@@ -29,6 +29,7 @@
 #include "sdk/core/progress.h"
 #include "sdk/core/recording.h"
 #include "sdk/core/trajectory.h"
+#include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_session.h"
 #include "sdk/session/scan_setup.h"
 #include "sls/sls_scan.h"
@@ -181,31 +182,54 @@ bool cancel_requested(const sls_scan& scan) { return scan.cancel_requested.load(
 sls_loop_closure close_loop(sls_scan& scan);
 void close_loop_after_run(sls_scan& scan, const sls::RecordingReader& recording);
 
-// Replays the recording at `folder` into a new session (scan.session), the frame callback after
-// each frame; throws kCancelled after a cancel, kInvalidArgument when nothing was fused.
-void scan_recording(sls_scan& scan, const std::string& folder) {
-  const sls::RecordingReader recording = sls::session::open_recording_for_scan(folder, scan.calibration.has_value());
-  sls::session::ScanSessionOptions options = scan.options;
+// Fuses the recording at `folder` into a new session (scan.session), the frame callback after
+// each frame: replayed (`live` null; the next frames read while one is fused), or as a capture
+// records it (`live`: its frames, the session made at the first, once the recording exists;
+// `expected_frames` what the frame reports say the run holds). Throws kCancelled after a cancel
+// (the model keeps what was fused, a capture's recording what it recorded), the source's error
+// after fusing what came before it, kInvalidArgument when nothing was fused.
+void fuse_frames(sls_scan& scan, const std::string& folder, const sls::session::FrameSource* live,
+                 std::size_t expected_frames) {
+  std::optional<sls::RecordingReader> recording;
   std::vector<sls::StampedPose> truth;
-  if (scan.groundtruth) {
-    // As `sls scan --poses groundtruth`: the true poses, one volume around the object.
-    truth = sls::session::groundtruth_poses(recording);
-    options.fixed_volume =
-        sls::session::groundtruth_volume(recording, options.voxel_size_m, options.max_voxels, options.integration);
-  }
-  scan.session.emplace(
-      sls::session::make_recording_session(recording, options, scan.calibration ? &*scan.calibration : nullptr));
-  sls::session::ScanSession& session = *scan.session;
-  const std::size_t recording_frames = recording.frame_count();
-  // Reported from inside the session's add_frame, where the frame's depth map still exists.
-  session.set_frame_observer([&scan, recording_frames](const sls::session::FrameReport& frame,
-                                                       const sls::Image32f* depth, const float* depth_device) {
-    sls::capi::report_frame(scan, frame, recording_frames, {depth, depth_device});
-  });
-  // Asked before every frame: a cancel stops the replay after the frame in progress.
+  const auto make_session = [&]() -> sls::session::ScanSession& {
+    recording.emplace(sls::session::open_recording_for_scan(folder, scan.calibration.has_value()));
+    sls::session::ScanSessionOptions options = scan.options;
+    if (scan.groundtruth) {
+      // As `sls scan --poses groundtruth`: the true poses, one volume around the object.
+      truth = sls::session::groundtruth_poses(*recording);
+      options.fixed_volume =
+          sls::session::groundtruth_volume(*recording, options.voxel_size_m, options.max_voxels, options.integration);
+    }
+    scan.session.emplace(
+        sls::session::make_recording_session(*recording, options, scan.calibration ? &*scan.calibration : nullptr));
+    const std::size_t frames = live != nullptr ? expected_frames : recording->frame_count();
+    // Reported from inside the session's add_frame, where the frame's depth map still exists.
+    scan.session->set_frame_observer([&scan, frames](const sls::session::FrameReport& frame,
+                                                     const sls::Image32f* depth, const float* depth_device) {
+      sls::capi::report_frame(scan, frame, frames, {depth, depth_device});
+    });
+    return *scan.session;
+  };
+  // Asked before every frame: a cancel stops the run after the frame in progress.
   const sls::ProgressCallback progress = [&scan](const sls::ProgressUpdate&) { return !cancel_requested(scan); };
-  const sls::session::ReplayOutcome outcome =
-      sls::session::run_recording(session, recording, scan.groundtruth ? &truth : nullptr, {}, progress);
+  sls::session::PipelineOutcome outcome;
+  if (live != nullptr) {
+    try {
+      outcome = sls::session::run_pipeline(make_session, *live, sls::session::PipelineOptions{}, {}, progress);
+    } catch (const sls::Error& error) {
+      if (error.code() == sls::ErrorCode::kCancelled) scan.cancelled = true;
+      throw;
+    }
+    if (scan.session) recording.emplace(sls::RecordingReader::open(folder));  // as the capture left it
+  } else {
+    make_session();
+    outcome = sls::session::run_recording(*scan.session, *recording, scan.groundtruth ? &truth : nullptr, {}, progress);
+  }
+  if (!scan.session) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "{}: the capture recorded no frame to fuse", folder);
+  }
+  sls::session::ScanSession& session = *scan.session;
   if (outcome.interrupted) {
     scan.cancelled = true;
     sls::throw_error(sls::ErrorCode::kCancelled, "{}: {}; the model keeps the {} frame(s) fused", folder,
@@ -220,9 +244,13 @@ void scan_recording(sls_scan& scan, const std::string& folder) {
                                           sls::session::frame_status_name(frames.front().status) + ": " +
                                           frames.front().reason);
   }
-  close_loop_after_run(scan, recording);
+  close_loop_after_run(scan, *recording);
 }
 
+void scan_recording(sls_scan& scan, const std::string& folder) { fuse_frames(scan, folder, nullptr, 0); }
+
+// Captures through the devices into capture.recording_path and fuses each frame as it is
+// recorded (sls_scan_run_devices).
 void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
   const auto required = [](const char* value, const char* name) {
     if (value == nullptr || value[0] == '\0') {
@@ -247,15 +275,16 @@ void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
   }
   request.frames = capture.frames;
   request.sim_device = scan.options.device;
-  // Asked after every stack: a cancel stops the capture after the stack in progress.
+  // Asked after every stack: a cancel stops the capture after the stack in progress (what it
+  // recorded is fused).
   const sls::ProgressCallback progress = [&scan](const sls::ProgressUpdate&) { return !cancel_requested(scan); };
-  try {
-    sls::session::capture_from_devices(folder, request, progress);
-  } catch (const sls::Error& error) {
-    if (error.code() == sls::ErrorCode::kCancelled) scan.cancelled = true;
-    throw;
-  }
-  scan_recording(scan, folder);
+  const sls::session::FrameSource frames = sls::session::captured_frames(
+      folder, [&request, &progress, &folder](const sls::session::RecordedFrame& recorded) {
+        sls::session::capture_from_devices(folder, request, progress, recorded);
+      });
+  const std::size_t expected =
+      request.frames > 0 ? static_cast<std::size_t>(request.frames) : (request.turntable_uri.empty() ? 1 : 36);
+  fuse_frames(scan, folder, &frames, expected);
 }
 
 // The loop closure of the last run's model; the model extracted before it is dropped, so the

@@ -140,6 +140,11 @@ struct RecordingWriterOptions {
   int encode_threads = 0;         // threads encoding one frame's PNGs; 0 = one per hardware thread
 };
 
+// A depth map as a recording of `info` stores it and reads it back (quantised to depth_unit_m
+// from depth_offset_m; out of range: 0): what a scan fused while capturing takes, so that it
+// equals a replay of the recording.
+Image32f recorded_depth_m(const Image32f& depth_m, const RecordingInfo& info);
+
 // Writes a recording frame by frame. Not thread-safe: one thread appends (each append
 // encodes its images on several threads itself). Move-only: one writer per folder.
 class RecordingWriter {

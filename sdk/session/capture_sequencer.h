@@ -155,7 +155,9 @@ struct CaptureStatistics {
   double camera_seconds = 0.0;     // of that, triggering cameras and waiting for their images
 };
 
-using FrameCallback = std::function<void(const CapturedFrame& frame)>;
+// Called with each frame once it is recorded. It may take the frame's images (move them out:
+// a live scan fuses them without a copy); the sequencer does not use the frame afterwards.
+using FrameCallback = std::function<void(CapturedFrame& frame)>;
 
 // A recording's description for camera `camera` of a projector and pattern set: device from the
 // projector, camera size and bit depth from the camera, the pattern set, images per frame

@@ -19,4 +19,10 @@ void fuse_hdr_frame(const RecordingInfo& info, const DecodeOptions& decode, Scan
   frame->images = std::move(fused.images);
 }
 
+DecodeOptions hdr_decode_options(const RecordingInfo& info) {
+  DecodeOptions decode;
+  decode.bit_depth = info.camera.bit_depth;
+  return decode;
+}
+
 }  // namespace sls::session

@@ -13,4 +13,8 @@ namespace sls::session {
 // the caller skips the frame).
 void fuse_hdr_frame(const RecordingInfo& info, const DecodeOptions& decode, ScanFrame* frame);
 
+// The decode options a scan session of the recording decodes with, as far as HDR fusion needs
+// them: the defaults at the recording camera's bit depth (make_recording_session's).
+DecodeOptions hdr_decode_options(const RecordingInfo& info);
+
 }  // namespace sls::session

@@ -11,7 +11,6 @@
 
 #include "sdk/core/error.h"
 #include "sdk/core/stopwatch.h"
-#include "sdk/session/hdr_frame.h"
 
 
 namespace sls::session {
@@ -404,56 +403,6 @@ Image8u ScanSession::render(const Pose& T_world_camera) const {
   // Its own raycaster: the session's holds the tracker's model on the GPU.
   fusion::Raycaster raycaster(impl_->options.device, impl_->calibration.camera, Impl::raycast_options(impl_->options));
   return raycaster.raycast(*volume, T_world_camera).shaded;
-}
-
-ReplayOutcome run_recording(ScanSession& session, const RecordingReader& recording,
-                            const std::vector<StampedPose>* known_poses,
-                            const std::function<void(const FrameReport&)>& on_frame,
-                            const ProgressCallback& progress) {
-  if (known_poses != nullptr && known_poses->size() != recording.frame_count()) {
-    throw_error(ErrorCode::kInvalidArgument, "{} known poses for the {} frames of {}", known_poses->size(),
-                recording.frame_count(), recording.folder());
-  }
-  ReplayOutcome outcome;
-  DecodeOptions hdr_decode;
-  hdr_decode.bit_depth = recording.info().camera.bit_depth;
-  const std::size_t count = recording.frame_count();
-  try {
-    for (std::size_t i = 0; i < count; ++i) {
-      report_progress(progress, {"scan", i, count, ""});
-      const FrameInfo& info = recording.frame(i);
-      ScanFrame frame;
-      frame.index = info.index;
-      frame.timestamp_ns = info.timestamp_ns;
-      frame.turntable_angle_deg = info.turntable_angle_deg;
-      if (known_poses != nullptr) frame.known_T_world_camera = (*known_poses)[i].T_world_camera;
-      const Clock::time_point start = Clock::now();
-      try {
-        if (!info.complete) {
-          frame.problem = "incomplete pattern stack" + (info.note.empty() ? std::string() : ": " + info.note);
-        } else if (recording.info().images_per_frame > 0) {
-          frame.images = recording.load_images(i);
-          // HDR: the exposures' stacks fused into one; the decode options are scan_setup's.
-          if (recording.info().exposures.size() > 1) fuse_hdr_frame(recording.info(), hdr_decode, &frame);
-        } else {
-          frame.depth_m = recording.load_depth_m(i);
-          if (!frame.depth_m) frame.problem = "no depth map";
-        }
-      } catch (const Error& error) {
-        if (!is_frame_problem(error)) throw;
-        frame.problem = fmt::format("cannot read: {}", error.what());
-      }
-      frame.read_ms = ms_since(start);
-      const FrameReport report = session.add_frame(frame);
-      if (on_frame) on_frame(report);
-    }
-    report_progress(progress, {"scan", count, count, ""});
-  } catch (const Error& error) {
-    if (error.code() != ErrorCode::kCancelled) throw;
-    outcome.interrupted = true;
-    outcome.interruption = error.what();
-  }
-  return outcome;
 }
 
 }  // namespace sls::session

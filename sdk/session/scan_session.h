@@ -239,18 +239,4 @@ class ScanSession {
 // turns by -delta about the axis. The turntable prior's guess.
 Pose turntable_camera_motion(const TurntableAxis& axis, double delta_deg);
 
-// Replays a recording through a session: every frame read (an unreadable or incomplete one
-// is passed on with `problem`), with known poses when given (one per recording frame), the
-// read time in each report, `on_frame` after each frame, and progress ("scan", frames). A
-// cancel from `progress` stops after the current frame: the result says so and the session
-// keeps everything fused.
-struct ReplayOutcome {
-  bool interrupted = false;
-  std::string interruption;  // what stopped it
-};
-ReplayOutcome run_recording(ScanSession& session, const RecordingReader& recording,
-                            const std::vector<StampedPose>* known_poses = nullptr,
-                            const std::function<void(const FrameReport&)>& on_frame = {},
-                            const ProgressCallback& progress = {});
-
 }  // namespace sls::session

@@ -14,6 +14,7 @@
 #include "sdk/core/calibration.h"
 #include "sdk/core/error.h"
 #include "sdk/core/ply.h"
+#include "sdk/session/hdr_frame.h"
 
 namespace sls::session {
 
@@ -86,7 +87,8 @@ RecordingWriter append_to_recording_of(const std::string& folder, const drivers:
 }
 
 DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptureRequest& request,
-                                   const ProgressCallback& progress) {
+                                   const ProgressCallback& progress,
+                                   const std::function<void(ScanFrame&& frame)>& recorded) {
   if (request.camera_uri.empty()) throw_error(ErrorCode::kInvalidArgument, "capture: no camera URI");
   if (request.projector_uri.empty()) {
     throw_error(ErrorCode::kInvalidArgument, "capture with {}: no projector URI (the device that shows the patterns)",
@@ -136,7 +138,30 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
   result.recording_folder = folder;
   result.images_per_frame = patterns.size();
   result.resumed_from = capture.first_frame;
-  result.statistics = sequencer.run({&writer}, {}, progress);
+  FrameCallback on_frame;
+  if (recorded) {
+    // The frame as a replay of the recording would read it back (read_recording_frame).
+    on_frame = [&recorded, &writer](CapturedFrame& captured) {
+      ScanFrame frame;
+      frame.index = captured.recording_indices.front();
+      frame.timestamp_ns = captured.timestamp_ns();
+      frame.turntable_angle_deg = captured.turntable_angle_deg;
+      if (!captured.complete) {
+        frame.problem = "incomplete pattern stack" + (captured.note.empty() ? std::string() : ": " + captured.note);
+      } else {
+        frame.images = std::move(captured.cameras.front().images);
+        try {
+          fuse_hdr_frame(writer.info(), hdr_decode_options(writer.info()), &frame);
+        } catch (const Error& error) {
+          if (!is_frame_problem(error)) throw;
+          frame.images.clear();
+          frame.problem = fmt::format("cannot read: {}", error.what());
+        }
+      }
+      recorded(std::move(frame));
+    };
+  }
+  result.statistics = sequencer.run({&writer}, on_frame, progress);
   result.calibrated = std::filesystem::exists(folder + "/calibration.yml");  // given now, or when first captured
   return result;
 }

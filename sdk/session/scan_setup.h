@@ -5,10 +5,11 @@
 //   DeviceCapture captured = capture_from_devices(folder, request, progress);
 //   RecordingReader recording = open_recording_for_scan(folder);
 //   ScanSession session = make_recording_session(recording, options);
-//   ReplayOutcome outcome = run_recording(session, recording, ...);
+//   ReplayOutcome outcome = run_recording(session, recording, ...);   // frame_pipeline.h
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -67,8 +68,14 @@ PatternSet scan_pattern_set(const drivers::Projector& projector);
 // sls::Error: the device registry's codes for a URI that opens nothing (the message names it),
 // kInvalidArgument without a camera or projector URI, the sequencer's codes for a device that
 // stops answering, kCancelled when `progress` asks to stop.
+// `recorded`, when given, is called on the capturing thread with each frame once it is in the
+// recording, as a scan session takes it (ScanFrame::index its position in the recording; HDR
+// stacks fused; an incomplete frame with ScanFrame::problem), the images moved, not copied:
+// fusing while capturing (frame_pipeline.h's captured_frames). An exception from it ends the
+// capture after that frame, which stays recorded, and propagates unchanged.
 DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptureRequest& request,
-                                   const ProgressCallback& progress = {});
+                                   const ProgressCallback& progress = {},
+                                   const std::function<void(ScanFrame&& frame)>& recorded = {});
 
 // Continues the recording at `folder` (RecordingWriter::append_to) for a capture with these
 // devices and pattern set: throws sls::Error(kInvalidArgument) naming the difference when it

@@ -440,9 +440,23 @@ class SlsCli(unittest.TestCase):
         clean = {"attempts": 1, "incomplete_images": 0, "lost_images": 0, "stale_images": 0}
         report = json.loads((out / "report.json").read_text())
         self.assertEqual([f.get("capture") for f in report["per_frame"]], [clean] * 3)
+        # Fused while it captured (a calibration given): each frame's captured_s and fused_s, in
+        # order, and the pipeline's counts.
+        self.assertEqual(report["pipeline"]["source"], "capture")
+        self.assertEqual(report["pipeline"]["delivered"], 3)
+        self.assertEqual(report["live_capture"]["frames_captured"], 3)
+        for before, after in zip(report["per_frame"], report["per_frame"][1:]):
+            self.assertLessEqual(before["fused_s"], after["fused_s"])
+        for frame in report["per_frame"]:
+            self.assertLessEqual(frame["captured_s"], frame["fused_s"])
         again = run("--json", "scan", "--input", str(out / "recording"), "--device", "cpu", "--out", str(self.dir / "again"))
         self.assertEqual(again.returncode, 0, again.stderr)
-        self.assertEqual([f.get("capture") for f in json.loads(again.stdout)["per_frame"]], [clean] * 3)
+        again_report = json.loads(again.stdout)
+        self.assertEqual([f.get("capture") for f in again_report["per_frame"]], [clean] * 3)
+        self.assertEqual(again_report["pipeline"]["source"], "recording")
+        self.assertNotIn("live_capture", again_report)
+        # The model fused while capturing is the one the recording gives scanned on its own.
+        self.assertEqual((out / "cloud.ply").read_bytes(), (self.dir / "again" / "cloud.ply").read_bytes())
         # Without a calibration the capture is kept and the command says why it stops.
         result = run("scan", "--camera", uri, "--projector", uri, "--frames", "1", "--device", "cpu",
                      "--out", str(self.dir / "uncalibrated"))

@@ -113,7 +113,7 @@ class SlsCaptureInterrupts(unittest.TestCase):
             else:
                 self.assertEqual((rec / name).read_bytes(), (reference / name).read_bytes(), name)
 
-    def test_sigint_and_sigterm_during_a_simulated_capture_exit_4_keep_it_and_resume(self):
+    def test_sigint_and_sigterm_during_a_simulated_capture_exit_4_keep_and_fuse_it_and_resume(self):
         for sig, name in ((signal.SIGTERM, "SIGTERM"), (signal.SIGINT, "SIGINT")):
             out = self.dir / f"scan-{name}"
             scan = start("scan", "--sim", "ci", "--frames", str(self.FRAMES), "--device", "cpu", "--out", str(out))
@@ -127,7 +127,12 @@ class SlsCaptureInterrupts(unittest.TestCase):
             self.assertIn(f"interrupted by {name} during the capture: {captured} of {self.FRAMES} frame(s) captured",
                           stderr)
             self.assertIn(f"sls scan --resume --out {out}", stderr)
-            self.assertFalse((out / "cloud.ply").exists(), "an interrupted capture is not fused")
+            # Fused while it recorded: what was captured is in a valid partial model.
+            report = json.loads((out / "report.json").read_text())
+            self.assertTrue(report["interrupted"])
+            self.assertEqual(report["frames_processed"], captured)
+            self.assertEqual(report["live_capture"]["frames_captured"], captured)
+            self.assertGreater(ply_counts(out / "cloud.ply")[0], 0)
         # The resume reads the simulator's options from the recording, captures the rest, fuses.
         resumed = run("scan", "--resume", "--device", "cpu", "--out", str(out))
         self.assertEqual(resumed.returncode, 0, resumed.stderr)
@@ -144,8 +149,9 @@ class SlsCaptureInterrupts(unittest.TestCase):
         self.assertEqual(scan.returncode, 4, stderr)
         result = json.loads(stdout)
         self.assertTrue(result["interrupted"])
-        self.assertEqual(result["frames_captured"], len(listed_frames(out / "recording")))
-        self.assertEqual(result["frames_planned"], self.FRAMES)
+        self.assertEqual(result["live_capture"]["frames_captured"], len(listed_frames(out / "recording")))
+        self.assertEqual(result["live_capture"]["frames_planned"], self.FRAMES)
+        self.assertEqual(result["live_capture"]["resume"], f"sls scan --resume --out {out}")
 
     def test_sls_sim_stops_on_sigint_with_exit_4_and_resumes(self):
         out = self.dir / "sim"

@@ -5,7 +5,8 @@
  *                             sls_scan_run_devices()); it carries its calibration
  *   sls_scan_run_devices()    a camera, a projector and optionally a turntable by URI
  *                             (sls_device.h: hardware or sim://), captured into a new recording
- *                             first (one pattern stack per turntable position), then scanned
+ *                             (one pattern stack per turntable position), each stack scanned
+ *                             as it is recorded
  * Per frame: decode the pattern stack (or take the recording's depth map), track it against the
  * model (ICP from a constant-velocity guess, or with use_turntable_prior from the recorded
  * turntable angle about the calibrated axis), integrate it (GTSDF or TSDF), move the volume
@@ -27,6 +28,9 @@
  * deformation worker is the scan's own thread, started by a run and stopped by the next run or
  * sls_scan_destroy() (after its current job); no callback runs on it, and the calls that read
  * the graph (sls_scan_close_loop, sls_scan_get_summary, the writes) wait for it to catch up.
+ * The runs read or capture the next frames on a thread of their own while the calling thread
+ * fuses (sls_scan_run_devices drives the devices from it); it ends before the run returns, and
+ * no callback runs on it.
  *
  * Typical use:
  *   static void on_frame(const sls_frame_report* report, void* user) {
@@ -332,18 +336,22 @@ SLS_API void sls_capture_config_init(sls_capture_config* config);
 SLS_API void sls_capture_config_init_sized(sls_capture_config* config, size_t struct_size);
 #define sls_capture_config_init(config) sls_capture_config_init_sized((config), sizeof(*(config)))
 
-/* Captures from devices by URI, then scans the recording: opens the projector, camera and
- * turntable (sls_device.h's URIs; sim:// devices render on the context's device), homes the
- * turntable, and per turntable position projects the scan's Gray code + phase-shift patterns
- * and captures one stack (a spoiled stack is captured again, up to twice), appending each to
- * the recording at capture->recording_path as it arrives; then runs as sls_scan_run_recording()
- * on that recording, with the same results and codes. The frame callback reports the scan's
- * frames, after the capture.
+/* Captures from devices by URI and scans each stack as it is recorded: opens the projector,
+ * camera and turntable (sls_device.h's URIs; sim:// devices render on the context's device),
+ * homes the turntable, and per turntable position projects the scan's Gray code + phase-shift
+ * patterns and captures one stack (a spoiled stack is captured again, up to twice), appending
+ * each to the recording at capture->recording_path as it arrives; the scan fuses each frame once
+ * it is recorded, on the calling thread, while the next is captured (on a thread of the
+ * library's: a bounded queue of two frames between them; the capture waits when fusion falls
+ * behind, and never drops a frame). The results and codes are sls_scan_run_recording()'s on that
+ * recording, and the model is the same. The frame callback reports each frame as it is fused,
+ * during the capture.
  * Also fails with SLS_ERROR_INVALID_ARGUMENT for a missing URI or path, the device registry's
  * codes for a URI that opens nothing (SLS_ERROR_UNSUPPORTED, SLS_ERROR_NOT_FOUND, ... naming
- * the URI), SLS_ERROR_DEVICE or SLS_ERROR_TIMEOUT for a device that stops answering, and
- * SLS_ERROR_CANCELLED for a cancel during the capture (the recording keeps the stacks captured;
- * the scan has no model then). */
+ * the URI), SLS_ERROR_DEVICE or SLS_ERROR_TIMEOUT for a device that stops answering (the frames
+ * recorded before it are fused and kept in the model, as in the recording), and
+ * SLS_ERROR_CANCELLED for a cancel (sls_scan_cancel: the capture stops after the stack in
+ * progress; the recording keeps the stacks captured and the model what was fused). */
 SLS_API sls_status sls_scan_run_devices(sls_scan* scan, const sls_capture_config* capture, sls_error** error);
 
 /* Asks the run in progress to stop after its current frame (or its current stack, while

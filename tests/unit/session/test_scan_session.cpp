@@ -14,6 +14,7 @@
 #include "drivers/sim/sim_recording.h"
 #include "drivers/sim/sim_scanner.h"
 #include "sdk/core/recording.h"
+#include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_session.h"
 #include "tests/support/test_support.h"
 #include "tests/unit/session/sim_frames.h"

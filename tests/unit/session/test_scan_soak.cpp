@@ -19,6 +19,7 @@
 
 #include "drivers/sim/sim_recording.h"
 #include "sdk/core/recording.h"
+#include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_session.h"
 #include "tests/support/process_memory.h"
 #include "tests/support/test_support.h"
