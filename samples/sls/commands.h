@@ -10,6 +10,7 @@
 
 namespace sls::cli {
 
+void add_bench_command(CLI::App& app, Context& context, int* exit_code);
 void add_calibrate_command(CLI::App& app, Context& context, int* exit_code);
 void add_decode_command(CLI::App& app, Context& context, int* exit_code);
 void add_devices_command(CLI::App& app, Context& context, int* exit_code);

@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
   app.add_flag("-v,--verbose", context.options.verbosity, "More log output (-vv for debug)");
 
   int exit_code = kExitOk;
+  add_bench_command(app, context, &exit_code);
   add_calibrate_command(app, context, &exit_code);
   add_decode_command(app, context, &exit_code);
   add_devices_command(app, context, &exit_code);

@@ -282,8 +282,13 @@ void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
       folder, [&request, &progress, &folder](const sls::session::RecordedFrame& recorded) {
         sls::session::capture_from_devices(folder, request, progress, recorded);
       });
-  const std::size_t expected =
+  // What the frame reports say the run holds: capture_from_devices' frame count.
+  std::size_t expected =
       request.frames > 0 ? static_cast<std::size_t>(request.frames) : (request.turntable_uri.empty() ? 1 : 36);
+  const sls::drivers::DeviceUri camera = sls::drivers::parse_device_uri(request.camera_uri);
+  if (request.frames == 0 && camera.scheme == "replay") {
+    expected = sls::RecordingReader::open(camera.target).frame_count();
+  }
   fuse_frames(scan, folder, &frames, expected);
 }
 

@@ -1,11 +1,14 @@
 #include "sdk/core/device.h"
 
+#include <algorithm>
 #include <cstdlib>
+#include <vector>
 
 #include "sdk/core/error.h"
 
 #if defined(SLS_HAVE_CUDA)
 #include "sdk/core/cuda/cuda_check.h"
+#include "sdk/core/cuda/device_buffer.h"
 #endif
 
 namespace sls {
@@ -76,6 +79,54 @@ void require_device(const Device& device) {
                 device.to_string(), count);
   }
   SLS_CUDA_CHECK(cudaSetDevice(device.id));
+#endif
+}
+
+namespace {
+
+void require_gpu(const Device& device, const char* what) {
+  if (!device.is_cuda()) throw_error(ErrorCode::kInvalidArgument, "{}: {} is not a GPU", what, device.to_string());
+  require_device(device);
+}
+
+}  // namespace
+
+GpuMemory gpu_memory(const Device& device) {
+  require_gpu(device, "GPU memory");
+  GpuMemory memory;
+#if defined(SLS_HAVE_CUDA)
+  std::size_t free_bytes = 0;
+  SLS_CUDA_CHECK(cudaMemGetInfo(&free_bytes, &memory.total_bytes));
+  memory.used_bytes = memory.total_bytes - free_bytes;
+#endif
+  return memory;
+}
+
+double copy_bandwidth_gbps(const Device& device, std::size_t bytes) {
+  require_gpu(device, "copy bandwidth");
+  if (bytes == 0) throw_error(ErrorCode::kInvalidArgument, "copy bandwidth: a copy of 0 bytes");
+#if defined(SLS_HAVE_CUDA)
+  DeviceBuffer<unsigned char> from(bytes), to(bytes);
+  SLS_CUDA_CHECK(cudaMemset(from.data(), 0x5a, bytes));  // not zeros: no path may treat them specially
+  cudaEvent_t start = nullptr, stop = nullptr;
+  SLS_CUDA_CHECK(cudaEventCreate(&start));
+  SLS_CUDA_CHECK(cudaEventCreate(&stop));
+  std::vector<float> ms;
+  for (int i = 0; i < 6; ++i) {  // the first is the warm-up
+    SLS_CUDA_CHECK(cudaEventRecord(start, nullptr));
+    SLS_CUDA_CHECK(cudaMemcpyAsync(to.data(), from.data(), bytes, cudaMemcpyDeviceToDevice, nullptr));
+    SLS_CUDA_CHECK(cudaEventRecord(stop, nullptr));
+    SLS_CUDA_CHECK(cudaEventSynchronize(stop));
+    float elapsed = 0.0f;
+    SLS_CUDA_CHECK(cudaEventElapsedTime(&elapsed, start, stop));
+    if (i > 0) ms.push_back(elapsed);
+  }
+  (void)cudaEventDestroy(start);
+  (void)cudaEventDestroy(stop);
+  std::nth_element(ms.begin(), ms.begin() + 2, ms.end());
+  return 2.0 * static_cast<double>(bytes) / (static_cast<double>(ms[2]) * 1e-3) / 1e9;
+#else
+  return 0.0;
 #endif
 }
 

@@ -3,6 +3,7 @@
 // GPU, is a clear sls::Error (unsupported / device), never a silent fallback.
 #pragma once
 
+#include <cstddef>
 #include <string>
 
 namespace sls {
@@ -38,5 +39,20 @@ std::string cuda_device_name(int id);
 // Throws sls::Error unless `device` can run work now: unsupported when CUDA was not built,
 // device error when the ordinal has no GPU behind it. Selects the device for this thread.
 void require_device(const Device& device);
+
+// A GPU's memory (cudaMemGetInfo: every process's use), in bytes.
+struct GpuMemory {
+  std::size_t used_bytes = 0;
+  std::size_t total_bytes = 0;
+};
+// Throws as require_device (which it calls: the device becomes this thread's), and
+// ErrorCode::kInvalidArgument for the CPU.
+GpuMemory gpu_memory(const Device& device);
+
+// The bandwidth of a device-to-device copy on a GPU, in GB/s of bytes read plus written: a copy
+// of `bytes`, warmed up, the median of five timed with CUDA events. The ceiling a memory-bound
+// kernel's bandwidth is judged against (`sls bench`). Throws as gpu_memory, and
+// ErrorCode::kOutOfMemory when the two buffers do not fit.
+double copy_bandwidth_gbps(const Device& device, std::size_t bytes = std::size_t{1} << 30);
 
 }  // namespace sls

@@ -79,6 +79,34 @@ class SlsCli(unittest.TestCase):
         self.assertIn("cuda_compiled", info)
         self.assertIsInstance(info["cuda_devices"], list)
 
+    def test_bench_times_a_revolution_end_to_end(self):
+        # A short ci-preset revolution, both inputs: the end-to-end seconds hold the frames, the
+        # loop closure and the final model, with every stage's median and total beside them.
+        for extra in (("--input", "depth", "--deformation", "off"), ("--frames", "3", "--turntable-prior")):
+            args = ("--json", "bench", "--preset", "ci", "--object", "knurled-knob", "--device", "cpu")
+            if "--frames" not in extra:
+                args += ("--frames", "4")
+            result = run(*args, *extra)
+            self.assertEqual(result.returncode, 0, result.stderr)
+            bench = json.loads(result.stdout)
+            frames = 3 if "--frames" in extra else 4
+            self.assertEqual((bench["preset"], bench["frames"], bench["device"]), ("ci", frames, "cpu"))
+            self.assertAlmostEqual(bench["end_to_end_s"],
+                                   bench["frames_s"] + bench["loop_closure_s"] + bench["extract_s"], places=6)
+            self.assertGreater(bench["frames_s"], 0.0)
+            self.assertGreater(bench["points"], 0)
+            for stage in ("decode", "track", "integrate", "move", "raycast", "deform"):
+                self.assertGreaterEqual(bench["stages"][stage]["total_s"], 0.0)
+            self.assertLessEqual(bench["frame_ms"]["median"], bench["frame_ms"]["max"])
+            self.assertNotIn("gpu", bench)
+        self.assertEqual(bench["images_per_frame"], 22)
+        self.assertGreater(bench["stages"]["decode"]["total_s"], 0.0)  # the stacks decoded in the timed part
+        self.assertIsNotNone(bench["loop_closure"])
+        human = run("bench", "--preset", "ci", "--frames", "2", "--input", "depth", "--device", "cpu")
+        self.assertEqual(human.returncode, 0, human.stderr)
+        self.assertIn("end to end", human.stdout)
+        self.assertEqual(run("bench", "--preset", "huge").returncode, 2)
+
     def test_devices_lists_the_simulator_with_an_openable_uri(self):
         # --json before or after the command.
         for args in (("--json", "devices"), ("devices", "--json")):

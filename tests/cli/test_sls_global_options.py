@@ -1,6 +1,6 @@
 """`sls`'s global options (--json, -q, -v) after the command as well as before it, for every
 command `sls --help` lists: each command run so that it parses and then fails in its work (or,
-for info and devices, succeeds) prints JSON on stdout either way, with the same exit status.
+for info, devices and a two-frame bench, succeeds) prints JSON on stdout either way, with the same exit status.
 Usage: test_sls_global_options.py SLS"""
 import json
 import os
@@ -27,6 +27,7 @@ class GlobalOptionsAfterTheCommand(unittest.TestCase):
             invocations = {
                 "info": [],
                 "devices": [],
+                "bench": ["--preset", "ci", "--frames", "2"],
                 "inspect": [missing],
                 "eval": ["--result", missing, "--truth", missing],
                 "decode": ["--input", missing, "--out", os.path.join(tmp, "decoded")],

@@ -29,7 +29,7 @@ def test_replaying_its_recording_gives_the_same_model(tmp_path: pathlib.Path, sl
     result = run_sample("--camera", uri, "--projector", uri, "--turntable", uri, "--out", str(replayed),
                         "--device", "cpu")
     assert result.returncode == 0, result.stdout + result.stderr
-    assert f"capturing one revolution from {uri}" in result.stdout
+    assert f"capturing and fusing one revolution from {uri}" in result.stdout
     for stop, angle in enumerate((0, 120, 240)):
         assert f"captured stack {stop + 1} of 3 at {angle:6.1f} deg: complete" in result.stdout
     for name in FILES:

@@ -1,0 +1,240 @@
+// sls bench: the user-facing benchmark (issue 18): a simulated turntable revolution at a preset's
+// size through the scan session as a user waits for it — each frame's pattern stack (or depth
+// map) rendered into host memory first, not timed, then decoded, tracked, fused, the volume
+// moved and the model raycast (every add_frame: uploads, host work, moves, the deformation's
+// share), the loop closure and the final (deformed) model extracted into host memory, timed.
+// It prints the end-to-end seconds of the revolution with the per-stage medians and totals
+// beside them, the slowest frames, and on a GPU its memory in use and the device-to-device copy
+// bandwidth measured in the same run (the ceiling a memory-bound kernel is judged against).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "drivers/sim/renderer.h"
+#include "drivers/sim/rig.h"
+#include "drivers/sim/scene.h"
+#include "samples/sls/commands.h"
+#include "sdk/core/device.h"
+#include "sdk/core/error.h"
+#include "sdk/core/stopwatch.h"
+#include "sdk/session/scan_session.h"
+#include "sdk/session/scan_setup.h"
+
+namespace sls::cli {
+namespace {
+
+struct BenchOptions {
+  std::string preset = "demo";
+  std::string object = "knurled-screw";
+  int frames = 0;
+  std::string input = "patterns";
+  bool turntable_prior = false;
+  std::string deformation = "on";
+  std::string device;
+};
+
+// The value at fraction q of the sorted values (0: the smallest, 1: the largest).
+double quantile(std::vector<double> values, double q) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const std::size_t i = static_cast<std::size_t>(std::lround(q * static_cast<double>(values.size() - 1)));
+  return values[std::min(i, values.size() - 1)];
+}
+
+double sum(const std::vector<double>& values) {
+  double total = 0.0;
+  for (const double v : values) total += v;
+  return total;
+}
+
+nlohmann::json run_bench(const Context& context, const BenchOptions& options, const Device& device) {
+  sim::RigOptions rig_options;
+  rig_options.preset = options.preset;
+  rig_options.frames = options.frames;
+  const sim::Scene scene = sim::make_scene(options.object);
+  const sim::SimRig rig = sim::make_rig(rig_options, scene);
+  sim::Renderer renderer(rig, scene, device);
+  const int frames = rig.turntable.steps_per_revolution;
+  const bool patterns = options.input == "patterns";
+
+  session::ScanSessionOptions session_options;
+  session_options.device = device;
+  session_options.max_voxels = session::automatic_max_voxels(device);
+  if (options.preset == "paper") {
+    // The paper's volume: 960³ voxels over 10 mm (Table II's set-up).
+    session_options.voxel_size_m = 10.4e-6;
+    session_options.volume_size_m = Eigen::Vector3d::Constant(960 * session_options.voxel_size_m * (1.0 - 1e-9));
+  }
+  session_options.turntable_prior = options.turntable_prior;
+  session_options.deformation.enabled = options.deformation == "on";
+  session::ScanSession session(rig.calibration(), patterns ? &rig.patterns : nullptr, session_options);
+
+  const ProgressCallback progress = context.progress_callback("bench");
+  std::vector<double> frame_ms, decode, track, integrate, move, raycast, deform;
+  double render_s = 0.0, frames_s = 0.0;
+  int lost = 0;
+  for (int k = 0; k < frames; ++k) {
+    report_progress(progress, {"bench", static_cast<std::size_t>(k), static_cast<std::size_t>(frames), ""});
+    SteadyClock::time_point start = SteadyClock::now();
+    renderer.set_frame(k);
+    session::ScanFrame frame;
+    frame.index = k;
+    frame.timestamp_ns = static_cast<std::int64_t>(k) * 333'333'333;
+    frame.turntable_angle_deg = rig.commanded_angle_deg(k);
+    if (patterns) {
+      for (int j = 0; j < static_cast<int>(rig.patterns.size()); ++j) frame.images.push_back(renderer.render_pattern(j));
+    } else {
+      frame.depth_m = renderer.render_depth();
+    }
+    render_s += ms_since(start) * 1e-3;
+    start = SteadyClock::now();
+    const session::FrameReport report = session.add_frame(frame);
+    const double ms = ms_since(start);
+    frames_s += ms * 1e-3;
+    frame_ms.push_back(ms);
+    if (report.status != session::FrameStatus::kFused) ++lost;
+    const session::StageTimes& t = report.times;
+    decode.push_back(t.decode_ms);
+    track.push_back(t.track_ms);
+    integrate.push_back(t.integrate_ms);
+    move.push_back(t.move_ms);
+    raycast.push_back(t.raycast_ms);
+    deform.push_back(t.deform_ms);
+  }
+  report_progress(progress, {"bench", static_cast<std::size_t>(frames), static_cast<std::size_t>(frames), ""});
+  SteadyClock::time_point start = SteadyClock::now();
+  nlohmann::json loop = nullptr;
+  if (session.deformation_enabled()) {
+    try {
+      const session::LoopClosureReport closed = session.close_loop();
+      loop = {{"closed", true}, {"ms", closed.ms}, {"constraints", closed.constraints}};
+    } catch (const Error& error) {
+      if (error.code() != ErrorCode::kInvalidArgument) throw;
+      loop = {{"closed", false}, {"reason", error.what()}};
+    }
+  }
+  const double loop_s = ms_since(start) * 1e-3;
+  start = SteadyClock::now();
+  const fusion::ExtractedSurface model = session.final_surface();
+  const double extract_s = ms_since(start) * 1e-3;
+
+  const auto stage = [](const std::vector<double>& ms) {
+    return nlohmann::json{{"median_ms", quantile(ms, 0.5)}, {"total_s", sum(ms) * 1e-3}};
+  };
+  const fusion::VolumeGeometry& geometry = session.volume_geometry();
+  nlohmann::json result = {
+      {"preset", options.preset},
+      {"object", options.object},
+      {"input", options.input},
+      {"device", device.to_string()},
+      {"frames", frames},
+      {"frames_fused", session.fused_count()},
+      {"frames_lost", lost},
+      {"camera", {{"width", rig.calibration().camera.width}, {"height", rig.calibration().camera.height}}},
+      {"images_per_frame", patterns ? rig.patterns.size() : 0},
+      {"volume",
+       {{"voxels", {geometry.nx, geometry.ny, geometry.nz}},
+        {"voxel_size_m", geometry.voxel_size_m},
+        {"bytes", session.volume_bytes()},
+        {"moves", session.moves()}}},
+      {"end_to_end_s", frames_s + loop_s + extract_s},
+      {"frames_s", frames_s},
+      {"loop_closure_s", loop_s},
+      {"extract_s", extract_s},
+      {"render_s", render_s},
+      {"frame_ms", {{"median", quantile(frame_ms, 0.5)}, {"p95", quantile(frame_ms, 0.95)}, {"max", quantile(frame_ms, 1.0)}}},
+      {"stages",
+       {{"decode", stage(decode)},
+        {"track", stage(track)},
+        {"integrate", stage(integrate)},
+        {"move", stage(move)},
+        {"raycast", stage(raycast)},
+        {"deform", stage(deform)}}},
+      {"loop_closure", loop},
+      {"points", model.cloud.size()}};
+  if (device.is_cuda()) {
+    const GpuMemory memory = gpu_memory(device);
+    result["gpu"] = {{"name", cuda_device_name(device.id)},
+                     {"memory_used_bytes", memory.used_bytes},
+                     {"memory_total_bytes", memory.total_bytes},
+                     {"copy_bandwidth_gb_s", copy_bandwidth_gbps(device)}};
+  }
+  return result;
+}
+
+void print_bench(const nlohmann::json& r) {
+  std::cout << fmt::format("{} revolution of the {} ({} frames of {}x{}{}), {} voxels of {:.1f} um, on {}\n",
+                           r["preset"].get<std::string>(), r["object"].get<std::string>(), r["frames"].get<int>(),
+                           r["camera"]["width"].get<int>(), r["camera"]["height"].get<int>(),
+                           r["input"] == "patterns"
+                               ? fmt::format(", {} images each", r["images_per_frame"].get<std::size_t>())
+                               : std::string(", depth maps"),
+                           fmt::format("{}x{}x{}", r["volume"]["voxels"][0].get<int>(), r["volume"]["voxels"][1].get<int>(),
+                                       r["volume"]["voxels"][2].get<int>()),
+                           r["volume"]["voxel_size_m"].get<double>() * 1e6, r["device"].get<std::string>());
+  std::cout << fmt::format("end to end {:.2f} s: frames {:.2f} s, loop closure {:.2f} s, final model {:.2f} s "
+                           "(rendering {:.2f} s, not timed)\n",
+                           r["end_to_end_s"].get<double>(), r["frames_s"].get<double>(),
+                           r["loop_closure_s"].get<double>(), r["extract_s"].get<double>(), r["render_s"].get<double>());
+  std::cout << fmt::format("frame ms: median {:.1f}, p95 {:.1f}, max {:.1f}; fused {} of {}, {} moves\n",
+                           r["frame_ms"]["median"].get<double>(), r["frame_ms"]["p95"].get<double>(),
+                           r["frame_ms"]["max"].get<double>(), r["frames_fused"].get<std::size_t>(),
+                           r["frames"].get<int>(), r["volume"]["moves"].get<int>());
+  std::cout << "stage      median ms   total s\n";
+  for (const auto& [name, figures] : r["stages"].items()) {
+    std::cout << fmt::format("{:<10} {:9.2f} {:9.2f}\n", name, figures["median_ms"].get<double>(),
+                             figures["total_s"].get<double>());
+  }
+  if (r.contains("gpu")) {
+    std::cout << fmt::format("GPU {}: {:.2f} GiB in use of {:.2f}, device copy {:.0f} GB/s\n",
+                             r["gpu"]["name"].get<std::string>(),
+                             static_cast<double>(r["gpu"]["memory_used_bytes"].get<std::size_t>()) / 1073741824.0,
+                             static_cast<double>(r["gpu"]["memory_total_bytes"].get<std::size_t>()) / 1073741824.0,
+                             r["gpu"]["copy_bandwidth_gb_s"].get<double>());
+  }
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App& app, Context& context, int* exit_code) {
+  CLI::App* command = app.add_subcommand(
+      "bench", "Benchmark a simulated turntable revolution end to end: decode, track, fuse, moves, deformation, "
+               "loop closure and the final model, per-stage medians beside the total");
+  auto options = std::make_shared<BenchOptions>();
+  command->add_option("--preset", options->preset, "ci (400x300, 36 frames), demo (800x600, 120) or paper (4000x3000, 440)")
+      ->check(CLI::IsMember({"ci", "demo", "paper"}))
+      ->capture_default_str();
+  command->add_option("--object", options->object, "Simulated object")
+      ->check(CLI::IsMember({"knurled-screw", "knurled-knob"}))
+      ->capture_default_str();
+  command->add_option("--frames", options->frames, "Frames per revolution (0: the preset's)")
+      ->check(CLI::Range(0, 100000));
+  command->add_option("--input", options->input,
+                      "patterns: each frame's pattern stack, decoded by the session; depth: the simulator's depth maps "
+                      "(no decoding)")
+      ->check(CLI::IsMember({"patterns", "depth"}))
+      ->capture_default_str();
+  command->add_flag("--turntable-prior", options->turntable_prior,
+                    "The turntable's angles as the pose guess, as sls scan --turntable-prior (default: depth alone)");
+  command->add_option("--deformation", options->deformation,
+                      "Online deformation and, after the revolution, the loop closure (off: neither)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present, else cpu)");
+  command->callback([&context, exit_code, options] {
+    run_command(context, "bench", [&context, options] {
+      const Device device = options->device.empty() ? default_device() : parse_device(options->device);
+      require_device(device);
+      const nlohmann::json result = run_bench(context, *options, device);
+      context.emit(result, [&] { print_bench(result); });
+      return kExitOk;
+    }, exit_code);
+  });
+}
+
+}  // namespace sls::cli
