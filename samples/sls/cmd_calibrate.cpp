@@ -143,7 +143,7 @@ std::string resume_command(const CalibrateOptions& options) {
   return command;
 }
 
-nlohmann::json capture_json(const session::CalibrationCapture& captured) {
+nlohmann::json calibration_capture_json(const session::CalibrationCapture& captured) {
   nlohmann::json poses = nlohmann::json::array();
   for (const session::CalibrationPoseResult& pose : captured.poses) {
     poses.push_back({{"pose", pose.pose.describe()},
@@ -297,7 +297,7 @@ int run_calibrate(const Context& context, const CalibrateOptions& options) {
                                    {"stage", "calibrate"},
                                    {"signal", stop->signal_name()},
                                    {"recording", options.record},
-                                   {"capture", capture_json(*captured)}})
+                                   {"capture", calibration_capture_json(*captured)}})
                        .dump(2)
                 << "\n";
     }
@@ -308,7 +308,7 @@ int run_calibrate(const Context& context, const CalibrateOptions& options) {
     return kExitInterrupted;
   }
   nlohmann::json json = calibration_json(result);
-  if (captured) json["capture"] = capture_json(*captured);
+  if (captured) json["capture"] = calibration_capture_json(*captured);
   const double rms = result.procam.stereo_rms_px;
   const bool too_high = !(rms <= options.max_rms_px);
   const bool write = !too_high || options.force;
