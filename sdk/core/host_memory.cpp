@@ -3,6 +3,7 @@
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -81,6 +82,23 @@ void admit_host_allocation(std::uint64_t bytes, const std::string& what, const s
   if (bytes <= available.bytes) return;
   throw_error(ErrorCode::kOutOfMemory, "{} needs {:.1f} MiB of host memory; {:.1f} MiB are available (limited by {}){}",
               what, mib(bytes), mib(available.bytes), available.limited_by, hint.empty() ? "" : ": " + hint);
+}
+
+void copy_bytes_parallel(void* destination, const void* source, std::size_t bytes) {
+  // Pieces of 4 MiB or more: fewer and the threads' start costs more than their copy saves.
+  constexpr std::size_t kPiece = std::size_t{4} << 20;
+  const std::size_t pieces = std::max<std::size_t>(1, bytes / kPiece);
+  auto* out = static_cast<unsigned char*>(destination);
+  const auto* in = static_cast<const unsigned char*>(source);
+  const auto count = static_cast<std::ptrdiff_t>(pieces);
+#if defined(_OPENMP)
+#pragma omp parallel for schedule(static) if (pieces > 1)
+#endif
+  for (std::ptrdiff_t p = 0; p < count; ++p) {
+    const std::size_t begin = static_cast<std::size_t>(p) * bytes / pieces;
+    const std::size_t end = static_cast<std::size_t>(p + 1) * bytes / pieces;
+    std::memcpy(out + begin, in + begin, end - begin);
+  }
 }
 
 }  // namespace sls

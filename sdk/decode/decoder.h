@@ -77,6 +77,15 @@ struct DecodedFrame {
   std::size_t ok_count() const;  // pixels with mask == kDecodeOk
 };
 
+// Which images of a DecodedFrame a decode fills.
+enum class DecodeOutputs {
+  kAll,
+  // depth_m and confidence only (projector_u, projector_v and mask left empty): what a scan
+  // fuses and tracks from. On a GPU the others stay on the device, not downloaded (108 of
+  // the 204 MB a 12-megapixel frame's outputs take).
+  kDepthAndConfidence,
+};
+
 // Where each pattern of `set` is used. Throws sls::Error(kInvalidArgument) for a set the
 // decoder cannot use: a Gray bit without the coarser ones above it, bits that do not number
 // the whole axis, stripes too wide to unwrap the phase (W >= P), phase steps of mixed N or
@@ -104,6 +113,11 @@ class Decoder {
   // camera, an all-dark stack (no pixel with white - black contrast: projector off?);
   // sls::Error(kFormat) for a stack whose images do not behave as the set says (stack_check.h).
   DecodedFrame decode(const std::vector<Image16u>& stack);
+  // The same, into `frame`, filling the images `outputs` names and reusing them when they
+  // already have the camera's size: a live scan decodes every frame into one DecodedFrame,
+  // not into 100-200 MB of fresh memory the kernel must fault in and zero each time. On
+  // failure `frame` is left in an unspecified but valid state.
+  void decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, DecodedFrame* frame);
 
   const PatternSet& pattern_set() const;
   const DecodeOptions& options() const;

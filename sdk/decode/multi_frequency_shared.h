@@ -226,8 +226,8 @@ SLS_HOST_DEVICE inline AxisDecode decode_micro_phase_axis(const AxisCode& a, con
   const float period = g.period_px;
   const float first_u = m.wrapped + period * std::ceil((-0.5f - m.wrapped) / period);
   const int candidates = static_cast<int>(std::ceil((static_cast<float>(a.extent) - 0.5f - first_u) / period));
-  float c[kDecodeMaxMicroSingles], s[kDecodeMaxMicroSingles];
-  float turn_c[kDecodeMaxMicroSingles], turn_s[kDecodeMaxMicroSingles];
+  float c[kDecodeMaxMicroSingles] = {}, s[kDecodeMaxMicroSingles] = {};
+  float turn_c[kDecodeMaxMicroSingles] = {}, turn_s[kDecodeMaxMicroSingles] = {};  // (g++ 13 -O3 cannot see the loops fill them)
   SLS_UNROLL_FULLY
   for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
     if (f >= singles) break;

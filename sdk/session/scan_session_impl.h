@@ -25,6 +25,10 @@ struct ScanSession::Impl {
   ScannerCalibration calibration;
   ScanSessionOptions options;
   std::optional<Decoder> decoder;
+  // Each frame is decoded into these same images (a 12-megapixel frame's depth and confidence
+  // are 96 MB: fresh memory every frame costs page faults and zeroing). Valid for the frame
+  // being processed; nothing keeps a pointer into them past it.
+  DecodedFrame decoded;
   fusion::Integrator integrator;
   fusion::Tracker tracker;
   fusion::Raycaster raycaster;

@@ -23,7 +23,8 @@ struct DecodeOutputsDevice {
   float* depth = nullptr;
 };
 
-// Host pointers the outputs are downloaded into (width * height elements each).
+// Host pointers the outputs are downloaded into (width * height elements each); nullptr: that
+// output stays on the device only.
 struct DecodeOutputsHost {
   float* u = nullptr;
   float* v = nullptr;
@@ -64,8 +65,10 @@ class CudaDecodeContext {
   //   int slot = context.upload_async(planes);   // returns at once; planes must stay valid
   //   context.decode_slot(slot);                 // waits for that upload on the GPU, not here
   // upload_async first waits (on the GPU) until the decode that last read the slot it reuses
-  // has finished. Planes in pinned host memory (cudaMallocHost) overlap; pageable memory
-  // makes the copy synchronous. Outputs are those of the last decode_slot, on stream().
+  // has finished. Planes in pinned host memory (cudaMallocHost) are copied by the copy engine
+  // directly and upload_async returns at once; pageable planes are staged through pinned
+  // planes by the host's threads, and upload_async returns when the last is staged.
+  // Outputs are those of the last decode_slot, on stream().
   int upload_async(const std::uint16_t* const* planes);
   void decode_slot(int slot);
 

@@ -494,6 +494,30 @@ TEST(Decoder, ColumnsAndRowsTriangulateRayAgainstRay) {
 
 // --- Point clouds ----------------------------------------------------------------------
 
+// What a scan decodes each frame into (DecodeOutputs::kDepthAndConfidence, one reused
+// DecodedFrame): two different frames in a row each equal the full decode's depth and
+// confidence, the other images stay empty, and a full decode into the same frame fills them again.
+TEST(Decoder, DepthAndConfidenceIntoAReusedFrame) {
+  const sim::Scene scene = sim::make_scene("knurled-screw");
+  const Rendered first = render(scene, "ci", 200, true, 1);
+  const Rendered second = render(scene, "ci", 200, true, 4);
+  Decoder decoder(first.rig.patterns, first.rig.calibration(), Device::cpu(), working_volume_options());
+  DecodedFrame reused;
+  for (const Rendered* r : {&first, &second}) {
+    const DecodedFrame full = decoder.decode(r->stack);
+    decoder.decode(r->stack, DecodeOutputs::kDepthAndConfidence, &reused);
+    EXPECT_EQ(reused.depth_m, full.depth_m);
+    EXPECT_EQ(reused.confidence, full.confidence);
+    EXPECT_TRUE(reused.projector_u.empty() && reused.projector_v.empty() && reused.mask.empty());
+  }
+  const float* depth = reused.depth_m.data();
+  EXPECT_GT(std::count_if(depth, depth + reused.depth_m.pixel_count(), [](float z) { return z > 0.0f; }), 1000);
+  decoder.decode(first.stack, DecodeOutputs::kAll, &reused);
+  const DecodedFrame full = decoder.decode(first.stack);
+  EXPECT_EQ(reused.mask, full.mask);
+  EXPECT_EQ(reused.depth_m, full.depth_m);
+}
+
 TEST(Decoder, PlaneCloudHasThePlanesNormal) {
   const sim::Scene scene = sim::make_plane_scene();
   const Rendered r = render(scene, "ci", 240, false);  // noise-free: the noisy RMS is 2.7 deg (2.4 um over 100 um)

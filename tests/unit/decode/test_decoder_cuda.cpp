@@ -160,20 +160,46 @@ TEST(DecoderCuda, PipelinedUploadsGiveEachStacksOwnResult) {
   const RayMap& rays = cpu.rays();
   detail::CudaDecodeContext context(cpu.decode_params(), cpu.triangulation_params(), rays.width, rays.height,
                                     rays.rays.data(), rays.valid.data());
-  std::vector<DecodedFrame> gpu;
-  int slot = context.upload_async(planes[0].data());
+  // The same stacks in pageable memory (the images themselves) go through the pinned staging
+  // planes: 22 planes through 3, each reused while the copy engine may still read another.
+  std::vector<std::vector<const std::uint16_t*>> pageable(3);
   for (std::size_t f = 0; f < 3; ++f) {
-    const int next = f + 1 < 3 ? context.upload_async(planes[f + 1].data()) : -1;  // overlaps the decode below
-    context.decode_slot(slot);
-    gpu.push_back(download_outputs(context));
-    slot = next;
+    for (const Image16u& image : stacks[f]) pageable[f].push_back(image.data());
+  }
+  for (const bool from_pinned : {true, false}) {
+    const auto& source = from_pinned ? planes : pageable;
+    std::vector<DecodedFrame> gpu;
+    int slot = context.upload_async(source[0].data());
+    for (std::size_t f = 0; f < 3; ++f) {
+      const int next = f + 1 < 3 ? context.upload_async(source[f + 1].data()) : -1;  // overlaps the decode below
+      context.decode_slot(slot);
+      gpu.push_back(download_outputs(context));
+      slot = next;
+    }
+    for (std::size_t f = 0; f < 3; ++f) {
+      const std::string what = std::string(from_pinned ? "pinned" : "pageable") + " pipelined frame " + std::to_string(f + 1);
+      expect_equal(cpu.decode(stacks[f]), gpu[f], what.c_str());
+    }
+    EXPECT_NE(gpu[0].depth_m, gpu[1].depth_m);  // the frames differ, so a stale slot would show
   }
   SLS_CUDA_CHECK(cudaFreeHost(pinned));
-  for (std::size_t f = 0; f < 3; ++f) {
-    const std::string what = "pipelined frame " + std::to_string(f + 1);
-    expect_equal(cpu.decode(stacks[f]), gpu[f], what.c_str());
+}
+
+// What a scan decodes each frame into: depth and confidence only, into one reused
+// DecodedFrame; two different frames in a row each equal the full decode's.
+TEST(DecoderCuda, DepthAndConfidenceIntoAReusedFrame) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Case a = render_case("knurled-screw", 400);
+  const Case b = render_case("knurled-knob", 400);
+  Decoder gpu(a.rig.patterns, a.rig.calibration(), Device::cuda(), options());
+  DecodedFrame reused;
+  for (const Case* c : {&a, &b}) {
+    const DecodedFrame full = gpu.decode(c->stack);
+    gpu.decode(c->stack, DecodeOutputs::kDepthAndConfidence, &reused);
+    EXPECT_EQ(reused.depth_m, full.depth_m);
+    EXPECT_EQ(reused.confidence, full.confidence);
+    EXPECT_TRUE(reused.projector_u.empty() && reused.projector_v.empty() && reused.mask.empty());
   }
-  EXPECT_NE(gpu[0].depth_m, gpu[1].depth_m);  // the frames differ, so a stale slot would show
 }
 
 }  // namespace
