@@ -1,7 +1,6 @@
 // The per-pixel ray map: the CPU backend equals direct unprojection, CUDA equals CPU, a
 // full 4000x3000 map is fast, and the error cases are clear.
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 
@@ -63,20 +62,6 @@ CameraIntrinsics folding_camera() {
   return c;
 }
 
-bool is_sanitized_build() {
-#if defined(__SANITIZE_ADDRESS__)
-  return true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-  return true;
-#else
-  return false;
-#endif
-#else
-  return false;
-#endif
-}
-
 void expect_matches_direct_unproject(const CameraIntrinsics& c, const RayMap& map) {
   ASSERT_EQ(map.width, c.width);
   ASSERT_EQ(map.height, c.height);
@@ -136,19 +121,7 @@ TEST(RayMap, RaysProjectBackToTheirPixels) {
   // Float storage: half an ulp of a normalized coordinate (≈ 1.5e-8 at 0.15) times f = 13000.
   EXPECT_LE(max_error, 1e-3);
   std::printf("ray map reprojection: max |error| = %.3g px\n", max_error);
-}
-
-TEST(RayMap, FullResolutionCpuIsFast) {
-  const CameraIntrinsics c = high_resolution_camera();
-  const auto start = std::chrono::steady_clock::now();
-  const RayMap map = compute_ray_map(c, Device::cpu());
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  EXPECT_EQ(map.valid_count(), map.rays.size());
-  std::printf("ray map 4000x3000 on the CPU: %.3f s\n", seconds);
-  // Generous for a shared 2-core machine; sanitizers make everything many times slower.
-  if (!is_sanitized_build()) {
-    EXPECT_LT(seconds, 3.0);
-  }
+  EXPECT_EQ(map.valid_count(), map.rays.size());  // 4000x3000, every pixel (its speed: bench_core_io)
 }
 
 TEST(RayMap, InvalidIntrinsicsAreRejected) {
