@@ -329,8 +329,22 @@ std::size_t MovingVolume::moves() const { return impl_->moves; }
 
 ExtractedSurface MovingVolume::final_surface() const {
   const Volume& current = volume();
-  const ExtractedSurface live = current.device().is_cuda() ? extract_surface(current.to_host(), impl_->options.extract)
-                                                           : extract_surface(current, impl_->options.extract);
+  ExtractedSurface live;
+  if (current.device().is_cuda()) {
+    // Where the volume lives, as a move ships its surface: the crossings and cells found on
+    // the GPU, only they downloaded (not the 4.4 GB of a 960^3 volume), assembled on the host.
+    // Everything is kept: the outside of an empty box (the same surface as extract_surface's,
+    // in the same order: MovingVolumeCuda.MovingEverythingOutShipsTheSameWholeSurface).
+    OrientedRegion everything;
+    everything.T_world_box = current.geometry().T_world_volume;
+    everything.min = Eigen::Vector3d::Ones();
+    everything.max = -Eigen::Vector3d::Ones();
+    everything.keep_outside = true;
+    double assemble_ms = 0.0;
+    live = impl_->extract_part(current, everything, &assemble_ms);
+  } else {
+    live = extract_surface(current, impl_->options.extract);
+  }
   ExtractedSurface model;
   model.cloud = impl_->shipped_cloud;
   model.mesh = impl_->shipped_mesh;

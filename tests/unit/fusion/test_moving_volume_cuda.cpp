@@ -168,7 +168,7 @@ TEST_P(MovingVolumeCuda, MovesEqualTheCpuOnes) {
   EXPECT_GT(sg.shipped_points, 0u);
   expect_same_state(cpu, gpu, sc, sg, "move 3 (follow, past the turn threshold)");
 
-  // The model at the end: shipped parts plus the live volume (copied to the host).
+  // The model at the end: shipped parts plus the live volume (extracted where each lives).
   const ExtractedSurface a = cpu.final_surface();
   const ExtractedSurface b = gpu.final_surface();
   const CloudComparison c = compare_clouds(a.cloud, b.cloud);
