@@ -118,6 +118,7 @@ struct MovingVolume::Impl {
   DeviceBuffer<EdgeCrossing> crossings;
   DeviceBuffer<CellCase> cells;
   DeviceBuffer<std::uint32_t> counters;
+  detail::RegionSortScratch sort_scratch;
   ~Impl() {
     if (stream != nullptr) (void)cudaStreamDestroy(stream);
   }
@@ -127,7 +128,7 @@ struct MovingVolume::Impl {
   Volume& other() { return buffers[static_cast<std::size_t>(1 - current)]; }
 
   // The part of `volume`'s surface in `region`, extracted where the volume lives.
-  // assemble_ms: of the time, what the host spent ordering and assembling (CUDA; 0 on the CPU,
+  // assemble_ms: of the time, what the host spent assembling (CUDA; 0 on the CPU,
   // where extraction and assembly are one pass).
   ExtractedSurface extract_part(const Volume& volume, const OrientedRegion& region, double* assemble_ms) {
     *assemble_ms = 0.0;
@@ -143,9 +144,9 @@ struct MovingVolume::Impl {
 
 #if defined(SLS_HAVE_CUDA)
   // On the device: the region's crossings (and the vertices of its cells) and its surface
-  // cells, appended by atomics; only those come to the host, where they are put in edge /
-  // cell order and assembled by the CPU extraction's own host code, so the cloud and the mesh
-  // are the CPU's, point for point.
+  // cells, appended by atomics and put in edge / cell order; only those come to the host,
+  // where the CPU extraction's own host code assembles them, so the cloud and the mesh are the
+  // CPU's, point for point.
   ExtractedSurface extract_part_cuda(const Volume& volume, const OrientedRegion& region, double* assemble_ms) {
     require_device(device);
     const VolumeView view = volume.view();
@@ -169,16 +170,15 @@ struct MovingVolume::Impl {
       if (counts[0] > crossings.size()) crossings.allocate(counts[0]);
       if (counts[1] > cells.size()) cells.allocate(counts[1]);
     }
+    // Ordered on the GPU, then downloaded.
+    detail::sort_region_parts_cuda(crossings.data(), counts[0], cells.data(), counts[1],
+                                   static_cast<std::uint64_t>(volume.geometry().voxel_count()), &sort_scratch, stream);
     std::vector<EdgeCrossing> found(counts[0]);
     std::vector<CellCase> found_cells(counts[1]);
     crossings.download(found.data(), found.size(), stream);
     cells.download(found_cells.data(), found_cells.size(), stream);
     SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
     const auto assemble_start = std::chrono::steady_clock::now();
-    std::sort(found.begin(), found.end(),
-              [](const EdgeCrossing& a, const EdgeCrossing& b) { return a.edge_id < b.edge_id; });
-    std::sort(found_cells.begin(), found_cells.end(),
-              [](const CellCase& a, const CellCase& b) { return a.cell < b.cell; });
     ExtractedSurface part;
     part.cloud = detail::crossing_cloud(found, T_world_volume, &filter, options.extract);
     part.mesh = detail::cell_mesh(view.nx, view.ny, found, found_cells, T_world_volume, options.extract);

@@ -57,7 +57,7 @@ struct MoveStats {
   std::size_t shipped_triangles = 0;
   double resample_ms = 0.0;
   double ship_ms = 0.0;             // extraction of the leaving part and its copy to the host
-  double ship_assemble_ms = 0.0;    // of ship_ms: putting the points and triangles in order on the host
+  double ship_assemble_ms = 0.0;    // of ship_ms: assembling the points and triangles on the host (CUDA)
 };
 
 class MovingVolume {

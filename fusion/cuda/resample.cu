@@ -5,6 +5,8 @@
 // rounds as on the CPU and both backends produce the same bits.
 #include "fusion/cuda/resample_cuda.h"
 
+#include <cub/device/device_radix_sort.cuh>
+
 #include "sdk/core/cuda/cuda_check.h"
 
 namespace sls::fusion::detail {
@@ -53,6 +55,64 @@ __global__ void region_cells_kernel(VolumeView volume, RegionFilter region, floa
   if (slot < capacity) out[slot] = CellCase{static_cast<std::uint64_t>(volume.index(i, j, k)), cube_case};
 }
 
+__device__ std::uint64_t sort_key(const EdgeCrossing& crossing) { return crossing.edge_id; }
+__device__ std::uint64_t sort_key(const CellCase& cell) { return cell.cell; }
+
+template <typename T>
+__global__ void sort_keys_kernel(const T* items, std::uint32_t count, std::uint64_t* keys, std::uint32_t* order) {
+  const std::uint32_t n = blockIdx.x * blockDim.x + threadIdx.x;
+  if (n >= count) return;
+  keys[n] = sort_key(items[n]);
+  order[n] = n;
+}
+
+template <typename T>
+__global__ void gather_kernel(const T* items, const std::uint32_t* order, std::uint32_t count, T* out) {
+  const std::uint32_t n = blockIdx.x * blockDim.x + threadIdx.x;
+  if (n < count) out[n] = items[order[n]];
+}
+
+template <typename T>
+void grow(DeviceBuffer<T>& buffer, std::size_t count) {
+  if (buffer.size() < count) buffer.allocate(count);
+}
+
+// Bits a key below `bound` uses (at least 1).
+int key_bits(std::uint64_t bound) {
+  int bits = 1;
+  while (bits < 64 && (bound >> bits) != 0) ++bits;
+  return bits;
+}
+
+// Sorts items[0, count) by sort_key (keys below `bound`) in place: keys and indices radix-
+// sorted as pairs, the items gathered in that order into `sorted`, copied back.
+template <typename T>
+void sort_by_key(T* items, std::uint32_t count, std::uint64_t bound, DeviceBuffer<T>& sorted, RegionSortScratch& s,
+                 cudaStream_t stream) {
+  if (count < 2) return;
+  grow(s.keys_in, count);
+  grow(s.keys_out, count);
+  grow(s.order_in, count);
+  grow(s.order_out, count);
+  grow(sorted, count);
+  const unsigned block = 256;
+  const unsigned blocks = (count + block - 1) / block;
+  sort_keys_kernel<<<blocks, block, 0, stream>>>(items, count, s.keys_in.data(), s.order_in.data());
+  SLS_CUDA_CHECK_LAUNCH();
+  const int end_bit = key_bits(bound);
+  std::size_t needed = 0;
+  SLS_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, needed, s.keys_in.data(), s.keys_out.data(),
+                                                 s.order_in.data(), s.order_out.data(), static_cast<int>(count), 0,
+                                                 end_bit, stream));
+  grow(s.temp, needed);
+  SLS_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(s.temp.data(), needed, s.keys_in.data(), s.keys_out.data(),
+                                                 s.order_in.data(), s.order_out.data(), static_cast<int>(count), 0,
+                                                 end_bit, stream));
+  gather_kernel<<<blocks, block, 0, stream>>>(items, s.order_out.data(), count, sorted.data());
+  SLS_CUDA_CHECK_LAUNCH();
+  SLS_CUDA_CHECK(cudaMemcpyAsync(items, sorted.data(), count * sizeof(T), cudaMemcpyDeviceToDevice, stream));
+}
+
 dim3 voxel_grid(int nx, int ny, int nz, const dim3& block) {
   return dim3((static_cast<unsigned>(nx) + block.x - 1) / block.x, (static_cast<unsigned>(ny) + block.y - 1) / block.y,
               static_cast<unsigned>(nz));
@@ -84,6 +144,13 @@ void launch_region_cells_cuda(const VolumeView& volume, const RegionFilter& regi
   region_cells_kernel<<<voxel_grid(volume.nx, volume.ny, volume.nz - 1, block), block, 0, stream>>>(
       volume, region, min_weight, out, capacity, count);
   SLS_CUDA_CHECK_LAUNCH();
+}
+
+void sort_region_parts_cuda(EdgeCrossing* crossings, std::uint32_t crossing_count, CellCase* cells,
+                            std::uint32_t cell_count, std::uint64_t voxel_count, RegionSortScratch* scratch,
+                            cudaStream_t stream) {
+  sort_by_key(crossings, crossing_count, 3u * voxel_count, scratch->crossings, *scratch, stream);  // grid_edge_id
+  sort_by_key(cells, cell_count, voxel_count, scratch->cells, *scratch, stream);
 }
 
 }  // namespace sls::fusion::detail
