@@ -312,4 +312,13 @@ std::unique_ptr<Turntable> open_turntable(const std::string& text, const OpenOpt
 #endif
 }
 
+ScannerDevices open_scanner_devices(const std::string& projector_uri, const std::string& camera_uri,
+                                    const std::string& turntable_uri, const OpenOptions& options) {
+  ScannerDevices devices;
+  devices.projector = open_projector(projector_uri, options);
+  devices.camera = open_camera(camera_uri, options);
+  if (!turntable_uri.empty()) devices.turntable = open_turntable(turntable_uri, options);
+  return devices;
+}
+
 }  // namespace sls::drivers

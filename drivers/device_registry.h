@@ -117,4 +117,14 @@ std::unique_ptr<Camera> open_camera(const std::string& uri, const OpenOptions& o
 std::unique_ptr<Projector> open_projector(const std::string& uri, const OpenOptions& options = {});
 std::unique_ptr<Turntable> open_turntable(const std::string& uri, const OpenOptions& options = {});
 
+// A scanner head's devices opened together, as a capture uses them: the projector, the camera,
+// and the turntable when `turntable_uri` is not empty (else nullptr). Closed in the reverse order.
+struct ScannerDevices {
+  std::unique_ptr<Projector> projector;
+  std::unique_ptr<Camera> camera;
+  std::unique_ptr<Turntable> turntable;
+};
+ScannerDevices open_scanner_devices(const std::string& projector_uri, const std::string& camera_uri,
+                                    const std::string& turntable_uri, const OpenOptions& options = {});
+
 }  // namespace sls::drivers

@@ -271,16 +271,14 @@ CalibrationCapture capture_calibration_from_devices(const std::string& folder, c
   options.validate();  // before any device is opened
   drivers::OpenOptions open_options;
   open_options.sim_device = request.sim_device;
-  const std::unique_ptr<drivers::Projector> projector = drivers::open_projector(request.projector_uri, open_options);
-  const std::unique_ptr<drivers::Camera> camera = drivers::open_camera(request.camera_uri, open_options);
-  const std::unique_ptr<drivers::Turntable> turntable =
-      request.turntable_uri.empty() ? nullptr : drivers::open_turntable(request.turntable_uri, open_options);
+  const drivers::ScannerDevices opened =
+      drivers::open_scanner_devices(request.projector_uri, request.camera_uri, request.turntable_uri, open_options);
   CalibrationDevices devices;
-  devices.projector = projector.get();
-  devices.camera = camera.get();
-  devices.turntable = turntable.get();
+  devices.projector = opened.projector.get();
+  devices.camera = opened.camera.get();
+  devices.turntable = opened.turntable.get();
   devices.turntable_name = "turntable " + request.turntable_uri;
-  const PatternSet patterns = request.patterns ? *request.patterns : calibration_pattern_set(*projector);
+  const PatternSet patterns = request.patterns ? *request.patterns : calibration_pattern_set(*opened.projector);
   return capture_calibration(folder, devices, patterns, options, confirm, progress);
 }
 

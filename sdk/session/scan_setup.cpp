@@ -105,10 +105,11 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
 
   drivers::OpenOptions open_options;
   open_options.sim_device = request.sim_device;
-  const std::unique_ptr<drivers::Projector> projector = drivers::open_projector(request.projector_uri, open_options);
-  const std::unique_ptr<drivers::Camera> camera = drivers::open_camera(request.camera_uri, open_options);
-  const std::unique_ptr<drivers::Turntable> turntable =
-      request.turntable_uri.empty() ? nullptr : drivers::open_turntable(request.turntable_uri, open_options);
+  const drivers::ScannerDevices opened =
+      drivers::open_scanner_devices(request.projector_uri, request.camera_uri, request.turntable_uri, open_options);
+  drivers::Projector* const projector = opened.projector.get();
+  drivers::Camera* const camera = opened.camera.get();
+  drivers::Turntable* const turntable = opened.turntable.get();
   const PatternSet patterns = scan_pattern_set(*projector);
   CaptureOptions capture;
   capture.frames_per_revolution = request.frames > 0 ? request.frames : (turntable ? 36 : 1);
@@ -129,10 +130,10 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
     }
   }
   RecordingWriter writer =
-      request.resume ? resume_writer(folder, *projector, *camera, turntable.get(), patterns, &capture)
+      request.resume ? resume_writer(folder, *projector, *camera, turntable, patterns, &capture)
                      : RecordingWriter::create(
                            folder, make_recording_info(*projector, *camera, patterns, request.exposures), calibration);
-  CaptureSequencer sequencer(*projector, {camera.get()}, turntable.get(), patterns, capture);
+  CaptureSequencer sequencer(*projector, {camera}, turntable, patterns, capture);
 
   DeviceCapture result;
   result.recording_folder = folder;
