@@ -216,6 +216,49 @@ void BM_UploadStackPinned(benchmark::State& state) {
 }
 BENCHMARK(BM_UploadStackPinned)->Unit(benchmark::kMillisecond)->UseManualTime();
 
+// A pageable stack (the images themselves, as a camera driver or the simulator hands them
+// over) through the context's pinned staging planes: the upload alone, wall time until it
+// has landed. Beside BM_UploadStackPinned it is the staging's cost.
+void BM_UploadStackPageable(benchmark::State& state) {
+  if (cuda_device_count() == 0) {
+    state.SkipWithError("no CUDA device");
+    return;
+  }
+  const Stack& stack = paper_stack();
+  const Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu());
+  const RayMap& rays = decoder.rays();
+  detail::CudaDecodeContext context(decoder.decode_params(), decoder.triangulation_params(), rays.width, rays.height,
+                                    rays.rays.data(), rays.valid.data());
+  std::vector<const std::uint16_t*> planes;
+  for (const Image16u& image : stack.images) planes.push_back(image.data());
+  context.decode_slot(context.upload_async(planes.data()));  // warm-up: slots and staging allocated
+  context.decode_slot(context.upload_async(planes.data()));
+  SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+  for (auto _ : state) {
+    context.decode_slot(context.upload_async(planes.data()));
+    SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+  }
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations()) *
+                          static_cast<std::int64_t>(stack.images.size() * stack.images[0].size_bytes()));
+}
+BENCHMARK(BM_UploadStackPageable)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// What the scan session does per frame on a GPU: Decoder::decode of a pageable stack into a
+// reused frame, depth and confidence downloaded (checks, staging, upload, decode, download).
+void BM_DecodeDepthFromPageableStack(benchmark::State& state) {
+  if (cuda_device_count() == 0) {
+    state.SkipWithError("no CUDA device");
+    return;
+  }
+  const Stack& stack = paper_stack();
+  Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cuda());
+  DecodedFrame frame;
+  decoder.decode(stack.images, DecodeOutputs::kDepthAndConfidence, &frame);  // warm-up
+  for (auto _ : state) decoder.decode(stack.images, DecodeOutputs::kDepthAndConfidence, &frame);
+  state.counters["Mpixel"] = static_cast<double>(stack.images[0].pixel_count()) / 1e6;
+}
+BENCHMARK(BM_DecodeDepthFromPageableStack)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // Host stacks through the context's two-slot pipeline: 8 stacks per iteration, the upload of
 // each overlapping the decode of the one before (arg 1), or each stack uploaded, decoded and
 // waited for before the next (arg 0). ms_per_stack is wall time per stack.
