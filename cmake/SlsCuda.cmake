@@ -9,8 +9,10 @@ if(SLS_WITH_CUDA)
   check_language(CUDA)
   if(CMAKE_CUDA_COMPILER)
     if(NOT DEFINED CMAKE_CUDA_ARCHITECTURES)
-      # "90" = sm_90 machine code plus compute_90 PTX for later GPUs to JIT.
-      set(CMAKE_CUDA_ARCHITECTURES 90)
+      # "90": sm_90 machine code (H100, H200) plus compute_90 PTX for later GPUs to JIT;
+      # "87-real": sm_87 machine code for Jetson Orin, the scanner heads' embedded GPU (issue 22).
+      # Xavier's sm_72 cannot be added: CUDA 13 builds for sm_75 and later only.
+      set(CMAKE_CUDA_ARCHITECTURES 87-real 90)
     endif()
     enable_language(CUDA)
     set(CMAKE_CUDA_STANDARD 17)
