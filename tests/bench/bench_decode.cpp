@@ -137,12 +137,20 @@ struct PinnedStack {
   PinnedStack& operator=(const PinnedStack&) = delete;
 };
 
+// The CUDA decode context for a stack's rig, set up from a CPU decoder's parameters and ray map.
+struct StackDecodeContext {
+  Decoder decoder;
+  detail::CudaDecodeContext context;
+  explicit StackDecodeContext(const Stack& stack)
+      : decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu()),
+        context(decoder.decode_params(), decoder.triangulation_params(), decoder.rays().width, decoder.rays().height,
+                decoder.rays().rays.data(), decoder.rays().valid.data()) {}
+};
+
 // The stack resident on the device, decoded and triangulated per iteration (CUDA events).
 void time_resident_decode(benchmark::State& state, const Stack& stack) {
-  const Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu());  // for its parameters
-  const RayMap& rays = decoder.rays();
-  detail::CudaDecodeContext context(decoder.decode_params(), decoder.triangulation_params(), rays.width, rays.height,
-                                    rays.rays.data(), rays.valid.data());
+  StackDecodeContext stack_context(stack);
+  detail::CudaDecodeContext& context = stack_context.context;
   const std::size_t pixels = stack.images[0].pixel_count();
   const PinnedStack pinned(stack.images);
   DeviceBuffer<std::uint16_t> device_stack(stack.images.size() * pixels);
@@ -225,10 +233,8 @@ void BM_UploadStackPageable(benchmark::State& state) {
     return;
   }
   const Stack& stack = paper_stack();
-  const Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu());
-  const RayMap& rays = decoder.rays();
-  detail::CudaDecodeContext context(decoder.decode_params(), decoder.triangulation_params(), rays.width, rays.height,
-                                    rays.rays.data(), rays.valid.data());
+  StackDecodeContext stack_context(stack);
+  detail::CudaDecodeContext& context = stack_context.context;
   std::vector<const std::uint16_t*> planes;
   for (const Image16u& image : stack.images) planes.push_back(image.data());
   context.decode_slot(context.upload_async(planes.data()));  // warm-up: slots and staging allocated
@@ -269,10 +275,8 @@ void BM_DecodeCudaHostStacks(benchmark::State& state) {
   }
   const bool overlapped = state.range(0) != 0;
   const Stack& stack = paper_stack();
-  const Decoder decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu());
-  const RayMap& rays = decoder.rays();
-  detail::CudaDecodeContext context(decoder.decode_params(), decoder.triangulation_params(), rays.width, rays.height,
-                                    rays.rays.data(), rays.valid.data());
+  StackDecodeContext stack_context(stack);
+  detail::CudaDecodeContext& context = stack_context.context;
   const PinnedStack pinned(stack.images);
   std::vector<const std::uint16_t*> planes;
   for (std::size_t k = 0; k < stack.images.size(); ++k) planes.push_back(pinned.data + k * pinned.pixels);
