@@ -14,11 +14,13 @@
 // carry no such redundancy and are not checked.
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "sdk/core/image.h"
 #include "sdk/decode/decode_shared.h"
 #include "sdk/decode/pattern_set.h"
+#include "sdk/decode/stack_check_shared.h"
 
 namespace sls {
 
@@ -32,7 +34,7 @@ struct StackCheckLimits {
   double min_phase_misfit = 0.08;
   double outlier_ratio = 3.0;
   std::size_t min_lit_samples = 256;  // fewer lit pixels: too little to judge, not checked
-  std::size_t max_samples = 32768;    // pixels looked at (64 evenly spaced rows)
+  std::size_t max_samples = 32768;    // pixels looked at (64 evenly spaced rows: stack_check_shared.h)
 };
 
 // Throws sls::Error(kFormat) naming the pattern image(s) at fault and by how much; returns
@@ -40,5 +42,11 @@ struct StackCheckLimits {
 // all of one size (Decoder::decode checks that first).
 void check_stack_behaves(const PatternSet& set, const DecodeParams& params, const std::vector<Image16u>& stack,
                          const StackCheckLimits& limits = {});
+
+// The same check on the pixels of `grid` only (make_stack_check_grid with limits.max_samples),
+// already gathered: `samples[k * grid.count() + n]` is image k at grid.pixel(n), for every
+// pattern of `set`. The GPU path gathers them where the stack is (cuda/stack_check.cu).
+void check_stack_samples(const PatternSet& set, const DecodeParams& params, const StackCheckGrid& grid,
+                         const std::uint16_t* samples, const StackCheckLimits& limits = {});
 
 }  // namespace sls

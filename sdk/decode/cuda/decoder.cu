@@ -2,6 +2,9 @@
 // and triangulate_decoded_pixel, the same per-pixel code the CPU loop runs.
 #include "sdk/decode/cuda/decoder_cuda.h"
 
+#include <cstring>
+#include <limits>
+
 #include "sdk/core/cuda/cuda_check.h"
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/host_memory.h"
@@ -99,10 +102,22 @@ struct CudaDecodeContext::State {
   // pageable download of a 12-megapixel float map runs at ~8 GB/s, a pinned one at the bus's
   // rate, and the host's threads then copy it out.
   float* landing[2] = {nullptr, nullptr};
+  bool landing_queued[2] = {false, false};  // depth, confidence
   DeviceBuffer<float> u, v, confidence, depth;
   DeviceBuffer<std::uint8_t> mask;
+  // The stack check's inputs (allocated on first use): gathered samples and the largest
+  // contrast on the device, downloaded into one pinned block (the largest first), and an
+  // event once they have landed.
+  DeviceBuffer<std::uint16_t> check_samples;
+  DeviceBuffer<int> check_largest;
+  void* check_host = nullptr;
+  std::size_t check_host_bytes = 0;
+  std::size_t check_sample_count = 0;
+  cudaEvent_t check_ready = nullptr;
 
   ~State() {
+    if (check_ready != nullptr) (void)cudaEventDestroy(check_ready);
+    if (check_host != nullptr) (void)cudaFreeHost(check_host);
     for (float* plane : landing) {
       if (plane != nullptr) (void)cudaFreeHost(plane);
     }
@@ -223,32 +238,118 @@ void CudaDecodeContext::decode_slot(int slot) {
 }
 
 void CudaDecodeContext::decode_host(const std::uint16_t* const* planes, const DecodeOutputsHost& host) {
-  State& s = *state_;
   decode_slot(upload_async(planes));
-  if (host.u != nullptr) s.u.download(host.u, s.pixels, s.stream);
-  if (host.v != nullptr) s.v.download(host.v, s.pixels, s.stream);
-  if (host.mask != nullptr) s.mask.download(host.mask, s.pixels, s.stream);
-  // Depth and confidence, what a scan downloads every frame, land in pinned planes first.
-  const std::size_t plane_bytes = s.pixels * sizeof(float);
-  float* const wanted[2] = {host.depth, host.confidence};
+  download(host);
+}
+
+namespace {
+
+// A fill of one int on the GPU (the reduction's start: cudaMemset writes bytes).
+__global__ void set_int_kernel(int* target, int value) { *target = value; }
+
+}  // namespace
+
+void CudaDecodeContext::gather_check_async(int slot, const StackCheckGrid& grid, int white_index, int black_index) {
+  State& s = *state_;
+  if (slot < 0 || slot > 1 || s.slots[slot].size() == 0) {
+    throw_error(ErrorCode::kInvalidArgument, "gather_check_async({}): no stack was uploaded to that slot", slot);
+  }
+  const int images = s.decode.layout.pattern_count;
+  const std::size_t samples = static_cast<std::size_t>(images) * grid.count();
+  const std::size_t bytes = sizeof(int) + samples * sizeof(std::uint16_t);
+  if (s.check_largest.size() == 0) {
+    s.check_largest.allocate(1);
+    SLS_CUDA_CHECK(cudaEventCreateWithFlags(&s.check_ready, cudaEventDisableTiming));
+  }
+  if (s.check_samples.size() < samples) s.check_samples.allocate(samples);
+  if (s.check_host_bytes < bytes) {
+    if (s.check_host != nullptr) SLS_CUDA_CHECK(cudaFreeHost(s.check_host));
+    s.check_host = nullptr;
+    s.check_host_bytes = 0;
+    const cudaError_t status = cudaMallocHost(&s.check_host, bytes);
+    if (status != cudaSuccess) {
+      (void)cudaGetLastError();
+      throw_error(status == cudaErrorMemoryAllocation ? ErrorCode::kOutOfMemory : ErrorCode::kDevice,
+                  "cannot allocate {:.1f} MiB of pinned host memory for the pattern stack's check: {}",
+                  static_cast<double>(bytes) / 1048576.0, cudaGetErrorString(status));
+    }
+    s.check_host_bytes = bytes;
+  }
+  s.check_sample_count = samples;
+  SLS_CUDA_CHECK(cudaStreamWaitEvent(s.stream, s.uploaded[slot], 0));
+  set_int_kernel<<<1, 1, 0, s.stream>>>(s.check_largest.data(), std::numeric_limits<int>::min());
+  SLS_CUDA_CHECK_LAUNCH();
+  launch_stack_check_gather(s.slots[slot].data(), s.pixels, images, grid, white_index, black_index,
+                            s.check_samples.data(), s.check_largest.data(), s.stream);
+  auto* host = static_cast<unsigned char*>(s.check_host);
+  SLS_CUDA_CHECK(cudaMemcpyAsync(host, s.check_largest.data(), sizeof(int), cudaMemcpyDeviceToHost, s.stream));
+  if (samples > 0) {
+    SLS_CUDA_CHECK(cudaMemcpyAsync(host + sizeof(int), s.check_samples.data(), samples * sizeof(std::uint16_t),
+                                   cudaMemcpyDeviceToHost, s.stream));
+  }
+  SLS_CUDA_CHECK(cudaEventRecord(s.check_ready, s.stream));
+}
+
+StackCheckInputs CudaDecodeContext::wait_check() {
+  State& s = *state_;
+  if (s.check_ready == nullptr) {
+    throw_error(ErrorCode::kInvalidArgument, "wait_check(): no stack check was gathered");
+  }
+  SLS_CUDA_CHECK(cudaEventSynchronize(s.check_ready));
+  const auto* host = static_cast<const unsigned char*>(s.check_host);
+  StackCheckInputs inputs;
+  std::memcpy(&inputs.largest, host, sizeof(int));
+  inputs.samples =
+      s.check_sample_count > 0 ? reinterpret_cast<const std::uint16_t*>(host + sizeof(int)) : nullptr;
+  return inputs;
+}
+
+void CudaDecodeContext::queue_landing(bool depth, bool confidence) {
+  State& s = *state_;
+  const bool wanted[2] = {depth, confidence};
   const DeviceBuffer<float>* const sources[2] = {&s.depth, &s.confidence};
   for (int i = 0; i < 2; ++i) {
-    if (wanted[i] == nullptr) continue;
+    if (!wanted[i] || s.landing_queued[i]) continue;
     if (s.landing[i] == nullptr) {
       void* pinned = nullptr;
-      if (cudaMallocHost(&pinned, plane_bytes) != cudaSuccess) {
-        (void)cudaGetLastError();  // no pinned memory to spare: download straight, more slowly
-        sources[i]->download(wanted[i], s.pixels, s.stream);
+      if (cudaMallocHost(&pinned, s.pixels * sizeof(float)) != cudaSuccess) {
+        (void)cudaGetLastError();  // no pinned memory to spare: download() downloads straight, more slowly
         continue;
       }
       s.landing[i] = static_cast<float*>(pinned);
     }
     sources[i]->download(s.landing[i], s.pixels, s.stream);
+    s.landing_queued[i] = true;
   }
-  SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
+}
+
+void CudaDecodeContext::download(const DecodeOutputsHost& host) {
+  State& s = *state_;
+  if (host.u != nullptr) s.u.download(host.u, s.pixels, s.stream);
+  if (host.v != nullptr) s.v.download(host.v, s.pixels, s.stream);
+  if (host.mask != nullptr) s.mask.download(host.mask, s.pixels, s.stream);
+  // Depth and confidence, what a scan downloads every frame, land in pinned planes first.
+  queue_landing(host.depth != nullptr, host.confidence != nullptr);
+  float* const wanted[2] = {host.depth, host.confidence};
+  const DeviceBuffer<float>* const sources[2] = {&s.depth, &s.confidence};
   for (int i = 0; i < 2; ++i) {
-    if (wanted[i] != nullptr && s.landing[i] != nullptr) copy_bytes_parallel(wanted[i], s.landing[i], plane_bytes);
+    if (wanted[i] != nullptr && !s.landing_queued[i]) sources[i]->download(wanted[i], s.pixels, s.stream);
   }
+  const bool landed[2] = {s.landing_queued[0], s.landing_queued[1]};
+  synchronize();
+  for (int i = 0; i < 2; ++i) {
+    if (wanted[i] != nullptr && landed[i]) {
+      copy_bytes_parallel(wanted[i], s.landing[i], s.pixels * sizeof(float));
+    }
+  }
+}
+
+void CudaDecodeContext::synchronize() {
+  State& s = *state_;
+  const cudaError_t status = cudaStreamSynchronize(s.stream);
+  // Whatever landed is stale once waited for: the next frame queues its own.
+  s.landing_queued[0] = s.landing_queued[1] = false;
+  SLS_CUDA_CHECK(status);
 }
 
 DecodeOutputsDevice CudaDecodeContext::outputs() const {

@@ -10,6 +10,7 @@
 
 #include "sdk/core/math_shared.h"
 #include "sdk/decode/decode_shared.h"
+#include "sdk/decode/stack_check_shared.h"
 #include "sdk/decode/triangulate_shared.h"
 
 namespace sls::detail {
@@ -39,6 +40,20 @@ struct DecodeOutputsHost {
 void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& triangulation, int width, int height,
                         const std::uint16_t* stack, std::size_t plane_stride, const Vec3f* rays,
                         const std::uint8_t* ray_valid, const DecodeOutputsDevice& outputs, cudaStream_t stream);
+
+// One thread per sample of `grid` and image: samples[k * grid.count() + n] = image k at
+// grid.pixel(n); and into *largest (which the caller set to INT_MIN) the largest white - black
+// (both indices >= 0) or else the brightest pixel of any image. Asynchronous on `stream`
+// (stack_check.cu).
+void launch_stack_check_gather(const std::uint16_t* stack, std::size_t plane_stride, int images,
+                               const StackCheckGrid& grid, int white_index, int black_index, std::uint16_t* samples,
+                               int* largest, cudaStream_t stream);
+
+// What the decoder's stack check reads (Decoder::decode), on the host once wait_check returns.
+struct StackCheckInputs {
+  const std::uint16_t* samples = nullptr;  // images x grid.count(), image-major; nullptr without a grid
+  int largest = 0;                         // white - black's maximum, or the brightest pixel
+};
 
 // The decoder's device state: the ray map, an upload buffer for host stacks, the outputs and
 // a stream, allocated once per Decoder and reused for every frame.
@@ -71,6 +86,19 @@ class CudaDecodeContext {
   // Outputs are those of the last decode_slot, on stream().
   int upload_async(const std::uint16_t* const* planes);
   void decode_slot(int slot);
+
+  // The stack check's inputs from an uploaded slot, gathered on the GPU and downloaded on
+  // stream() before what is queued next (the decode); wait_check() waits for them alone, so the
+  // host judges the stack while the GPU decodes it. An empty `grid`: only `largest`.
+  void gather_check_async(int slot, const StackCheckGrid& grid, int white_index, int black_index);
+  StackCheckInputs wait_check();
+  // Queues the download of the last decode's depth and/or confidence into pinned landing
+  // planes (what download() then copies out), so that it runs while the host works.
+  void queue_landing(bool depth, bool confidence);
+  // Downloads the last decode's outputs into `host` (those not queued: now) and waits.
+  void download(const DecodeOutputsHost& host);
+  // Waits for everything queued on stream().
+  void synchronize();
 
   DecodeOutputsDevice outputs() const;
   cudaStream_t stream() const;

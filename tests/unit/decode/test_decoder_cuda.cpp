@@ -11,6 +11,7 @@
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/rig.h"
 #include "sdk/core/cuda/device_buffer.h"
+#include "sdk/core/error.h"
 #include "sdk/decode/cuda/decoder_cuda.h"
 #include "sdk/decode/decoder.h"
 #include "tests/support/test_support.h"
@@ -200,6 +201,64 @@ TEST(DecoderCuda, DepthAndConfidenceIntoAReusedFrame) {
     EXPECT_EQ(reused.confidence, full.confidence);
     EXPECT_TRUE(reused.projector_u.empty() && reused.projector_v.empty() && reused.mask.empty());
   }
+}
+
+// The stack check runs on what the GPU gathers where the stack lands (cuda/stack_check.cu):
+// every stack the CPU decoder refuses, the CUDA one refuses with the same error, leaving the
+// caller's frame as it was, and decodes the next good stack as the CPU does. 1200 px wide, so
+// that the check's grid skips pixels (stack_check_shared.h) as at 12 MP.
+TEST(DecoderCuda, RefusesWhatTheCpuRefusesAndKeepsTheFrame) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Case c = render_case("knurled-screw", 1200);
+  Decoder cpu(c.rig.patterns, c.rig.calibration(), Device::cpu(), options());
+  Decoder gpu(c.rig.patterns, c.rig.calibration(), Device::cuda(), options());
+  const auto constant = [](const Image16u& like, std::uint16_t value) {
+    Image16u image(like.width(), like.height());
+    std::fill(image.data(), image.data() + image.pixel_count(), value);
+    return image;
+  };
+  struct Bad {
+    const char* what;
+    std::vector<Image16u> stack;
+  };
+  std::vector<Bad> bad;
+  bad.push_back({"a stuck Gray image", c.stack});
+  bad.back().stack[2] = constant(c.stack[2], 2048);
+  bad.push_back({"a stuck phase image", c.stack});
+  bad.back().stack[17] = constant(c.stack[17], 2048);
+  bad.push_back({"a phase step shown twice", c.stack});
+  bad.back().stack[17] = c.stack[16];
+  bad.push_back({"images out of order", c.stack});
+  std::swap(bad.back().stack[4], bad.back().stack[15]);
+  bad.push_back({"an all-dark stack", {}});
+  for (const Image16u& image : c.stack) bad.back().stack.push_back(constant(image, 0));
+
+  const auto refusal = [](Decoder& decoder, const std::vector<Image16u>& stack, DecodedFrame* frame) {
+    try {
+      decoder.decode(stack, DecodeOutputs::kDepthAndConfidence, frame);
+    } catch (const Error& e) {
+      return std::string(error_code_name(e.code())) + ": " + e.what();
+    }
+    return std::string("decoded");
+  };
+  DecodedFrame frame;
+  gpu.decode(c.stack, DecodeOutputs::kDepthAndConfidence, &frame);
+  const DecodedFrame before = frame;
+  for (const Bad& b : bad) {
+    DecodedFrame cpu_frame;
+    const std::string expected = refusal(cpu, b.stack, &cpu_frame);
+    EXPECT_NE(expected, "decoded") << b.what;
+    EXPECT_EQ(refusal(gpu, b.stack, &frame), expected) << b.what;
+    EXPECT_EQ(frame.depth_m, before.depth_m) << b.what;
+    EXPECT_EQ(frame.confidence, before.confidence) << b.what;
+  }
+  // Without the check, only the all-dark test refuses; with it, a good stack after the refusals.
+  DecodeOptions unchecked = options();
+  unchecked.check_stack = false;
+  Decoder blind(c.rig.patterns, c.rig.calibration(), Device::cuda(), unchecked);
+  EXPECT_EQ(refusal(blind, bad.front().stack, &frame), "decoded");
+  EXPECT_NE(refusal(blind, bad.back().stack, &frame), "decoded");
+  expect_equal(cpu.decode(c.stack), gpu.decode(c.stack), "a good stack after refusals");
 }
 
 }  // namespace

@@ -146,5 +146,33 @@ TEST(StackCheck, TooFewLitPixelsIsNotJudged) {
   EXPECT_NO_THROW(check_stack_behaves(screw().rig.patterns, decoder.decode_params(), stack));
 }
 
+// The pixels the check reads (stack_check_shared.h, the CPU's and the GPU's gather): 64 rows
+// (every row of a shorter image) in equal bands, at most max_samples in all, spanning each row.
+TEST(StackCheckGrid, SpansTheImageInEvenlySpacedRows) {
+  for (const auto& [width, height] : {std::pair{200, 150}, std::pair{1200, 900}, std::pair{4000, 3000},
+                                      std::pair{50, 20}}) {
+    const StackCheckGrid grid = make_stack_check_grid(width, height, 32768);
+    SCOPED_TRACE(std::to_string(width) + "x" + std::to_string(height));
+    EXPECT_EQ(grid.rows, std::min(height, 64));
+    EXPECT_LE(grid.count(), 32768u);
+    EXPECT_GE(grid.columns * grid.stride, width);
+    EXPECT_LT((grid.columns - 1) * grid.stride, width);
+    std::size_t previous_row = 0;
+    for (std::size_t n = 0; n < grid.count(); ++n) {
+      const std::size_t pixel = grid.pixel(n);
+      ASSERT_LT(pixel, static_cast<std::size_t>(width) * static_cast<std::size_t>(height));
+      const std::size_t row = pixel / static_cast<std::size_t>(width);
+      if (n % static_cast<std::size_t>(grid.columns) == 0) {
+        if (n > 0) {
+          EXPECT_GT(row, previous_row);
+        }
+        previous_row = row;
+      }
+      EXPECT_EQ(row, previous_row);
+    }
+  }
+  EXPECT_EQ(make_stack_check_grid(4000, 3000, 32768).stride, 8);
+}
+
 }  // namespace
 }  // namespace sls
