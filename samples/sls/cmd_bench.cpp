@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <future>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -35,6 +36,7 @@ struct BenchOptions {
   std::string input = "patterns";
   bool turntable_prior = false;
   std::string deformation = "on";
+  std::string upload_ahead = "on";
   std::string device;
 };
 
@@ -78,9 +80,8 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
   std::vector<double> frame_ms, decode, track, integrate, move, raycast, deform;
   double render_s = 0.0, frames_s = 0.0;
   int lost = 0;
-  for (int k = 0; k < frames; ++k) {
-    report_progress(progress, {"bench", static_cast<std::size_t>(k), static_cast<std::size_t>(frames), ""});
-    SteadyClock::time_point start = SteadyClock::now();
+  const auto render = [&](int k) {
+    const SteadyClock::time_point start = SteadyClock::now();
     renderer.set_frame(k);
     session::ScanFrame frame;
     frame.index = k;
@@ -92,8 +93,24 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
       frame.depth_m = renderer.render_depth();
     }
     render_s += ms_since(start) * 1e-3;
-    start = SteadyClock::now();
+    return frame;
+  };
+  // Frame k + 1 is rendered before frame k is timed, so that its stack can be uploaded while
+  // frame k is fused (ScanSession::prefetch, as run_pipeline does live); a frame's time runs
+  // until both are done.
+  const bool upload_ahead = options.upload_ahead == "on" && session.uploads_ahead();
+  session::ScanFrame next = render(0);
+  for (int k = 0; k < frames; ++k) {
+    report_progress(progress, {"bench", static_cast<std::size_t>(k), static_cast<std::size_t>(frames), ""});
+    const session::ScanFrame frame = std::move(next);
+    next = k + 1 < frames ? render(k + 1) : session::ScanFrame{};
+    const SteadyClock::time_point start = SteadyClock::now();
+    std::future<bool> ahead;
+    if (upload_ahead && k + 1 < frames) {
+      ahead = std::async(std::launch::async, [&session, &next] { return session.prefetch(next); });
+    }
     const session::FrameReport report = session.add_frame(frame);
+    if (ahead.valid()) ahead.get();
     const double ms = ms_since(start);
     frames_s += ms * 1e-3;
     frame_ms.push_back(ms);
@@ -131,6 +148,7 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
       {"preset", options.preset},
       {"object", options.object},
       {"input", options.input},
+      {"upload_ahead", upload_ahead},
       {"device", device.to_string()},
       {"frames", frames},
       {"frames_fused", session.fused_count()},
@@ -223,6 +241,11 @@ void add_bench_command(CLI::App& app, Context& context, int* exit_code) {
                     "The turntable's angles as the pose guess, as sls scan --turntable-prior (default: depth alone)");
   command->add_option("--deformation", options->deformation,
                       "Online deformation and, after the revolution, the loop closure (off: neither)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  command->add_option("--upload-ahead", options->upload_ahead,
+                      "On a GPU, upload the next frame's pattern stack while this one is fused, as a live scan does "
+                      "(off: each frame uploads its own)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present, else cpu)");

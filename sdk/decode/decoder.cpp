@@ -227,6 +227,21 @@ DecodedFrame Decoder::decode(const std::vector<Image16u>& stack) {
   return frame;
 }
 
+bool Decoder::prefetch(const std::vector<Image16u>& stack) {
+  if (!impl_->device.is_cuda() || stack.size() != impl_->set.size()) return false;
+  for (const Image16u& image : stack) {
+    if (image.width() != impl_->rays.width || image.height() != impl_->rays.height) return false;
+  }
+#if defined(SLS_HAVE_CUDA)
+  require_device(impl_->device);  // this thread's current device
+  std::vector<const std::uint16_t*> planes(stack.size());
+  for (std::size_t k = 0; k < stack.size(); ++k) planes[k] = stack[k].data();
+  return impl_->cuda->prefetch(planes.data());
+#else
+  return false;
+#endif
+}
+
 void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, DecodedFrame* frame_out) {
   const PatternSet& set = impl_->set;
   const int width = impl_->rays.width;
@@ -279,7 +294,8 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
     // host (6.5 ms, docs/benchmarks.md).
     require_device(impl_->device);
     detail::CudaDecodeContext& cuda = *impl_->cuda;
-    const int slot = cuda.upload_async(planes.data());
+    int slot = cuda.take_prefetched(planes.data());
+    if (slot < 0) slot = cuda.upload_async(planes.data());
     const StackCheckGrid grid =
         references && impl_->options.check_stack ? make_stack_check_grid(width, height, StackCheckLimits{}.max_samples)
                                                  : StackCheckGrid{};

@@ -119,6 +119,17 @@ class Decoder {
   // failure `frame` is left in an unspecified but valid state.
   void decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, DecodedFrame* frame);
 
+  // A live scan's next stack, moved to the GPU ahead (CUDA; a CPU decoder does nothing): call
+  // it on another thread while this decoder decodes, and the scan fuses, the frame before, so
+  // that the upload (~11 ms at 12 MP) overlaps that work; the decode() of these same images
+  // then takes the stack instead of uploading it (and waits for this upload if it is still
+  // under way). The images must stay alive and unchanged until then. One stack waits at a
+  // time: a newer prefetch replaces it. Thread-safe against one decode() at a time on another
+  // thread. Returns false when nothing was uploaded: a CPU decoder, a stack decode() would
+  // refuse for its count or sizes (it then says why), or no upload slot to spare. Throws what
+  // an upload throws (the GPU, pinned memory).
+  bool prefetch(const std::vector<Image16u>& stack);
+
   const PatternSet& pattern_set() const;
   const DecodeOptions& options() const;
   const Device& device() const;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <deque>
 #include <exception>
+#include <future>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -83,6 +84,13 @@ class FrameQueue {
     double delivered_s = 0.0;
     double waited_s = 0.0;
   };
+  // The frame after the one last popped, if the source has delivered it (else null). It stays
+  // in place until the next pop(): only this thread pops, and the source only appends.
+  const ScanFrame* next() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return queue_.empty() ? nullptr : &queue_.front().frame;
+  }
+
   // The next frame, waiting for one; nullopt once the source is done and the queue empty.
   std::optional<Entry> pop() {
     std::unique_lock<std::mutex> lock(mutex_);
@@ -184,7 +192,15 @@ PipelineOutcome run_pipeline(const SessionProvider& session_provider, const Fram
       std::optional<FrameQueue::Entry> entry = queue.pop();
       if (!entry) break;
       if (session == nullptr) session = &session_provider();
+      // The frame after this one, uploaded to the GPU while this one is fused (a CUDA session):
+      // joined before the next pop (the future's destructor waits), which may move it.
+      std::future<bool> upload_ahead;
+      const ScanFrame* next = session->uploads_ahead() ? queue.next() : nullptr;
+      if (next != nullptr && !next->images.empty()) {
+        upload_ahead = std::async(std::launch::async, [session, next] { return session->prefetch(*next); });
+      }
       const FrameReport report = session->add_frame(entry->frame);
+      if (upload_ahead.valid()) upload_ahead.get();
       outcome.timings.push_back(
           {entry->frame.index, entry->delivered_s, seconds_between(start, Clock::now()), entry->waited_s});
       ++fused;

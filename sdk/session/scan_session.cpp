@@ -139,6 +139,18 @@ ScanSession::~ScanSession() = default;
 ScanSession::ScanSession(ScanSession&&) noexcept = default;
 ScanSession& ScanSession::operator=(ScanSession&&) noexcept = default;
 
+bool ScanSession::prefetch(const ScanFrame& next) {
+  Impl& s = *impl_;
+  if (!s.decoder || next.images.empty() || !next.problem.empty()) return false;
+  try {
+    return s.decoder->prefetch(next.images);
+  } catch (const Error&) {
+    return false;  // add_frame(next) uploads it again and reports the problem as that frame's
+  }
+}
+
+bool ScanSession::uploads_ahead() const { return impl_->decoder && impl_->options.device.is_cuda(); }
+
 FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   Impl& s = *impl_;
   FrameReport report;

@@ -14,7 +14,7 @@
 // A frame that cannot be read or decoded is `kSkipped`, one the tracker cannot register is
 // `kLost`; neither touches the model, and the scan goes on. The model fused so far is always
 // valid: final_surface() may be called at any time (after an interruption too).
-// Thread safety: one thread drives a session.
+// Thread safety: one thread drives a session; prefetch() alone may run beside it.
 #pragma once
 
 #include <cstdint>
@@ -179,6 +179,14 @@ class ScanSession {
   // Decodes, tracks and fuses one frame. A bad frame is reported (kSkipped / kLost), not
   // thrown; errors of the machine itself (GPU out of memory, a CUDA fault) still throw.
   FrameReport add_frame(const ScanFrame& frame);
+  // Moves the next frame's pattern stack to the GPU ahead (a CUDA session with a pattern set;
+  // otherwise nothing): called on another thread while add_frame() fuses the frame before, the
+  // upload overlaps that frame's GPU work, and the add_frame() of `next` takes it
+  // (Decoder::prefetch). `next`'s images must stay alive and unchanged until then. The one
+  // call that may run beside add_frame(); returns whether it uploaded. A failed upload is not
+  // thrown: the frame's own add_frame() uploads again and reports what is wrong.
+  bool prefetch(const ScanFrame& next);
+  bool uploads_ahead() const;  // whether prefetch() can do anything here
 
   const std::vector<FrameReport>& frames() const;
   std::vector<StampedPose> trajectory() const;  // fused frames, TUM stamps from timestamp_ns

@@ -82,7 +82,8 @@ class SlsCli(unittest.TestCase):
     def test_bench_times_a_revolution_end_to_end(self):
         # A short ci-preset revolution, both inputs: the end-to-end seconds hold the frames, the
         # loop closure and the final model, with every stage's median and total beside them.
-        for extra in (("--input", "depth", "--deformation", "off"), ("--frames", "3", "--turntable-prior")):
+        for extra in (("--input", "depth", "--deformation", "off"),
+                      ("--frames", "3", "--turntable-prior", "--upload-ahead", "off")):
             args = ("--json", "bench", "--preset", "ci", "--object", "knurled-knob", "--device", "cpu")
             if "--frames" not in extra:
                 args += ("--frames", "4")
@@ -99,6 +100,7 @@ class SlsCli(unittest.TestCase):
                 self.assertGreaterEqual(bench["stages"][stage]["total_s"], 0.0)
             self.assertLessEqual(bench["frame_ms"]["median"], bench["frame_ms"]["max"])
             self.assertNotIn("gpu", bench)
+            self.assertFalse(bench["upload_ahead"])  # on the CPU there is nothing to upload
         self.assertEqual(bench["images_per_frame"], 22)
         self.assertGreater(bench["stages"]["decode"]["total_s"], 0.0)  # the stacks decoded in the timed part
         self.assertIsNotNone(bench["loop_closure"])
@@ -106,6 +108,7 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(human.returncode, 0, human.stderr)
         self.assertIn("end to end", human.stdout)
         self.assertEqual(run("bench", "--preset", "huge").returncode, 2)
+        self.assertEqual(run("bench", "--upload-ahead", "maybe").returncode, 2)
 
     def test_devices_lists_the_simulator_with_an_openable_uri(self):
         # --json before or after the command.

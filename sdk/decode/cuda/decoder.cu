@@ -2,8 +2,12 @@
 // and triangulate_decoded_pixel, the same per-pixel code the CPU loop runs.
 #include "sdk/decode/cuda/decoder_cuda.h"
 
+#include <algorithm>
+#include <condition_variable>
 #include <cstring>
 #include <limits>
+#include <mutex>
+#include <vector>
 
 #include "sdk/core/cuda/cuda_check.h"
 #include "sdk/core/cuda/device_buffer.h"
@@ -90,6 +94,16 @@ struct CudaDecodeContext::State {
   cudaEvent_t uploaded[2] = {nullptr, nullptr};
   cudaEvent_t consumed[2] = {nullptr, nullptr};
   int next_slot = 0;
+  // Who holds each slot, under slot_mutex: a prefetch (Decoder::prefetch) runs on another
+  // thread than the decode that takes it. kFree slots may be claimed; a slot's stack stays
+  // until decode_slot (kUploaded, kPrefetched) or until a newer prefetch replaces it.
+  enum class Slot { kFree, kUploaded, kPrefetching, kPrefetched };
+  std::mutex slot_mutex;
+  std::condition_variable slot_changed;
+  Slot slot_state[2] = {Slot::kFree, Slot::kFree};
+  std::vector<const std::uint16_t*> slot_planes[2];  // a prefetched stack's planes, to match its decode
+  // Uploads, one at a time: they share the staging planes and the copy stream.
+  std::mutex upload_mutex;
   // Pinned staging planes for pageable stacks (allocated on first use): a pageable
   // cudaMemcpyAsync is synchronous and crosses the bus at 7-8 GB/s (measured on H100 and
   // H200 hosts, 2026-11); staged, the host's threads fill one plane while the copy engine
@@ -184,18 +198,93 @@ void CudaDecodeContext::decode_resident(const std::uint16_t* stack_device, std::
                      s.ray_valid.data(), outputs(), stream != nullptr ? stream : s.stream);
 }
 
-int CudaDecodeContext::upload_async(const std::uint16_t* const* planes) {
+int CudaDecodeContext::claim_slot(bool prefetch, const std::uint16_t* const* planes) {
   State& s = *state_;
-  const int slot = s.next_slot;
-  s.next_slot ^= 1;
+  std::lock_guard<std::mutex> lock(s.slot_mutex);
+  for (int i = 0; prefetch && i < 2; ++i) {
+    if (s.slot_state[i] == State::Slot::kPrefetched) s.slot_state[i] = State::Slot::kFree;  // replaced
+  }
+  for (const int slot : {s.next_slot, s.next_slot ^ 1}) {
+    if (s.slot_state[slot] != State::Slot::kFree) continue;
+    s.next_slot = slot ^ 1;
+    s.slot_state[slot] = prefetch ? State::Slot::kPrefetching : State::Slot::kUploaded;
+    const std::size_t count = static_cast<std::size_t>(s.decode.layout.pattern_count);
+    s.slot_planes[slot].assign(planes, planes + (prefetch ? count : 0));
+    return slot;
+  }
+  if (prefetch) return -1;  // the frame being decoded and another's upload hold both
+  throw_error(ErrorCode::kInvalidArgument, "upload_async: both upload slots hold stacks not yet decoded");
+}
+
+void CudaDecodeContext::release_slot(int slot) {
+  State& s = *state_;
+  {
+    std::lock_guard<std::mutex> lock(s.slot_mutex);
+    s.slot_state[slot] = State::Slot::kFree;
+    s.slot_planes[slot].clear();
+  }
+  s.slot_changed.notify_all();
+}
+
+int CudaDecodeContext::upload_async(const std::uint16_t* const* planes) {
+  const int slot = claim_slot(false, planes);
+  try {
+    upload_into(slot, planes);
+  } catch (...) {
+    release_slot(slot);
+    throw;
+  }
+  return slot;
+}
+
+bool CudaDecodeContext::prefetch(const std::uint16_t* const* planes) {
+  State& s = *state_;
+  const int slot = claim_slot(true, planes);
+  if (slot < 0) return false;
+  try {
+    upload_into(slot, planes);
+  } catch (...) {
+    release_slot(slot);
+    throw;
+  }
+  {
+    std::lock_guard<std::mutex> lock(s.slot_mutex);
+    if (s.slot_state[slot] == State::Slot::kPrefetching) s.slot_state[slot] = State::Slot::kPrefetched;
+  }
+  s.slot_changed.notify_all();
+  return true;
+}
+
+int CudaDecodeContext::take_prefetched(const std::uint16_t* const* planes) {
+  State& s = *state_;
+  const std::size_t count = static_cast<std::size_t>(s.decode.layout.pattern_count);
+  const auto matches = [&](int slot) {
+    return std::equal(planes, planes + count, s.slot_planes[slot].begin(), s.slot_planes[slot].end());
+  };
+  std::unique_lock<std::mutex> lock(s.slot_mutex);
+  for (int slot = 0; slot < 2; ++slot) {
+    if (s.slot_state[slot] != State::Slot::kPrefetching && s.slot_state[slot] != State::Slot::kPrefetched) continue;
+    if (!matches(slot)) continue;
+    // This stack's upload is under way on another thread: wait for it rather than upload it twice.
+    s.slot_changed.wait(lock, [&] { return s.slot_state[slot] != State::Slot::kPrefetching; });
+    if (s.slot_state[slot] != State::Slot::kPrefetched || !matches(slot)) return -1;  // it failed
+    s.slot_state[slot] = State::Slot::kUploaded;
+    return slot;
+  }
+  return -1;
+}
+
+void CudaDecodeContext::upload_into(int slot, const std::uint16_t* const* planes) {
+  State& s = *state_;
+  std::lock_guard<std::mutex> lock(s.upload_mutex);
   const std::size_t count = static_cast<std::size_t>(s.decode.layout.pattern_count);
   DeviceBuffer<std::uint16_t>& buffer = s.slots[slot];
   if (buffer.size() < count * s.pixels) {
     // A first use: nothing can be reading the slot yet.
     buffer.allocate(count * s.pixels);
   }
-  // Do not overwrite the slot while the decode of the stack before last still reads it (an
-  // event never recorded lets the wait through).
+  // Do not overwrite the slot while the decode that last read it still does (an event never
+  // recorded lets the wait through; a free slot's last decode_slot has recorded it).
   SLS_CUDA_CHECK(cudaStreamWaitEvent(s.copy_stream, s.consumed[slot], 0));
   const std::size_t plane_bytes = s.pixels * sizeof(std::uint16_t);
   for (std::size_t k = 0; k < count; ++k) {
@@ -224,17 +313,22 @@ int CudaDecodeContext::upload_async(const std::uint16_t* const* planes) {
     SLS_CUDA_CHECK(cudaEventRecord(s.staging_free[b], s.copy_stream));
   }
   SLS_CUDA_CHECK(cudaEventRecord(s.uploaded[slot], s.copy_stream));
-  return slot;
 }
 
 void CudaDecodeContext::decode_slot(int slot) {
   State& s = *state_;
-  if (slot < 0 || slot > 1 || s.slots[slot].size() == 0) {
+  bool uploaded = false;
+  if (slot >= 0 && slot <= 1) {
+    std::lock_guard<std::mutex> lock(s.slot_mutex);
+    uploaded = s.slot_state[slot] == State::Slot::kUploaded && s.slots[slot].size() > 0;
+  }
+  if (!uploaded) {
     throw_error(ErrorCode::kInvalidArgument, "decode_slot({}): no stack was uploaded to that slot", slot);
   }
   SLS_CUDA_CHECK(cudaStreamWaitEvent(s.stream, s.uploaded[slot], 0));
   decode_resident(s.slots[slot].data(), s.pixels, s.stream);
   SLS_CUDA_CHECK(cudaEventRecord(s.consumed[slot], s.stream));
+  release_slot(slot);  // after `consumed` is recorded: the next upload into it waits for this decode
 }
 
 void CudaDecodeContext::decode_host(const std::uint16_t* const* planes, const DecodeOutputsHost& host) {
@@ -251,7 +345,12 @@ __global__ void set_int_kernel(int* target, int value) { *target = value; }
 
 void CudaDecodeContext::gather_check_async(int slot, const StackCheckGrid& grid, int white_index, int black_index) {
   State& s = *state_;
-  if (slot < 0 || slot > 1 || s.slots[slot].size() == 0) {
+  bool uploaded = false;
+  if (slot >= 0 && slot <= 1) {
+    std::lock_guard<std::mutex> lock(s.slot_mutex);
+    uploaded = s.slot_state[slot] == State::Slot::kUploaded && s.slots[slot].size() > 0;
+  }
+  if (!uploaded) {
     throw_error(ErrorCode::kInvalidArgument, "gather_check_async({}): no stack was uploaded to that slot", slot);
   }
   const int images = s.decode.layout.pattern_count;

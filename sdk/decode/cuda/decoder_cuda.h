@@ -80,12 +80,21 @@ class CudaDecodeContext {
   //   int slot = context.upload_async(planes);   // returns at once; planes must stay valid
   //   context.decode_slot(slot);                 // waits for that upload on the GPU, not here
   // upload_async first waits (on the GPU) until the decode that last read the slot it reuses
-  // has finished. Planes in pinned host memory (cudaMallocHost) are copied by the copy engine
-  // directly and upload_async returns at once; pageable planes are staged through pinned
-  // planes by the host's threads, and upload_async returns when the last is staged.
+  // has finished; a slot holds its stack until decode_slot (at most two uploaded, not decoded).
+  // Planes in pinned host memory (cudaMallocHost) are copied by the copy engine directly and
+  // upload_async returns at once; pageable planes are staged through pinned planes by the
+  // host's threads, and upload_async returns when the last is staged.
   // Outputs are those of the last decode_slot, on stream().
   int upload_async(const std::uint16_t* const* planes);
   void decode_slot(int slot);
+
+  // A live scan's next stack, uploaded ahead from another thread while this one decodes (and
+  // the session fuses) the frame before (Decoder::prefetch): into a free slot, returning when it
+  // has been staged; false when both slots are held. A newer prefetch replaces an older one not
+  // taken yet. take_prefetched() gives the slot of a prefetched stack with these same planes
+  // (waiting while its upload is still under way), ready for decode_slot, or -1.
+  bool prefetch(const std::uint16_t* const* planes);
+  int take_prefetched(const std::uint16_t* const* planes);
 
   // The stack check's inputs from an uploaded slot, gathered on the GPU and downloaded on
   // stream() before what is queued next (the decode); wait_check() waits for them alone, so the
@@ -106,6 +115,10 @@ class CudaDecodeContext {
   int height() const;
 
  private:
+  int claim_slot(bool prefetch, const std::uint16_t* const* planes);
+  void release_slot(int slot);
+  void upload_into(int slot, const std::uint16_t* const* planes);
+
   struct State;
   State* state_;
 };

@@ -3,6 +3,7 @@
 // what the host one gives. Skipped without a GPU.
 #include <cmath>
 #include <cstdio>
+#include <future>
 #include <string>
 #include <vector>
 
@@ -259,6 +260,76 @@ TEST(DecoderCuda, RefusesWhatTheCpuRefusesAndKeepsTheFrame) {
   EXPECT_EQ(refusal(blind, bad.front().stack, &frame), "decoded");
   EXPECT_NE(refusal(blind, bad.back().stack, &frame), "decoded");
   expect_equal(cpu.decode(c.stack), gpu.decode(c.stack), "a good stack after refusals");
+}
+
+// A live scan uploads frame n + 1 on another thread while it decodes frame n
+// (Decoder::prefetch): each decode takes its own stack, prefetched or not, and equals the CPU's.
+TEST(DecoderCuda, StacksUploadedAheadOnAnotherThreadDecodeAsTheirOwn) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Case a = render_case("knurled-screw", 400);
+  const Case b = render_case("knurled-knob", 400);
+  const Case c = render_case("plane", 400);
+  Decoder cpu(a.rig.patterns, a.rig.calibration(), Device::cpu(), options());
+  Decoder gpu(a.rig.patterns, a.rig.calibration(), Device::cuda(), options());
+  const std::vector<const Case*> frames = {&a, &b, &c, &a, &b};
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    std::future<bool> ahead;
+    if (i + 1 < frames.size()) {
+      ahead = std::async(std::launch::async, [&gpu, &frames, i] { return gpu.prefetch(frames[i + 1]->stack); });
+    }
+    const DecodedFrame decoded = gpu.decode(frames[i]->stack);
+    if (ahead.valid()) {
+      EXPECT_TRUE(ahead.get()) << "frame " << i + 1;
+    }
+    expect_equal(cpu.decode(frames[i]->stack), decoded, ("frame " + std::to_string(i)).c_str());
+  }
+  // A prefetch not taken is replaced by the next; each stack still decodes as its own.
+  EXPECT_TRUE(gpu.prefetch(b.stack));
+  EXPECT_TRUE(gpu.prefetch(c.stack));
+  expect_equal(cpu.decode(b.stack), gpu.decode(b.stack), "a stack whose prefetch was replaced");
+  expect_equal(cpu.decode(c.stack), gpu.decode(c.stack), "the prefetch that replaced it");
+  // What decode() would refuse for its count or sizes is not uploaded; a CPU decoder uploads nothing.
+  std::vector<Image16u> short_stack(a.stack.begin(), a.stack.end() - 1);
+  EXPECT_FALSE(gpu.prefetch(short_stack));
+  std::vector<Image16u> small;
+  for (std::size_t k = 0; k < a.stack.size(); ++k) small.emplace_back(8, 8);
+  EXPECT_FALSE(gpu.prefetch(small));
+  EXPECT_FALSE(cpu.prefetch(a.stack));
+}
+
+// The context's slots: a prefetched stack is taken once, by its own planes only; with both
+// slots held there is none to prefetch into.
+TEST(DecoderCuda, APrefetchedStackIsTakenOnceByItsOwnPlanes) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Case a = render_case("knurled-screw", 400);
+  const Case b = render_case("knurled-knob", 400);
+  Decoder cpu(a.rig.patterns, a.rig.calibration(), Device::cpu(), options());
+  const RayMap& rays = cpu.rays();
+  detail::CudaDecodeContext context(cpu.decode_params(), cpu.triangulation_params(), rays.width, rays.height,
+                                    rays.rays.data(), rays.valid.data());
+  std::vector<const std::uint16_t*> planes_a, planes_b;
+  for (const Image16u& image : a.stack) planes_a.push_back(image.data());
+  for (const Image16u& image : b.stack) planes_b.push_back(image.data());
+  EXPECT_EQ(context.take_prefetched(planes_a.data()), -1);
+  ASSERT_TRUE(context.prefetch(planes_a.data()));
+  EXPECT_EQ(context.take_prefetched(planes_b.data()), -1);
+  const int slot_a = context.take_prefetched(planes_a.data());
+  ASSERT_GE(slot_a, 0);
+  EXPECT_EQ(context.take_prefetched(planes_a.data()), -1);
+  const int slot_b = context.upload_async(planes_b.data());
+  EXPECT_NE(slot_b, slot_a);
+  EXPECT_FALSE(context.prefetch(planes_a.data()));  // both slots hold stacks not yet decoded
+  try {
+    context.upload_async(planes_a.data());
+    ADD_FAILURE() << "a third stack was uploaded into two slots";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
+  }
+  context.decode_slot(slot_a);
+  expect_equal(cpu.decode(a.stack), download_outputs(context), "the prefetched stack");
+  context.decode_slot(slot_b);
+  expect_equal(cpu.decode(b.stack), download_outputs(context), "the one uploaded beside it");
+  EXPECT_TRUE(context.prefetch(planes_a.data()));  // the slots are free again
 }
 
 }  // namespace

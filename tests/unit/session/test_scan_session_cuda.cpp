@@ -8,6 +8,7 @@
 #include "fusion/raycaster.h"
 #include "fusion/tracker.h"
 #include "sdk/core/cuda/device_buffer.h"
+#include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_session.h"
 #include "tests/support/test_support.h"
 #include "tests/unit/session/sim_frames.h"
@@ -128,6 +129,43 @@ TEST(ScanSessionCuda, PhotometricEqualsTheCpuSession) {
     EXPECT_LT(difference.translation().norm(), 2e-6) << "frame " << k;
     EXPECT_LT(difference.angle_rad(), 2e-5) << "frame " << k;
   }
+}
+
+// Fusing through the pipeline on a GPU uploads each next stack while the frame before is fused
+// (ScanSession::prefetch on a thread of its own): the same poses and model as frames added one
+// by one, each uploading its own stack. A stale or foreign stack would move a pose by far more
+// than the GPU's rounding.
+TEST(ScanSessionCuda, UploadsAheadThroughThePipelineGiveTheSequentialRun) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const SlidingChessboard board;
+  std::vector<ScanFrame> frames;
+  for (int k = 0; k < 5; ++k) frames.push_back(board.stack(k));
+  ScanSession sequential(board.rig.calibration(), &board.rig.patterns, small_options(Device::cuda()));
+  for (const ScanFrame& frame : frames) ASSERT_EQ(sequential.add_frame(frame).status, FrameStatus::kFused);
+  ScanSession piped(board.rig.calibration(), &board.rig.patterns, small_options(Device::cuda()));
+  EXPECT_TRUE(piped.uploads_ahead());
+  const PipelineOutcome outcome = run_pipeline(piped, [&frames](const FrameDelivery& deliver) {
+    for (const ScanFrame& frame : frames) {
+      ScanFrame copy = frame;
+      if (!deliver(std::move(copy))) return;
+    }
+  }, PipelineOptions{});
+  ASSERT_FALSE(outcome.interrupted) << outcome.interruption;
+  ASSERT_EQ(piped.frames().size(), frames.size());
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const FrameReport& a = sequential.frames()[k];
+    const FrameReport& b = piped.frames()[k];
+    ASSERT_EQ(b.status, FrameStatus::kFused) << b.reason;
+    EXPECT_EQ(a.depth_pixels, b.depth_pixels) << "frame " << k;
+    const Pose difference = a.T_world_camera.inverse() * b.T_world_camera;
+    EXPECT_LT(difference.translation().norm(), 1e-9) << "frame " << k;
+    EXPECT_LT(difference.angle_rad(), 1e-9) << "frame " << k;
+  }
+  EXPECT_EQ(piped.final_surface().cloud.size(), sequential.final_surface().cloud.size());
+  // A CPU session has nothing to upload ahead.
+  ScanSession cpu(board.rig.calibration(), &board.rig.patterns, small_options(Device::cpu()));
+  EXPECT_FALSE(cpu.uploads_ahead());
+  EXPECT_FALSE(cpu.prefetch(frames[0]));
 }
 
 // Online deformation and the loop closure on a CUDA session (the last frame kept on the GPU,
