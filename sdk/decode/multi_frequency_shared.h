@@ -34,6 +34,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 
 #include "sdk/core/host_device.h"
@@ -41,10 +42,14 @@
 
 // Loops over a fixed bound with the count as a guard, fully unrolled on the GPU, so that the
 // per-period arrays below stay in registers (a runtime bound would put them in local memory).
+// SLS_UNROLL_BY(n): a partial unroll, on the GPU only.
 #if defined(__CUDA_ARCH__)
 #define SLS_UNROLL_FULLY _Pragma("unroll")
+#define SLS_PRAGMA(x) _Pragma(#x)
+#define SLS_UNROLL_BY(n) SLS_PRAGMA(unroll n)
 #else
 #define SLS_UNROLL_FULLY
+#define SLS_UNROLL_BY(n)
 #endif
 
 namespace sls {
@@ -175,97 +180,113 @@ SLS_HOST_DEVICE inline AxisDecode decode_heterodyne_axis(const AxisCode& a, cons
   return out;
 }
 
-// The phase a micro phase-shifting single image shows at coordinate u, reduced in turns first
-// so that a long axis loses no precision.
-SLS_HOST_DEVICE inline float micro_single_angle(const MicroSingle& single, float u) {
-  float turns = u / single.period_px;
-  turns -= std::floor(turns);
-  return single.sign * 6.28318530717958648f * turns + single.shift_rad;
+// sin(pi x) and cos(pi x): angles in half turns, so that the GPU's range reduction is exact and
+// short (sincospif; sincosf carries a long path for huge arguments in every inlined copy).
+SLS_HOST_DEVICE inline void sin_cos_pi(float x, float* s, float* c) {
+#if defined(__CUDA_ARCH__)
+  sincospif(x, s, c);
+#else
+  const float angle = 3.14159265358979324f * x;
+  *s = std::sin(angle);
+  *c = std::cos(angle);
+#endif
 }
 
-// The candidate search re-evaluates its rotated cosines this often, so that float rounding
-// cannot accumulate along a long axis.
+SLS_HOST_DEVICE inline float cos_pi(float x) {
+#if defined(__CUDA_ARCH__)
+  return cospif(x);
+#else
+  return std::cos(3.14159265358979324f * x);
+#endif
+}
+
+// The phase a micro phase-shifting single image shows at coordinate u, in half turns (the
+// angle / pi), reduced in turns first so that a long axis loses no precision.
+SLS_HOST_DEVICE inline float micro_single_half_turns(const MicroSingle& single, float u) {
+  float turns = u / single.period_px;
+  turns -= std::floor(turns);
+  return single.sign * 2.0f * turns + single.shift_rad * 0.318309886183790672f;
+}
+
+// The candidate search re-evaluates its cosines this often, so that float rounding cannot
+// accumulate along a long axis.
 constexpr int kMicroReseedCandidates = 32;
 
-template <typename Samples>
-SLS_HOST_DEVICE inline AxisDecode decode_micro_phase_axis(const AxisCode& a, const DecodeThresholds& t,
-                                                          const Samples& samples, float contrast) {
-  AxisDecode out{NAN, 0.0f, 0u};
+namespace detail {
+
+// decode_micro_phase_axis past the N-step phase m, for `Singles` single images: a compile-time
+// count, so that the per-image arrays are registers sized for this set (a kernel sized for the
+// most images would hold them all) and the loops over them carry no guard.
+template <int Singles, typename Samples>
+SLS_HOST_DEVICE inline AxisDecode decode_micro_singles(const AxisCode& a, const DecodeThresholds& t,
+                                                       const Samples& samples, const WrappedPhase& m) {
+  constexpr std::size_t kSize = Singles > 0 ? static_cast<std::size_t>(Singles) : 1u;
+  AxisDecode out{NAN, m.sigma_px, 0u};
   std::uint8_t flags = 0u;
   const PhaseGroup& g = a.phase[0];
-  const WrappedPhase m = wrapped_phase(g, t, samples);
-  out.sigma_px = m.sigma_px;
-  if (m.saturated) flags |= kDecodeSaturated;
-  if (weak_fringe(m, t, contrast, t.max_phase_sigma_px) || !(m.modulation > 0.0f)) flags |= kDecodeLowModulation;
-  if (flags != 0u) {
-    out.flags = flags;
-    return out;
-  }
   // The rest of the linear system: cos psi_f = (I_f - O) / A, and its noise (I_f's and O's;
-  // A's scales every component alike and moves no decision).
-  float measured[kDecodeMaxMicroSingles];
-  float inverse_sigma[kDecodeMaxMicroSingles];
+  // A's scales every component alike and moves no decision). Kept in noise units:
+  // weighted = cos psi_f / sigma_f.
+  float weighted[kSize] = {}, inverse_sigma[kSize] = {};
   const float inverse_amplitude = 1.0f / m.modulation;
   const float offset_variance = sample_variance(t, m.mean) / static_cast<float>(g.count);
-  const int singles = a.micro_count;
   SLS_UNROLL_FULLY
-  for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
-    if (f >= singles) break;
+  for (int f = 0; f < Singles; ++f) {
     const float value = samples(a.micro[f].index);
     if (value >= t.saturation_dn) flags |= kDecodeSaturated;
-    measured[f] = (value - m.mean) * inverse_amplitude;
     inverse_sigma[f] = m.modulation / std::sqrt(sample_variance(t, value) + offset_variance);
+    weighted[f] = (value - m.mean) * inverse_amplitude * inverse_sigma[f];
   }
   if (flags != 0u) {
     out.flags = flags;
     return out;
   }
   // Candidates u_n = w + n P over [-0.5, extent - 0.5); each single's predicted cosine turns by
-  // a fixed angle from one to the next (a rotation), so the search costs no cosine per
-  // candidate. Distances are in units of the noise.
+  // a fixed angle t_f from one to the next, so the search costs no cosine per candidate: the
+  // Chebyshev recurrence cos(a + t) = 2 cos t cos a - cos(a - t) steps it with one
+  // multiply-add. Distances are in units of the noise.
   const float period = g.period_px;
   const float first_u = m.wrapped + period * std::ceil((-0.5f - m.wrapped) / period);
   const int candidates = static_cast<int>(std::ceil((static_cast<float>(a.extent) - 0.5f - first_u) / period));
-  float c[kDecodeMaxMicroSingles] = {}, s[kDecodeMaxMicroSingles] = {};
-  float turn_c[kDecodeMaxMicroSingles] = {}, turn_s[kDecodeMaxMicroSingles] = {};  // (g++ 13 -O3 cannot see the loops fill them)
+  float twice_cos_turn[kSize] = {}, sin_turn[kSize] = {};
   SLS_UNROLL_FULLY
-  for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
-    if (f >= singles) break;
-    const float turn = a.micro[f].sign * 6.28318530717958648f * (period / a.micro[f].period_px);
-    turn_c[f] = std::cos(turn);
-    turn_s[f] = std::sin(turn);
+  for (int f = 0; f < Singles; ++f) {
+    float cos_turn = 0.0f;
+    sin_cos_pi(a.micro[f].sign * 2.0f * (period / a.micro[f].period_px), &sin_turn[f], &cos_turn);
+    twice_cos_turn[f] = 2.0f * cos_turn;
   }
+  float c[kSize] = {}, previous[kSize] = {};  // the predictions at candidate n and n - 1
   float best = INFINITY, second = INFINITY;
   int best_n = 0, second_n = 0;
-  for (int n = 0; n < candidates; ++n) {
-    if (n % kMicroReseedCandidates == 0) {
-      const float u = first_u + static_cast<float>(n) * period;
-      SLS_UNROLL_FULLY
-      for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
-        if (f >= singles) break;
-        const float angle = micro_single_angle(a.micro[f], u);
-        c[f] = std::cos(angle);
-        s[f] = std::sin(angle);
-      }
-    }
-    float cost = 0.0f;
+  for (int begin = 0; begin < candidates; begin += kMicroReseedCandidates) {
+    // Reseed: the cosine at candidate `begin`, and cos(a - t) = cos a cos t + sin a sin t.
+    const float u_begin = first_u + static_cast<float>(begin) * period;
     SLS_UNROLL_FULLY
-    for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
-      if (f >= singles) break;
-      const float d = (measured[f] - c[f]) * inverse_sigma[f];
-      cost += d * d;
-      const float rotated = c[f] * turn_c[f] - s[f] * turn_s[f];
-      s[f] = s[f] * turn_c[f] + c[f] * turn_s[f];
-      c[f] = rotated;
+    for (int f = 0; f < Singles; ++f) {
+      float s_f = 0.0f;
+      sin_cos_pi(micro_single_half_turns(a.micro[f], u_begin), &s_f, &c[f]);
+      previous[f] = c[f] * (0.5f * twice_cos_turn[f]) + s_f * sin_turn[f];
     }
-    if (cost < best) {
-      second = best;
-      second_n = best_n;
-      best = cost;
-      best_n = n;
-    } else if (cost < second) {
-      second = cost;
-      second_n = n;
+    const int end = candidates - begin > kMicroReseedCandidates ? begin + kMicroReseedCandidates : candidates;
+    // By two on the GPU, so that c and previous swap roles rather than being copied.
+    SLS_UNROLL_BY(2)
+    for (int n = begin; n < end; ++n) {
+      float cost = 0.0f;
+      SLS_UNROLL_FULLY
+      for (int f = 0; f < Singles; ++f) {
+        const float d = weighted[f] - inverse_sigma[f] * c[f];
+        cost += d * d;
+        const float next = twice_cos_turn[f] * c[f] - previous[f];
+        previous[f] = c[f];
+        c[f] = next;
+      }
+      // The two nearest so far, as selects (a branch here costs the GPU more than the search).
+      const bool nearest = cost < best;
+      const bool runner_up = cost < second;
+      second_n = nearest ? best_n : (runner_up ? n : second_n);
+      second = nearest ? best : (runner_up ? cost : second);
+      best_n = nearest ? n : best_n;
+      best = nearest ? cost : best;
     }
   }
   const float u = first_u + static_cast<float>(best_n) * period;
@@ -275,10 +296,9 @@ SLS_HOST_DEVICE inline AxisDecode decode_micro_phase_axis(const AxisCode& a, con
     const float u_second = first_u + static_cast<float>(second_n) * period;
     float separation = 0.0f;
     SLS_UNROLL_FULLY
-    for (int f = 0; f < kDecodeMaxMicroSingles; ++f) {
-      if (f >= singles) break;
-      const float d = (std::cos(micro_single_angle(a.micro[f], u)) -
-                       std::cos(micro_single_angle(a.micro[f], u_second))) * inverse_sigma[f];
+    for (int f = 0; f < Singles; ++f) {
+      const float d = (cos_pi(micro_single_half_turns(a.micro[f], u)) -
+                       cos_pi(micro_single_half_turns(a.micro[f], u_second))) * inverse_sigma[f];
       separation += d * d;
     }
     separation = std::sqrt(separation);
@@ -290,6 +310,34 @@ SLS_HOST_DEVICE inline AxisDecode decode_micro_phase_axis(const AxisCode& a, con
   out.flags = flags;
   if (flags == 0u) out.coordinate = u;
   return out;
+}
+
+// decode_micro_singles for the runtime count `singles` (the layout's 1..kDecodeMaxMicroSingles).
+template <int Max, typename Samples>
+SLS_HOST_DEVICE inline AxisDecode decode_micro_singles_of(int singles, const AxisCode& a, const DecodeThresholds& t,
+                                                          const Samples& samples, const WrappedPhase& m) {
+  if constexpr (Max > 0) {
+    if (singles < Max) return decode_micro_singles_of<Max - 1>(singles, a, t, samples, m);
+  }
+  return decode_micro_singles<Max>(a, t, samples, m);
+}
+
+}  // namespace detail
+
+template <typename Samples>
+SLS_HOST_DEVICE inline AxisDecode decode_micro_phase_axis(const AxisCode& a, const DecodeThresholds& t,
+                                                          const Samples& samples, float contrast) {
+  AxisDecode out{NAN, 0.0f, 0u};
+  std::uint8_t flags = 0u;
+  const WrappedPhase m = wrapped_phase(a.phase[0], t, samples);
+  out.sigma_px = m.sigma_px;
+  if (m.saturated) flags |= kDecodeSaturated;
+  if (weak_fringe(m, t, contrast, t.max_phase_sigma_px) || !(m.modulation > 0.0f)) flags |= kDecodeLowModulation;
+  if (flags != 0u) {
+    out.flags = flags;
+    return out;
+  }
+  return detail::decode_micro_singles_of<kDecodeMaxMicroSingles>(a.micro_count, a, t, samples, m);
 }
 
 }  // namespace sls

@@ -16,14 +16,14 @@
 namespace sls::detail {
 namespace {
 
-// Parameters by value: a few KB, within the kernel parameter space, and read from the
-// constant bank by every thread. One kernel per unwrapping (DecodeUnwrap), so that each carries
-// only its own code and registers.
+// One pixel: decode, triangulate, write. Parameters by value: a few KB, within the kernel
+// parameter space, and read from the constant bank by every thread.
 template <int Unwrap>
-__global__ void decode_kernel(DecodeParams decode, TriangulationParams triangulation, int width, int height,
-                              const std::uint16_t* __restrict__ stack, std::size_t plane_stride,
-                              const Vec3f* __restrict__ rays, const std::uint8_t* __restrict__ ray_valid,
-                              DecodeOutputsDevice out) {
+__device__ __forceinline__ void decode_and_store(const DecodeParams& decode, const TriangulationParams& triangulation,
+                                                 int width, int height, const std::uint16_t* __restrict__ stack,
+                                                 std::size_t plane_stride, const Vec3f* __restrict__ rays,
+                                                 const std::uint8_t* __restrict__ ray_valid,
+                                                 const DecodeOutputsDevice& out) {
   const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
   const int y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
   if (x >= width || y >= height) return;
@@ -38,13 +38,37 @@ __global__ void decode_kernel(DecodeParams decode, TriangulationParams triangula
   out.mask[i] = pixel.mask;
 }
 
+constexpr int kDecodeBlockThreads = 256;  // 32 x 8
+
+// One kernel per unwrapping (DecodeUnwrap), so that each carries only its own code and registers.
+template <int Unwrap>
+__global__ void decode_kernel(DecodeParams decode, TriangulationParams triangulation, int width, int height,
+                              const std::uint16_t* __restrict__ stack, std::size_t plane_stride,
+                              const Vec3f* __restrict__ rays, const std::uint8_t* __restrict__ ray_valid,
+                              DecodeOutputsDevice out) {
+  decode_and_store<Unwrap>(decode, triangulation, width, height, stack, plane_stride, rays, ray_valid, out);
+}
+
+// Micro phase shifting: its candidate search is arithmetic, one dependent chain per pixel, and
+// the set of most single images wants ~105 registers, which leaves 16 warps per SM to hide the
+// latency. Capped at 64 (4 blocks, 32 warps): the sets of up to ~5 images keep theirs in registers
+// (decode_micro_singles is sized per count); larger ones spill a few, outside the search loop.
+__global__ void __launch_bounds__(kDecodeBlockThreads, 4)
+    decode_micro_phase_kernel(DecodeParams decode, TriangulationParams triangulation, int width, int height,
+                              const std::uint16_t* __restrict__ stack, std::size_t plane_stride,
+                              const Vec3f* __restrict__ rays, const std::uint8_t* __restrict__ ray_valid,
+                              DecodeOutputsDevice out) {
+  decode_and_store<kUnwrapMicroPhase>(decode, triangulation, width, height, stack, plane_stride, rays, ray_valid,
+                                      out);
+}
+
 }  // namespace
 
 void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& triangulation, int width, int height,
                         const std::uint16_t* stack, std::size_t plane_stride, const Vec3f* rays,
                         const std::uint8_t* ray_valid, const DecodeOutputsDevice& outputs, cudaStream_t stream) {
   if (width <= 0 || height <= 0) return;
-  const dim3 block(32, 8);
+  const dim3 block(32, kDecodeBlockThreads / 32);
   const dim3 grid((static_cast<unsigned>(width) + block.x - 1) / block.x,
                   (static_cast<unsigned>(height) + block.y - 1) / block.y);
   switch (decode.layout.unwrap) {
@@ -53,8 +77,8 @@ void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& t
                                                                    plane_stride, rays, ray_valid, outputs);
       break;
     case kUnwrapMicroPhase:
-      decode_kernel<kUnwrapMicroPhase><<<grid, block, 0, stream>>>(decode, triangulation, width, height, stack,
-                                                                   plane_stride, rays, ray_valid, outputs);
+      decode_micro_phase_kernel<<<grid, block, 0, stream>>>(
+          decode, triangulation, width, height, stack, plane_stride, rays, ray_valid, outputs);
       break;
     default:
       decode_kernel<kUnwrapGrayPhase><<<grid, block, 0, stream>>>(decode, triangulation, width, height, stack,
