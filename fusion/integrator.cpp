@@ -211,8 +211,14 @@ struct Integrator::Impl {
   ActiveVoxel* sorted = nullptr;
   std::size_t sorted_capacity = 0;
   ~Impl() {
-    if (sort_scratch != nullptr) (void)cudaFree(sort_scratch);
-    if (sorted != nullptr) (void)cudaFree(sorted);
+    if (sort_scratch != nullptr) {
+      (void)cudaFree(sort_scratch);
+      note_gpu_allocation(-static_cast<std::ptrdiff_t>(sort_scratch_bytes));
+    }
+    if (sorted != nullptr) {
+      (void)cudaFree(sorted);
+      note_gpu_allocation(-static_cast<std::ptrdiff_t>(sorted_capacity * sizeof(ActiveVoxel)));
+    }
     if (stream != nullptr) (void)cudaStreamDestroy(stream);
   }
 #endif
@@ -244,6 +250,17 @@ std::size_t active_capacity(const IntegrationOptions& options, const VolumeGeome
   if (options.active_capacity > 0) return options.active_capacity;
   return std::min<std::size_t>(geometry.voxel_count(), std::size_t{1} << 25);
 }
+
+}  // namespace
+
+std::size_t integration_gpu_bytes(const IntegrationOptions& options, std::size_t voxel_count) {
+  if (!options.is_gtsdf()) return 0;
+  const std::size_t capacity =
+      options.active_capacity > 0 ? options.active_capacity : std::min<std::size_t>(voxel_count, std::size_t{1} << 25);
+  return 4 * capacity * sizeof(ActiveVoxel);
+}
+
+namespace {
 
 void check_inputs(const Volume& volume, const Device& device, int width, int height, const CameraIntrinsics& camera,
                   const IntegrationOptions& options) {

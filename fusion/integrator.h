@@ -79,6 +79,12 @@ constexpr std::size_t kDepthBandStride = 127;
 constexpr double kDepthBandQuantile = 1e-3;
 std::pair<double, double> integration_depth_band(const Image32f& depth_m);
 
+// The GPU memory an Integrator allocates beside a volume of `voxel_count` voxels: GTSDF's
+// active-voxel lists (two parities, active_capacity entries each), their sorted copy and the
+// sort's temporary storage, taken as one more list (CUB's radix sort needs about that). 0 for
+// TSDF. For sizing a volume under a memory budget (ScanSessionOptions::max_gpu_bytes).
+std::size_t integration_gpu_bytes(const IntegrationOptions& options, std::size_t voxel_count);
+
 struct IntegrationStats {
   std::size_t active_voxels = 0;  // observed this frame with |A| < 1 (the sweeps' voxels)
   std::size_t overflow = 0;       // active voxels beyond the capacity (kept their average)

@@ -5,6 +5,7 @@
 #include <cub/device/device_radix_sort.cuh>
 
 #include "sdk/core/cuda/cuda_check.h"
+#include "sdk/core/device.h"
 
 namespace sls::fusion::detail {
 namespace {
@@ -56,20 +57,30 @@ void sort_active_cuda(ActiveVoxel* active, std::uint32_t count, void** scratch, 
   static_assert(sizeof(ActiveVoxel) == sizeof(unsigned long long), "ActiveVoxel packs into 64 bits");
   const auto* keys_in = reinterpret_cast<const unsigned long long*>(active);
   if (*sorted_capacity < count) {
-    if (*sorted != nullptr) SLS_CUDA_CHECK(cudaFree(*sorted));
+    if (*sorted != nullptr) {
+      SLS_CUDA_CHECK(cudaFree(*sorted));
+      note_gpu_allocation(-static_cast<std::ptrdiff_t>(*sorted_capacity * sizeof(ActiveVoxel)));
+    }
     *sorted = nullptr;
+    *sorted_capacity = 0;
     SLS_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(sorted), count * sizeof(ActiveVoxel)));
     *sorted_capacity = count;
+    note_gpu_allocation(static_cast<std::ptrdiff_t>(count * sizeof(ActiveVoxel)));
   }
   auto* keys_out = reinterpret_cast<unsigned long long*>(*sorted);
   std::size_t needed = 0;
   SLS_CUDA_CHECK(cub::DeviceRadixSort::SortKeys(nullptr, needed, keys_in, keys_out, static_cast<int>(count), 0, 32,
                                                 stream));
   if (*scratch_bytes < needed) {
-    if (*scratch != nullptr) SLS_CUDA_CHECK(cudaFree(*scratch));
+    if (*scratch != nullptr) {
+      SLS_CUDA_CHECK(cudaFree(*scratch));
+      note_gpu_allocation(-static_cast<std::ptrdiff_t>(*scratch_bytes));
+    }
     *scratch = nullptr;
+    *scratch_bytes = 0;
     SLS_CUDA_CHECK(cudaMalloc(scratch, needed));
     *scratch_bytes = needed;
+    note_gpu_allocation(static_cast<std::ptrdiff_t>(needed));
   }
   SLS_CUDA_CHECK(cub::DeviceRadixSort::SortKeys(*scratch, needed, keys_in, keys_out, static_cast<int>(count), 0, 32,
                                                 stream));

@@ -50,6 +50,8 @@ class ScanConfig:
         loop_closure: ``--loop-closure``: :class:`LoopClosureMode` or ``"caller"`` (default: the
             run leaves it to :meth:`Scan.close_loop`), ``"auto"`` (``sls scan``'s default: after a
             full turntable revolution) or ``"on"``.
+        max_gpu_bytes: ``--max-gpu-memory``: a budget in bytes for what the scan allocates on a
+            CUDA GPU (e.g. 6e9): the moving volume is sized to fit (default 0: none).
 
     A value out of range raises :class:`InvalidArgumentError` naming the field when the scan
     is made.
@@ -71,6 +73,7 @@ class ScanConfig:
     icp_crease_deg: Optional[float] = None
     icp_weights: Optional[Union[IcpWeights, str]] = None
     loop_closure: Optional[Union[LoopClosureMode, str]] = None
+    max_gpu_bytes: Optional[float] = None
 
 
 FIELD_NAMES = tuple(field.name for field in fields(ScanConfig))

@@ -148,7 +148,8 @@ class ScanConfigC(Structure):
                 ("online_deformation", c_int), ("calibration_path", c_char_p), ("gtsdf_lambda", c_double),
                 ("gtsdf_kappa", c_double), ("gtsdf_penalty", c_enum), ("gtsdf_iterations", c_int),
                 ("poses", c_enum), ("loop_frames", c_int), ("photometric_weight", c_double),
-                ("icp_crease_deg", c_double), ("icp_weights", c_enum), ("loop_closure", c_enum)]
+                ("icp_crease_deg", c_double), ("icp_weights", c_enum), ("loop_closure", c_enum),
+                ("max_gpu_bytes", c_double)]
 
 
 class FrameReportC(Structure):

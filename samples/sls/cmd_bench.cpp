@@ -37,6 +37,7 @@ struct BenchOptions {
   bool turntable_prior = false;
   std::string deformation = "on";
   std::string upload_ahead = "on";
+  double max_gpu_memory = 0.0;
   std::string device;
 };
 
@@ -72,6 +73,7 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
     session_options.voxel_size_m = 10.4e-6;
     session_options.volume_size_m = Eigen::Vector3d::Constant(960 * session_options.voxel_size_m * (1.0 - 1e-9));
   }
+  session_options.max_gpu_bytes = options.max_gpu_memory;
   session_options.turntable_prior = options.turntable_prior;
   session_options.deformation.enabled = options.deformation == "on";
   session::ScanSession session(rig.calibration(), patterns ? &rig.patterns : nullptr, session_options);
@@ -100,6 +102,10 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
   // until both are done.
   const bool upload_ahead = options.upload_ahead == "on" && session.uploads_ahead();
   session::ScanFrame next = render(0);
+  // What the GPU holds before the scan's first frame (the renderer, the decoder), and the most
+  // from here to the final model.
+  const GpuAllocations before_scan = gpu_allocations();
+  reset_gpu_allocation_peak();
   for (int k = 0; k < frames; ++k) {
     report_progress(progress, {"bench", static_cast<std::size_t>(k), static_cast<std::size_t>(frames), ""});
     const session::ScanFrame frame = std::move(next);
@@ -139,6 +145,7 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
   start = SteadyClock::now();
   const fusion::ExtractedSurface model = session.final_surface();
   const double extract_s = ms_since(start) * 1e-3;
+  const GpuAllocations scan_allocations = gpu_allocations();
 
   const auto stage = [](const std::vector<double>& ms) {
     return nlohmann::json{{"median_ms", quantile(ms, 0.5)}, {"total_s", sum(ms) * 1e-3}};
@@ -180,6 +187,9 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
     result["gpu"] = {{"name", cuda_device_name(device.id)},
                      {"memory_used_bytes", memory.used_bytes},
                      {"memory_total_bytes", memory.total_bytes},
+                     {"budget_bytes", options.max_gpu_memory},
+                     {"allocated_before_scan_bytes", before_scan.in_use_bytes},
+                     {"allocated_peak_bytes", scan_allocations.peak_bytes},
                      {"copy_bandwidth_gb_s", copy_bandwidth_gbps(device)}};
   }
   return result;
@@ -214,6 +224,12 @@ void print_bench(const nlohmann::json& r) {
                              static_cast<double>(r["gpu"]["memory_used_bytes"].get<std::size_t>()) / 1073741824.0,
                              static_cast<double>(r["gpu"]["memory_total_bytes"].get<std::size_t>()) / 1073741824.0,
                              r["gpu"]["copy_bandwidth_gb_s"].get<double>());
+    std::cout << fmt::format("slscan's GPU allocations: {:.2f} GB at most ({:.2f} GB before the first frame){}\n",
+                             static_cast<double>(r["gpu"]["allocated_peak_bytes"].get<std::size_t>()) * 1e-9,
+                             static_cast<double>(r["gpu"]["allocated_before_scan_bytes"].get<std::size_t>()) * 1e-9,
+                             r["gpu"]["budget_bytes"].get<double>() > 0.0
+                                 ? fmt::format(", budget {:.2f} GB", r["gpu"]["budget_bytes"].get<double>() * 1e-9)
+                                 : std::string());
   }
 }
 
@@ -248,6 +264,9 @@ void add_bench_command(CLI::App& app, Context& context, int* exit_code) {
                       "(off: each frame uploads its own)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
+  command->add_option("--max-gpu-memory", options->max_gpu_memory,
+                      "GPU memory budget in bytes (e.g. 6e9), as sls scan --max-gpu-memory (0: none)")
+      ->check(CLI::NonNegativeNumber);
   command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present, else cpu)");
   command->callback([&context, exit_code, options] {
     run_command(context, "bench", [&context, options] {

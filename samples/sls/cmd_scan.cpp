@@ -103,6 +103,7 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
     session_options.voxel_size_m = options.voxel_um * 1e-6;
     session_options.max_voxels =
         options.max_voxels_million > 0.0 ? options.max_voxels_million * 1e6 : session::automatic_max_voxels(device);
+    session_options.max_gpu_bytes = options.max_gpu_memory;
     session_options.turntable_prior = options.turntable_prior;
     session_options.tracking.photometric_weight = options.photometric_weight;
     session_options.tracking.weight_by_confidence = options.icp_weights == "confidence";
@@ -640,6 +641,11 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                       "Largest volume (one buffer of a moving volume) in millions of voxels for the automatic voxel "
                       "size (0: 256 on a GPU, 48 on the CPU)")
       ->check(finite_range(0.0, 1e6));
+  command->add_option("--max-gpu-memory", options->max_gpu_memory,
+                      "GPU memory budget in bytes (e.g. 6e9 on an 8 GB Jetson): the moving volume is sized to fit "
+                      "beside the frames' buffers (an automatic voxel size grows, a given one keeps its size and the "
+                      "volume shrinks); 0: none")
+      ->check(finite_range(0.0, 1e15));
   command->callback([&context, exit_code, options, command] {
     if (!options->input.empty() && options->frames > 0) {
       throw CLI::ValidationError("--frames", "not with --input: a recording's frames are all scanned");

@@ -35,6 +35,7 @@ struct ScanOptions {
   std::string poses = "track";
   double voxel_um = 0.0;          // 0: twice the camera's pixel footprint, grown to fit max_voxels
   double max_voxels_million = 0;  // 0: 256 on a GPU, 48 on the CPU
+  double max_gpu_memory = 0;      // bytes of GPU memory the scan may allocate (0: no budget)
   bool turntable_prior = false;   // --poses track: the recording's turntable angles as the pose guess
   double photometric_weight = 0;  // --poses track: the tracker's photometric term (0: off)
   std::string icp_weights = "confidence";  // --poses track: ICP's per-pixel weights

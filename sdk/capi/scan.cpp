@@ -56,6 +56,11 @@ sls_scan_config scan_config_defaults() {
   return config;
 }
 
+// A field appended after loop_closure starts past that struct, padding included.
+static_assert(offsetof(sls_scan_config, max_gpu_bytes) >=
+                  sls::capi::size_ending_at<sls_scan_config>(offsetof(sls_scan_config, loop_closure) +
+                                                             sizeof(sls_loop_closure_mode)),
+              "max_gpu_bytes lies in the padding of the struct that ended with loop_closure");
 // An API 0.5 field starts past the 0.4 struct, padding included (versioned_struct.h).
 static_assert(offsetof(sls_scan_config, calibration_path) >= SLS_CAPI_SIZE_0_4(sls_scan_config, online_deformation),
               "a field appended in 0.5 lies in the 0.4 struct's padding");
@@ -137,6 +142,8 @@ sls::session::ScanSessionOptions session_options(const sls_scan_config& config, 
                      config.max_voxels);
   }
   options.max_voxels = config.max_voxels > 0.0 ? config.max_voxels : sls::session::automatic_max_voxels(device);
+  check_range(config.max_gpu_bytes, 1.0, 1e15, "max_gpu_bytes", "none");
+  options.max_gpu_bytes = config.max_gpu_bytes;
   options.deformation.enabled = config.online_deformation != 0;
   check_range(config.loop_frames, 1, 64, "loop_frames");
   options.deformation.loop_frames = config.loop_frames;

@@ -1,6 +1,7 @@
 #include "sdk/core/device.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <vector>
 
@@ -90,6 +91,26 @@ void require_gpu(const Device& device, const char* what) {
 }
 
 }  // namespace
+
+namespace {
+std::atomic<std::size_t> gpu_in_use_bytes{0};
+std::atomic<std::size_t> gpu_peak_bytes{0};
+}  // namespace
+
+GpuAllocations gpu_allocations() { return {gpu_in_use_bytes.load(), gpu_peak_bytes.load()}; }
+
+void reset_gpu_allocation_peak() { gpu_peak_bytes.store(gpu_in_use_bytes.load()); }
+
+void note_gpu_allocation(std::ptrdiff_t bytes) {
+  if (bytes < 0) {
+    gpu_in_use_bytes.fetch_sub(static_cast<std::size_t>(-bytes));
+    return;
+  }
+  const std::size_t now = gpu_in_use_bytes.fetch_add(static_cast<std::size_t>(bytes)) + static_cast<std::size_t>(bytes);
+  std::size_t peak = gpu_peak_bytes.load();
+  while (now > peak && !gpu_peak_bytes.compare_exchange_weak(peak, now)) {
+  }
+}
 
 GpuMemory gpu_memory(const Device& device) {
   require_gpu(device, "GPU memory");

@@ -40,6 +40,19 @@ std::string cuda_device_name(int id);
 // device error when the ordinal has no GPU behind it. Selects the device for this thread.
 void require_device(const Device& device);
 
+// What slscan's own allocations hold on the GPUs of this process (DeviceBuffer, the
+// integrator's sort buffers), in bytes: now, and the most at once since the process started or
+// reset_gpu_allocation_peak(). The CUDA context, the driver's and CUB's temporary storage, and
+// other processes are not in it (gpu_memory() sees them). Thread-safe.
+struct GpuAllocations {
+  std::size_t in_use_bytes = 0;
+  std::size_t peak_bytes = 0;
+};
+GpuAllocations gpu_allocations();
+void reset_gpu_allocation_peak();
+// The bookkeeping behind it: an allocation (bytes > 0) or a release (bytes < 0).
+void note_gpu_allocation(std::ptrdiff_t bytes);
+
 // A GPU's memory (cudaMemGetInfo: every process's use), in bytes.
 struct GpuMemory {
   std::size_t used_bytes = 0;

@@ -96,6 +96,24 @@ StageTimes& StageTimes::operator+=(const StageTimes& other) {
   return *this;
 }
 
+double gpu_budget_voxels(const ScanSessionOptions& options, double held_bytes, double later_bytes) {
+  if (!(options.max_gpu_bytes > 0.0) || !options.device.is_cuda()) return std::numeric_limits<double>::infinity();
+  const double room = options.max_gpu_bytes - held_bytes - later_bytes;
+  const double per_voxel =
+      2.0 * static_cast<double>(fusion::bytes_per_voxel(options.voxel_format, options.integration.average_storage()));
+  const auto needed = [&](double voxels) {
+    return per_voxel * voxels +
+           static_cast<double>(fusion::integration_gpu_bytes(options.integration, static_cast<std::size_t>(voxels)));
+  };
+  // The most voxels whose needs fit the room (both terms grow with the voxels): bisection.
+  double low = 0.0, high = std::max(room, 0.0) / per_voxel;
+  for (int i = 0; i < 64 && high - low > 1.0; ++i) {
+    const double middle = 0.5 * (low + high);
+    (needed(middle) <= room ? low : high) = middle;
+  }
+  return std::floor(low);
+}
+
 void ScanSessionOptions::validate() const {
   if (!fixed_volume) {
     if (!(volume_size_m.array() >= 0.0).all() || !volume_size_m.allFinite()) {
@@ -106,6 +124,9 @@ void ScanSessionOptions::validate() const {
       throw_error(ErrorCode::kInvalidArgument, "scan voxel size {} m (0 or positive)", voxel_size_m);
     }
     if (!(max_voxels >= 8.0)) throw_error(ErrorCode::kInvalidArgument, "max_voxels {} (at least 8)", max_voxels);
+    if (!(max_gpu_bytes >= 0.0) || !std::isfinite(max_gpu_bytes)) {
+      throw_error(ErrorCode::kInvalidArgument, "GPU memory budget {} bytes (0: none, or positive)", max_gpu_bytes);
+    }
     fusion::MovingVolumeOptions checked = moving;
     if (!(checked.focus_distance_m > 0.0)) checked.focus_distance_m = 0.1;  // filled from the first frame
     checked.validate();

@@ -42,6 +42,14 @@
 
 namespace sls::session {
 
+// What a CUDA session allocates on the GPU after its moving volume is placed, per camera pixel
+// (tracker pyramids, raycasts, the deformation's reference and last frame, the next stack's
+// upload slot, a move's shipping), beside the volume and the integrator's lists
+// (fusion::integration_gpu_bytes), for sizing the volume under ScanSessionOptions::max_gpu_bytes.
+// An upper bound of what was measured at the paper's size (docs/benchmarks.md, "A GPU memory
+// budget").
+constexpr double kGpuBytesPerPixelAfterPlacement = 96.0;
+
 struct ScanSessionOptions {
   Device device = Device::cpu();
   fusion::IntegrationOptions integration = fusion::IntegrationOptions::gtsdf();
@@ -54,6 +62,15 @@ struct ScanSessionOptions {
   Eigen::Vector3d volume_size_m = Eigen::Vector3d::Zero();
   double voxel_size_m = 0.0;
   double max_voxels = 64e6;
+  // A GPU memory budget in bytes for what slscan allocates on the GPU (gpu_allocations(); 0:
+  // none), e.g. 6e9 for an 8 GB Jetson Orin beside its OS. A CUDA session sizes its moving
+  // volume at the first fused frame so that both buffers fit beside what is already allocated
+  // and the buffers still to come (kGpuBytesPerPixelAfterPlacement per camera pixel, the
+  // integrator's lists):
+  // an automatic voxel size grows, a given one keeps its size and the volume's extent shrinks.
+  // Under 64 voxels a side, the first add_frame() throws sls::Error(kOutOfMemory) saying what
+  // the budget leaves room for. A fixed volume is not sized by it. Ignored on the CPU.
+  double max_gpu_bytes = 0.0;
   fusion::MovingVolumeOptions moving;  // focus_distance_m <= 0: the first frame's median depth
   // Instead, one fixed volume (e.g. around a known object for ground-truth poses): no moves.
   std::optional<fusion::VolumeGeometry> fixed_volume;
@@ -72,6 +89,12 @@ struct ScanSessionOptions {
   // Throws sls::Error(kInvalidArgument) naming the bad value.
   void validate() const;
 };
+
+// The voxels of one moving-volume buffer that options.max_gpu_bytes leaves room for: both
+// buffers and the integrator's lists for them (fusion::integration_gpu_bytes), beside
+// `held_bytes` already allocated and `later_bytes` still to come. Infinity without a budget or
+// on the CPU.
+double gpu_budget_voxels(const ScanSessionOptions& options, double held_bytes, double later_bytes);
 
 // One frame in: a pattern stack to decode, or a depth map; what the source knows about it.
 struct ScanFrame {

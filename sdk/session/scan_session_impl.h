@@ -5,10 +5,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <optional>
+#include <string>
 #include <utility>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "sdk/session/scan_session.h"
 
@@ -50,6 +54,7 @@ struct ScanSession::Impl {
   // Online deformation (scan_deformation.h): made with the moving volume.
   std::unique_ptr<ScanDeformation> deformation;
   double focus_distance_m = 0.0;           // the moving volume's (a pose's focus point)
+  bool gpu_budget_shrank_volume = false;   // max_gpu_bytes made the volume's extent smaller
   // Where each shipped part ends in the moving volume's shipped cloud and mesh, and the last
   // frame it was observed in (the frame before the move): what the map deformation binds by.
   struct ShippedPart {
@@ -169,6 +174,16 @@ struct ScanSession::Impl {
     return std::pair{(expected.inverse() * tracked).angle_rad() * 180.0 / M_PI, step_deg};
   }
 
+  // What a CUDA session still allocates after placing its volume (kGpuBytesPerPixelAfterPlacement).
+  double gpu_bytes_after_placement() const {
+    return kGpuBytesPerPixelAfterPlacement * static_cast<double>(calibration.camera.width) *
+           static_cast<double>(calibration.camera.height);
+  }
+  double gpu_budget_voxels() const {
+    return session::gpu_budget_voxels(options, static_cast<double>(gpu_allocations().in_use_bytes),
+                                      gpu_bytes_after_placement());
+  }
+
   void place_volume(const Pose& T_world_camera, const Image32f& depth_m) {
     if (options.fixed_volume) {
       if (!fixed) {
@@ -187,12 +202,34 @@ struct ScanSession::Impl {
       size = Eigen::Vector3d(width, height, 0.5 * width);
     }
     double voxel = options.voxel_size_m;
+    const double budget_voxels = gpu_budget_voxels();
+    const auto refuse = [&](const std::string& volume) {
+      throw_error(ErrorCode::kOutOfMemory,
+                  "a GPU memory budget of {:.2f} GB leaves room for {:.1f} million voxels a buffer ({:.2f} GB held "
+                  "already, {:.2f} GB kept for the frames' buffers, two buffers of {} bytes a voxel){}, under the 64 "
+                  "a side a scan needs; raise the budget or the voxel size",
+                  options.max_gpu_bytes * 1e-9, budget_voxels * 1e-6,
+                  static_cast<double>(gpu_allocations().in_use_bytes) * 1e-9, gpu_bytes_after_placement() * 1e-9,
+                  fusion::bytes_per_voxel(options.voxel_format, options.integration.average_storage()), volume);
+    };
+    if (budget_voxels < 64.0 * 64.0 * 64.0) refuse("");
     if (!(voxel > 0.0)) {
       voxel = 2.0 * focus / camera.fx;
       const double voxels = (size / voxel).prod();
-      if (voxels > options.max_voxels) voxel *= std::cbrt(voxels / options.max_voxels) * 1.001;
+      const double most = std::min(options.max_voxels, budget_voxels);
+      if (voxels > most) voxel *= std::cbrt(voxels / most) * 1.001;
     }
-    const Eigen::Vector3i counts = (size / voxel).array().ceil().cast<int>().cwiseMax(2);
+    Eigen::Vector3i counts = (size / voxel).array().ceil().cast<int>().cwiseMax(2);
+    if (counts.cast<double>().prod() > budget_voxels) {
+      // A given voxel size keeps its size under the budget: the extent shrinks.
+      const double scale = std::cbrt(budget_voxels / counts.cast<double>().prod());
+      counts = (counts.cast<double>() * scale).array().floor().cast<int>();
+      gpu_budget_shrank_volume = true;
+      if (counts.minCoeff() < 64) {
+        refuse(fmt::format(": a volume of {}x{}x{} voxels of {:.1f} um", counts.x(), counts.y(), counts.z(),
+                           voxel * 1e6));
+      }
+    }
     moving.emplace(counts.x(), counts.y(), counts.z(), voxel, options.voxel_format, options.device, moving_options,
                    options.integration.average_storage());
     moving->place(T_world_camera);

@@ -181,6 +181,7 @@ TEST_F(CScanConfig, DefaultsAreSlsScans) {
   EXPECT_FALSE(options.turntable_prior);
   EXPECT_EQ(options.voxel_size_m, 0.0);
   EXPECT_EQ(options.max_voxels, 48e6);  // a CPU context
+  EXPECT_EQ(options.max_gpu_bytes, 0.0);  // no budget
   EXPECT_TRUE(options.deformation.enabled);
   EXPECT_EQ(options.deformation.loop_frames, session::DeformationOptions().loop_frames);
   EXPECT_EQ(options.tracking.photometric_weight, 0.0);
@@ -211,8 +212,10 @@ TEST_F(CScanConfig, EveryFieldReachesTheSession) {
   config.icp_crease_deg = 30.0;
   config.icp_weights = SLS_ICP_WEIGHTS_EQUAL;
   config.loop_closure = SLS_LOOP_CLOSURE_AUTO;
+  config.max_gpu_bytes = 6e9;
   const ScanPtr scan = create(config);
   const session::ScanSessionOptions& options = scan->options;
+  EXPECT_EQ(options.max_gpu_bytes, 6e9);
   EXPECT_EQ(options.integration.lambda, 2.5);
   EXPECT_EQ(options.integration.kappa, 0.07);
   EXPECT_EQ(options.integration.penalty, fusion::Penalty::kCharbonnier);
@@ -265,6 +268,8 @@ TEST_F(CScanConfig, BadValuesAreRefusedNamingTheField) {
       {"config.icp_crease_deg", [](sls_scan_config& c) { c.icp_crease_deg = 180.0; }},
       {"config.icp_weights", [](sls_scan_config& c) { store_int(c.icp_weights, 2); }},
       {"config.loop_closure", [](sls_scan_config& c) { store_int(c.loop_closure, 3); }},
+      {"config.max_gpu_bytes", [](sls_scan_config& c) { c.max_gpu_bytes = -1.0; }},
+      {"config.max_gpu_bytes", [](sls_scan_config& c) { c.max_gpu_bytes = INFINITY; }},
       {"no-such-calibration.yml",
        [](sls_scan_config& c) { c.calibration_path = "no-such-calibration.yml"; }, SLS_ERROR_NOT_FOUND},
   };

@@ -162,12 +162,12 @@ def test_every_config_field_round_trips(context: slscan.Context, recording: path
         max_voxels=0.0, online_deformation=True, calibration_path=None, gtsdf_lambda=0.0, gtsdf_kappa=0.0,
         gtsdf_penalty=slscan.GtsdfPenalty.DEFAULT, gtsdf_iterations=0, poses=slscan.PoseSource.TRACK, loop_frames=2,
         photometric_weight=0.0, icp_crease_deg=15.0, icp_weights=slscan.IcpWeights.CONFIDENCE,
-        loop_closure=slscan.LoopClosureMode.CALLER)
+        loop_closure=slscan.LoopClosureMode.CALLER, max_gpu_bytes=0.0)
     given = dict(fusion="gtsdf", use_turntable_prior=True, voxel_size_m=2e-4, volume_size_m=(0.03, 0.04, 0.05),
                  max_voxels=2e6, online_deformation=False, calibration_path=str(recording / "calibration.yml"),
                  gtsdf_lambda=2.5, gtsdf_kappa=0.07, gtsdf_penalty="charbonnier", gtsdf_iterations=5,
                  poses="groundtruth", loop_frames=4, photometric_weight=0.5, icp_crease_deg=30.0,
-                 icp_weights="equal", loop_closure="auto")
+                 icp_weights="equal", loop_closure="auto", max_gpu_bytes=6e9)
     assert set(given) == {field.name for field in dataclasses.fields(slscan.ScanConfig)}
     expected = dict(given, fusion=slscan.FusionMethod.GTSDF, gtsdf_penalty=slscan.GtsdfPenalty.CHARBONNIER,
                     poses=slscan.PoseSource.GROUNDTRUTH, icp_weights=slscan.IcpWeights.EQUAL,
@@ -180,7 +180,7 @@ def test_every_config_field_round_trips(context: slscan.Context, recording: path
 
 def test_bad_config_values_name_the_field(context: slscan.Context):
     for field, value in (("gtsdf_lambda", 1e4), ("gtsdf_kappa", -1.0), ("gtsdf_iterations", 101), ("loop_frames", 0),
-                         ("photometric_weight", -1.0), ("icp_crease_deg", 180.0)):
+                         ("photometric_weight", -1.0), ("icp_crease_deg", 180.0), ("max_gpu_bytes", -1.0)):
         with pytest.raises(slscan.InvalidArgumentError, match=f"config.{field}"):
             slscan.Scan(context, **{field: value})
     with pytest.raises(slscan.InvalidArgumentError, match="need SLS_FUSION_GTSDF"):

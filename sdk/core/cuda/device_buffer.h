@@ -9,6 +9,7 @@
 #include <cuda_runtime_api.h>
 
 #include "sdk/core/cuda/cuda_check.h"
+#include "sdk/core/device.h"
 
 namespace sls {
 
@@ -47,10 +48,14 @@ class DeviceBuffer {
     }
     data_ = static_cast<T*>(pointer);
     count_ = count;
+    note_gpu_allocation(static_cast<std::ptrdiff_t>(count * sizeof(T)));
   }
 
   void release() {
-    if (data_ != nullptr) (void)cudaFree(data_);
+    if (data_ != nullptr) {
+      (void)cudaFree(data_);
+      note_gpu_allocation(-static_cast<std::ptrdiff_t>(count_ * sizeof(T)));
+    }
     data_ = nullptr;
     count_ = 0;
   }

@@ -127,6 +127,7 @@ typedef enum sls_loop_closure_mode {
  *   --loop-frames                loop_frames
  *   --voxel-um U                 voxel_size_m = U * 1e-6
  *   --max-voxels M               max_voxels = M * 1e6
+ *   --max-gpu-memory B           max_gpu_bytes = B
  *   --out, --resume, and the global --json, -q, -v: the tool's own (its output folder, its
  *   recovery of a cut-off capture, its printing); the library writes what the caller asks
  *   (sls_scan_write_*, sls_results.h) and logs through sls_log.h.
@@ -186,6 +187,14 @@ typedef struct sls_scan_config {
                                  * A closure a run makes and that fails (no loop to close) is
                                  * logged as a warning, the run still SLS_OK: the summary's
                                  * loop_closed says whether it closed */
+  double max_gpu_bytes;         /* --max-gpu-memory: a budget in bytes for what the scan allocates
+                                 * on a CUDA GPU, e.g. 6e9 on an 8 GB Jetson Orin. The moving
+                                 * volume is sized at the first fused frame to fit beside the
+                                 * frames' buffers: an automatic voxel size grows, a given
+                                 * voxel_size_m keeps its size and the volume's extent shrinks.
+                                 * Under 64 voxels a side the run fails with
+                                 * SLS_ERROR_OUT_OF_MEMORY saying what the budget leaves room for.
+                                 * 0 .. 1e15; default 0: none. Not used on the CPU */
 } sls_scan_config;
 
 /* Fills *config with the defaults. */

@@ -381,5 +381,31 @@ TEST(ScanSession, OptionsAreChecked) {
   EXPECT_NO_THROW(ScanSession(sim.calibration(), nullptr, options));
 }
 
+// What a GPU memory budget leaves room for (sizing the moving volume under max_gpu_bytes): two
+// buffers of compact GTSDF voxels (5 bytes each: U, W and the running average) and the
+// integrator's lists, 32 bytes a voxel up to 2^25 voxels, then no more.
+TEST(GpuBudget, LeavesRoomForBothBuffersAndTheIntegratorsLists) {
+  ScanSessionOptions options;
+  options.device = Device::cuda();
+  EXPECT_TRUE(std::isinf(gpu_budget_voxels(options, 0.0, 0.0)));  // no budget
+  options.max_gpu_bytes = 1e9;
+  // 1 GB less 100 MB held and 100 MB to come: 800 MB for 10 + 32 bytes a voxel.
+  EXPECT_NEAR(gpu_budget_voxels(options, 100e6, 100e6), 800e6 / 42.0, 1.0);
+  // Past 2^25 voxels the lists stop growing.
+  options.max_gpu_bytes = 20e9;
+  const double lists = 32.0 * static_cast<double>(std::size_t{1} << 25);
+  EXPECT_NEAR(gpu_budget_voxels(options, 1e9, 1e9), (18e9 - lists) / 10.0, 1.0);
+  // TSDF keeps no lists and no separate average: 3 bytes a voxel, two buffers.
+  options.integration = fusion::IntegrationOptions::tsdf();
+  EXPECT_NEAR(gpu_budget_voxels(options, 1e9, 1e9), 18e9 / 6.0, 1.0);
+  // Nothing left: no voxels. On the CPU the budget does not apply.
+  EXPECT_EQ(gpu_budget_voxels(options, 19e9, 2e9), 0.0);
+  options.device = Device::cpu();
+  EXPECT_TRUE(std::isinf(gpu_budget_voxels(options, 19e9, 2e9)));
+  // A budget must be 0 (none) or positive and finite.
+  options.max_gpu_bytes = -1.0;
+  EXPECT_THROW(options.validate(), Error);
+}
+
 }  // namespace
 }  // namespace sls::session

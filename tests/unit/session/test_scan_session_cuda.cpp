@@ -168,6 +168,57 @@ TEST(ScanSessionCuda, UploadsAheadThroughThePipelineGiveTheSequentialRun) {
   EXPECT_FALSE(cpu.prefetch(frames[0]));
 }
 
+// A GPU memory budget (ScanSessionOptions::max_gpu_bytes) sizes the moving volume: a given voxel
+// size is kept and the extent shrinks, so that everything slscan allocates stays within it; a
+// budget with no room for 64 voxels a side is refused at the first frame, saying so.
+TEST(ScanSessionCuda, AGpuMemoryBudgetSizesTheVolumeToFit) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  SimFrames sim("knurled-knob", 360);
+  std::vector<ScanFrame> frames;
+  for (int k = 0; k < 4; ++k) frames.push_back(sim.frame(k));
+  ScanSessionOptions options = small_options(Device::cuda());
+  options.voxel_size_m = 30e-6;
+  options.volume_size_m = Eigen::Vector3d(0.012, 0.009, 0.006);  // 400 x 300 x 200 voxels
+  const auto run = [&frames](const ScanSessionOptions& o, const ScannerCalibration& calibration) {
+    ScanSession session(calibration, nullptr, o);
+    for (const ScanFrame& frame : frames) EXPECT_EQ(session.add_frame(frame).status, FrameStatus::kFused);
+    return std::make_pair(session.volume_bytes(), session.volume_geometry());
+  };
+  const std::size_t held = gpu_allocations().in_use_bytes;
+  reset_gpu_allocation_peak();
+  const auto [free_bytes, free_geometry] = run(options, sim.calibration());
+  const std::size_t free_peak = gpu_allocations().peak_bytes;
+  ASSERT_EQ(free_geometry.nx, 400);
+
+  // Half the volume's memory taken from what the unconstrained scan allocated at most.
+  options.max_gpu_bytes = static_cast<double>(free_peak - free_bytes / 2);
+  reset_gpu_allocation_peak();
+  const auto [budget_bytes, budget_geometry] = run(options, sim.calibration());
+  const std::size_t budget_peak = gpu_allocations().peak_bytes;
+  std::printf("[ measured ] held before %.1f MB; unconstrained: volume %.1f MB, peak %.1f MB; budget %.1f MB: "
+              "volume %.1f MB (%dx%dx%d), peak %.1f MB\n",
+              static_cast<double>(held) * 1e-6, static_cast<double>(free_bytes) * 1e-6,
+              static_cast<double>(free_peak) * 1e-6, options.max_gpu_bytes * 1e-6,
+              static_cast<double>(budget_bytes) * 1e-6, budget_geometry.nx, budget_geometry.ny, budget_geometry.nz,
+              static_cast<double>(budget_peak) * 1e-6);
+  EXPECT_EQ(budget_geometry.voxel_size_m, 30e-6);
+  EXPECT_LT(budget_geometry.nx, 400);
+  EXPECT_LT(budget_bytes, free_bytes);
+  EXPECT_GT(budget_bytes, free_bytes / 10);  // not shrunk beyond need
+  EXPECT_LE(static_cast<double>(budget_peak), options.max_gpu_bytes);
+
+  options.max_gpu_bytes = static_cast<double>(held) + 1e6;
+  ScanSession starved(sim.calibration(), nullptr, options);
+  try {
+    starved.add_frame(frames[0]);
+    ADD_FAILURE() << "a scan with no room for its volume started";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kOutOfMemory) << e.what();
+    EXPECT_NE(std::string(e.what()).find("GPU memory budget of"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("64 a side"), std::string::npos) << e.what();
+  }
+}
+
 // Online deformation and the loop closure on a CUDA session (the last frame kept on the GPU,
 // the first frame's surface raycast by a raycaster of its own, the registration on device
 // maps) against the CPU session: a turntable revolution of the knob at the ci preset.
