@@ -339,16 +339,19 @@ void CudaDecodeContext::upload_into(int slot, const std::uint16_t* const* planes
   SLS_CUDA_CHECK(cudaEventRecord(s.uploaded[slot], s.copy_stream));
 }
 
-void CudaDecodeContext::decode_slot(int slot) {
+void CudaDecodeContext::require_uploaded(int slot, const char* caller) {
   State& s = *state_;
   bool uploaded = false;
   if (slot >= 0 && slot <= 1) {
     std::lock_guard<std::mutex> lock(s.slot_mutex);
     uploaded = s.slot_state[slot] == State::Slot::kUploaded && s.slots[slot].size() > 0;
   }
-  if (!uploaded) {
-    throw_error(ErrorCode::kInvalidArgument, "decode_slot({}): no stack was uploaded to that slot", slot);
-  }
+  if (!uploaded) throw_error(ErrorCode::kInvalidArgument, "{}({}): no stack was uploaded to that slot", caller, slot);
+}
+
+void CudaDecodeContext::decode_slot(int slot) {
+  State& s = *state_;
+  require_uploaded(slot, "decode_slot");
   SLS_CUDA_CHECK(cudaStreamWaitEvent(s.stream, s.uploaded[slot], 0));
   decode_resident(s.slots[slot].data(), s.pixels, s.stream);
   SLS_CUDA_CHECK(cudaEventRecord(s.consumed[slot], s.stream));
@@ -369,14 +372,7 @@ __global__ void set_int_kernel(int* target, int value) { *target = value; }
 
 void CudaDecodeContext::gather_check_async(int slot, const StackCheckGrid& grid, int white_index, int black_index) {
   State& s = *state_;
-  bool uploaded = false;
-  if (slot >= 0 && slot <= 1) {
-    std::lock_guard<std::mutex> lock(s.slot_mutex);
-    uploaded = s.slot_state[slot] == State::Slot::kUploaded && s.slots[slot].size() > 0;
-  }
-  if (!uploaded) {
-    throw_error(ErrorCode::kInvalidArgument, "gather_check_async({}): no stack was uploaded to that slot", slot);
-  }
+  require_uploaded(slot, "gather_check_async");
   const int images = s.decode.layout.pattern_count;
   const std::size_t samples = static_cast<std::size_t>(images) * grid.count();
   const std::size_t bytes = sizeof(int) + samples * sizeof(std::uint16_t);

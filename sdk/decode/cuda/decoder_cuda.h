@@ -117,6 +117,7 @@ class CudaDecodeContext {
  private:
   int claim_slot(bool prefetch, const std::uint16_t* const* planes);
   void release_slot(int slot);
+  void require_uploaded(int slot, const char* caller);  // throws unless the slot holds an uploaded stack
   void upload_into(int slot, const std::uint16_t* const* planes);
 
   struct State;
