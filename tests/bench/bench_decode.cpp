@@ -34,8 +34,12 @@ struct Stack {
 
 // The families of BM_DecodeFamily* (arg = index): slscan's own (the preset's set), then the
 // shipped descriptions.
-const char* const kFamilies[] = {"", "heterodyne_3freq.json", "micro_phase_shifting.json",
-                                 "complementary_gray_phase_shift.json", "multi_period_gray_phase_shift.json"};
+const char* const kFamilies[] = {"",
+                                 "heterodyne_3freq.json",
+                                 "micro_phase_shifting.json",
+                                 "complementary_gray_phase_shift.json",
+                                 "multi_period_gray_phase_shift.json",
+                                 "opencv_graycode_1024x768.json"};
 constexpr int kFamilyCount = static_cast<int>(sizeof(kFamilies) / sizeof(kFamilies[0]));
 
 // Rendered once per process and family (on the GPU when there is one: 22 images in well under
