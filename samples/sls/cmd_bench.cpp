@@ -266,7 +266,7 @@ void add_bench_command(CLI::App& app, Context& context, int* exit_code) {
       ->capture_default_str();
   command->add_option("--max-gpu-memory", options->max_gpu_memory,
                       "GPU memory budget in bytes (e.g. 6e9), as sls scan --max-gpu-memory (0: none)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(finite_range(0.0, 1e15));
   command->add_option("--device", options->device, "cpu, cuda or cuda:N (default: cuda when a GPU is present, else cpu)");
   command->callback([&context, exit_code, options] {
     run_command(context, "bench", [&context, options] {

@@ -63,7 +63,8 @@ class SlsCli(unittest.TestCase):
         # before any work.
         out = str(self.dir / "never")
         for args in (("--voxel-um", "1e-20"), ("--voxel-um", "1e9"), ("--voxel-um", "nan"),
-                     ("--max-voxels", "nan"), ("--max-voxels", "inf"), ("--max-voxels", "-1")):
+                     ("--max-voxels", "nan"), ("--max-voxels", "inf"), ("--max-voxels", "-1"),
+                     ("--max-gpu-memory", "-1"), ("--max-gpu-memory", "nan"), ("--max-gpu-memory", "inf")):
             result = run("scan", "--sim", "ci", *args, "--out", out)
             self.assertEqual(result.returncode, 2, args)
             self.assertIn(args[0], result.stderr)
@@ -84,7 +85,9 @@ class SlsCli(unittest.TestCase):
         # loop closure and the final model, with every stage's median and total beside them.
         for extra in (("--input", "depth", "--deformation", "off"),
                       ("--frames", "3", "--turntable-prior", "--upload-ahead", "off")):
-            args = ("--json", "bench", "--preset", "ci", "--object", "knurled-knob", "--device", "cpu")
+            # A GPU memory budget does not apply on the CPU: accepted, and the run is the same.
+            args = ("--json", "bench", "--preset", "ci", "--object", "knurled-knob", "--device", "cpu",
+                    "--max-gpu-memory", "6e9")
             if "--frames" not in extra:
                 args += ("--frames", "4")
             result = run(*args, *extra)
@@ -109,6 +112,7 @@ class SlsCli(unittest.TestCase):
         self.assertIn("end to end", human.stdout)
         self.assertEqual(run("bench", "--preset", "huge").returncode, 2)
         self.assertEqual(run("bench", "--upload-ahead", "maybe").returncode, 2)
+        self.assertEqual(run("bench", "--max-gpu-memory", "-1").returncode, 2)
 
     def test_devices_lists_the_simulator_with_an_openable_uri(self):
         # --json before or after the command.
