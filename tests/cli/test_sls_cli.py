@@ -104,12 +104,38 @@ class SlsCli(unittest.TestCase):
             self.assertLessEqual(bench["frame_ms"]["median"], bench["frame_ms"]["max"])
             self.assertNotIn("gpu", bench)
             self.assertFalse(bench["upload_ahead"])  # on the CPU there is nothing to upload
+            # The model's accuracy against the exact scene, measured after the timed part (JSON
+            # has no NaN or infinity: a figure that could not be measured is null).
+            accuracy = bench["accuracy"]
+            self.assertGreater(bench["evaluate_s"], 0.0)
+            self.assertEqual(accuracy["points"], bench["points"])
+            self.assertEqual(accuracy["evaluated_points"], bench["points"])  # all of them at this size
+            self.assertAlmostEqual(accuracy["edge_band_um"], 3 * bench["volume"]["voxel_size_m"] * 1e6, places=6)
+            for key in ("c2c_mean_um", "c2c_rms_um", "c2c_p95_um", "c2c_edge_mean_um"):  # the knob has creases
+                self.assertTrue(isinstance(accuracy[key], (int, float)), (key, accuracy))
+            self.assertGreater(accuracy["c2c_mean_um"], 0.0)
+            self.assertLess(accuracy["c2c_mean_um"], 1000.0)  # below 1 mm: the model is in the object frame
+            self.assertLessEqual(accuracy["c2c_mean_um"], accuracy["c2c_rms_um"])
+            for key in ("ate_rmse_um", "ate_max_um", "loop_closure_error_um", "loop_closure_error_deg"):
+                self.assertIn(key, accuracy)
+            if bench["frames_fused"] >= 2:
+                for key in ("ate_rmse_um", "ate_max_um", "loop_closure_error_um", "loop_closure_error_deg"):
+                    self.assertTrue(isinstance(accuracy[key], (int, float)) and accuracy[key] >= 0.0, (key, accuracy))
+                self.assertLessEqual(accuracy["ate_rmse_um"], accuracy["ate_max_um"])
+                self.assertLess(accuracy["loop_closure_error_um"], 1000.0)
+                self.assertLess(accuracy["loop_closure_error_deg"], 1.0)
+            else:  # one fused frame: no trajectory to measure, and the JSON says why
+                self.assertIsNone(accuracy["ate_rmse_um"])
+                self.assertIn("trajectory_note", accuracy)
+        self.assertGreaterEqual(bench["frames_fused"], 2)  # with the turntable prior: a trajectory measured
+        self.assertIsNotNone(accuracy["loop_closure_error_um"])
         self.assertEqual(bench["images_per_frame"], 22)
         self.assertGreater(bench["stages"]["decode"]["total_s"], 0.0)  # the stacks decoded in the timed part
         self.assertIsNotNone(bench["loop_closure"])
         human = run("bench", "--preset", "ci", "--frames", "2", "--input", "depth", "--device", "cpu")
         self.assertEqual(human.returncode, 0, human.stderr)
         self.assertIn("end to end", human.stdout)
+        self.assertIn("accuracy against the exact scene", human.stdout)
         self.assertEqual(run("bench", "--preset", "huge").returncode, 2)
         self.assertEqual(run("bench", "--upload-ahead", "maybe").returncode, 2)
         self.assertEqual(run("bench", "--max-gpu-memory", "-1").returncode, 2)
