@@ -4,6 +4,11 @@ set(SLS_CXX_WARNINGS -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor
     -Wold-style-cast -Wcast-align -Woverloaded-virtual -Wconversion -Wsign-conversion
     -Wnull-dereference -Wdouble-promotion -Wformat=2 -Wimplicit-fallthrough)
 set(SLS_C_WARNINGS -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Wstrict-prototypes)
+# On aarch64 GCC notes that passing some aggregates changed ABI in GCC 10.1 (-Wpsabi): about
+# linking with objects built by GCC 9 or older, which an SDK built as a whole never does.
+if(CMAKE_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64)$")
+  list(APPEND SLS_CXX_WARNINGS -Wno-psabi)
+endif()
 
 if(SLS_SANITIZE)
   add_compile_options($<$<COMPILE_LANGUAGE:C,CXX>:-fsanitize=address,undefined>

@@ -44,6 +44,7 @@ TEST(HostMemory, AdmitsWhatFitsAndRefusesWhatDoesNotNamingTheSizes) {
 // size plus 16 MiB (ulimit -v): refused before allocating, naming the frame and the limit, and
 // not as a problem of the frame (a scan stops with it rather than skipping every frame).
 TEST(HostMemory, APatternStackBeyondTheLimitIsRefusedBeforeItIsRead) {
+  if (!test::address_space_limits_hold()) GTEST_SKIP() << "ulimit -v does not bind here (a user-mode emulator)";
   test::TemporaryDirectory dir;
   RecordingInfo info;
   info.device = {"sim://stack", "slscan-sim", "SN-1"};
