@@ -99,6 +99,9 @@ class SlsCli(unittest.TestCase):
                                    bench["frames_s"] + bench["loop_closure_s"] + bench["extract_s"], places=6)
             self.assertGreater(bench["frames_s"], 0.0)
             self.assertGreater(bench["points"], 0)
+            # Frames fused at the turntable prior without being tracked are counted among the fused.
+            self.assertLessEqual(bench["frames_unverified"], bench["frames_fused"])
+            self.assertEqual(bench["frames_fused"] + bench["frames_lost"], frames)
             for stage in ("decode", "track", "integrate", "move", "raycast", "deform"):
                 self.assertGreaterEqual(bench["stages"][stage]["total_s"], 0.0)
             self.assertLessEqual(bench["frame_ms"]["median"], bench["frame_ms"]["max"])
