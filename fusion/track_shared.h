@@ -33,8 +33,10 @@ constexpr int kTrackResidual2 = 27;
 constexpr int kTrackCount = 28;
 constexpr int kTrackCreaseCount = 29;  // live pixels whose match lies on a model crease (not used)
 // The frame's statistics (accumulate_frame_statistics): the model's moments for the centre
-// and scale, and the live pixels with a depth.
-constexpr int kFrameSums = 6;
+// and scale, the live pixels with a depth that can lie in the model, and those that cannot.
+constexpr int kFrameSums = 7;
+constexpr int kFrameLivePixels = 5;
+constexpr int kFrameLiveOutside = 6;
 
 // A depth step between neighbouring pixels larger than this many pixel footprints (z / fx)
 // is a discontinuity (an occluding edge), not a slope: a 2x2 block keeps the nearest
@@ -310,14 +312,36 @@ SLS_HOST_DEVICE inline void accumulate_track_pixel(const TrackLiveView& live, co
   }
 }
 
+// Where the model can be: the box of the volume it was raycast from (a volume's corner and
+// edge lengths, its axes), and the guess that places a live pixel's point in it. What lies
+// outside the box is in no raycast of it, so such a pixel cannot match whatever the pose: the
+// overlap test counts only the pixels inside (a volume smaller than the view is not a lost
+// frame for seeing more than it holds). active = false: every live pixel can match.
+struct TrackRegion {
+  bool active = false;
+  Rigid3f T_volume_live;  // the guess, in the volume's frame (its corner, its axes)
+  Vec3f size_m{0.0f, 0.0f, 0.0f};
+};
+
+SLS_HOST_DEVICE inline bool inside_region(const TrackRegion& region, Vec3f ray, float live_depth) {
+  if (!region.active) return true;
+  const Vec3f p = transform_point(region.T_volume_live, live_depth * ray);
+  return p.x >= 0.0f && p.y >= 0.0f && p.z >= 0.0f && p.x <= region.size_m.x && p.y <= region.size_m.y &&
+         p.z <= region.size_m.z;
+}
+
 // One pixel's contribution to the frame's statistics: the model point's moments about a
 // reference (the centroid once known, so Σ|p − reference|² keeps its digits in float) and
-// whether the live depth is valid. sums: count, Σdx, Σdy, Σdz, Σ|d|² of d = p − reference over
-// the model points, then the live pixels with a depth.
+// whether the live depth is valid, and inside the region (the pixel's ray: its point is
+// ray · depth). sums: count, Σdx, Σdy, Σdz, Σ|d|² of d = p − reference over the model
+// points, then the live pixels with a depth inside the region, then those outside.
 template <typename T>
-SLS_HOST_DEVICE inline void accumulate_frame_statistics(Vec3f model_point, float live_depth, Vec3f reference,
+SLS_HOST_DEVICE inline void accumulate_frame_statistics(Vec3f model_point, float live_depth, Vec3f live_ray,
+                                                        const TrackRegion& region, Vec3f reference,
                                                         T sums[kFrameSums]) {
-  if (valid_depth(live_depth)) sums[5] += T(1);
+  if (valid_depth(live_depth)) {
+    sums[inside_region(region, live_ray, live_depth) ? kFrameLivePixels : kFrameLiveOutside] += T(1);
+  }
   if (!(model_point.z > 0.0f)) return;
   const Vec3f d = model_point - reference;
   sums[0] += T(1);

@@ -222,7 +222,8 @@ void halve_texture(const float* fine_texture, const CameraIntrinsics& fine, floa
 
 Frame Tracker::Impl::frame_from_sums(const FrameSums& first, const FrameSums& second, Vec3f reference) const {
   Frame frame;
-  frame.live_pixels = static_cast<std::size_t>(std::llround(first[5]));
+  frame.live_pixels = static_cast<std::size_t>(std::llround(first[kFrameLivePixels]));
+  frame.live_pixels_outside = static_cast<std::size_t>(std::llround(first[kFrameLiveOutside]));
   frame.model_points = static_cast<std::size_t>(std::llround(first[0]));
   frame.centre = reference;
   if (second[0] > 0.0) {
@@ -244,12 +245,18 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
   TrackingResult result;
   result.T_world_camera = guess;
   result.live_pixels = frame.live_pixels;
+  result.live_pixels_outside_model = frame.live_pixels_outside;
   auto lost = [&](std::string reason) {
     result.T_world_camera = guess;
     result.lost = true;
     result.reason = std::move(reason);
     return result;
   };
+  if (frame.live_pixels == 0 && frame.live_pixels_outside > 0) {
+    result.too_little_overlap = true;
+    return lost(fmt::format("none of the {} live pixels with a depth lies inside the model's volume at the guessed pose",
+                            frame.live_pixels_outside));
+  }
   if (frame.live_pixels == 0) return lost("the live depth map has no valid depth");
   if (frame.model_points == 0) {
     result.too_little_overlap = true;
@@ -351,9 +358,13 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
   if (result.inlier_fraction < options.min_inlier_fraction) {
     result.too_little_overlap = true;
     return lost(fmt::format("only {} of {} live pixels ({}) match the model within {:.0f} um and {:.0f} deg "
-                            "({} more fell on creases); at least {} must",
+                            "({} more fell on creases{}); at least {} must",
                             result.inliers, usable, percent(result.inlier_fraction), options.max_distance_m * 1e6,
                             options.max_normal_angle_deg, result.crease_pixels,
+                            frame.live_pixels_outside > 0
+                                ? fmt::format(", {} lie outside the model's volume and are not counted",
+                                              frame.live_pixels_outside)
+                                : std::string(),
                             percent(options.min_inlier_fraction)));
   }
   if (result.residual_rms_m > options.max_residual_rms_m) {
@@ -628,9 +639,10 @@ void Tracker::Impl::keep_reference(const float* const level_depth[8], const floa
 
 TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
                               const Pose& T_world_camera_guess, const Image32f* texture,
-                              const Image32f* confidence, const PosePrior* prior) {
+                              const Image32f* confidence, const PosePrior* prior,
+                              const VolumeGeometry* model_volume) {
   Impl& s = *impl_;
-  const Impl::PriorScope prior_scope(s, prior);
+  const Impl::CallScope call_scope(s, prior, model_volume);
   const int width = s.camera.width, height = s.camera.height;
   const std::size_t pixels = s.levels[0].pixels();
   if (depth_m.width() != s.live_camera.width || depth_m.height() != s.live_camera.height) {
@@ -686,11 +698,13 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
                   true);
 
   // The frame: live pixels, the model's centre and scale (two passes).
+  const TrackRegion region = s.region(T_world_camera_guess);
   auto statistics = [&](Vec3f reference) {
     return parallel_sum<kFrameSums>(height, [&](int y, double* sums) {
       for (int x = 0; x < width; ++x) {
         const std::size_t i = s.levels[0].rays.index(x, y);
-        accumulate_frame_statistics(model.points_camera[i], level_depth[0][i], reference, sums);
+        accumulate_frame_statistics(model.points_camera[i], level_depth[0][i], s.levels[0].rays.rays[i], region,
+                                    reference, sums);
       }
     });
   };

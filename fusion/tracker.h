@@ -142,7 +142,8 @@ struct TrackingResult {
   // few inliers), not because the fit is bad: the pose is unverified rather than wrong, and a
   // prior the caller trusts (a turntable's angle) may stand in for it.
   bool too_little_overlap = false;
-  std::size_t live_pixels = 0;  // finest level pixels with a depth
+  std::size_t live_pixels = 0;  // finest level pixels with a depth (inside the model's volume, when given)
+  std::size_t live_pixels_outside_model = 0;  // with a model volume: those whose point the guess puts outside it
   std::size_t inliers = 0;      // of those, matched at the last iteration
   std::size_t crease_pixels = 0;  // of those, set aside at the last iteration: their match is on a crease
   double inlier_fraction = 0.0;   // inliers / (live_pixels - crease_pixels)
@@ -198,10 +199,14 @@ class Tracker {
   // `confidence`: the live pixels' measurement weights (the camera's size; see
   // TrackingOptions::weight_by_confidence), or null for equal weights; pixels of weight 0,
   // negative or not finite are not used. `prior`: a pose prior (pose_prior.h; null or σ = ∞:
-  // none), validated (sls::Error(kInvalidArgument) naming the problem).
+  // none), validated (sls::Error(kInvalidArgument) naming the problem). `model_volume`: the
+  // volume the model was raycast from (null: unknown). Nothing outside it is in the model, so
+  // the overlap test (min_inlier_fraction) counts only the live pixels whose point the guess
+  // puts inside it: a view that sees more than a small volume holds is not lost for that.
   TrackingResult track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
                        const Pose& T_world_camera_guess, const Image32f* texture = nullptr,
-                       const Image32f* confidence = nullptr, const PosePrior* prior = nullptr);
+                       const Image32f* confidence = nullptr, const PosePrior* prior = nullptr,
+                       const VolumeGeometry* model_volume = nullptr);
   // The photometric term's reference for the next track(): a frame fused without tracking
   // (its depth map and texture, the camera's size, and the pose it was fused at). Ignored when
   // photometric_weight is 0. sls::Error(kInvalidArgument) for images of another size.
@@ -215,10 +220,11 @@ class Tracker {
   // stream is synchronized here. No allocation: the pyramid lives in buffers made once.
   // `texture_device`: as track()'s texture, on the GPU (complete when called), or null; the
   // reference frame stays on the GPU. `confidence_device`: as track()'s confidence, on the GPU.
-  // `prior`: as track()'s (added to the 6x6 system on the host, as on the CPU).
+  // `prior`, `model_volume`: as track()'s (the prior added to the 6x6 system on the host).
   TrackingResult track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
                               const Pose& T_world_camera_guess, const float* texture_device = nullptr,
-                              const float* confidence_device = nullptr, const PosePrior* prior = nullptr);
+                              const float* confidence_device = nullptr, const PosePrior* prior = nullptr,
+                              const VolumeGeometry* model_volume = nullptr);
   // set_reference_frame with both maps on the GPU (width x height floats, complete when called).
   void set_reference_frame_device(const float* depth_device, const float* texture_device,
                                   const Pose& T_world_camera);

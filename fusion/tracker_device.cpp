@@ -13,9 +13,10 @@ using namespace tracking_detail;
 
 TrackingResult Tracker::track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
                                      const Pose& T_world_camera_guess, const float* texture_device,
-                                     const float* confidence_device, const PosePrior* prior) {
+                                     const float* confidence_device, const PosePrior* prior,
+                                     const VolumeGeometry* model_volume) {
   Impl& s = *impl_;
-  const Impl::PriorScope prior_scope(s, prior);
+  const Impl::CallScope call_scope(s, prior, model_volume);
   if (!s.device.is_cuda()) {
     throw_error(ErrorCode::kInvalidArgument, "tracking: track_device on a tracker for {}; make it for CUDA",
                 s.device.to_string());
@@ -165,9 +166,10 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
                                    cudaMemcpyDeviceToHost, s.stream));
     SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
   };
+  const TrackRegion region = s.region(T_world_camera_guess);
   auto statistics = [&](Vec3f reference) {
-    detail::launch_frame_statistics_cuda(model_points, depth_device, pixels, reference, s.partials.data(),
-                                         s.device_sums.data(), s.stream);
+    detail::launch_frame_statistics_cuda(model_points, depth_device, s.rays[0].data(), region, pixels, reference,
+                                         s.partials.data(), s.device_sums.data(), s.stream);
     download(kFrameSums);
     FrameSums sums{};
     std::copy(s.host_sums, s.host_sums + kFrameSums, sums.begin());

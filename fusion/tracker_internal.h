@@ -52,7 +52,8 @@ struct Level {
 
 // The centre c and scale L of the parameterisation (track_shared.h) from the frame sums.
 struct Frame {
-  std::size_t live_pixels = 0;
+  std::size_t live_pixels = 0;          // with a depth, inside the model volume when there is one
+  std::size_t live_pixels_outside = 0;  // with a depth, outside it
   std::size_t model_points = 0;
   Vec3f centre{0.0f, 0.0f, 0.0f};
   double scale = 1.0;
@@ -79,18 +80,36 @@ struct Tracker::Impl {
   CameraIntrinsics live_camera;  // the live depth maps' camera
   CameraIntrinsics camera;       // ICP's finest level, the model maps' camera
   TrackingOptions options;
-  // The current track() call's pose prior (null: none); set for the call only (PriorScope).
+  // The current track() call's pose prior (null: none) and the volume its model was raycast
+  // from (null: unknown); set for the call only (CallScope).
   const PosePrior* pose_prior = nullptr;
-  struct PriorScope {
+  const VolumeGeometry* model_volume = nullptr;
+  struct CallScope {
     Impl& impl;
-    PriorScope(Impl& i, const PosePrior* prior) : impl(i) {
+    CallScope(Impl& i, const PosePrior* prior, const VolumeGeometry* volume) : impl(i) {
       if (prior != nullptr) prior->validate();
+      if (volume != nullptr) volume->validate();
       impl.pose_prior = prior != nullptr && prior->active() ? prior : nullptr;
+      impl.model_volume = volume;
     }
-    ~PriorScope() { impl.pose_prior = nullptr; }
-    PriorScope(const PriorScope&) = delete;
-    PriorScope& operator=(const PriorScope&) = delete;
+    ~CallScope() {
+      impl.pose_prior = nullptr;
+      impl.model_volume = nullptr;
+    }
+    CallScope(const CallScope&) = delete;
+    CallScope& operator=(const CallScope&) = delete;
   };
+  // The frame statistics' region (track_shared.h): the model volume's box with the live
+  // pixels placed by the guess; inactive without a model volume.
+  TrackRegion region(const Pose& T_world_camera_guess) const {
+    TrackRegion r;
+    if (model_volume == nullptr) return r;
+    r.active = true;
+    r.T_volume_live = (model_volume->T_world_volume.inverse() * T_world_camera_guess).to_rigid3f();
+    const Eigen::Vector3d size = model_volume->size_m();
+    r.size_m = Vec3f{static_cast<float>(size.x()), static_cast<float>(size.y()), static_cast<float>(size.z())};
+    return r;
+  }
   // The live camera halved down to `camera` (empty when they are the same), and the host
   // buffers of those halvings (the last is ICP's finest live depth).
   std::vector<CameraIntrinsics> input_cameras;

@@ -99,11 +99,12 @@ __global__ void model_creases_kernel(const Vec3f* __restrict__ normals, const Ve
 }
 
 __global__ void frame_statistics_kernel(const Vec3f* __restrict__ model_points, const float* __restrict__ live_depth,
-                                        int pixels, Vec3f reference, double* __restrict__ partials) {
+                                        const Vec3f* __restrict__ live_rays, TrackRegion region, int pixels,
+                                        Vec3f reference, double* __restrict__ partials) {
   float sums[kFrameSums] = {};
   for (int n = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x); n < pixels;
        n += static_cast<int>(gridDim.x * blockDim.x)) {
-    accumulate_frame_statistics(model_points[n], live_depth[n], reference, sums);
+    accumulate_frame_statistics(model_points[n], live_depth[n], live_rays[n], region, reference, sums);
   }
   block_sums_to_partials<kFrameSums>(sums, partials);
 }
@@ -191,11 +192,12 @@ void launch_model_creases_cuda(const Vec3f* points, int width, int height, float
   SLS_CUDA_CHECK_LAUNCH();
 }
 
-void launch_frame_statistics_cuda(const Vec3f* model_points, const float* live_depth, int pixels, Vec3f reference,
-                                  double* partials, double* out, cudaStream_t stream) {
+void launch_frame_statistics_cuda(const Vec3f* model_points, const float* live_depth, const Vec3f* live_rays,
+                                  const TrackRegion& region, int pixels, Vec3f reference, double* partials,
+                                  double* out, cudaStream_t stream) {
   const int blocks = reduction_blocks(pixels);
-  frame_statistics_kernel<<<blocks, kTrackThreads, 0, stream>>>(model_points, live_depth, pixels, reference,
-                                                                 partials);
+  frame_statistics_kernel<<<blocks, kTrackThreads, 0, stream>>>(model_points, live_depth, live_rays, region, pixels,
+                                                                 reference, partials);
   SLS_CUDA_CHECK_LAUNCH();
   finish_sums_kernel<kFrameSums><<<kFrameSums, kTrackThreads, 0, stream>>>(partials, blocks, out);
   SLS_CUDA_CHECK_LAUNCH();

@@ -35,10 +35,11 @@ void launch_live_normals_cuda(const float* depth, const Vec3f* rays, int width, 
 void launch_model_creases_cuda(const Vec3f* points, int width, int height, float fx, float baseline_m,
                                float radius_m, float min_cos, Vec3f* normals, std::uint8_t* mask,
                                cudaStream_t stream);
-// accumulate_frame_statistics over `pixels` pixels (model points and live depth of the finest
-// level) into out[kFrameSums].
-void launch_frame_statistics_cuda(const Vec3f* model_points, const float* live_depth, int pixels, Vec3f reference,
-                                  double* partials, double* out, cudaStream_t stream);
+// accumulate_frame_statistics over `pixels` pixels (model points, live depth and rays of the
+// finest level) into out[kFrameSums].
+void launch_frame_statistics_cuda(const Vec3f* model_points, const float* live_depth, const Vec3f* live_rays,
+                                  const TrackRegion& region, int pixels, Vec3f reference, double* partials,
+                                  double* out, cudaStream_t stream);
 // One Gauss–Newton step's sums (track_pixel + accumulate_track_row over the live level) into
 // out[kTrackSums].
 void launch_track_cuda(const TrackLiveView& live, const TrackModelView& model, const TrackParams& params,

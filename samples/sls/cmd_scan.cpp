@@ -360,6 +360,7 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
     if (frame.tracking) {
       entry["tracking"] = {{"inlier_fraction", frame.tracking->inlier_fraction},
                            {"crease_pixels", frame.tracking->crease_pixels},
+                           {"pixels_outside_volume", frame.tracking->live_pixels_outside_model},
                            {"residual_rms_um", frame.tracking->residual_rms_m * 1e6},
                            {"degenerate_directions", frame.tracking->degenerate_directions},
                            {"iterations", frame.tracking->iterations}};

@@ -288,15 +288,17 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     if (s.turntable_guess(frame)) {
       if (const std::optional<fusion::PosePrior> p = s.turntable_pose_prior(s.last->T_world_camera, guess)) prior = *p;
     }
+    // The volume the model was raycast from (it moves only after tracking).
+    const fusion::VolumeGeometry model_volume = s.moving->volume().geometry();
 #if defined(SLS_HAVE_CUDA)
     if (s.options.device.is_cuda()) {
       tracked = s.tracker.track_device(depth_device, s.raycaster, s.T_world_model, guess, texture_device,
-                                       confidence_device, &prior);
+                                       confidence_device, &prior, &model_volume);
     } else {
-      tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence, &prior);
+      tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence, &prior, &model_volume);
     }
 #else
-    tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence, &prior);
+    tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence, &prior, &model_volume);
 #endif
     report.times.track_ms = ms_since(start);
     if (!tracked.lost && s.options.verify_with_turntable) {

@@ -37,6 +37,7 @@ void pose_difference(const Pose& a, const Pose& b, double* metres, double* degre
 
 void ScanSession::Impl::capture_reference(const fusion::Volume& volume) {
   if (reference_taken || !first) return;
+  reference_volume = volume.geometry();
 #if defined(SLS_HAVE_CUDA)
   if (options.device.is_cuda()) {
     if (!reference_raycaster) reference_raycaster.emplace(options.device, tracker.model_camera(), raycast_options(options));
@@ -258,17 +259,17 @@ LoopClosureReport ScanSession::close_loop() {
       registration = s.tracker.track_device(frame->depth_device.data(), *s.reference_raycaster, first.T_world_camera,
                                             guess, nullptr,
                                             frame->confidence_on_device ? frame->confidence_device.data() : nullptr,
-                                            &prior);
+                                            &prior, &s.reference_volume);
       depth = Image32f(s.calibration.camera.width, s.calibration.camera.height, 0.0f);
       frame->depth_device.download(depth.data(), depth.pixel_count(), nullptr);
       SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
     } else {
       registration = s.tracker.track(frame->depth, s.reference_model, first.T_world_camera, guess, nullptr,
-                                     frame->confidence ? &*frame->confidence : nullptr, &prior);
+                                     frame->confidence ? &*frame->confidence : nullptr, &prior, &s.reference_volume);
     }
 #else
     registration = s.tracker.track(frame->depth, s.reference_model, first.T_world_camera, guess, nullptr,
-                                   frame->confidence ? &*frame->confidence : nullptr, &prior);
+                                   frame->confidence ? &*frame->confidence : nullptr, &prior, &s.reference_volume);
 #endif
     if (registration.lost) {
       report.unregistered.push_back({frame->index, registration.reason});

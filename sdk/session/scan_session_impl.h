@@ -67,6 +67,7 @@ struct ScanSession::Impl {
   // volume first moves away from it (on the CPU a RaycastResult, on a GPU its own raycaster).
   bool reference_taken = false;
   fusion::RaycastResult reference_model;
+  fusion::VolumeGeometry reference_volume;  // the volume it was raycast from
   std::optional<fusion::Raycaster> reference_raycaster;
   // The last loop_frames fused frames (a ring, oldest overwritten): what close_loop()
   // registers to the first frame's surface. Their depth and the decoder's confidence: on the

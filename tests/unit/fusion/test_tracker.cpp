@@ -320,6 +320,45 @@ TEST(Tracker, UnrelatedGeometryIsLost) {
   EXPECT_EQ(r.inliers, 0u);
 }
 
+// A model volume that holds a small part of the view (a GPU memory budget's, issue 22): the
+// live frame sees the whole scene, the model only what is inside the box. Counting every live
+// pixel, the overlap test loses the frame; told the volume, it counts only the pixels the
+// guess puts inside, and the frame registers to the surface there.
+TEST(Tracker, AVolumeSmallerThanTheViewCountsOnlyThePixelsInsideIt) {
+  const test::BumpyScene scene = test::bumpy_scene();
+  const VolumeGeometry small = test::small_scene_volume(scene);
+  const Model m(scene, test::tracker_camera(), &small);
+  const Pose truth = m.T_world_model * test_motion();
+  const Image32f live = test::exact_depth(m.scene, m.camera, truth);
+  Tracker tracker(Device::cpu(), m.camera);
+  const TrackingResult all = tracker.track(live, m.raycast, m.T_world_model, m.T_world_model);
+  std::printf("[tracker] small volume, every pixel counted: %s\n", all.reason.c_str());
+  EXPECT_TRUE(all.lost);
+  EXPECT_TRUE(all.too_little_overlap);
+  EXPECT_EQ(all.live_pixels_outside_model, 0u);
+
+  const TrackingResult r = tracker.track(live, m.raycast, m.T_world_model, m.T_world_model, nullptr, nullptr,
+                                         nullptr, &small);
+  const test::SurfaceError after = test::surface_error(live, m.camera, r.T_world_camera, truth);
+  print("small volume", r, truth, after);
+  EXPECT_FALSE(r.lost) << r.reason;
+  EXPECT_EQ(r.live_pixels + r.live_pixels_outside_model, all.live_pixels);
+  const double inside = static_cast<double>(r.live_pixels) / static_cast<double>(all.live_pixels);
+  EXPECT_GT(inside, 0.1);
+  EXPECT_LT(inside, TrackingOptions{}.min_inlier_fraction);  // why counting every pixel loses it
+  EXPECT_GT(r.inlier_fraction, 0.8);
+  EXPECT_LT(after.rms_m, kSurfaceBound);
+
+  // A guess that puts the whole view outside the volume: lost for overlap, and said so.
+  const Pose away = m.T_world_model * test::camera_motion(Eigen::Vector3d(20e-3, 0.0, 0.0), Eigen::Vector3d::UnitZ(), 0.0);
+  const TrackingResult outside =
+      tracker.track(live, m.raycast, m.T_world_model, away, nullptr, nullptr, nullptr, &small);
+  EXPECT_TRUE(outside.lost);
+  EXPECT_TRUE(outside.too_little_overlap);
+  EXPECT_NE(outside.reason.find("inside the model's volume"), std::string::npos) << outside.reason;
+  EXPECT_TRUE(test::same_pose(outside.T_world_camera, away));
+}
+
 TEST(Tracker, EmptyLiveMapIsLost) {
   const Model& m = bumpy_model();
   Tracker tracker(Device::cpu(), m.camera);
