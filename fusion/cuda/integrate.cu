@@ -10,20 +10,38 @@
 namespace sls::fusion::detail {
 namespace {
 
+// The voxels that take part in the GTSDF relaxation are appended to one list per parity.
+// One atomicAdd per warp and parity (its lanes' slots from a ballot), not one per voxel:
+// a 12-megapixel frame activates millions of voxels, and per-voxel atomics on two counters
+// serialised in L2 were most of the kernel's time. The lists' order is not the result's: they
+// are sorted before the sweeps.
 __global__ void integrate_kernel(VolumeView volume, IntegrationParams params, DepthFrameView frame, int i0, int j0,
                                  int k0, int i1, int j1, ActiveVoxel* active_red, ActiveVoxel* active_black,
                                  std::uint32_t* counters, std::uint32_t capacity) {
   const int i = i0 + static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
   const int j = j0 + static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
   const int k = k0 + static_cast<int>(blockIdx.z);
-  if (i >= i1 || j >= j1) return;
   float average = 0.0f;
-  if (!integrate_voxel(volume, params, frame, i, j, k, &average) || !(params.alpha > 0.0f)) return;
-  const int parity = voxel_parity(i, j, k);
-  const std::uint32_t slot = atomicAdd(&counters[parity], 1u);
-  if (slot < capacity) {
-    (parity == 0 ? active_red : active_black)[slot] =
-        ActiveVoxel{static_cast<std::uint32_t>(volume.index(i, j, k)), average};
+  // Every lane stays to the ballots below (none returns early).
+  const bool inside = i < i1 && j < j1;
+  const bool append = inside && integrate_voxel(volume, params, frame, i, j, k, &average) && params.alpha > 0.0f;
+  const int parity = append ? voxel_parity(i, j, k) : 0;
+  const unsigned lane = threadIdx.x % 32u;  // blockDim.x is a multiple of 32: a warp is one row
+  const unsigned lanes_before = (1u << lane) - 1u;
+  for (int p = 0; p < 2; ++p) {
+    const unsigned want = __ballot_sync(0xffffffffu, append && parity == p);
+    if (want == 0u) continue;
+    const int leader = __ffs(static_cast<int>(want)) - 1;
+    std::uint32_t base = 0;
+    if (static_cast<int>(lane) == leader) base = atomicAdd(&counters[p], static_cast<std::uint32_t>(__popc(want)));
+    base = __shfl_sync(0xffffffffu, base, leader);
+    if (append && parity == p) {
+      const std::uint32_t slot = base + static_cast<std::uint32_t>(__popc(want & lanes_before));
+      if (slot < capacity) {
+        (p == 0 ? active_red : active_black)[slot] =
+            ActiveVoxel{static_cast<std::uint32_t>(volume.index(i, j, k)), average};
+      }
+    }
   }
 }
 
@@ -41,7 +59,7 @@ void launch_integrate_cuda(const VolumeView& volume, const IntegrationParams& pa
                            const int first[3], const int extent[3], ActiveVoxel* const active[2],
                            std::uint32_t* counters, std::uint32_t capacity, cudaStream_t stream) {
   if (extent[0] <= 0 || extent[1] <= 0 || extent[2] <= 0) return;
-  const dim3 block(64, 4, 1);
+  const dim3 block(64, 4, 1);  // x a multiple of 32: integrate_kernel's ballots take a warp as one row
   const dim3 grid((static_cast<unsigned>(extent[0]) + block.x - 1) / block.x,
                   (static_cast<unsigned>(extent[1]) + block.y - 1) / block.y, static_cast<unsigned>(extent[2]));
   integrate_kernel<<<grid, block, 0, stream>>>(volume, params, frame, first[0], first[1], first[2],

@@ -166,6 +166,7 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
 
   const ProgressCallback progress = context.progress_callback("bench");
   std::vector<double> frame_ms, decode, track, integrate, move, raycast, deform;
+  std::vector<double> move_resample, move_ship, move_assemble;  // of the frames whose volume moved
   double render_s = 0.0, frames_s = 0.0;
   int lost = 0;
   int unverified = 0;  // fused at the turntable prior: too little overlap with the model to track
@@ -216,6 +217,11 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
     move.push_back(t.move_ms);
     raycast.push_back(t.raycast_ms);
     deform.push_back(t.deform_ms);
+    if (report.move.moved) {
+      move_resample.push_back(report.move.resample_ms);
+      move_ship.push_back(report.move.ship_ms);
+      move_assemble.push_back(report.move.ship_assemble_ms);
+    }
   }
   report_progress(progress, {"bench", static_cast<std::size_t>(frames), static_cast<std::size_t>(frames), ""});
   SteadyClock::time_point start = SteadyClock::now();
@@ -255,7 +261,11 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
        {{"voxels", {geometry.nx, geometry.ny, geometry.nz}},
         {"voxel_size_m", geometry.voxel_size_m},
         {"bytes", session.volume_bytes()},
-        {"moves", session.moves()}}},
+        {"moves", session.moves()},
+        // A move's parts, over the moves: the resampling, the shipping of the surface that
+        // leaves, and of that the host's assembly of its points and triangles (GPU).
+        {"move_stages",
+         {{"resample", stage(move_resample)}, {"ship", stage(move_ship)}, {"ship_assemble", stage(move_assemble)}}}}},
       {"end_to_end_s", frames_s + loop_s + extract_s},
       {"frames_s", frames_s},
       {"loop_closure_s", loop_s},

@@ -104,6 +104,11 @@ class SlsCli(unittest.TestCase):
             self.assertEqual(bench["frames_fused"] + bench["frames_lost"], frames)
             for stage in ("decode", "track", "integrate", "move", "raycast", "deform"):
                 self.assertGreaterEqual(bench["stages"][stage]["total_s"], 0.0)
+            # A move's parts add up to no more than the moves' stage.
+            parts = bench["volume"]["move_stages"]
+            self.assertLessEqual(parts["resample"]["total_s"] + parts["ship"]["total_s"],
+                                 bench["stages"]["move"]["total_s"] + 1e-9)
+            self.assertLessEqual(parts["ship_assemble"]["total_s"], parts["ship"]["total_s"] + 1e-9)
             self.assertLessEqual(bench["frame_ms"]["median"], bench["frame_ms"]["max"])
             self.assertNotIn("gpu", bench)
             self.assertFalse(bench["upload_ahead"])  # on the CPU there is nothing to upload
