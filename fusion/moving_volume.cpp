@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <future>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -114,15 +115,45 @@ struct MovingVolume::Impl {
   std::optional<RevisitFilter> revisits;  // with options.merge_revisits
   std::size_t moves = 0;
 #if defined(SLS_HAVE_CUDA)
-  cudaStream_t stream = nullptr;
+  cudaStream_t stream = nullptr;       // resampling
+  cudaStream_t ship_stream = nullptr;  // shipping (and final_surface's extraction)
   DeviceBuffer<EdgeCrossing> crossings;
   DeviceBuffer<CellCase> cells;
   DeviceBuffer<std::uint32_t> counters;
   detail::RegionSortScratch sort_scratch;
-  ~Impl() {
-    if (stream != nullptr) (void)cudaStreamDestroy(stream);
-  }
 #endif
+  // The ship in the background (options.ship_in_background): the job, and the move's stats,
+  // whose ship figures the job fills, until finish_shipping() collects them.
+  std::future<void> ship_job;
+  MoveStats ship_stats;
+  bool ship_pending = false;
+
+  ~Impl() {
+    if (ship_job.valid()) ship_job.wait();  // it reads the buffers and streams below
+#if defined(SLS_HAVE_CUDA)
+    if (stream != nullptr) (void)cudaStreamDestroy(stream);
+    if (ship_stream != nullptr) (void)cudaStreamDestroy(ship_stream);
+#endif
+  }
+  // Waits for a ship in the background; rethrows what it threw.
+  void wait_shipping() {
+    if (ship_job.valid()) ship_job.get();
+  }
+  // Extracts the leaving region of `from`, filters revisits, appends to the shipped surface,
+  // and fills `stats`' ship figures.
+  void ship(const Volume& from, const OrientedRegion& leaving, MoveStats* stats) {
+    const auto ship_start = std::chrono::steady_clock::now();
+    ExtractedSurface part = extract_part(from, leaving, &stats->ship_assemble_ms);
+    if (options.merge_revisits) {
+      if (!revisits) revisits.emplace(2.0 * from.geometry().voxel_size_m);
+      part = revisits->filter(part);
+    }
+    stats->shipped_points = part.cloud.size();
+    stats->shipped_triangles = part.mesh.faces.size();
+    append_cloud(&shipped_cloud, part.cloud);
+    append_mesh(&shipped_mesh, part.mesh);
+    stats->ship_ms = elapsed_ms(ship_start);
+  }
 
   Volume& now() { return buffers[static_cast<std::size_t>(current)]; }
   Volume& other() { return buffers[static_cast<std::size_t>(1 - current)]; }
@@ -157,13 +188,13 @@ struct MovingVolume::Impl {
     if (cells.size() == 0) cells.allocate(std::size_t{1} << 16);
     std::uint32_t counts[2] = {0, 0};
     for (int attempt = 0; attempt < 2; ++attempt) {
-      SLS_CUDA_CHECK(cudaMemsetAsync(counters.data(), 0, 2 * sizeof(std::uint32_t), stream));
+      SLS_CUDA_CHECK(cudaMemsetAsync(counters.data(), 0, 2 * sizeof(std::uint32_t), ship_stream));
       detail::launch_region_crossings_cuda(view, filter, min_weight, crossings.data(),
-                                           static_cast<std::uint32_t>(crossings.size()), counters.data(), stream);
+                                           static_cast<std::uint32_t>(crossings.size()), counters.data(), ship_stream);
       detail::launch_region_cells_cuda(view, filter, min_weight, cells.data(), static_cast<std::uint32_t>(cells.size()),
-                                       counters.data() + 1, stream);
-      SLS_CUDA_CHECK(cudaMemcpyAsync(counts, counters.data(), sizeof counts, cudaMemcpyDeviceToHost, stream));
-      SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
+                                       counters.data() + 1, ship_stream);
+      SLS_CUDA_CHECK(cudaMemcpyAsync(counts, counters.data(), sizeof counts, cudaMemcpyDeviceToHost, ship_stream));
+      SLS_CUDA_CHECK(cudaStreamSynchronize(ship_stream));
       const bool fits = counts[0] <= crossings.size() && counts[1] <= cells.size();
       if (fits) break;
       // Too many for the buffers: grow them to what was counted and run again (once).
@@ -172,12 +203,12 @@ struct MovingVolume::Impl {
     }
     // Ordered on the GPU, then downloaded.
     detail::sort_region_parts_cuda(crossings.data(), counts[0], cells.data(), counts[1],
-                                   static_cast<std::uint64_t>(volume.geometry().voxel_count()), &sort_scratch, stream);
+                                   static_cast<std::uint64_t>(volume.geometry().voxel_count()), &sort_scratch, ship_stream);
     std::vector<EdgeCrossing> found(counts[0]);
     std::vector<CellCase> found_cells(counts[1]);
-    crossings.download(found.data(), found.size(), stream);
-    cells.download(found_cells.data(), found_cells.size(), stream);
-    SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
+    crossings.download(found.data(), found.size(), ship_stream);
+    cells.download(found_cells.data(), found_cells.size(), ship_stream);
+    SLS_CUDA_CHECK(cudaStreamSynchronize(ship_stream));
     const auto assemble_start = std::chrono::steady_clock::now();
     ExtractedSurface part;
     part.cloud = detail::crossing_cloud(found, T_world_volume, &filter, options.extract);
@@ -227,6 +258,7 @@ MovingVolume::MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFor
 #if defined(SLS_HAVE_CUDA)
   if (device.is_cuda()) {
     SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&impl_->stream, cudaStreamNonBlocking));
+    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&impl_->ship_stream, cudaStreamNonBlocking));
     impl_->counters.allocate(2);
   }
 #endif
@@ -246,6 +278,8 @@ Pose MovingVolume::placement(const Pose& T_world_camera) const {
 
 void MovingVolume::place(const Pose& T_world_camera) {
   Impl& s = *impl_;
+  s.wait_shipping();
+  s.ship_pending = false;
   s.now().clear();
   s.now().set_pose(placement(T_world_camera));
   s.shipped_cloud = PointCloud{};
@@ -282,6 +316,8 @@ bool MovingVolume::needs_move(const Pose& T_world_camera) const {
 
 MoveStats MovingVolume::move_to(const Pose& T_world_volume) {
   Impl& s = *impl_;
+  // The last move's ship reads the buffer this one resamples into.
+  s.wait_shipping();
   Volume& from = s.now();
   Volume& to = s.other();
   const VolumeGeometry& geometry = from.geometry();
@@ -297,23 +333,24 @@ MoveStats MovingVolume::move_to(const Pose& T_world_volume) {
 
   // Ship what leaves: the old surface outside the new volume's sample box (the hull of its
   // voxel centres, where its own crossings and cells lie), so the two never overlap.
-  const auto ship_start = std::chrono::steady_clock::now();
   OrientedRegion leaving;
   leaving.T_world_box = T_world_volume;
   const double h = geometry.voxel_size_m;
   leaving.min = Eigen::Vector3d::Constant(0.5 * h);
   leaving.max = geometry.size_m() - Eigen::Vector3d::Constant(0.5 * h);
   leaving.keep_outside = true;
-  ExtractedSurface part = s.extract_part(from, leaving, &stats.ship_assemble_ms);
-  if (s.options.merge_revisits) {
-    if (!s.revisits) s.revisits.emplace(2.0 * h);
-    part = s.revisits->filter(part);
+  if (s.options.ship_in_background && s.device.is_cuda()) {
+    // `from` stays as it is until the next move, which waits for this ship first.
+    stats.shipping = true;
+    s.ship_stats = stats;
+    s.ship_pending = true;
+    s.ship_job = std::async(std::launch::async, [&s, &from, leaving] {
+      require_device(s.device);  // the worker thread's current device
+      s.ship(from, leaving, &s.ship_stats);
+    });
+  } else {
+    s.ship(from, leaving, &stats);
   }
-  stats.shipped_points = part.cloud.size();
-  stats.shipped_triangles = part.mesh.faces.size();
-  append_cloud(&s.shipped_cloud, part.cloud);
-  append_mesh(&s.shipped_mesh, part.mesh);
-  stats.ship_ms = elapsed_ms(ship_start);
 
   const auto resample_start = std::chrono::steady_clock::now();
   s.resample(from, to);
@@ -323,11 +360,30 @@ MoveStats MovingVolume::move_to(const Pose& T_world_volume) {
   return stats;
 }
 
-const PointCloud& MovingVolume::shipped_cloud() const { return impl_->shipped_cloud; }
-const TriangleMesh& MovingVolume::shipped_mesh() const { return impl_->shipped_mesh; }
+MoveStats MovingVolume::finish_shipping() {
+  Impl& s = *impl_;
+  s.wait_shipping();
+  if (!s.ship_pending) return MoveStats{};
+  s.ship_pending = false;
+  MoveStats stats = s.ship_stats;
+  stats.shipping = false;
+  return stats;
+}
+
+bool MovingVolume::shipping() const { return impl_->ship_pending; }
+
+const PointCloud& MovingVolume::shipped_cloud() const {
+  impl_->wait_shipping();
+  return impl_->shipped_cloud;
+}
+const TriangleMesh& MovingVolume::shipped_mesh() const {
+  impl_->wait_shipping();
+  return impl_->shipped_mesh;
+}
 std::size_t MovingVolume::moves() const { return impl_->moves; }
 
 ExtractedSurface MovingVolume::final_surface() const {
+  impl_->wait_shipping();
   const Volume& current = volume();
   ExtractedSurface live;
   if (current.device().is_cuda()) {

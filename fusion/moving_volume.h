@@ -44,6 +44,13 @@ struct MovingVolumeOptions {
   // (default: what every measured figure used) ships every pass, and a second revolution adds
   // a second copy.
   bool merge_revisits = false;
+  // CUDA volumes: a move's leaving surface is shipped (found on the GPU on a stream of its own,
+  // downloaded, assembled, appended) on a worker thread while the caller goes on; move_to()
+  // returns after the resampling. What reads the shipped surface waits for it: shipped_cloud(),
+  // shipped_mesh(), final_surface(), the next move, and finish_shipping(), which also gives the
+  // ship's figures. The volume the ship reads is the one the move left, which nothing writes
+  // until the next move. false (and on the CPU): shipped before move_to() returns.
+  bool ship_in_background = false;
   ExtractOptions extract;          // for the shipped surface and final_surface()
   // Throws sls::Error(kInvalidArgument) naming the bad value.
   void validate() const;
@@ -51,6 +58,9 @@ struct MovingVolumeOptions {
 
 struct MoveStats {
   bool moved = false;
+  // Shipped in the background (MovingVolumeOptions::ship_in_background): the shipped_* and
+  // ship_* figures below are finish_shipping()'s to give.
+  bool shipping = false;
   double translation_m = 0.0;       // of the volume centre
   double rotation_deg = 0.0;        // of the volume axes
   std::size_t shipped_points = 0;   // points shipped by this move
@@ -93,7 +103,15 @@ class MovingVolume {
   // Resampling: resample_shared.h (which voxels stay observed, how weights are carried).
   MoveStats move_to(const Pose& T_world_volume);
 
-  // Everything shipped so far (world frame), in shipping order.
+  // A move shipping in the background: waits for its ship and returns that move's stats with
+  // its ship figures (shipping false), once; MoveStats{} when none is pending. Rethrows what
+  // the ship threw.
+  MoveStats finish_shipping();
+  // Whether a move's ship has not been collected by finish_shipping() yet.
+  bool shipping() const;
+
+  // Everything shipped so far (world frame), in shipping order (a ship in the background
+  // waited for).
   const PointCloud& shipped_cloud() const;
   const TriangleMesh& shipped_mesh() const;
   std::size_t moves() const;

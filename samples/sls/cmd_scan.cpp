@@ -372,9 +372,11 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
       }
     }
     if (frame.move.moved) {
-      entry["move"] = {{"translation_mm", frame.move.translation_m * 1e3}, {"rotation_deg", frame.move.rotation_deg},
-                       {"shipped_points", frame.move.shipped_points}};
+      entry["move"] = {{"translation_mm", frame.move.translation_m * 1e3}, {"rotation_deg", frame.move.rotation_deg}};
+      // On a GPU the surface ships beside the frame loop: its figures come with a later frame.
+      if (!frame.move.shipping) entry["move"]["shipped_points"] = frame.move.shipped_points;
     }
+    if (frame.shipped) entry["shipped"] = {{"points", frame.shipped->shipped_points}};
     if (frame.deformation.keyframe) {
       entry["deformation"] = {{"keyframe", true},
                               {"nodes", frame.deformation.nodes},

@@ -359,13 +359,18 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
       report.times.deform_ms += ms_since(start);
       start = Clock::now();
     }
-    const std::size_t shipped_before = s.moving->shipped_cloud().size();
-    report.move = s.moving->follow(T_world_camera);
-    report.times.move_ms = ms_since(start);
-    if (report.move.moved && s.deformation) {
-      start = Clock::now();
-      s.record_shipped(frame.index - 1, shipped_before);
-      report.times.deform_ms += ms_since(start);
+    if (s.moving->needs_move(T_world_camera)) {
+      report.shipped = s.collect_ship();  // the last move's, when it ships in the background still
+      const std::size_t shipped_before = s.moving->shipped_cloud().size();
+      report.move = s.moving->move_to(s.moving->placement(T_world_camera));
+      report.times.move_ms = ms_since(start);
+      if (report.move.shipping) {
+        s.pending_ship = Impl::PendingShip{frame.index - 1, shipped_before};
+      } else if (s.deformation) {
+        start = Clock::now();
+        s.record_shipped(frame.index - 1, shipped_before);
+        report.times.deform_ms += ms_since(start);
+      }
     }
   }
   fusion::Volume& volume = *s.volume();  // the moved volume, if it moved
@@ -400,6 +405,11 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     s.have_model = true;
   }
   if (s.deformation) {
+    if (s.pending_ship && s.deformation->wants_keyframe(T_world_camera, s.focus_point(T_world_camera))) {
+      start = Clock::now();
+      report.shipped = s.collect_ship();  // before the keyframe, as if shipped by the move
+      report.times.move_ms += ms_since(start);
+    }
     start = Clock::now();
     report.deformation = s.feed_deformation(frame.index, T_world_camera, frame.turntable_angle_deg, *depth, confidence,
                                             depth_device, confidence_device);

@@ -156,8 +156,18 @@ struct FrameReport {
   std::optional<fusion::TrackingResult> tracking;  // absent for the first frame and known poses
   fusion::IntegrationStats integration;
   fusion::MoveStats move;
+  // On a GPU a move's surface ships beside the frame loop (move.shipping): its figures come
+  // with the frame that collected it (before the next keyframe or move), here.
+  std::optional<fusion::MoveStats> shipped;
   FrameDeformation deformation;
   StageTimes times;
+
+  // The ship whose figures (shipped_*, ship_*) this frame gives: its move's when that shipped
+  // before returning, else one collected here; null when neither.
+  const fusion::MoveStats* ship() const {
+    if (shipped) return &*shipped;
+    return move.moved && !move.shipping ? &move : nullptr;
+  }
 };
 
 // What close_loop() did: the last fused frames (DeformationOptions::loop_frames) registered

@@ -51,6 +51,16 @@ void ScanSession::Impl::capture_reference(const fusion::Volume& volume) {
   reference_taken = true;
 }
 
+std::optional<fusion::MoveStats> ScanSession::Impl::collect_ship() {
+  if (!moving || !moving->shipping()) return std::nullopt;
+  const fusion::MoveStats stats = moving->finish_shipping();
+  if (pending_ship) {
+    if (deformation) record_shipped(pending_ship->time, pending_ship->shipped_before);
+    pending_ship.reset();
+  }
+  return stats;
+}
+
 void ScanSession::Impl::record_shipped(int time, std::size_t shipped_before) {
   const PointCloud& shipped = moving->shipped_cloud();
   parts.push_back({time, shipped.size(), moving->shipped_mesh().vertices.size()});
@@ -135,8 +145,15 @@ fusion::ExtractedSurface ScanSession::Impl::surface(bool deformed) const {
   return result;
 }
 
-fusion::ExtractedSurface ScanSession::final_surface() const { return impl_->surface(true); }
-fusion::ExtractedSurface ScanSession::final_surface_undeformed() const { return impl_->surface(false); }
+// A part shipping in the background is recorded first: the deformation binds it to its time.
+fusion::ExtractedSurface ScanSession::final_surface() const {
+  impl_->collect_ship();
+  return impl_->surface(true);
+}
+fusion::ExtractedSurface ScanSession::final_surface_undeformed() const {
+  impl_->collect_ship();
+  return impl_->surface(false);
+}
 
 std::vector<StampedPose> ScanSession::trajectory_undeformed() const {
   std::vector<StampedPose> poses;
@@ -206,6 +223,7 @@ LoopClosureReport ScanSession::close_loop() {
     throw_error(ErrorCode::kInvalidArgument, "loop closure needs more than one fused frame (only frame {})",
                 s.first->index);
   }
+  s.collect_ship();
   s.deformation->drain();
   fusion::deformation::DeformationGraph& graph = s.deformation->graph();
   if (static_cast<int>(graph.size()) <= graph.pinned_count()) {

@@ -195,6 +195,8 @@ struct ScanSession::Impl {
     if (moving) return;
     fusion::MovingVolumeOptions moving_options = options.moving;
     if (!(moving_options.focus_distance_m > 0.0)) moving_options.focus_distance_m = median_depth(depth_m);
+    // On a GPU a move's surface is shipped beside the frame loop (collect_ship()).
+    moving_options.ship_in_background = options.device.is_cuda();
     const double focus = moving_options.focus_distance_m;
     const CameraIntrinsics& camera = calibration.camera;
     Eigen::Vector3d size = options.volume_size_m;
@@ -248,6 +250,17 @@ struct ScanSession::Impl {
   // raycast, a shipped part recorded and queued, the last frame kept, a keyframe queued.
   void capture_reference(const fusion::Volume& volume);
   void record_shipped(int time, std::size_t shipped_before);
+  // A move shipping in the background (GPU): the frame its part is recorded under and the
+  // shipped cloud's size before it. collect_ship() waits for it, records it (with online
+  // deformation) and returns its figures (nullopt when none is pending). The frame loop
+  // collects it before the next keyframe and before the next move, so the deformation's
+  // worker gets the same jobs in the same order as when a move shipped before returning.
+  struct PendingShip {
+    int time = 0;
+    std::size_t shipped_before = 0;
+  };
+  std::optional<PendingShip> pending_ship;
+  std::optional<fusion::MoveStats> collect_ship();
   FrameDeformation feed_deformation(int frame, const Pose& T_world_camera, std::optional<double> angle_deg,
                                     const Image32f& depth_m, const Image32f* confidence, const float* depth_device,
                                     const float* confidence_device);

@@ -132,11 +132,11 @@ void BM_ScanPipeline(benchmark::State& state) {
       move.push_back(t.move_ms);
       raycast.push_back(t.raycast_ms);
       deform.push_back(t.deform_ms);
-      if (report.move.moved) {
-        move_resample.push_back(report.move.resample_ms);
-        move_ship.push_back(report.move.ship_ms);
-        move_assemble.push_back(report.move.ship_assemble_ms);
-        move_points.push_back(static_cast<double>(report.move.shipped_points));
+      if (report.move.moved) move_resample.push_back(report.move.resample_ms);
+      if (const fusion::MoveStats* ship = report.ship()) {
+        move_ship.push_back(ship->ship_ms);
+        move_assemble.push_back(ship->ship_assemble_ms);
+        move_points.push_back(static_cast<double>(ship->shipped_points));
       }
     }
     // The end of the revolution: the loop closure (with deformation) and the final surface.

@@ -104,7 +104,7 @@ class SlsCli(unittest.TestCase):
             self.assertEqual(bench["frames_fused"] + bench["frames_lost"], frames)
             for stage in ("decode", "track", "integrate", "move", "raycast", "deform"):
                 self.assertGreaterEqual(bench["stages"][stage]["total_s"], 0.0)
-            # A move's parts add up to no more than the moves' stage.
+            # A move's parts add up to no more than the moves' stage (on the CPU the ship is in the move).
             parts = bench["volume"]["move_stages"]
             self.assertLessEqual(parts["resample"]["total_s"] + parts["ship"]["total_s"],
                                  bench["stages"]["move"]["total_s"] + 1e-9)
