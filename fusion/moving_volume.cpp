@@ -339,14 +339,16 @@ MoveStats MovingVolume::move_to(const Pose& T_world_volume) {
   leaving.min = Eigen::Vector3d::Constant(0.5 * h);
   leaving.max = geometry.size_m() - Eigen::Vector3d::Constant(0.5 * h);
   leaving.keep_outside = true;
-  if (s.options.ship_in_background && s.device.is_cuda()) {
+  if (s.options.ship_in_background) {
     // `from` stays as it is until the next move, which waits for this ship first.
     stats.shipping = true;
     s.ship_stats = stats;
     s.ship_pending = true;
-    s.ship_job = std::async(std::launch::async, [&s, &from, leaving] {
-      require_device(s.device);  // the worker thread's current device
-      s.ship(from, leaving, &s.ship_stats);
+    Impl* impl = &s;
+    const Volume* leaving_volume = &from;
+    s.ship_job = std::async(std::launch::async, [impl, leaving_volume, leaving] {
+      require_device(impl->device);  // the worker thread's current device
+      impl->ship(*leaving_volume, leaving, &impl->ship_stats);
     });
   } else {
     s.ship(from, leaving, &stats);

@@ -44,12 +44,13 @@ struct MovingVolumeOptions {
   // (default: what every measured figure used) ships every pass, and a second revolution adds
   // a second copy.
   bool merge_revisits = false;
-  // CUDA volumes: a move's leaving surface is shipped (found on the GPU on a stream of its own,
-  // downloaded, assembled, appended) on a worker thread while the caller goes on; move_to()
-  // returns after the resampling. What reads the shipped surface waits for it: shipped_cloud(),
+  // A move's leaving surface is shipped (on a GPU found on a stream of its own, downloaded,
+  // assembled, appended) on a worker thread while the caller goes on; move_to() returns after
+  // the resampling. What reads the shipped surface waits for it: shipped_cloud(),
   // shipped_mesh(), final_surface(), the next move, and finish_shipping(), which also gives the
   // ship's figures. The volume the ship reads is the one the move left, which nothing writes
-  // until the next move. false (and on the CPU): shipped before move_to() returns.
+  // until the next move. false: shipped before move_to() returns. (The scan session ships in
+  // the background on a GPU only: on the CPU the worker would share the frame loop's cores.)
   bool ship_in_background = false;
   ExtractOptions extract;          // for the shipped surface and final_surface()
   // Throws sls::Error(kInvalidArgument) naming the bad value.

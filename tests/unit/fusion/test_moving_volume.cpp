@@ -430,6 +430,69 @@ TEST_P(MovingVolumeTest, BrickFlagsAfterMovesLetRaycastsSeeTheSurface) {
   EXPECT_LE(max_moved, max_fresh + bias + 0.01);
 }
 
+// Shipping in the background (MovingVolumeOptions::ship_in_background; the scan session's
+// mode on a GPU, where MovingVolumeCuda tests it too): move_to() returns before the surface is
+// shipped, finish_shipping() gives the ship's figures once, and what reads the shipped surface
+// and the next move wait for it. The surface is the one shipped before returning, point for
+// point, in the same order.
+TEST_P(MovingVolumeTest, ShippingInTheBackgroundShipsTheSameSurface) {
+  const VoxelFormat format = GetParam();
+  MovingVolumeOptions background_options = test::scene_options();
+  background_options.ship_in_background = true;
+  MovingVolume now(64, 56, 48, kVoxel, format, Device::cpu(), test::scene_options());
+  MovingVolume background(64, 56, 48, kVoxel, format, Device::cpu(), background_options);
+  now.place(test::first_camera());
+  background.place(test::first_camera());
+  test::fill_random_field(now.volume().view(), 4242u);
+  background.volume().copy_from(now.volume());
+
+  const Pose partial = test::moved_camera(test::first_camera(), Eigen::Vector3d(0.6e-3, 0.4e-3, -0.3e-3), 7.0,
+                                          Eigen::Vector3d(1.0, -0.5, 2.0));
+  const MoveStats shipped_now = now.move_to(now.placement(partial));
+  EXPECT_FALSE(shipped_now.shipping);
+  EXPECT_FALSE(now.shipping());
+  EXPECT_FALSE(now.finish_shipping().moved);  // nothing pending
+  const MoveStats started = background.move_to(background.placement(partial));
+  EXPECT_TRUE(started.moved);
+  EXPECT_TRUE(started.shipping);
+  EXPECT_EQ(started.shipped_points, 0u);  // not known yet
+  EXPECT_TRUE(background.shipping());
+  const MoveStats shipped = background.finish_shipping();
+  EXPECT_TRUE(shipped.moved);
+  EXPECT_FALSE(shipped.shipping);
+  EXPECT_FALSE(background.shipping());
+  EXPECT_FALSE(background.finish_shipping().moved);  // given once
+  EXPECT_EQ(shipped.shipped_points, shipped_now.shipped_points);
+  EXPECT_EQ(shipped.shipped_triangles, shipped_now.shipped_triangles);
+  EXPECT_GT(shipped.shipped_points, 10000u);
+  EXPECT_EQ(shipped.translation_m, shipped_now.translation_m);
+  EXPECT_EQ(background.shipped_cloud().positions, now.shipped_cloud().positions);
+  EXPECT_EQ(background.shipped_mesh().faces, now.shipped_mesh().faces);
+
+  // A second move before the first ship is collected: the move waits for it, the shipped
+  // surface read while the second ships is waited for and holds both parts in order.
+  const Pose away =
+      now.volume().geometry().T_world_volume * Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.0, 0.02, 0.0));
+  const MoveStats away_now = now.move_to(away);
+  EXPECT_TRUE(background.move_to(away).shipping);
+  EXPECT_EQ(background.shipped_cloud().positions, now.shipped_cloud().positions);
+  EXPECT_EQ(background.shipped_cloud().normals, now.shipped_cloud().normals);
+  EXPECT_EQ(background.shipped_mesh().faces, now.shipped_mesh().faces);
+  EXPECT_TRUE(background.shipping());  // waited for, not yet collected
+  EXPECT_EQ(background.finish_shipping().shipped_points, away_now.shipped_points);
+  const ExtractedSurface a = now.final_surface();
+  const ExtractedSurface b = background.final_surface();
+  EXPECT_EQ(a.cloud.positions, b.cloud.positions);
+  EXPECT_EQ(a.mesh.faces, b.mesh.faces);
+
+  // A ship still running when the volume is placed anew or destroyed is waited for.
+  EXPECT_TRUE(background.move_to(background.placement(partial)).shipping);
+  background.place(test::first_camera());
+  EXPECT_FALSE(background.shipping());
+  EXPECT_TRUE(background.shipped_cloud().empty());
+  EXPECT_TRUE(background.move_to(background.placement(partial)).shipping);
+}
+
 INSTANTIATE_TEST_SUITE_P(Formats, MovingVolumeTest, ::testing::Values(VoxelFormat::kFloat32, VoxelFormat::kCompact),
                          [](const ::testing::TestParamInfo<VoxelFormat>& format) {
                            return std::string(voxel_format_name(format.param));
