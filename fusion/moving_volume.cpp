@@ -15,6 +15,10 @@
 #include "sdk/core/error.h"
 #include "sdk/core/host_memory.h"
 
+#if defined(_OPENMP)
+#include <omp.h>
+#endif
+
 #if defined(SLS_HAVE_CUDA)
 #include <cuda_runtime_api.h>
 
@@ -348,6 +352,12 @@ MoveStats MovingVolume::move_to(const Pose& T_world_volume) {
     const Volume* leaving_volume = &from;
     s.ship_job = std::async(std::launch::async, [impl, leaving_volume, leaving] {
       require_device(impl->device);  // the worker thread's current device
+#if defined(_OPENMP)
+      // A quarter of the cores (at most what OMP_NUM_THREADS allows) for the host's assembly:
+      // the frame loop's own host work (the decoder's staging copies on every thread) runs
+      // meanwhile, and OpenMP teams that oversubscribe the cores wait on each other's barriers.
+      omp_set_num_threads(std::max(1, std::min(omp_get_max_threads(), omp_get_num_procs() / 4)));
+#endif
       impl->ship(*leaving_volume, leaving, &impl->ship_stats);
     });
   } else {

@@ -44,6 +44,7 @@ struct BenchOptions {
   bool turntable_prior = false;
   std::string deformation = "on";
   std::string upload_ahead = "on";
+  std::string background_shipping = "on";
   double max_gpu_memory = 0.0;
   std::string device;
 };
@@ -160,6 +161,7 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
     session_options.volume_size_m = Eigen::Vector3d::Constant(960 * session_options.voxel_size_m * (1.0 - 1e-9));
   }
   session_options.max_gpu_bytes = options.max_gpu_memory;
+  session_options.ship_in_background = options.background_shipping == "on";
   session_options.turntable_prior = options.turntable_prior;
   session_options.deformation.enabled = options.deformation == "on";
   session::ScanSession session(rig.calibration(), patterns ? &rig.patterns : nullptr, session_options);
@@ -250,6 +252,7 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
       {"object", options.object},
       {"input", options.input},
       {"upload_ahead", upload_ahead},
+      {"background_shipping", device.is_cuda() && session_options.ship_in_background},
       {"device", device.to_string()},
       {"frames", frames},
       {"frames_fused", session.fused_count()},
@@ -377,6 +380,11 @@ void add_bench_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--upload-ahead", options->upload_ahead,
                       "On a GPU, upload the next frame's pattern stack while this one is fused, as a live scan does "
                       "(off: each frame uploads its own)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  command->add_option("--background-shipping", options->background_shipping,
+                      "On a GPU, ship a volume move's surface beside the frame loop, as a scan does (off: each move "
+                      "ships before the next frame)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   command->add_option("--max-gpu-memory", options->max_gpu_memory,

@@ -72,6 +72,11 @@ struct ScanSessionOptions {
   // the budget leaves room for. A fixed volume is not sized by it. Ignored on the CPU.
   double max_gpu_bytes = 0.0;
   fusion::MovingVolumeOptions moving;  // focus_distance_m <= 0: the first frame's median depth
+  // On a GPU, a move's surface ships beside the frame loop (MovingVolumeOptions::
+  // ship_in_background; FrameReport::shipped), collected before the next keyframe or move: the
+  // same model and poses either way. Ignored on the CPU, where it would share the frame loop's
+  // cores; moving.ship_in_background is set from this.
+  bool ship_in_background = true;
   // Instead, one fixed volume (e.g. around a known object for ground-truth poses): no moves.
   std::optional<fusion::VolumeGeometry> fixed_volume;
   // Use the recording's turntable angles with the calibration's axis as the pose guess (the

@@ -196,7 +196,7 @@ struct ScanSession::Impl {
     fusion::MovingVolumeOptions moving_options = options.moving;
     if (!(moving_options.focus_distance_m > 0.0)) moving_options.focus_distance_m = median_depth(depth_m);
     // On a GPU a move's surface is shipped beside the frame loop (collect_ship()).
-    moving_options.ship_in_background = options.device.is_cuda();
+    moving_options.ship_in_background = options.ship_in_background && options.device.is_cuda();
     const double focus = moving_options.focus_distance_m;
     const CameraIntrinsics& camera = calibration.camera;
     Eigen::Vector3d size = options.volume_size_m;

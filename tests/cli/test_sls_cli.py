@@ -84,7 +84,7 @@ class SlsCli(unittest.TestCase):
         # A short ci-preset revolution, both inputs: the end-to-end seconds hold the frames, the
         # loop closure and the final model, with every stage's median and total beside them.
         for extra in (("--input", "depth", "--deformation", "off"),
-                      ("--frames", "3", "--turntable-prior", "--upload-ahead", "off")):
+                      ("--frames", "3", "--turntable-prior", "--upload-ahead", "off", "--background-shipping", "off")):
             # A GPU memory budget does not apply on the CPU: accepted, and the run is the same.
             args = ("--json", "bench", "--preset", "ci", "--object", "knurled-knob", "--device", "cpu",
                     "--max-gpu-memory", "6e9")
@@ -112,6 +112,7 @@ class SlsCli(unittest.TestCase):
             self.assertLessEqual(bench["frame_ms"]["median"], bench["frame_ms"]["max"])
             self.assertNotIn("gpu", bench)
             self.assertFalse(bench["upload_ahead"])  # on the CPU there is nothing to upload
+            self.assertFalse(bench["background_shipping"])  # nor to ship beside the frames
             # The model's accuracy against the exact scene, measured after the timed part (JSON
             # has no NaN or infinity: a figure that could not be measured is null).
             accuracy = bench["accuracy"]
@@ -146,6 +147,7 @@ class SlsCli(unittest.TestCase):
         self.assertIn("accuracy against the exact scene", human.stdout)
         self.assertEqual(run("bench", "--preset", "huge").returncode, 2)
         self.assertEqual(run("bench", "--upload-ahead", "maybe").returncode, 2)
+        self.assertEqual(run("bench", "--background-shipping", "maybe").returncode, 2)
         self.assertEqual(run("bench", "--max-gpu-memory", "-1").returncode, 2)
 
     def test_devices_lists_the_simulator_with_an_openable_uri(self):
