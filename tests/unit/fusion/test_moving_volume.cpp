@@ -441,13 +441,9 @@ TEST_P(MovingVolumeTest, ShippingInTheBackgroundShipsTheSameSurface) {
   background_options.ship_in_background = true;
   MovingVolume now(64, 56, 48, kVoxel, format, Device::cpu(), test::scene_options());
   MovingVolume background(64, 56, 48, kVoxel, format, Device::cpu(), background_options);
-  now.place(test::first_camera());
-  background.place(test::first_camera());
-  test::fill_random_field(now.volume().view(), 4242u);
-  background.volume().copy_from(now.volume());
+  test::place_random_field(&now, {&background});
 
-  const Pose partial = test::moved_camera(test::first_camera(), Eigen::Vector3d(0.6e-3, 0.4e-3, -0.3e-3), 7.0,
-                                          Eigen::Vector3d(1.0, -0.5, 2.0));
+  const Pose partial = test::partial_move_camera();
   const MoveStats shipped_now = now.move_to(now.placement(partial));
   EXPECT_FALSE(shipped_now.shipping);
   EXPECT_FALSE(now.shipping());

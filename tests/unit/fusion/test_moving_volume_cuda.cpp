@@ -87,6 +87,18 @@ CloudComparison compare_clouds(const PointCloud& a, const PointCloud& b) {
   return c;
 }
 
+// Both models at the end, shipped parts plus the live volume (extracted where each lives):
+// the same points and triangles. Returns the CPU's.
+ExtractedSurface expect_same_final_surface(const MovingVolume& cpu, const MovingVolume& gpu) {
+  ExtractedSurface a = cpu.final_surface();
+  const ExtractedSurface b = gpu.final_surface();
+  const CloudComparison c = compare_clouds(a.cloud, b.cloud);
+  EXPECT_TRUE(c.same_size);
+  EXPECT_EQ(c.position_differences, 0u);
+  EXPECT_EQ(a.mesh.faces, b.mesh.faces);
+  return a;
+}
+
 void expect_same_state(const MovingVolume& cpu, const MovingVolume& gpu, const MoveStats& sc, const MoveStats& sg,
                        const std::string& what) {
   SCOPED_TRACE(what);
@@ -168,13 +180,7 @@ TEST_P(MovingVolumeCuda, MovesEqualTheCpuOnes) {
   EXPECT_GT(sg.shipped_points, 0u);
   expect_same_state(cpu, gpu, sc, sg, "move 3 (follow, past the turn threshold)");
 
-  // The model at the end: shipped parts plus the live volume (extracted where each lives).
-  const ExtractedSurface a = cpu.final_surface();
-  const ExtractedSurface b = gpu.final_surface();
-  const CloudComparison c = compare_clouds(a.cloud, b.cloud);
-  ASSERT_TRUE(c.same_size);
-  EXPECT_EQ(c.position_differences, 0u);
-  EXPECT_EQ(a.mesh.faces, b.mesh.faces);
+  const ExtractedSurface a = expect_same_final_surface(cpu, gpu);
   std::printf("[moving-cuda] %s final surface: %zu points, %zu triangles on both\n", voxel_format_name(format),
               a.cloud.size(), a.mesh.faces.size());
 
@@ -215,10 +221,7 @@ TEST_P(MovingVolumeCuda, MovingEverythingOutShipsTheSameWholeSurface) {
   const VoxelFormat format = GetParam();
   MovingVolume cpu(64, 56, 48, kVoxel, format, Device::cpu(), test::scene_options());
   MovingVolume gpu(64, 56, 48, kVoxel, format, Device::cuda(), test::scene_options());
-  cpu.place(test::first_camera());
-  gpu.place(test::first_camera());
-  test::fill_random_field(cpu.volume().view(), 4242u);
-  gpu.volume().copy_from(cpu.volume());
+  test::place_random_field(&cpu, {&gpu});
   const ExtractedSurface all = extract_surface(cpu.volume());
   ASSERT_GT(all.cloud.size(), std::size_t{1} << 16);
   const Pose away =
@@ -236,12 +239,8 @@ TEST_P(MovingVolumeCuda, MovingEverythingOutShipsTheSameWholeSurface) {
   // cell (rim cells whose vertices lie across the border) agrees too.
   MovingVolume cpu2(64, 56, 48, kVoxel, format, Device::cpu(), test::scene_options());
   MovingVolume gpu2(64, 56, 48, kVoxel, format, Device::cuda(), test::scene_options());
-  cpu2.place(test::first_camera());
-  gpu2.place(test::first_camera());
-  test::fill_random_field(cpu2.volume().view(), 4242u);
-  gpu2.volume().copy_from(cpu2.volume());
-  const Pose partial = test::moved_camera(test::first_camera(), Eigen::Vector3d(0.6e-3, 0.4e-3, -0.3e-3), 7.0,
-                                          Eigen::Vector3d(1.0, -0.5, 2.0));
+  test::place_random_field(&cpu2, {&gpu2});
+  const Pose partial = test::partial_move_camera();
   const MoveStats pc = cpu2.move_to(cpu2.placement(partial));
   const MoveStats pg = gpu2.move_to(gpu2.placement(partial));
   EXPECT_GT(pg.shipped_points, 10000u);
@@ -258,13 +257,9 @@ TEST_P(MovingVolumeCuda, ShippingInTheBackgroundShipsWhatTheCpuShips) {
   background_options.ship_in_background = true;
   MovingVolume cpu(64, 56, 48, kVoxel, format, Device::cpu(), test::scene_options());
   MovingVolume gpu(64, 56, 48, kVoxel, format, Device::cuda(), background_options);
-  cpu.place(test::first_camera());
-  gpu.place(test::first_camera());
-  test::fill_random_field(cpu.volume().view(), 4242u);
-  gpu.volume().copy_from(cpu.volume());
+  test::place_random_field(&cpu, {&gpu});
 
-  const Pose partial = test::moved_camera(test::first_camera(), Eigen::Vector3d(0.6e-3, 0.4e-3, -0.3e-3), 7.0,
-                                          Eigen::Vector3d(1.0, -0.5, 2.0));
+  const Pose partial = test::partial_move_camera();
   const MoveStats sc = cpu.move_to(cpu.placement(partial));
   EXPECT_TRUE(gpu.move_to(gpu.placement(partial)).shipping);
   EXPECT_TRUE(gpu.shipping());
@@ -284,12 +279,7 @@ TEST_P(MovingVolumeCuda, ShippingInTheBackgroundShipsWhatTheCpuShips) {
   EXPECT_EQ(cpu.shipped_mesh().faces, gpu.shipped_mesh().faces);
   const MoveStats away_gpu = gpu.finish_shipping();
   expect_same_state(cpu, gpu, away_cpu, away_gpu, "background, everything out");
-  const ExtractedSurface a = cpu.final_surface();
-  const ExtractedSurface b = gpu.final_surface();
-  const CloudComparison f = compare_clouds(a.cloud, b.cloud);
-  ASSERT_TRUE(f.same_size);
-  EXPECT_EQ(f.position_differences, 0u);
-  EXPECT_EQ(a.mesh.faces, b.mesh.faces);
+  expect_same_final_surface(cpu, gpu);
 }
 
 INSTANTIATE_TEST_SUITE_P(Formats, MovingVolumeCuda, ::testing::Values(VoxelFormat::kFloat32, VoxelFormat::kCompact),
