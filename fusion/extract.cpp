@@ -152,29 +152,25 @@ struct ToWorld {
   }
 };
 
-// The cloud of crossings[kept[0]], crossings[kept[1]], ... in that order, with normals,
-// confidence and the "weight" property. Each point is its own crossing's alone, so they are
-// filled on threads (a move ships ~1 M of them at the paper's size; one thread took most of
-// the move's host time).
-PointCloud cloud_of(const std::vector<EdgeCrossing>& crossings, const std::vector<std::size_t>& kept,
-                    const ToWorld& to_world, const ExtractOptions& options) {
-  const auto count = static_cast<std::ptrdiff_t>(kept.size());
+// A cloud of `count` points with normals, confidence and the "weight" property, to be set.
+PointCloud sized_cloud(std::size_t count) {
   PointCloud cloud;
-  cloud.positions.resize(kept.size());
-  cloud.normals.resize(kept.size());
-  cloud.confidence.resize(kept.size());
-  cloud.properties.push_back({"weight", std::vector<float>(kept.size())});
-  float* weight = cloud.properties.front().values.data();
-#pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t n = 0; n < count; ++n) {
-    const auto i = static_cast<std::size_t>(n);
-    const SurfaceCrossing& crossing = crossings[kept[i]].crossing;
-    cloud.positions[i] = to_world.point(crossing.point_volume).cast<float>();
-    cloud.normals[i] = to_world.normal(crossing.normal_volume);
-    cloud.confidence[i] = std::min(1.0f, crossing.weight / options.full_confidence_weight);
-    weight[i] = crossing.weight;
-  }
+  cloud.positions.resize(count);
+  cloud.normals.resize(count);
+  cloud.confidence.resize(count);
+  cloud.properties.push_back({"weight", std::vector<float>(count)});
   return cloud;
+}
+
+// Point i of a sized_cloud() from its crossing. Each point is its own crossing's alone, so the
+// callers set them on threads (a move ships ~0.65 M of them at the paper's size; appended one
+// at a time on one thread they were most of the move's host time).
+void set_point(PointCloud* cloud, std::size_t i, const SurfaceCrossing& crossing, const ToWorld& to_world,
+               const ExtractOptions& options) {
+  cloud->positions[i] = to_world.point(crossing.point_volume).cast<float>();
+  cloud->normals[i] = to_world.normal(crossing.normal_volume);
+  cloud->confidence[i] = std::min(1.0f, crossing.weight / options.full_confidence_weight);
+  cloud->properties.front().values[i] = crossing.weight;
 }
 
 // What a region keeps, one predicate for every filter: nothing set keeps everything; a world
@@ -198,19 +194,35 @@ struct Region {
 PointCloud make_cloud(const std::vector<EdgeCrossing>& crossings, const Pose& T_world_volume, const Region& region,
                       const ExtractOptions& options) {
   const ToWorld to_world(T_world_volume);
-  // Which crossings the region keeps (on threads), then their cloud in crossing order.
+  // In chunks on threads: which crossings the region keeps and how many per chunk, then each
+  // chunk's points from where the chunks before it end, in crossing order. Beside the cloud
+  // only a byte per crossing: the extraction's transient memory is what the allocator keeps.
+  constexpr std::size_t kChunk = std::size_t{1} << 16;
+  const std::size_t chunks = (crossings.size() + kChunk - 1) / kChunk;
   std::vector<std::uint8_t> keeps(crossings.size());
+  std::vector<std::size_t> chunk_start(chunks + 1, 0);
 #pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t n = 0; n < static_cast<std::ptrdiff_t>(crossings.size()); ++n) {
-    const Vec3f& point_volume = crossings[static_cast<std::size_t>(n)].crossing.point_volume;
-    keeps[static_cast<std::size_t>(n)] = region.keeps(to_world.point(point_volume), point_volume) ? 1 : 0;
+  for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {
+    const std::size_t begin = static_cast<std::size_t>(c) * kChunk, end = std::min(crossings.size(), begin + kChunk);
+    std::size_t kept = 0;
+    for (std::size_t n = begin; n < end; ++n) {
+      const Vec3f& point_volume = crossings[n].crossing.point_volume;
+      keeps[n] = region.keeps(to_world.point(point_volume), point_volume) ? 1 : 0;
+      kept += keeps[n];
+    }
+    chunk_start[static_cast<std::size_t>(c) + 1] = kept;
   }
-  std::vector<std::size_t> kept;
-  kept.reserve(crossings.size());
-  for (std::size_t n = 0; n < crossings.size(); ++n) {
-    if (keeps[n] != 0) kept.push_back(n);
+  for (std::size_t c = 0; c < chunks; ++c) chunk_start[c + 1] += chunk_start[c];
+  PointCloud cloud = sized_cloud(chunk_start[chunks]);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {
+    const std::size_t begin = static_cast<std::size_t>(c) * kChunk, end = std::min(crossings.size(), begin + kChunk);
+    std::size_t out = chunk_start[static_cast<std::size_t>(c)];
+    for (std::size_t n = begin; n < end; ++n) {
+      if (keeps[n] != 0) set_point(&cloud, out++, crossings[n].crossing, to_world, options);
+    }
   }
-  return cloud_of(crossings, kept, to_world, options);
+  return cloud;
 }
 
 // The cells that can hold surface: the (up to) four around each crossing edge, as the voxel
@@ -334,14 +346,20 @@ TriangleMesh assemble_mesh(int grid_nx, int grid_ny, const std::vector<EdgeCross
     }
   }
   TriangleMesh mesh;
-  std::vector<std::size_t> used;
-  used.reserve(static_cast<std::size_t>(std::count(remap.begin(), remap.end(), 0)));
-  for (std::size_t n = 0; n < crossings.size(); ++n) {
-    if (remap[n] < 0) continue;
-    remap[n] = static_cast<std::int32_t>(used.size());
-    used.push_back(n);
+  std::int32_t next = 0;
+  for (std::int32_t& index : remap) {
+    if (index >= 0) index = next++;
   }
-  mesh.vertices = cloud_of(crossings, used, ToWorld(T_world_volume), options);
+  mesh.vertices = sized_cloud(static_cast<std::size_t>(next));
+  const ToWorld to_world(T_world_volume);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t n = 0; n < static_cast<std::ptrdiff_t>(crossings.size()); ++n) {
+    const std::int32_t index = remap[static_cast<std::size_t>(n)];
+    if (index >= 0) {
+      set_point(&mesh.vertices, static_cast<std::size_t>(index), crossings[static_cast<std::size_t>(n)].crossing,
+                to_world, options);
+    }
+  }
   mesh.faces.resize(chunk_start[chunks]);
 #pragma omp parallel for schedule(static)
   for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {

@@ -48,6 +48,17 @@ inline double rss_mib() {
   return 0.0;
 }
 
+// VmRSS after the allocator has returned its free pages to the system (glibc's malloc_trim, all
+// arenas): live memory and fragmentation, without the free blocks kept by design, which moved
+// RSS by up to 10 MiB between identical scans in one process (test_scan_soak, 2026-11-29). Under
+// ASan (its own allocator, no trim) the plain VmRSS.
+inline double settled_rss_mib() {
+#if !defined(SLS_PROCESS_MEMORY_ASAN)
+  malloc_trim(0);
+#endif
+  return rss_mib();
+}
+
 // Bytes the program holds on the heap (freed ones excluded): exact for leaks, unlike RSS, which
 // keeps pages the allocator has not returned (and, under ASan, its quarantine of freed blocks).
 inline double heap_mib() {
