@@ -1,6 +1,7 @@
 // The Tracker's state and the types its two halves share: tracker.cpp (options, the
-// Gauss–Newton loop and its tests, the CPU path) and tracker_device.cpp (the CUDA path).
-// Internal to fusion/: included by those two files and pose_prior.cpp only.
+// Gauss–Newton loop and its tests, the CPU path), tracker_device.cpp (the CUDA path) and
+// tracker_reference.cpp (the photometric reference frame).
+// Internal to fusion/: included by tracker.cpp, tracker_device.cpp, tracker_reference.cpp and pose_prior.cpp only.
 #pragma once
 
 #include <Eigen/Core>

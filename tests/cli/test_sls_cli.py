@@ -239,6 +239,17 @@ class SlsCli(unittest.TestCase):
             self.assertIn(stage, report["ms_per_stage"])
         for name in ("cloud.ply", "mesh.ply", "trajectory.txt", "report.json", "report.html", "render.png"):
             self.assertTrue((out / name).exists(), name)
+        # Each tracked frame says how many live pixels lay outside the volume (not counted in its
+        # overlap test); on the CPU a move ships with it, so its entry gives what it shipped.
+        per_frame = json.loads((out / "report.json").read_text())["per_frame"]
+        tracked_frames = [f["tracking"] for f in per_frame if "tracking" in f]
+        self.assertGreater(len(tracked_frames), 30)
+        for tracking in tracked_frames:
+            self.assertGreaterEqual(tracking["pixels_outside_volume"], 0)
+        moves = [f["move"] for f in per_frame if "move" in f]
+        self.assertEqual(len(moves), report["volume"]["moves"])
+        self.assertTrue(all(m["shipped_points"] >= 0 for m in moves))
+        self.assertFalse(any("shipped" in f for f in per_frame))
         evaluation = json.loads(run("--json", "eval", "--result", str(out), "--truth", str(rec)).stdout)
         for key in ("ate_rmse_um", "loop_closure_error_um", "loop_closure_error_deg"):
             self.assertIn(key, evaluation)
