@@ -80,6 +80,7 @@ struct DeformationGraph::Impl {
   std::vector<std::pair<int, int>> edges;
   std::vector<std::vector<int>> neighbours;  // per node, both directions
   std::vector<Constraint> constraints;
+  std::vector<PoseRotationPrior> rotation_priors;  // bound as bind_around binds their pose
   NormalEquations equations;
   std::size_t structure_version = 1;  // ResidualModel::structure_version
 
@@ -90,6 +91,7 @@ struct DeformationGraph::Impl {
     m.nodes = &nodes;
     m.neighbours = &neighbours;
     m.constraints = &constraints;
+    m.rotation_priors = &rotation_priors;
     m.options = &options;
     m.pinned = pinned();
     m.structure_version = structure_version;
@@ -181,6 +183,12 @@ int DeformationGraph::add_node(const Eigen::Vector3d& position, int time) {
   }
   s.nodes.push_back(node);
   ++s.structure_version;
+  // Poses whose window (bind_around) now reaches the new node are bound again.
+  const int half = o.temporal_window / 2;
+  for (auto prior = s.rotation_priors.rbegin(); prior != s.rotation_priors.rend(); ++prior) {
+    if (node_at_time(prior->time) + half < index) break;
+    prior->binding = bind_around(prior->anchor, prior->time);
+  }
   return index;
 }
 
@@ -258,6 +266,35 @@ void DeformationGraph::clear_constraints() {
   ++impl_->structure_version;
 }
 const std::vector<Constraint>& DeformationGraph::constraints() const { return impl_->constraints; }
+
+int DeformationGraph::add_rotation_prior(const Eigen::Vector3d& anchor, int time, const RotationPrior& prior) {
+  Impl& s = *impl_;
+  if (s.nodes.empty()) throw_error(ErrorCode::kInvalidArgument, "deformation graph: a rotation prior before any node");
+  if (!finite(anchor)) {
+    throw_error(ErrorCode::kInvalidArgument, "deformation graph: a rotation prior's anchor is not finite");
+  }
+  const Eigen::Matrix3d& R = prior.rotation;
+  if (!R.allFinite() || (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 || R.determinant() < 0.0) {
+    throw_error(ErrorCode::kInvalidArgument, "deformation graph: the rotation prior of frame {} is not a rotation",
+                time);
+  }
+  const Eigen::Matrix3d& L = prior.information;
+  const double scale = L.cwiseAbs().maxCoeff();
+  if (!L.allFinite() || (L - L.transpose()).norm() > 1e-9 * scale ||
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(L).eigenvalues().minCoeff() < -1e-9 * scale) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "deformation graph: the rotation prior of frame {} has an information matrix that is not finite, "
+                "symmetric and positive semi-definite",
+                time);
+  }
+  PoseRotationPrior made = make_pose_rotation_prior(anchor, time, prior);
+  made.binding = bind_around(anchor, time);
+  s.rotation_priors.push_back(std::move(made));
+  ++s.structure_version;  // it couples the nodes of its binding
+  return static_cast<int>(s.rotation_priors.size()) - 1;
+}
+
+std::size_t DeformationGraph::rotation_priors() const { return impl_->rotation_priors.size(); }
 
 EnergyTerms DeformationGraph::energy() const { return evaluate_energy(impl_->model()); }
 

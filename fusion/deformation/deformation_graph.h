@@ -7,6 +7,19 @@
 //     + γ Σ_j Σ_{k∈N(j)} (‖A_j(g_k − g_j) + g_j + t_j − (g_k + t_k)‖²
 //                         + ρ²/3 ‖A_j − A_k‖²_F) / L²                       (15, 16)
 //     + w_con Σ_l c_l ‖ṽ_l − q̃_l‖² / L²   (or (n_lᵀ(ṽ_l − q̃_l))² / L²)       (17)
+//     + Σ_p φ_pᵀ Λ_p φ_p,  φ_p = vee(skew(B_p C_pᵀ)), B_p = Σ_i w_i A_i          (pose priors)
+//
+// The last term is not the paper's: a pose may carry a prior on its rotation, from a sensor
+// that measures it without drift — a turntable's angle since the first frame, to the table's
+// repeatability. B_p is the blend of A over the nodes that deform the pose (bind_around at its
+// anchor: what deform_pose turns it by, to first order), C_p the correction the sensor asks
+// (left of the tracked pose) and Λ_p its information (rad⁻², PosePrior::information()); φ_p
+// is B_p C_pᵀ's rotation vector to first order (exact as a function of A, and linear in it).
+// Tracking's drift wanders slowly about the axis while the table's angles scatter
+// independently by their σ, so the priors hold the middle of a revolution, which the loop
+// closure's constraints at its end cannot (docs/benchmarks.md). The prior is on the blend,
+// not on one node: at a scan's end the blend is one-sided, and a node pinned to its own
+// keyframe's correction leaves the last poses short of theirs by the drift's slope.
 //
 // E_reg asks neighbouring nodes to deform their neighbour's surroundings alike: eq. (15)
 // compares them at g_k alone; with a region radius ρ > 0 they are compared over the ball of
@@ -103,11 +116,20 @@ struct Constraint {
   double weight = 1.0;  // c_l
 };
 
+// A prior on a pose's rotation (see the energy above): the rotation the graph turns the pose by
+// should be `rotation` (world frame, applied left of the pose), to `information` (rad⁻²,
+// symmetric positive semi-definite; zero along a direction the prior leaves free).
+struct RotationPrior {
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+};
+
 struct EnergyTerms {
   double rotation = 0.0;        // w_rot E_rot
   double regularization = 0.0;  // γ E_reg / L²
   double constraints = 0.0;     // w_con E_con / L²
-  double total() const { return rotation + regularization + constraints; }
+  double rotation_priors = 0.0; // Σ φᵀΛφ
+  double total() const { return rotation + regularization + constraints + rotation_priors; }
 };
 
 struct SolveStats {
@@ -161,6 +183,14 @@ class DeformationGraph {
   void add_constraint(const Constraint& constraint);
   void clear_constraints();
   const std::vector<Constraint>& constraints() const;
+
+  // A prior on the rotation of a pose of frame `time` looking at `anchor` (deform_pose with
+  // bind_around(anchor, time); its binding follows as nodes are added). Returns its index.
+  // sls::Error(kInvalidArgument) before any node, for an anchor that is not finite, a rotation
+  // that is not one (‖RᵀR − I‖ > 1e-6, det < 0), an information matrix that is not finite,
+  // symmetric and positive semi-definite.
+  int add_rotation_prior(const Eigen::Vector3d& anchor, int time, const RotationPrior& prior);
+  std::size_t rotation_priors() const;
 
   // `iterations` Gauss–Newton steps (a step that raises the energy is halved, up to 8 times;
   // one that still raises it ends the solve). sls::Error(kInvalidArgument): no node to solve

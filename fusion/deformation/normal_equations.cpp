@@ -68,6 +68,11 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
     }
     couple(nodes, count, model.pinned, &needed);
   }
+  if (model.rotation_priors != nullptr) {
+    for (const PoseRotationPrior& prior : *model.rotation_priors) {
+      couple(prior.binding.nodes, prior.binding.count, model.pinned, &needed);
+    }
+  }
   std::sort(needed.begin(), needed.end());
   needed.erase(std::unique(needed.begin(), needed.end()), needed.end());
   bool inside = blocks == blocks_ && solver_.analyzed();

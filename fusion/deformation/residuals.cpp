@@ -157,6 +157,52 @@ void constraint_block(const ResidualModel& model, const Constraint& constraint, 
   }
 }
 
+PoseRotationPrior make_pose_rotation_prior(const Eigen::Vector3d& anchor, int time, const RotationPrior& prior) {
+  PoseRotationPrior out;
+  out.anchor = anchor;
+  out.time = time;
+  out.prior = prior;
+  // U = diag(√λ) Vᵀ of Λ = V diag(λ) Vᵀ (λ clamped at 0: rounding of a semi-definite Λ).
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(0.5 * (prior.information + prior.information.transpose()));
+  const Eigen::Vector3d root = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  out.sqrt_information = root.asDiagonal() * eigen.eigenvectors().transpose();
+  return out;
+}
+
+void rotation_prior_block(const PoseRotationPrior& prior, const ResidualModel& model, ResidualBlock* block) {
+  reset(block, Term::kRotationPrior, 3);
+  const Eigen::Matrix3d& C = prior.prior.rotation;
+  Eigen::Matrix3d blended = Eigen::Matrix3d::Zero();
+  for (int i = 0; i < prior.binding.count; ++i) {
+    blended += prior.binding.weights[i] * node_of(model, prior.binding.nodes[i]).A;
+  }
+  const Eigen::Matrix3d M = blended * C.transpose();
+  // φ = vee(½(M − Mᵀ)): exact for M = I + [φ]×, linear in A.
+  const Eigen::Vector3d phi(0.5 * (M(2, 1) - M(1, 2)), 0.5 * (M(0, 2) - M(2, 0)), 0.5 * (M(1, 0) - M(0, 1)));
+  const Eigen::Vector3d r = prior.sqrt_information * phi;
+  for (int i = 0; i < 3; ++i) block->r[i] = r[i];
+  int slots[kMaxBoundNodes];
+  for (int i = 0; i < prior.binding.count; ++i) slots[i] = block->slot(prior.binding.nodes[i]);
+  if (!block->jacobian) return;
+  // dM_ab/dA_ic = w δ_ai C_bc (A of a node of weight w), so dφ_p/dA_ic over the pairs (a, b)
+  // of φ_p = ½(M_ab − M_ba), times w.
+  static constexpr int kA[3] = {2, 0, 1};
+  static constexpr int kB[3] = {1, 2, 0};
+  Eigen::Matrix<double, 3, 9> dphi = Eigen::Matrix<double, 3, 9>::Zero();
+  for (int p = 0; p < 3; ++p) {
+    for (int c = 0; c < 3; ++c) {
+      dphi(p, 3 * kA[p] + c) += 0.5 * C(kB[p], c);
+      dphi(p, 3 * kB[p] + c) -= 0.5 * C(kA[p], c);
+    }
+  }
+  const Eigen::Matrix<double, 3, 9> J = prior.sqrt_information * dphi;
+  for (int i = 0; i < prior.binding.count; ++i) {
+    for (int row = 0; row < 3; ++row) {
+      for (int k = 0; k < 9; ++k) block->J[slots[i]][row][k] += prior.binding.weights[i] * J(row, k);
+    }
+  }
+}
+
 EnergyTerms evaluate_energy(const ResidualModel& model) {
   EnergyTerms energy;
   for_each_residual_block(model, [&energy](const ResidualBlock& block) {
@@ -166,6 +212,7 @@ EnergyTerms evaluate_energy(const ResidualModel& model) {
       case Term::kRotation: energy.rotation += sum; break;
       case Term::kRegularization: energy.regularization += sum; break;
       case Term::kConstraint: energy.constraints += sum; break;
+      case Term::kRotationPrior: energy.rotation_priors += sum; break;
     }
   }, Terms::kAll, /*jacobian=*/false);
   return energy;

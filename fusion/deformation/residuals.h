@@ -1,9 +1,9 @@
 // The deformation graph's residuals and their Jacobians (deformation_graph.h gives the
-// energy), one block at a time: E_rot per node (6 rows), E_reg per directed link (3 rows, and 9 for its
-// region part),
-// E_con per constraint (3 rows, or 1 along a normal). Every consumer — the energy, the normal
-// equations, the dense Jacobian the tests compare with finite differences — walks the same
-// blocks (for_each_residual_block), so what is checked is what is solved.
+// energy), one block at a time: E_rot per node (6 rows), E_reg per directed link (3 rows, and
+// 9 for its region part), E_con per constraint (3 rows, or 1 along a normal), a pose's
+// rotation prior (3 rows: Λ^½ φ). Every consumer — the energy, the normal equations, the
+// dense Jacobian the tests compare with finite differences — walks the same blocks
+// (for_each_residual_block), so what is checked is what is solved.
 //
 // Parameters per node: A row-major (9), then t / L (3): unit-free, as the residuals are.
 // The normal of a point-to-plane constraint with a deformed target is turned by the target's
@@ -20,11 +20,23 @@
 
 namespace sls::fusion::deformation {
 
+// A pose's rotation prior: the nodes that deform the pose, and the square root of the
+// prior's information (UᵀU = Λ, made once).
+struct PoseRotationPrior {
+  Eigen::Vector3d anchor = Eigen::Vector3d::Zero();
+  int time = 0;
+  NodeBinding binding;
+  RotationPrior prior;
+  Eigen::Matrix3d sqrt_information = Eigen::Matrix3d::Zero();
+};
+PoseRotationPrior make_pose_rotation_prior(const Eigen::Vector3d& anchor, int time, const RotationPrior& prior);
+
 // What the residuals are computed from (the graph's state, borrowed).
 struct ResidualModel {
   const std::vector<Node>* nodes = nullptr;
   const std::vector<std::vector<int>>* neighbours = nullptr;
   const std::vector<Constraint>* constraints = nullptr;
+  const std::vector<PoseRotationPrior>* rotation_priors = nullptr;  // may be null
   const GraphOptions* options = nullptr;
   int pinned = 0;  // the first `pinned` nodes have no parameters
   // Changes whenever nodes, links or constraints are added or removed (not when parameters
@@ -32,7 +44,7 @@ struct ResidualModel {
   std::size_t structure_version = 0;
 };
 
-enum class Term { kRotation, kRegularization, kConstraint };
+enum class Term { kRotation, kRegularization, kConstraint, kRotationPrior };
 
 constexpr int kMaxBlockNodes = 2 * kMaxBoundNodes;
 constexpr int kMaxBlockRows = 9;
@@ -56,13 +68,15 @@ void regularization_block(const ResidualModel& model, int from, int to, Residual
 // E_reg's agreement over the ball of radius ρ (GraphOptions::region_radius_m): ρ/√3 (A_j − A_k).
 void region_block(const ResidualModel& model, int from, int to, ResidualBlock* block);
 void constraint_block(const ResidualModel& model, const Constraint& constraint, ResidualBlock* block);
+void rotation_prior_block(const PoseRotationPrior& prior, const ResidualModel& model, ResidualBlock* block);
 
 // Which blocks a walk visits: E_reg (with its region part) is linear in the parameters with
 // a Jacobian fixed by the node positions, so its share of JᵀJ changes only when links do.
-enum class Terms { kAll, kLinks, kRotationAndConstraints };
+enum class Terms { kAll, kLinks, kRotationAndConstraints };  // the last with the rotation priors
 
 // Every block once, in a fixed order: E_rot of each unpinned node, E_reg of each directed
-// link with an unpinned end (and its region part when ρ > 0), then every constraint.
+// link with an unpinned end (and its region part when ρ > 0), every constraint, then every
+// pose's rotation prior.
 template <typename Visit>
 void for_each_residual_block(const ResidualModel& model, Visit&& visit, Terms terms = Terms::kAll,
                              bool jacobian = true) {
@@ -92,6 +106,12 @@ void for_each_residual_block(const ResidualModel& model, Visit&& visit, Terms te
     for (const Constraint& constraint : *model.constraints) {
       constraint_block(model, constraint, &block);
       visit(block);
+    }
+    if (model.rotation_priors != nullptr) {
+      for (const PoseRotationPrior& prior : *model.rotation_priors) {
+        rotation_prior_block(prior, model, &block);
+        visit(block);
+      }
     }
   }
 }

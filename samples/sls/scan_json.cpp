@@ -107,6 +107,7 @@ nlohmann::json deformation_json(const session::ScanSession& session) {
                         {"nodes", graph.nodes},
                         {"links", graph.links},
                         {"constraints", graph.constraints},
+                        {"rotation_priors", graph.rotation_priors},
                         {"analyses", graph.analyses},
                         {"factorizations", graph.factorizations},
                         {"node_spacing_mm", graph.node_spacing_m * 1e3},

@@ -78,6 +78,7 @@ struct Job {
   Pose T_world_camera;
   Eigen::Vector3d focus = Eigen::Vector3d::Zero();
   SurfaceSamples samples;  // camera frame (keyframe) or world (shipped: the whole part)
+  std::optional<fusion::deformation::RotationPrior> rotation_prior;  // keyframe: its pose's
 };
 
 }  // namespace
@@ -261,6 +262,7 @@ struct ScanDeformation::Impl {
     KeyframeSolve result;
     result.frame = job.frame;
     result.node = graph.add_node(job.focus, job.frame);
+    if (job.rotation_prior) graph.add_rotation_prior(job.focus, job.frame, *job.rotation_prior);
     const Clock::time_point match_start = Clock::now();
     result.matches = match_revisits(job, result.node);
     result.match_ms = ms_since(match_start);
@@ -363,7 +365,8 @@ bool ScanDeformation::wants_keyframe(const Pose& T_world_camera, const Eigen::Ve
 }
 
 void ScanDeformation::add_keyframe(int frame, const Pose& T_world_camera, const Eigen::Vector3d& focus_point,
-                                   SurfaceSamples samples_camera) {
+                                   SurfaceSamples samples_camera,
+                                   std::optional<fusion::deformation::RotationPrior> rotation_prior) {
   Impl& s = *impl_;
   s.have_keyframe = true;
   s.last_focus = focus_point;
@@ -374,6 +377,7 @@ void ScanDeformation::add_keyframe(int frame, const Pose& T_world_camera, const 
   job.T_world_camera = T_world_camera;
   job.focus = focus_point;
   job.samples = std::move(samples_camera);
+  job.rotation_prior = std::move(rotation_prior);
   s.post(std::move(job));
 }
 

@@ -26,6 +26,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -58,6 +59,13 @@ struct DeformationOptions {
   int loop_frames = 2;
   // Revisits: shipped parts bound only to nodes at least this many older than the keyframe.
   int revisit_gap_nodes = 16;
+  // With the turntable's angles used as the tracker's prior (ScanSessionOptions::
+  // turntable_prior, the calibration's σ known): each keyframe's pose also carries the
+  // table's rotation since the first frame as a prior (DeformationGraph::add_rotation_prior).
+  // Tracking drifts slowly about the axis (±0.015° mid-revolution on the demo screw, 15 µm at
+  // the camera) while each table angle is off by its σ alone; the loop closure's constraints
+  // correct the revolution's end, these its middle (docs/benchmarks.md).
+  bool turntable_rotation_priors = true;
   double max_correspondence_m = 0.0;  // 0: 10 voxels
   double max_normal_angle_deg = 30.0;
   int keyframe_samples = 2048;        // surface samples of a frame (a grid over its depth map)
@@ -128,9 +136,12 @@ class ScanDeformation {
 
   // Frame loop: whether a frame at this pose (focus point given) makes a keyframe.
   bool wants_keyframe(const Pose& T_world_camera, const Eigen::Vector3d& focus_point) const;
-  // Frame loop: a keyframe (its samples in its camera frame), queued for the worker.
+  // Frame loop: a keyframe (its samples in its camera frame), queued for the worker; with a
+  // prior on its pose's rotation (DeformationGraph::add_rotation_prior: a turntable's angle
+  // since the first frame), when one is known.
   void add_keyframe(int frame, const Pose& T_world_camera, const Eigen::Vector3d& focus_point,
-                    SurfaceSamples samples_camera);
+                    SurfaceSamples samples_camera,
+                    std::optional<fusion::deformation::RotationPrior> rotation_prior = std::nullopt);
   // Frame loop: a part of the map shipped at `frame` (world points and normals), queued.
   void add_shipped(int frame, const PointCloud& cloud, std::size_t begin, std::size_t end);
   DeformationStatus status() const;

@@ -101,6 +101,32 @@ void ScanSession::Impl::keep_loop_frame(int frame, const Pose& T_world_camera, s
   if (confidence != nullptr) slot.confidence = *confidence;
 }
 
+std::optional<fusion::deformation::RotationPrior> ScanSession::Impl::turntable_rotation_prior(
+    const Pose& T_world_camera, std::optional<double> angle_deg) const {
+  if (!options.deformation.turntable_rotation_priors || !first || !first->angle_deg || !angle_deg ||
+      !calibration.turntable) {
+    return std::nullopt;
+  }
+  // Where the table puts this camera in the first frame's world: its angle since the first
+  // frame, to the σ of two of its angles (turntable_pose_prior), with no drift however far it
+  // turned.
+  const Pose expected =
+      first->T_world_camera * turntable_camera_motion(*calibration.turntable, *angle_deg - *first->angle_deg);
+  const std::optional<fusion::PosePrior> prior = turntable_pose_prior(first->T_world_camera, expected);
+  if (!prior) return std::nullopt;
+  fusion::deformation::RotationPrior out;
+  out.rotation = expected.rotation() * T_world_camera.rotation().transpose();
+  // Across the axis no surer than about it: a table without wobble (σ_tilt 0, taken as 1e-6°)
+  // would put an information 10¹⁴ times the rest of the system's into the graph's normal
+  // equations, for no gain (the demo screw's result is the same to the last digit either way).
+  fusion::PosePrior bounded = *prior;
+  if (prior->sigma_rad < fusion::PosePrior::kNone) {
+    bounded.tilt_sigma_rad = std::max(prior->tilt_sigma_rad, prior->sigma_rad);
+  }
+  out.information = bounded.information();
+  return out;
+}
+
 FrameDeformation ScanSession::Impl::feed_deformation(int frame, const Pose& T_world_camera,
                                                      std::optional<double> angle_deg, const Image32f& depth_m,
                                                      const Image32f* confidence, const float* depth_device,
@@ -112,7 +138,8 @@ FrameDeformation ScanSession::Impl::feed_deformation(int frame, const Pose& T_wo
     out.keyframe = true;
     deformation->add_keyframe(frame, T_world_camera, focus,
                               sample_depth_map(depth_m, calibration.camera, options.deformation.keyframe_samples,
-                                               edge_step_m(calibration.camera, focus_distance_m)));
+                                               edge_step_m(calibration.camera, focus_distance_m)),
+                              turntable_rotation_prior(T_world_camera, angle_deg));
   }
   const DeformationStatus status = deformation->status();
   out.nodes = status.nodes;
@@ -199,6 +226,7 @@ ScanSession::GraphSummary ScanSession::graph_summary() const {
   summary.nodes = graph.size();
   summary.links = graph.edges().size();
   summary.constraints = graph.constraints().size();
+  summary.rotation_priors = graph.rotation_priors();
   summary.analyses = graph.analyses();
   summary.factorizations = graph.factorizations();
   summary.node_spacing_m = graph.options().length_scale_m;

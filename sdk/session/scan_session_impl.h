@@ -261,6 +261,10 @@ struct ScanSession::Impl {
   };
   std::optional<PendingShip> pending_ship;
   std::optional<fusion::MoveStats> collect_ship();
+  // The turntable's prior on a keyframe node's rotation (scan_session_deformation.cpp);
+  // nullopt unless the table's angles, axis and σ are known and used.
+  std::optional<fusion::deformation::RotationPrior> turntable_rotation_prior(const Pose& T_world_camera,
+                                                                             std::optional<double> angle_deg) const;
   FrameDeformation feed_deformation(int frame, const Pose& T_world_camera, std::optional<double> angle_deg,
                                     const Image32f& depth_m, const Image32f* confidence, const float* depth_device,
                                     const float* confidence_device);

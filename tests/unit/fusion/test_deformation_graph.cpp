@@ -2,9 +2,11 @@
 // and a bend recovered from point constraints, a loop's correction spread along a chain,
 // the Jacobians the solver uses against finite differences of its residuals, determinism,
 // CHOLMOD's analysis reused while the pattern holds, map deformation equal to the graph's own
-// per-point deformation, and the errors a caller can cause (too few nodes, a disconnected
-// graph, a singular system, bad constraints).
+// per-point deformation, poses turned to their rotation priors (a turntable's angles), and the
+// errors a caller can cause (too few nodes, a disconnected graph, a singular system, bad
+// constraints or priors).
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -216,6 +218,16 @@ TEST(DeformationGraph, JacobiansMatchFiniteDifferences) {
     two_sided.target_binding = graph.bind_around(two_sided.target, graph.node(8 - j).time);
     graph.add_constraint(two_sided);
   }
+  // Pose rotation priors with a full information matrix (a turntable's: stiff about its axis,
+  // weaker across), each on the blend of the nodes around its pose, one of them pinned.
+  for (int j : {1, 3, 6, 8}) {
+    RotationPrior prior;
+    prior.rotation = Eigen::AngleAxisd(0.04 * j, Eigen::Vector3d(-1, 2, 1).normalized()).toRotationMatrix();
+    const Eigen::Vector3d axis = Eigen::Vector3d(0.2, 0.1, 1.0).normalized();
+    prior.information = 4e2 * axis * axis.transpose() + 25.0 * (Eigen::Matrix3d::Identity() - axis * axis.transpose());
+    graph.add_rotation_prior(graph.node(j).position + Eigen::Vector3d(2e-4, -1e-4, 3e-4), graph.node(j).time, prior);
+  }
+  EXPECT_EQ(graph.rotation_priors(), 4u);
   const Eigen::VectorXd x = graph.parameters();
   const Eigen::MatrixXd J = graph.jacobian_dense();
   ASSERT_EQ(J.cols(), x.size());
@@ -235,6 +247,77 @@ TEST(DeformationGraph, JacobiansMatchFiniteDifferences) {
   }
   graph.set_parameters(x);
   EXPECT_LT(worst, 1e-6);
+}
+
+// Rotation priors alone fix what no constraint sees: a chain of poses whose turntable angles
+// (stiff about its z axis, free across) disagree with the tracking by a drift that grows
+// along the chain: each pose, deformed as deform_pose does (the blend of the nodes around it),
+// turns to its table's rotation, the last one too although its blend is one-sided (nodes
+// before it only), and the directions the priors leave free stay put.
+TEST(DeformationGraph, RotationPriorsTurnThePosesToTheirRotations) {
+  constexpr int kNodes = 12;
+  const DeformationGraph arc = arc_graph(kNodes, options_for_tests());
+  const Eigen::Vector3d z = Eigen::Vector3d::UnitZ();
+  const double sigma_rad = 3.5e-5;  // a turntable's 0.002°
+  const auto drift_rad = [](int j) { return 2e-4 * j + 1e-5 * j * j; };  // faster towards the end
+  const auto prior_of = [&](int j) {
+    RotationPrior prior;
+    prior.rotation = Eigen::AngleAxisd(drift_rad(j), z).toRotationMatrix();
+    prior.information = z * z.transpose() / (sigma_rad * sigma_rad);
+    return prior;
+  };
+  // As a scan makes them: each keyframe's node, then its pose's prior (bound again as the
+  // nodes after it come) ...
+  DeformationGraph graph(options_for_tests());
+  for (int j = 0; j < kNodes; ++j) {
+    graph.add_node(arc.node(j).position, arc.node(j).time);
+    EXPECT_EQ(graph.add_rotation_prior(arc.node(j).position, arc.node(j).time, prior_of(j)), j);
+  }
+  EXPECT_EQ(graph.rotation_priors(), static_cast<std::size_t>(kNodes));
+  const SolveStats stats = graph.solve(4);
+  EXPECT_GT(stats.before.rotation_priors, 1e3);
+  // ... the same as every prior added once all nodes exist.
+  DeformationGraph afterwards = arc_graph(kNodes, options_for_tests());
+  for (int j = 0; j < kNodes; ++j) afterwards.add_rotation_prior(arc.node(j).position, arc.node(j).time, prior_of(j));
+  afterwards.solve(4);
+  EXPECT_EQ(graph.parameters(), afterwards.parameters());
+  for (int j = 3; j < kNodes; ++j) {  // the first poses bind the pinned nodes (A = I), which cannot turn
+    const Eigen::Vector3d anchor = graph.node(j).position;
+    const Pose camera(Eigen::Matrix3d::Identity(), anchor + Eigen::Vector3d(0.116, 0.0, 0.0));
+    const Pose deformed = graph.deform_pose(camera, anchor, graph.bind_around(anchor, graph.node(j).time));
+    const Eigen::Matrix3d table = Eigen::AngleAxisd(drift_rad(j), z).toRotationMatrix();
+    const Eigen::AngleAxisd off(Eigen::Matrix3d(deformed.rotation() * table.transpose()));
+    // Within 2e-4° of the table's, about the axis and (left free, nothing turns it) across.
+    EXPECT_LT(off.angle(), 0.1 * sigma_rad) << "pose " << j;
+  }
+}
+
+TEST(DeformationGraph, RefusesBadRotationPriors) {
+  DeformationGraph empty(options_for_tests());
+  RotationPrior good;
+  good.information = Eigen::Matrix3d::Identity();
+  EXPECT_THROW(empty.add_rotation_prior(Eigen::Vector3d::Zero(), 0, good), Error);  // no node yet
+  DeformationGraph graph = arc_graph(4, options_for_tests());
+  const Eigen::Vector3d anchor = graph.node(2).position;
+  EXPECT_THROW(graph.add_rotation_prior(Eigen::Vector3d(0.0, std::nan(""), 0.0), 6, good), Error);
+  RotationPrior scaled = good;
+  scaled.rotation *= 1.01;
+  EXPECT_THROW(graph.add_rotation_prior(anchor, 6, scaled), Error);
+  RotationPrior reflected = good;
+  reflected.rotation(2, 2) = -1.0;
+  EXPECT_THROW(graph.add_rotation_prior(anchor, 6, reflected), Error);
+  RotationPrior indefinite = good;
+  indefinite.information(1, 1) = -1.0;
+  EXPECT_THROW(graph.add_rotation_prior(anchor, 6, indefinite), Error);
+  RotationPrior asymmetric = good;
+  asymmetric.information(0, 1) = 0.5;
+  EXPECT_THROW(graph.add_rotation_prior(anchor, 6, asymmetric), Error);
+  RotationPrior infinite = good;
+  infinite.information(0, 0) = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(graph.add_rotation_prior(anchor, 6, infinite), Error);
+  EXPECT_EQ(graph.rotation_priors(), 0u);
+  EXPECT_EQ(graph.add_rotation_prior(anchor, 6, good), 0);
+  EXPECT_EQ(graph.rotation_priors(), 1u);
 }
 
 // Two graphs built and solved the same way give the same bits.

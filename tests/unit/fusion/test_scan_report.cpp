@@ -99,6 +99,7 @@ nlohmann::json with_deformation(nlohmann::json report) {
                            {"nodes", 12},
                            {"links", 30},
                            {"constraints", 4567},
+                           {"rotation_priors", 11},
                            {"analyses", 1},
                            {"factorizations", 14},
                            {"node_spacing_mm", 2.5},
@@ -419,7 +420,8 @@ TEST_F(ScanReport, WithDeformationAndLoopClosure) {
   EXPECT_EQ(files.images.size(), 6u);
   const std::string scale = fmt::format("≥ {:.1f} µm", heat_map_max_m(correction.values) * 1e6);
   for (const std::string& needle : std::vector<std::string>{
-           "Deformation and loop closure", "12 nodes, 30 links, 4567 constraints", "2.500 mm / 7.500 mm",
+           "Deformation and loop closure", "12 nodes, 30 links, 4567 constraints",
+           "turntable rotation priors", "11 keyframes", "2.500 mm / 7.500 mm",
            "2: 3 Gauss–Newton iterations in all, median solve 4.25 ms", "1 analyses, 14 factorizations", "321.5 ms",
            "closed (a full turntable revolution (350.0°))", "the last, 23, registered to the first, 0",
            "inlier fraction 0.875, residual RMS 9.50 µm, 7 iterations", "1234 constraints, 5 iterations, energy "
