@@ -229,7 +229,7 @@ void deformation_tables(std::string& html, const nlohmann::json& report) {
             fmt::format("{} nodes, {} links, {} constraints", number_text(d, {"nodes"}, "{:.0f}"),
                         number_text(d, {"links"}, "{:.0f}"), number_text(d, {"constraints"}, "{:.0f}")));
     if (number_at(d, {"rotation_priors"}).value_or(0.0) > 0.0) {
-      add_row(html, "turntable rotation priors", number_text(d, {"rotation_priors"}, "{:.0f} keyframes"));
+      add_row(html, "turntable rotation priors", number_text(d, {"rotation_priors"}, "{:.0f} frames"));
     }
     add_row(html, "node spacing / region radius",
             fmt::format("{} mm / {} mm", number_text(d, {"node_spacing_mm"}, "{:.3f}"),

@@ -73,12 +73,12 @@ struct ShippedSample {
 };
 
 struct Job {
-  enum class Kind { kKeyframe, kShipped } kind = Kind::kKeyframe;
+  enum class Kind { kKeyframe, kShipped, kPosePrior } kind = Kind::kKeyframe;
   int frame = 0;
   Pose T_world_camera;
   Eigen::Vector3d focus = Eigen::Vector3d::Zero();
   SurfaceSamples samples;  // camera frame (keyframe) or world (shipped: the whole part)
-  std::optional<fusion::deformation::RotationPrior> rotation_prior;  // keyframe: its pose's
+  std::optional<fusion::deformation::RotationPrior> rotation_prior;  // keyframe, pose prior: its pose's
 };
 
 }  // namespace
@@ -215,6 +215,8 @@ struct ScanDeformation::Impl {
       try {
         if (job.kind == Job::Kind::kShipped) {
           add_shipped_samples(job);
+        } else if (job.kind == Job::Kind::kPosePrior) {
+          graph.add_rotation_prior(job.focus, job.frame, *job.rotation_prior);
         } else {
           solve = keyframe(job);
         }
@@ -379,6 +381,16 @@ void ScanDeformation::add_keyframe(int frame, const Pose& T_world_camera, const 
   job.samples = std::move(samples_camera);
   job.rotation_prior = std::move(rotation_prior);
   s.post(std::move(job));
+}
+
+void ScanDeformation::add_rotation_prior(int frame, const Eigen::Vector3d& focus_point,
+                                        const fusion::deformation::RotationPrior& prior) {
+  Job job;
+  job.kind = Job::Kind::kPosePrior;
+  job.frame = frame;
+  job.focus = focus_point;
+  job.rotation_prior = prior;
+  impl_->post(std::move(job));
 }
 
 void ScanDeformation::add_shipped(int frame, const PointCloud& cloud, std::size_t begin, std::size_t end) {

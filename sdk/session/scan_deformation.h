@@ -5,7 +5,9 @@
 // The frame loop (ScanSession::add_frame) hands it
 //   - a keyframe when the scan's focus point has moved node_spacing_m from the last node's
 //     (or the camera turned node_angle_deg): a node there, and the frame's surface samples;
-//   - every part of the map the moving volume ships, sampled.
+//   - every part of the map the moving volume ships, sampled;
+//   - on a turntable with known repeatability, every fused frame's table angle since the first
+//     frame, a prior on its pose's rotation (DeformationOptions::turntable_rotation_priors).
 // The worker, per keyframe, adds the node, matches the keyframe's samples (deformed by the
 // graph as it stands) to the shipped samples of parts at least revisit_gap_nodes older —
 // surface the scan sees again, e.g. the start of a turntable revolution at its end — closest
@@ -20,8 +22,9 @@
 // (ScanSession::close_loop, which registers the last frame to the first's surface and adds
 // those constraints here).
 //
-// Thread safety: the frame loop's calls (wants_keyframe, add_keyframe, add_shipped, status)
-// may run while the worker solves; everything else needs the worker idle (drain() first).
+// Thread safety: the frame loop's calls (wants_keyframe, add_keyframe, add_rotation_prior,
+// add_shipped, status) may run while the worker solves; everything else needs the worker idle
+// (drain() first).
 #pragma once
 
 #include <cstddef>
@@ -60,7 +63,7 @@ struct DeformationOptions {
   // Revisits: shipped parts bound only to nodes at least this many older than the keyframe.
   int revisit_gap_nodes = 16;
   // With the turntable's angles used as the tracker's prior (ScanSessionOptions::
-  // turntable_prior, the calibration's σ known): each keyframe's pose also carries the
+  // turntable_prior, the calibration's σ known): each fused frame's pose also carries the
   // table's rotation since the first frame as a prior (DeformationGraph::add_rotation_prior).
   // Tracking drifts slowly about the axis (±0.015° mid-revolution on the demo screw, 15 µm at
   // the camera) while each table angle is off by its σ alone; the loop closure's constraints
@@ -142,6 +145,9 @@ class ScanDeformation {
   void add_keyframe(int frame, const Pose& T_world_camera, const Eigen::Vector3d& focus_point,
                     SurfaceSamples samples_camera,
                     std::optional<fusion::deformation::RotationPrior> rotation_prior = std::nullopt);
+  // Frame loop: a prior on the rotation of a frame that makes no keyframe (as add_keyframe's).
+  void add_rotation_prior(int frame, const Eigen::Vector3d& focus_point,
+                          const fusion::deformation::RotationPrior& prior);
   // Frame loop: a part of the map shipped at `frame` (world points and normals), queued.
   void add_shipped(int frame, const PointCloud& cloud, std::size_t begin, std::size_t end);
   DeformationStatus status() const;

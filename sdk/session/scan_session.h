@@ -261,7 +261,7 @@ class ScanSession {
   // The graph's size and CHOLMOD's work over the scan (after the worker is done).
   struct GraphSummary {
     std::size_t nodes = 0, links = 0, constraints = 0, analyses = 0, factorizations = 0;
-    std::size_t rotation_priors = 0;  // keyframe poses with the turntable's rotation prior
+    std::size_t rotation_priors = 0;  // frames' poses with the turntable's rotation prior
     double node_spacing_m = 0.0, region_radius_m = 0.0;
   };
   GraphSummary graph_summary() const;

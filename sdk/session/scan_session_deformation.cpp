@@ -134,12 +134,17 @@ FrameDeformation ScanSession::Impl::feed_deformation(int frame, const Pose& T_wo
   FrameDeformation out;
   keep_loop_frame(frame, T_world_camera, angle_deg, depth_m, confidence, depth_device, confidence_device);
   const Eigen::Vector3d focus = focus_point(T_world_camera);
+  std::optional<fusion::deformation::RotationPrior> prior = turntable_rotation_prior(T_world_camera, angle_deg);
   if (deformation->wants_keyframe(T_world_camera, focus)) {
     out.keyframe = true;
     deformation->add_keyframe(frame, T_world_camera, focus,
                               sample_depth_map(depth_m, calibration.camera, options.deformation.keyframe_samples,
                                                edge_step_m(calibration.camera, focus_distance_m)),
-                              turntable_rotation_prior(T_world_camera, angle_deg));
+                              std::move(prior));
+  } else if (prior) {
+    // Every frame's angle, not the keyframes' alone: each is off by the table's σ on its own,
+    // and the more of them a node's blend weighs, the less of that is left.
+    deformation->add_rotation_prior(frame, focus, *prior);
   }
   const DeformationStatus status = deformation->status();
   out.nodes = status.nodes;

@@ -421,7 +421,7 @@ TEST_F(ScanReport, WithDeformationAndLoopClosure) {
   const std::string scale = fmt::format("≥ {:.1f} µm", heat_map_max_m(correction.values) * 1e6);
   for (const std::string& needle : std::vector<std::string>{
            "Deformation and loop closure", "12 nodes, 30 links, 4567 constraints",
-           "turntable rotation priors", "11 keyframes", "2.500 mm / 7.500 mm",
+           "turntable rotation priors", "11 frames", "2.500 mm / 7.500 mm",
            "2: 3 Gauss–Newton iterations in all, median solve 4.25 ms", "1 analyses, 14 factorizations", "321.5 ms",
            "closed (a full turntable revolution (350.0°))", "the last, 23, registered to the first, 0",
            "inlier fraction 0.875, residual RMS 9.50 µm, 7 iterations", "1234 constraints, 5 iterations, energy "

@@ -133,9 +133,9 @@ TEST(ScanDeformation, LoopClosureWeighsTheTurntablesAngleByItsSigma) {
         EXPECT_EQ(report.tracking->prior, prior) << "frame " << frame.index;
       }
     }
-    // Each keyframe's pose carries the table's rotation since the first frame into the graph.
+    // Each fused frame's pose carries the table's rotation since the first frame into the graph.
     const ScanSession::GraphSummary graph = session.graph_summary();
-    EXPECT_EQ(graph.rotation_priors, prior ? graph.nodes : 0u);
+    EXPECT_EQ(graph.rotation_priors, prior ? frames.size() : 0u);
     const LoopClosureReport loop = session.close_loop();
     ASSERT_EQ(loop.turntable_sigma_deg.has_value(), prior);
     EXPECT_EQ(loop.registration.prior, prior);
