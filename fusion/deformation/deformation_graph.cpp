@@ -80,7 +80,7 @@ struct DeformationGraph::Impl {
   std::vector<std::pair<int, int>> edges;
   std::vector<std::vector<int>> neighbours;  // per node, both directions
   std::vector<Constraint> constraints;
-  std::vector<PoseRotationPrior> rotation_priors;  // bound as bind_around binds their pose
+  std::vector<PoseRotationPrior> rotation_priors;  // bound as bind_pose binds their pose
   NormalEquations equations;
   std::size_t structure_version = 1;  // ResidualModel::structure_version
 
@@ -183,11 +183,10 @@ int DeformationGraph::add_node(const Eigen::Vector3d& position, int time) {
   }
   s.nodes.push_back(node);
   ++s.structure_version;
-  // Poses whose window (bind_around) now reaches the new node are bound again.
-  const int half = o.temporal_window / 2;
+  // Poses made after the last node had only it: the new one is their next (bind_pose).
   for (auto prior = s.rotation_priors.rbegin(); prior != s.rotation_priors.rend(); ++prior) {
-    if (node_at_time(prior->time) + half < index) break;
-    prior->binding = bind_around(prior->anchor, prior->time);
+    if (node_at_time(prior->time) + 1 < index) break;
+    prior->binding = bind_pose(prior->anchor, prior->time);
   }
   return index;
 }
@@ -227,6 +226,11 @@ NodeBinding DeformationGraph::bind(const Eigen::Vector3d& point, int first_node,
 NodeBinding DeformationGraph::bind_before(const Eigen::Vector3d& point, int time) const {
   const int last = node_at_time(time);
   return bind(point, last - impl_->options.temporal_window + 1, last);
+}
+
+NodeBinding DeformationGraph::bind_pose(const Eigen::Vector3d& anchor, int time) const {
+  const int node = node_at_time(time);
+  return bind(anchor, node, node + 1);
 }
 
 NodeBinding DeformationGraph::bind_around(const Eigen::Vector3d& point, int time) const {
@@ -288,7 +292,7 @@ int DeformationGraph::add_rotation_prior(const Eigen::Vector3d& anchor, int time
                 time);
   }
   PoseRotationPrior made = make_pose_rotation_prior(anchor, time, prior);
-  made.binding = bind_around(anchor, time);
+  made.binding = bind_pose(anchor, time);
   s.rotation_priors.push_back(std::move(made));
   ++s.structure_version;  // it couples the nodes of its binding
   return static_cast<int>(s.rotation_priors.size()) - 1;

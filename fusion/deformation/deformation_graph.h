@@ -11,7 +11,7 @@
 //
 // The last term is not the paper's: a pose may carry a prior on its rotation, from a sensor
 // that measures it without drift — a turntable's angle since the first frame, to the table's
-// repeatability. B_p is the blend of A over the nodes that deform the pose (bind_around at its
+// repeatability. B_p is the blend of A over the nodes that deform the pose (bind_pose at its
 // anchor: what deform_pose turns it by, to first order), C_p the correction the sensor asks
 // (left of the tracked pose) and Λ_p its information (rad⁻², PosePrior::information()); φ_p
 // is B_p C_pᵀ's rotation vector to first order (exact as a function of A, and linear in it).
@@ -175,8 +175,13 @@ class DeformationGraph {
   // Among the temporal_window nodes made up to `time` (a surface shipped, or a frame's
   // points when only the past exists).
   NodeBinding bind_before(const Eigen::Vector3d& point, int time) const;
-  // Among the temporal_window + 1 nodes centred on node_at_time(time) (a pose after the scan).
+  // Among the temporal_window + 1 nodes centred on node_at_time(time).
   NodeBinding bind_around(const Eigen::Vector3d& point, int time) const;
+  // A pose of frame `time` looking at `anchor`: the two nodes of its time, node_at_time(time)
+  // and the next (one after the last node), weighed by eq. (19). Two linked nodes, so that a
+  // prior on the pose's rotation couples nothing the links do not (bind_around's four would
+  // widen the normal equations' band threefold, and their factorisation with it).
+  NodeBinding bind_pose(const Eigen::Vector3d& anchor, int time) const;
 
   // E_con. sls::Error(kInvalidArgument) for a binding naming a node that does not exist, a
   // weight that is not positive and finite, or a point that is not finite.
@@ -185,7 +190,7 @@ class DeformationGraph {
   const std::vector<Constraint>& constraints() const;
 
   // A prior on the rotation of a pose of frame `time` looking at `anchor` (deform_pose with
-  // bind_around(anchor, time); its binding follows as nodes are added). Returns its index.
+  // bind_pose(anchor, time); its binding follows as nodes are added). Returns its index.
   // sls::Error(kInvalidArgument) before any node, for an anchor that is not finite, a rotation
   // that is not one (‖RᵀR − I‖ > 1e-6, det < 0), an information matrix that is not finite,
   // symmetric and positive semi-definite.

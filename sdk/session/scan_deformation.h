@@ -159,8 +159,9 @@ class ScanDeformation {
   const fusion::deformation::DeformationGraph& graph() const;
   fusion::deformation::DeformationGraph& graph();
   std::vector<KeyframeSolve> keyframe_solves() const;
-  // A pose of frame `frame` as deformed (the rigid part of the deformation at its focus point;
-  // unchanged without nodes).
+  // A pose of frame `frame` as deformed (the rigid part of the deformation at its focus point,
+  // by the nodes of its time: bind_pose with rotation priors, else bind_around; unchanged
+  // without nodes).
   Pose deform_pose(int frame, const Pose& T_world_camera, const Eigen::Vector3d& focus_point) const;
 
  private:

@@ -284,7 +284,7 @@ TEST(DeformationGraph, RotationPriorsTurnThePosesToTheirRotations) {
   for (int j = 3; j < kNodes; ++j) {  // the first poses bind the pinned nodes (A = I), which cannot turn
     const Eigen::Vector3d anchor = graph.node(j).position;
     const Pose camera(Eigen::Matrix3d::Identity(), anchor + Eigen::Vector3d(0.116, 0.0, 0.0));
-    const Pose deformed = graph.deform_pose(camera, anchor, graph.bind_around(anchor, graph.node(j).time));
+    const Pose deformed = graph.deform_pose(camera, anchor, graph.bind_pose(anchor, graph.node(j).time));
     const Eigen::Matrix3d table = Eigen::AngleAxisd(drift_rad(j), z).toRotationMatrix();
     const Eigen::AngleAxisd off(Eigen::Matrix3d(deformed.rotation() * table.transpose()));
     // Within 2e-4° of the table's, about the axis and (left free, nothing turns it) across.
