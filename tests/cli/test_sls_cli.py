@@ -264,6 +264,9 @@ class SlsCli(unittest.TestCase):
         self.assertTrue(deformation["enabled"], deformation)
         self.assertGreater(deformation["nodes"], 1)
         self.assertNotIn("error", deformation)
+        # The simulator's calibration knows the table's repeatability: every fused frame's
+        # table angle holds its pose in the graph.
+        self.assertEqual(deformation["rotation_priors"], report["frames_fused"])
         self.assertTrue(loop["requested"], loop)
         self.assertIn("full turntable revolution", loop["why"])
         self.assertTrue(loop["closed"], loop)
