@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -155,21 +157,15 @@ VoxelBox frustum_voxel_box(const VolumeGeometry& geometry, const CameraIntrinsic
   return box;
 }
 
-std::pair<double, double> integration_depth_band(const Image32f& depth_m) {
-  std::vector<float> sample;
-  sample.reserve(depth_m.pixel_count() / kDepthBandStride + 1);
-  const float* data = depth_m.data();
-  for (std::size_t i = 0; i < depth_m.pixel_count(); i += kDepthBandStride) {
-    if (data[i] > 0.0f && std::isfinite(data[i])) sample.push_back(data[i]);
-  }
+namespace {
+
+// integration_depth_band's rule on its sample (the valid depths of every kDepthBandStride-th
+// pixel); under 1000 samples the map's whole valid range, which `range()` gives as [lo, hi]
+// (hi 0: nothing valid).
+template <typename Range>
+std::pair<double, double> band_of_sample(std::vector<float>& sample, const Range& range) {
   if (sample.size() < 1000) {
-    // Too few samples for quantiles: the whole measured range.
-    float lo = std::numeric_limits<float>::infinity(), hi = 0.0f;
-    for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) {
-      if (!(data[i] > 0.0f) || !std::isfinite(data[i])) continue;
-      lo = std::min(lo, data[i]);
-      hi = std::max(hi, data[i]);
-    }
+    const auto [lo, hi] = range();
     if (!(hi > 0.0f)) return {0.0, 0.0};  // nothing measured: nothing to integrate
     return {static_cast<double>(lo), static_cast<double>(hi)};
   }
@@ -181,6 +177,27 @@ std::pair<double, double> integration_depth_band(const Image32f& depth_m) {
   const double q_lo = quantile(kDepthBandQuantile), q_hi = quantile(1.0 - kDepthBandQuantile);
   const double half_span = 0.5 * (q_hi - q_lo);
   return {std::max(1e-6, q_lo - half_span), q_hi + half_span};
+}
+
+}  // namespace
+
+std::pair<double, double> integration_depth_band(const Image32f& depth_m) {
+  std::vector<float> sample;
+  sample.reserve(depth_m.pixel_count() / kDepthBandStride + 1);
+  const float* data = depth_m.data();
+  for (std::size_t i = 0; i < depth_m.pixel_count(); i += kDepthBandStride) {
+    if (data[i] > 0.0f && std::isfinite(data[i])) sample.push_back(data[i]);
+  }
+  return band_of_sample(sample, [&] {
+    // Too few samples for quantiles: the whole measured range.
+    float lo = std::numeric_limits<float>::infinity(), hi = 0.0f;
+    for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) {
+      if (!(data[i] > 0.0f) || !std::isfinite(data[i])) continue;
+      lo = std::min(lo, data[i]);
+      hi = std::max(hi, data[i]);
+    }
+    return std::pair<float, float>(lo, hi);
+  });
 }
 
 namespace {
@@ -210,6 +227,10 @@ struct Integrator::Impl {
   std::size_t sort_scratch_bytes = 0;
   ActiveVoxel* sorted = nullptr;
   std::size_t sorted_capacity = 0;
+  // summarize_device's sample, valid count and depth bounds (float bits).
+  DeviceBuffer<float> summary_sample;
+  DeviceBuffer<unsigned long long> summary_counts;
+  DeviceBuffer<unsigned> summary_bounds;
   ~Impl() {
     if (sort_scratch != nullptr) {
       (void)cudaFree(sort_scratch);
@@ -374,6 +395,43 @@ IntegrationStats Integrator::integrate(Volume& volume, const Image32f& depth_m, 
 }
 
 #if defined(SLS_HAVE_CUDA)
+DepthMapSummary Integrator::summarize_device(const float* depth_device, std::size_t pixels) {
+  Impl& s = *impl_;
+  if (!s.device.is_cuda()) throw_error(ErrorCode::kInvalidArgument, "summarize_device: the integrator is not on a GPU");
+  require_device(s.device);
+  DepthMapSummary summary;
+  if (pixels == 0) return summary;
+  const std::size_t samples = (pixels + kDepthBandStride - 1) / kDepthBandStride;
+  if (s.summary_sample.size() < samples) s.summary_sample.allocate(samples);
+  if (s.summary_counts.size() == 0) {
+    s.summary_counts.allocate(1);
+    s.summary_bounds.allocate(2);
+  }
+  const unsigned bounds_start[2] = {0xffffffffu, 0u};
+  SLS_CUDA_CHECK(cudaMemsetAsync(s.summary_counts.data(), 0, sizeof(unsigned long long), s.stream));
+  s.summary_bounds.upload(bounds_start, 2, s.stream);
+  detail::launch_depth_summary_cuda(depth_device, pixels, kDepthBandStride, s.summary_sample.data(),
+                                    s.summary_counts.data(), s.summary_bounds.data(), s.stream);
+  std::vector<float> sample(samples);
+  unsigned long long count = 0;
+  unsigned bounds[2] = {0, 0};
+  s.summary_sample.download(sample.data(), samples, s.stream);
+  s.summary_counts.download(&count, 1, s.stream);
+  s.summary_bounds.download(bounds, 2, s.stream);
+  SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
+  summary.valid_pixels = static_cast<std::size_t>(count);
+  sample.erase(std::remove_if(sample.begin(), sample.end(), [](float z) { return !(z > 0.0f); }), sample.end());
+  std::tie(summary.near_m, summary.far_m) = band_of_sample(sample, [&] {
+    float lo = 0.0f, hi = 0.0f;
+    if (count > 0) {
+      std::memcpy(&lo, &bounds[0], sizeof(float));
+      std::memcpy(&hi, &bounds[1], sizeof(float));
+    }
+    return std::pair<float, float>(lo, hi);
+  });
+  return summary;
+}
+
 IntegrationStats Integrator::integrate_device(Volume& volume, const float* depth_device, const CameraIntrinsics& camera,
                                               const Pose& T_world_camera, double min_depth_m, double max_depth_m) {
   Impl& s = *impl_;

@@ -79,6 +79,12 @@ constexpr std::size_t kDepthBandStride = 127;
 constexpr double kDepthBandQuantile = 1e-3;
 std::pair<double, double> integration_depth_band(const Image32f& depth_m);
 
+// What a frame loop needs of a depth map beside the map itself.
+struct DepthMapSummary {
+  std::size_t valid_pixels = 0;       // > 0 and finite
+  double near_m = 0.0, far_m = 0.0;   // integration_depth_band's
+};
+
 // The GPU memory an Integrator allocates beside a volume of `voxel_count` voxels: GTSDF's
 // active-voxel lists (two parities, active_capacity entries each), their sorted copy and the
 // sort's temporary storage, taken as one more list (CUB's radix sort needs about that). 0 for
@@ -113,6 +119,10 @@ class Integrator {
   IntegrationStats integrate_device(Volume& volume, const float* depth_device, const CameraIntrinsics& camera,
                                     const Pose& T_world_camera, double min_depth_m = 0.0,
                                     double max_depth_m = std::numeric_limits<double>::infinity());
+  // A depth map on the GPU (`pixels` floats) summarised there: its valid pixels, and the band
+  // integration_depth_band gives its host copy, from the same every kDepthBandStride-th pixel
+  // (that sample, 0.4 MB at 12 megapixels, comes down; the 48 MB map does not). Waits for it.
+  DepthMapSummary summarize_device(const float* depth_device, std::size_t pixels);
 #endif
 
  private:

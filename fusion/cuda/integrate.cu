@@ -105,6 +105,40 @@ void sort_active_cuda(ActiveVoxel* active, std::uint32_t count, void** scratch, 
   SLS_CUDA_CHECK(cudaMemcpyAsync(active, *sorted, count * sizeof(ActiveVoxel), cudaMemcpyDeviceToDevice, stream));
 }
 
+namespace {
+
+__global__ void depth_summary_kernel(const float* __restrict__ depth, std::size_t pixels, std::size_t stride,
+                                     float* __restrict__ sample, unsigned long long* counts, unsigned* min_max_bits) {
+  const std::size_t i = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  const float z = i < pixels ? depth[i] : 0.0f;
+  const bool valid = z > 0.0f && isfinite(z);
+  if (i < pixels && i % stride == 0) sample[i / stride] = valid ? z : 0.0f;
+  // One atomic of each kind per warp: the lanes reduce by shuffles first.
+  unsigned count = valid ? 1u : 0u;
+  unsigned lo = valid ? __float_as_uint(z) : 0xffffffffu, hi = valid ? __float_as_uint(z) : 0u;
+  for (int offset = 16; offset > 0; offset /= 2) {
+    count += __shfl_down_sync(0xffffffffu, count, offset);
+    lo = min(lo, __shfl_down_sync(0xffffffffu, lo, offset));
+    hi = max(hi, __shfl_down_sync(0xffffffffu, hi, offset));
+  }
+  if ((threadIdx.x & 31u) == 0 && count > 0) {
+    atomicAdd(counts, static_cast<unsigned long long>(count));
+    atomicMin(min_max_bits, lo);
+    atomicMax(min_max_bits + 1, hi);
+  }
+}
+
+}  // namespace
+
+void launch_depth_summary_cuda(const float* depth, std::size_t pixels, std::size_t stride, float* sample,
+                               unsigned long long* counts, unsigned* min_max_bits, cudaStream_t stream) {
+  if (pixels == 0) return;
+  const unsigned block = 256;  // a multiple of the warp: every warp's lanes all take part in the shuffles
+  const auto blocks = static_cast<unsigned>((pixels + block - 1) / block);
+  depth_summary_kernel<<<blocks, block, 0, stream>>>(depth, pixels, stride, sample, counts, min_max_bits);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
 void launch_relax_cuda(const VolumeView& volume, const IntegrationParams& params, const ActiveVoxel* active,
                        std::uint32_t count, cudaStream_t stream) {
   if (count == 0) return;

@@ -213,8 +213,8 @@ void fuse_frames(sls_scan& scan, const std::string& folder, const sls::session::
     const std::size_t frames = live != nullptr ? expected_frames : recording->frame_count();
     // Reported from inside the session's add_frame, where the frame's depth map still exists.
     scan.session->set_frame_observer([&scan, frames](const sls::session::FrameReport& frame,
-                                                     const sls::Image32f* depth, const float* depth_device) {
-      sls::capi::report_frame(scan, frame, frames, {depth, depth_device});
+                                                     sls::session::FrameMaps& maps) {
+      sls::capi::report_frame(scan, frame, frames, maps);
     });
     return *scan.session;
   };
@@ -419,13 +419,14 @@ sls_frame_report frame_report_to_c(const session::FrameReport& frame, std::size_
 }
 
 void report_frame(sls_scan& scan, const session::FrameReport& frame, std::size_t recording_frames,
-                  const FrameDepth& depth) {
+                  session::FrameMaps& maps) {
   scan.surface.reset();  // the model changed (a fused frame), or may have (the graph's worker)
   if (frame.status != session::FrameStatus::kFused) {
     logger().warn("scan: frame {} {}: {}", frame.index, session::frame_status_name(frame.status), frame.reason);
   }
   if (scan.callback == nullptr) return;
-  const sls_frame_report report = frame_report_to_c(frame, recording_frames, depth);
+  // The depth map comes to the host only for a callback (a GPU decode leaves it on the device).
+  const sls_frame_report report = frame_report_to_c(frame, recording_frames, {maps.host_depth(), maps.depth_device});
   scan.callback_thread.store(std::this_thread::get_id());
   scan.callback(&report, scan.user);
   scan.callback_thread.store(std::thread::id());

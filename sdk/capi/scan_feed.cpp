@@ -62,9 +62,8 @@ void start_feed(sls_scan& scan, const sls_feed_config& config, int* patterns_per
   scan.session.emplace(calibration, &patterns, options);
   // Reported from inside add_frame, where the frame's depth map (a stack's decoded one) exists.
   sls_scan* const reported = &scan;
-  scan.session->set_frame_observer([reported](const sls::session::FrameReport& frame, const sls::Image32f* depth,
-                                              const float* depth_device) {
-    sls::capi::report_frame(*reported, frame, 0, {depth, depth_device});
+  scan.session->set_frame_observer([reported](const sls::session::FrameReport& frame, sls::session::FrameMaps& maps) {
+    sls::capi::report_frame(*reported, frame, 0, maps);
   });
   scan.feeding = true;
   scan.camera_width = calibration.camera.width;

@@ -76,7 +76,7 @@ struct FrameDepth {
 // Hands a frame's report to the caller's callback (if any), on this thread, after dropping the
 // model extracted before the frame. recording_frames: 0 for a fed frame.
 void report_frame(sls_scan& scan, const sls::session::FrameReport& frame, std::size_t recording_frames,
-                  const FrameDepth& depth);
+                  sls::session::FrameMaps& maps);
 
 // The session's report as the C struct (the library's own size); its strings and depth point into
 // `frame` and `depth`.

@@ -171,6 +171,7 @@ struct Decoder::Impl {
 #if defined(SLS_HAVE_CUDA)
   std::unique_ptr<detail::CudaDecodeContext> cuda;
 #endif
+  bool decoded_on_device = false;  // the GPU holds an accepted stack's outputs (download_depth_and_confidence)
 };
 
 Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, const Device& device,
@@ -204,6 +205,26 @@ Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, c
 }
 
 #if defined(SLS_HAVE_CUDA)
+void Decoder::download_depth_and_confidence(DecodedFrame* frame) {
+  if (!impl_->decoded_on_device) {
+    if (impl_->device.is_cuda()) {
+      throw_error(ErrorCode::kInvalidArgument, "download_depth_and_confidence: no stack decoded on the GPU");
+    }
+    return;  // a CPU decoder decodes into the frame
+  }
+#if defined(SLS_HAVE_CUDA)
+  const int width = impl_->rays.width, height = impl_->rays.height;
+  for (Image32f* image : {&frame->depth_m, &frame->confidence}) {
+    if (image->width() != width || image->height() != height) image->resize(width, height);
+  }
+  require_device(impl_->device);
+  detail::DecodeOutputsHost host;
+  host.depth = frame->depth_m.data();
+  host.confidence = frame->confidence.data();
+  impl_->cuda->download(host);
+#endif
+}
+
 const float* Decoder::depth_device() const { return impl_->cuda ? impl_->cuda->outputs().depth : nullptr; }
 const float* Decoder::confidence_device() const {
   return impl_->cuda ? impl_->cuda->outputs().confidence : nullptr;
@@ -270,6 +291,7 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
   std::vector<const std::uint16_t*> planes(stack.size());
   for (std::size_t k = 0; k < stack.size(); ++k) planes[k] = stack[k].data();
   const bool all = outputs == DecodeOutputs::kAll;
+  const bool on_device = outputs == DecodeOutputs::kDepthAndConfidenceOnDevice && impl_->device.is_cuda();
   // Sized only once the stack is accepted (a refused stack leaves the frame as it was); reused
   // when already of the camera's size (resize() writes every pixel); emptied when not asked for.
   const auto size_outputs = [&] {
@@ -294,6 +316,7 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
     // host (6.5 ms, docs/benchmarks.md).
     require_device(impl_->device);
     detail::CudaDecodeContext& cuda = *impl_->cuda;
+    impl_->decoded_on_device = false;
     int slot = cuda.take_prefetched(planes.data());
     if (slot < 0) slot = cuda.upload_async(planes.data());
     const StackCheckGrid grid =
@@ -301,7 +324,7 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
                                                  : StackCheckGrid{};
     cuda.gather_check_async(slot, grid, layout.white_index, layout.black_index);
     cuda.decode_slot(slot);
-    cuda.queue_landing(true, true);
+    if (!on_device) cuda.queue_landing(true, true);
     try {
       const detail::StackCheckInputs check = cuda.wait_check();
       refuse_dark_stack(impl_->params, impl_->options, check.largest, references);
@@ -309,6 +332,11 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
     } catch (...) {
       cuda.synchronize();  // the decode queued behind the check may still write the landing planes
       throw;
+    }
+    impl_->decoded_on_device = true;
+    if (on_device) {
+      cuda.synchronize();  // depth_device() is final when decode returns, as after a download
+      return;
     }
     size_outputs();
     DecodedFrame& frame = *frame_out;

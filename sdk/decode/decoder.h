@@ -84,6 +84,11 @@ enum class DecodeOutputs {
   // fuses and tracks from. On a GPU the others stay on the device, not downloaded (108 of
   // the 204 MB a 12-megapixel frame's outputs take).
   kDepthAndConfidence,
+  // A CUDA decoder's depth and confidence left on the GPU (depth_device(), confidence_device()),
+  // nothing downloaded and the frame's images left as they were: what a GPU scan fuses and
+  // tracks from, downloading (download_depth_and_confidence) only on the frames that need them
+  // on the host. A CPU decoder: as kDepthAndConfidence.
+  kDepthAndConfidenceOnDevice,
 };
 
 // Where each pattern of `set` is used. Throws sls::Error(kInvalidArgument) for a set the
@@ -144,6 +149,10 @@ class Decoder {
   // Its confidence map beside it (DecodedFrame::confidence), on the same terms.
   const float* confidence_device() const;
 #endif
+  // The last decode's depth and confidence into `frame` (sized to the camera): for a decode
+  // that left them on the GPU (kDepthAndConfidenceOnDevice). A CPU decoder's are in `frame`
+  // already: nothing to do. Throws sls::Error(kInvalidArgument) before any decode.
+  void download_depth_and_confidence(DecodedFrame* frame);
 
  private:
   struct Impl;

@@ -178,14 +178,13 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   report.index = frame.index;
   report.timestamp_ns = frame.timestamp_ns;
   report.times.read_ms = frame.read_ms;
-  const Image32f* depth = nullptr;  // the frame's, once decoded (or given)
-  const float* depth_device = nullptr;  // the GPU copy (CUDA builds)
+  FrameMaps maps;  // the frame's depth map and confidence, once decoded (or given)
   const auto finish = [&](FrameStatus status, std::string reason) -> FrameReport {
     report.status = status;
     report.reason = std::move(reason);
     s.totals += report.times;
     s.frames.push_back(report);
-    if (s.frame_observer) s.frame_observer(s.frames.back(), depth, depth_device);
+    if (s.frame_observer) s.frame_observer(s.frames.back(), maps);
     return report;
   };
 
@@ -199,24 +198,27 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
                   fmt::format("texture of {}x{}, the camera has {}x{}", frame.texture->width(), frame.texture->height(),
                               camera.width, camera.height));
   }
-  const Image32f* confidence = nullptr;  // the decoder's, for the tracker's measurement weights
-  [[maybe_unused]] const float* confidence_device = nullptr;
+  // On a GPU the decoded maps stay there (maps.fetch brings them down where the host needs them).
+  const bool on_gpu = s.options.device.is_cuda();
   if (!frame.images.empty()) {
     if (!s.decoder) return finish(FrameStatus::kSkipped, "a pattern stack, but the session has no pattern set");
     const Clock::time_point start = Clock::now();
     try {
-      s.decoder->decode(frame.images, DecodeOutputs::kDepthAndConfidence, &s.decoded);
+      s.decoder->decode(frame.images,
+                        on_gpu ? DecodeOutputs::kDepthAndConfidenceOnDevice : DecodeOutputs::kDepthAndConfidence,
+                        &s.decoded);
     } catch (const Error& error) {
       if (!is_frame_problem(error)) throw;
       report.times.decode_ms = ms_since(start);
       return finish(FrameStatus::kSkipped, fmt::format("cannot decode: {}", error.what()));
     }
     report.times.decode_ms = ms_since(start);
-    depth = &s.decoded.depth_m;
-    confidence = &s.decoded.confidence;
+    maps.depth = &s.decoded.depth_m;
+    maps.confidence = &s.decoded.confidence;
 #if defined(SLS_HAVE_CUDA)
-    depth_device = s.decoder->depth_device();
-    confidence_device = s.decoder->confidence_device();
+    maps.depth_device = s.decoder->depth_device();
+    maps.confidence_device = s.decoder->confidence_device();
+    if (on_gpu) maps.fetch = [&s] { s.decoder->download_depth_and_confidence(&s.decoded); };
 #endif
   } else if (frame.depth_m) {
     if (frame.depth_m->width() != s.calibration.camera.width ||
@@ -225,24 +227,35 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
                     fmt::format("depth map of {}x{}, the camera has {}x{}", frame.depth_m->width(),
                                 frame.depth_m->height(), s.calibration.camera.width, s.calibration.camera.height));
     }
-    depth = &*frame.depth_m;
+    maps.depth = &*frame.depth_m;
 #if defined(SLS_HAVE_CUDA)
-    if (s.options.device.is_cuda()) {
+    if (on_gpu) {
       // Uploaded once, then integrated and tracked on the GPU (counted with decoding).
       const Clock::time_point start = Clock::now();
-      if (s.depth_upload.size() != depth->pixel_count()) s.depth_upload.allocate(depth->pixel_count());
-      s.depth_upload.upload(depth->data(), depth->pixel_count(), nullptr);
+      const std::size_t pixels = frame.depth_m->pixel_count();
+      if (s.depth_upload.size() != pixels) s.depth_upload.allocate(pixels);
+      s.depth_upload.upload(frame.depth_m->data(), pixels, nullptr);
       SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
-      depth_device = s.depth_upload.data();
+      maps.depth_device = s.depth_upload.data();
       report.times.decode_ms = ms_since(start);
     }
 #endif
   } else {
     return finish(FrameStatus::kSkipped, "neither a pattern stack nor a depth map");
   }
+  // The valid pixels and, for a map on the GPU, the band it is integrated over: counted where
+  // the map is (part of preparing it).
+  std::optional<fusion::DepthMapSummary> summary_on_gpu;
   {
-    const Clock::time_point start = Clock::now();  // part of preparing the depth map
-    report.depth_pixels = count_valid(*depth);
+    const Clock::time_point start = Clock::now();
+#if defined(SLS_HAVE_CUDA)
+    if (maps.depth_device != nullptr) {
+      const std::size_t pixels = static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height);
+      summary_on_gpu = s.integrator.summarize_device(maps.depth_device, pixels);
+      report.depth_pixels = summary_on_gpu->valid_pixels;
+    }
+#endif
+    if (!summary_on_gpu) report.depth_pixels = count_valid(*maps.depth);
     report.times.decode_ms += ms_since(start);
   }
   if (report.depth_pixels == 0) return finish(FrameStatus::kSkipped, "no valid depth in the frame");
@@ -261,7 +274,7 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
       texture = &derived_texture;
     }
 #if defined(SLS_HAVE_CUDA)
-    if (texture != nullptr && depth_device != nullptr) {
+    if (texture != nullptr && maps.depth_device != nullptr) {
       if (s.texture_upload.size() != texture->pixel_count()) s.texture_upload.allocate(texture->pixel_count());
       s.texture_upload.upload(texture->data(), texture->pixel_count(), nullptr);
       SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
@@ -292,13 +305,15 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     const fusion::VolumeGeometry model_volume = s.moving->volume().geometry();
 #if defined(SLS_HAVE_CUDA)
     if (s.options.device.is_cuda()) {
-      tracked = s.tracker.track_device(depth_device, s.raycaster, s.T_world_model, guess, texture_device,
-                                       confidence_device, &prior, &model_volume);
+      tracked = s.tracker.track_device(maps.depth_device, s.raycaster, s.T_world_model, guess, texture_device,
+                                       maps.confidence_device, &prior, &model_volume);
     } else {
-      tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence, &prior, &model_volume);
+      tracked = s.tracker.track(*maps.depth, s.model, s.T_world_model, guess, texture, maps.confidence, &prior,
+                                &model_volume);
     }
 #else
-    tracked = s.tracker.track(*depth, s.model, s.T_world_model, guess, texture, confidence, &prior, &model_volume);
+    tracked = s.tracker.track(*maps.depth, s.model, s.T_world_model, guess, texture, maps.confidence, &prior,
+                              &model_volume);
 #endif
     report.times.track_ms = ms_since(start);
     if (!tracked.lost && s.options.verify_with_turntable) {
@@ -336,19 +351,19 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     const Clock::time_point start = Clock::now();  // the reference's pyramid: tracking work
 #if defined(SLS_HAVE_CUDA)
     if (texture_device != nullptr) {
-      s.tracker.set_reference_frame_device(depth_device, texture_device, T_world_camera);
+      s.tracker.set_reference_frame_device(maps.depth_device, texture_device, T_world_camera);
     } else {
-      s.tracker.set_reference_frame(*depth, *texture, T_world_camera);
+      s.tracker.set_reference_frame(*maps.host_depth(), *texture, T_world_camera);
     }
 #else
-    s.tracker.set_reference_frame(*depth, *texture, T_world_camera);
+    s.tracker.set_reference_frame(*maps.depth, *texture, T_world_camera);
 #endif
     report.times.track_ms += ms_since(start);
   }
 
   // Move the volume when the camera has left it (before integrating, so the frame's whole view
   // goes into a volume placed for it), integrate, raycast the model for the next frame.
-  s.place_volume(T_world_camera, *depth);
+  s.place_volume(T_world_camera, maps);
   if (!s.first) s.first = Impl::Fused{frame.index, T_world_camera, frame.turntable_angle_deg};
   Clock::time_point start = Clock::now();
   if (s.moving) {
@@ -376,15 +391,14 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   fusion::Volume& volume = *s.volume();  // the moved volume, if it moved
   start = Clock::now();
 #if defined(SLS_HAVE_CUDA)
-  if (depth_device != nullptr) {
-    const auto [near_m, far_m] = fusion::integration_depth_band(*depth);
-    report.integration =
-        s.integrator.integrate_device(volume, depth_device, s.calibration.camera, T_world_camera, near_m, far_m);
+  if (summary_on_gpu) {
+    report.integration = s.integrator.integrate_device(volume, maps.depth_device, s.calibration.camera,
+                                                       T_world_camera, summary_on_gpu->near_m, summary_on_gpu->far_m);
   } else {
-    report.integration = s.integrator.integrate(volume, *depth, s.calibration.camera, T_world_camera);
+    report.integration = s.integrator.integrate(volume, *maps.depth, s.calibration.camera, T_world_camera);
   }
 #else
-  report.integration = s.integrator.integrate(volume, *depth, s.calibration.camera, T_world_camera);
+  report.integration = s.integrator.integrate(volume, *maps.depth, s.calibration.camera, T_world_camera);
 #endif
   report.times.integrate_ms = ms_since(start);
   if (!frame.known_T_world_camera) {
@@ -392,13 +406,13 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     // Guided by the depth just integrated from this pose: rays search only near it.
 #if defined(SLS_HAVE_CUDA)
     if (s.options.device.is_cuda()) {
-      s.raycaster.raycast_device(volume, T_world_camera, depth_device, depth->width(), depth->height());
+      s.raycaster.raycast_device(volume, T_world_camera, maps.depth_device, camera.width, camera.height);
       s.raycaster.synchronize();
     } else {
-      s.model = s.raycaster.raycast(volume, T_world_camera, *depth);
+      s.model = s.raycaster.raycast(volume, T_world_camera, *maps.depth);
     }
 #else
-    s.model = s.raycaster.raycast(volume, T_world_camera, *depth);
+    s.model = s.raycaster.raycast(volume, T_world_camera, *maps.depth);
 #endif
     report.times.raycast_ms = ms_since(start);
     s.T_world_model = T_world_camera;
@@ -411,8 +425,7 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
       report.times.move_ms += ms_since(start);
     }
     start = Clock::now();
-    report.deformation = s.feed_deformation(frame.index, T_world_camera, frame.turntable_angle_deg, *depth, confidence,
-                                            depth_device, confidence_device);
+    report.deformation = s.feed_deformation(frame.index, T_world_camera, frame.turntable_angle_deg, maps);
     report.times.deform_ms += ms_since(start);
   }
   s.before_last = s.last;

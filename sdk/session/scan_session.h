@@ -18,6 +18,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -204,6 +205,27 @@ struct LoopClosureReport {
   double ms = 0.0;                        // all of it, the registration included
 };
 
+// A frame's depth map and the decoder's confidence beside it, as add_frame() holds them. On a
+// GPU a decoded frame's maps stay on the device (a 12-megapixel frame's are 96 MB), and come
+// to the host only for what needs them there (a keyframe's samples, the first frame's focus, a
+// frame observer that asks): host_depth() downloads them the first time it is called.
+struct FrameMaps {
+  const Image32f* depth = nullptr;       // on the host once fetched; null: the frame has none
+  const Image32f* confidence = nullptr;  // null: none (a depth-map frame)
+  const float* depth_device = nullptr;   // on a CUDA device: the GPU copy, else null
+  const float* confidence_device = nullptr;
+  std::function<void()> fetch;           // brings the maps to the host; empty once done (or never needed)
+
+  const Image32f* host_depth() {
+    if (fetch) std::exchange(fetch, nullptr)();
+    return depth;
+  }
+  const Image32f* host_confidence() {
+    host_depth();
+    return confidence;
+  }
+};
+
 class ScanSession {
  public:
   // `patterns`: the set the frames' stacks use (null: frames carry depth maps). Validates and
@@ -267,11 +289,11 @@ class ScanSession {
   GraphSummary graph_summary() const;
   // Called at the end of every add_frame(), the frame already in frames(), with its report and
   // the depth map it was tracked and fused from (the decoded one for a pattern stack, the
-  // frame's own for a depth map; null when the frame had none: skipped before decoding), and on
-  // a CUDA device the same map on the GPU, its content final (else null). Valid during the call
-  // only: for front ends that show each frame (the C API's frame report). Empty: none.
-  using FrameObserver =
-      std::function<void(const FrameReport& report, const Image32f* depth_m, const float* depth_device)>;
+  // frame's own for a depth map; none when the frame had none: skipped before decoding): on the
+  // host through maps.host_depth() (a GPU decode's map comes down on that first ask only), and
+  // on a CUDA device on the GPU, its content final. Valid during the call only: for front ends
+  // that show each frame (the C API's frame report). Empty: none.
+  using FrameObserver = std::function<void(const FrameReport& report, FrameMaps& maps)>;
   void set_frame_observer(FrameObserver observer);
   // A shaded raycast of the current volume from a pose (pictures).
   Image8u render(const Pose& T_world_camera) const;

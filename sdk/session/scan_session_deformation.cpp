@@ -68,9 +68,7 @@ void ScanSession::Impl::record_shipped(int time, std::size_t shipped_before) {
 }
 
 void ScanSession::Impl::keep_loop_frame(int frame, const Pose& T_world_camera, std::optional<double> angle_deg,
-                                        const Image32f& depth_m, const Image32f* confidence,
-                                        [[maybe_unused]] const float* depth_device,
-                                        [[maybe_unused]] const float* confidence_device) {
+                                        FrameMaps& maps) {
   const std::size_t slots = static_cast<std::size_t>(options.deformation.loop_frames);
   if (loop_frames.size() != slots) loop_frames.resize(slots);
   LoopFrame& slot = loop_frames[loop_frames_next];
@@ -79,8 +77,11 @@ void ScanSession::Impl::keep_loop_frame(int frame, const Pose& T_world_camera, s
   slot.T_world_camera = T_world_camera;
   slot.angle_deg = angle_deg;
 #if defined(SLS_HAVE_CUDA)
-  if (depth_device != nullptr) {
-    const std::size_t pixels = depth_m.pixel_count();
+  if (maps.depth_device != nullptr) {
+    const std::size_t pixels =
+        static_cast<std::size_t>(calibration.camera.width) * static_cast<std::size_t>(calibration.camera.height);
+    const float* depth_device = maps.depth_device;
+    const float* confidence_device = maps.confidence_device;
     if (slot.depth_device.size() != pixels) slot.depth_device.allocate(pixels);
     SLS_CUDA_CHECK(cudaMemcpyAsync(slot.depth_device.data(), depth_device, pixels * sizeof(float),
                                    cudaMemcpyDeviceToDevice, nullptr));
@@ -96,9 +97,9 @@ void ScanSession::Impl::keep_loop_frame(int frame, const Pose& T_world_camera, s
     return;
   }
 #endif
-  slot.depth = depth_m;
+  slot.depth = *maps.host_depth();
   slot.confidence.reset();
-  if (confidence != nullptr) slot.confidence = *confidence;
+  if (maps.confidence != nullptr) slot.confidence = *maps.confidence;
 }
 
 std::optional<fusion::deformation::RotationPrior> ScanSession::Impl::turntable_rotation_prior(
@@ -128,17 +129,15 @@ std::optional<fusion::deformation::RotationPrior> ScanSession::Impl::turntable_r
 }
 
 FrameDeformation ScanSession::Impl::feed_deformation(int frame, const Pose& T_world_camera,
-                                                     std::optional<double> angle_deg, const Image32f& depth_m,
-                                                     const Image32f* confidence, const float* depth_device,
-                                                     const float* confidence_device) {
+                                                     std::optional<double> angle_deg, FrameMaps& maps) {
   FrameDeformation out;
-  keep_loop_frame(frame, T_world_camera, angle_deg, depth_m, confidence, depth_device, confidence_device);
+  keep_loop_frame(frame, T_world_camera, angle_deg, maps);
   const Eigen::Vector3d focus = focus_point(T_world_camera);
   std::optional<fusion::deformation::RotationPrior> prior = turntable_rotation_prior(T_world_camera, angle_deg);
   if (deformation->wants_keyframe(T_world_camera, focus)) {
     out.keyframe = true;
     deformation->add_keyframe(frame, T_world_camera, focus,
-                              sample_depth_map(depth_m, calibration.camera, options.deformation.keyframe_samples,
+                              sample_depth_map(*maps.host_depth(), calibration.camera, options.deformation.keyframe_samples,
                                                edge_step_m(calibration.camera, focus_distance_m)),
                               std::move(prior));
   } else if (prior) {

@@ -86,8 +86,7 @@ struct ScanSession::Impl {
   };
   std::vector<LoopFrame> loop_frames;
   std::size_t loop_frames_next = 0;
-  void keep_loop_frame(int frame, const Pose& T_world_camera, std::optional<double> angle_deg, const Image32f& depth_m,
-                       const Image32f* confidence, const float* depth_device, const float* confidence_device);
+  void keep_loop_frame(int frame, const Pose& T_world_camera, std::optional<double> angle_deg, FrameMaps& maps);
   std::optional<LoopClosureReport> loop;
 
   std::vector<FrameReport> frames;
@@ -185,7 +184,7 @@ struct ScanSession::Impl {
                                       gpu_bytes_after_placement());
   }
 
-  void place_volume(const Pose& T_world_camera, const Image32f& depth_m) {
+  void place_volume(const Pose& T_world_camera, FrameMaps& maps) {
     if (options.fixed_volume) {
       if (!fixed) {
         fixed.emplace(*options.fixed_volume, options.voxel_format, options.device, options.integration.average_storage());
@@ -194,7 +193,7 @@ struct ScanSession::Impl {
     }
     if (moving) return;
     fusion::MovingVolumeOptions moving_options = options.moving;
-    if (!(moving_options.focus_distance_m > 0.0)) moving_options.focus_distance_m = median_depth(depth_m);
+    if (!(moving_options.focus_distance_m > 0.0)) moving_options.focus_distance_m = median_depth(*maps.host_depth());
     // On a GPU a move's surface is shipped beside the frame loop (collect_ship()).
     moving_options.ship_in_background = options.ship_in_background && options.device.is_cuda();
     const double focus = moving_options.focus_distance_m;
@@ -266,8 +265,7 @@ struct ScanSession::Impl {
   std::optional<fusion::deformation::RotationPrior> turntable_rotation_prior(const Pose& T_world_camera,
                                                                              std::optional<double> angle_deg) const;
   FrameDeformation feed_deformation(int frame, const Pose& T_world_camera, std::optional<double> angle_deg,
-                                    const Image32f& depth_m, const Image32f* confidence, const float* depth_device,
-                                    const float* confidence_device);
+                                    FrameMaps& maps);
   // The model (shipped parts and the current volume), deformed or not.
   fusion::ExtractedSurface surface(bool deformed) const;
 

@@ -1,6 +1,7 @@
 // The CUDA decoder equals the CPU decoder (same per-pixel code): masks, projector
 // coordinates within 1e-3 px, depth within 0.1 um; and the device-resident entry point gives
 // what the host one gives. Skipped without a GPU.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <future>
@@ -201,6 +202,32 @@ TEST(DecoderCuda, DepthAndConfidenceIntoAReusedFrame) {
     EXPECT_EQ(reused.depth_m, full.depth_m);
     EXPECT_EQ(reused.confidence, full.confidence);
     EXPECT_TRUE(reused.projector_u.empty() && reused.projector_v.empty() && reused.mask.empty());
+  }
+}
+
+// What a GPU scan decodes into: depth and confidence left on the device, the frame's images
+// untouched until downloaded, then equal to the host decode's; the device copy is final when
+// decode returns. Downloading before any decode is a clear error.
+TEST(DecoderCuda, DepthAndConfidenceLeftOnTheDeviceDownloadAsTheHostDecodes) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Case a = render_case("knurled-screw", 400);
+  const Case b = render_case("knurled-knob", 400);
+  Decoder gpu(a.rig.patterns, a.rig.calibration(), Device::cuda(), options());
+  DecodedFrame kept;
+  EXPECT_THROW(gpu.download_depth_and_confidence(&kept), Error);
+  for (const Case* c : {&a, &b}) {
+    DecodedFrame host;
+    gpu.decode(c->stack, DecodeOutputs::kDepthAndConfidence, &host);
+    const Image32f before = kept.depth_m;
+    gpu.decode(c->stack, DecodeOutputs::kDepthAndConfidenceOnDevice, &kept);
+    EXPECT_EQ(kept.depth_m, before);  // nothing downloaded by the decode
+    std::vector<float> on_device(host.depth_m.pixel_count());
+    SLS_CUDA_CHECK(cudaMemcpy(on_device.data(), gpu.depth_device(), on_device.size() * sizeof(float),
+                              cudaMemcpyDeviceToHost));
+    EXPECT_TRUE(std::equal(on_device.begin(), on_device.end(), host.depth_m.data()));
+    gpu.download_depth_and_confidence(&kept);
+    EXPECT_EQ(kept.depth_m, host.depth_m);
+    EXPECT_EQ(kept.confidence, host.confidence);
   }
 }
 

@@ -11,6 +11,7 @@
 
 #include "fusion/integrator.h"
 #include "fusion/raycaster.h"
+#include "sdk/core/cuda/device_buffer.h"
 #include "tests/support/test_support.h"
 #include "tests/unit/fusion/fusion_test_scenes.h"
 
@@ -118,6 +119,50 @@ TEST(FusionCuda, GuidedRaycastEqualsCpu) {
     EXPECT_LE(beyond, hits / 100);
     EXPECT_LT(worst, 0.1 * geometry.voxel_size_m);
   }
+}
+
+// A depth map summarised where it lives (what a GPU scan does instead of downloading it):
+// the valid pixels and the integration band equal the host's count and integration_depth_band,
+// for a map with outliers (quantiles), one with under 1000 sampled pixels (the whole range),
+// and one with nothing valid.
+TEST(FusionCuda, DepthMapSummaryOnTheGpuEqualsTheHosts) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  Integrator integrator(Device::cuda(), IntegrationOptions{});
+  const auto check = [&integrator](const Image32f& depth, const char* what) {
+    SCOPED_TRACE(what);
+    DeviceBuffer<float> on_device(depth.pixel_count());
+    on_device.upload(depth.data(), depth.pixel_count(), nullptr);
+    SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+    const DepthMapSummary summary = integrator.summarize_device(on_device.data(), depth.pixel_count());
+    std::size_t valid = 0;
+    for (std::size_t i = 0; i < depth.pixel_count(); ++i) valid += depth.data()[i] > 0.0f && std::isfinite(depth.data()[i]);
+    const auto [near_m, far_m] = integration_depth_band(depth);
+    EXPECT_EQ(summary.valid_pixels, valid);
+    EXPECT_EQ(summary.near_m, near_m);
+    EXPECT_EQ(summary.far_m, far_m);
+    return summary;
+  };
+  Image32f depth(1201, 997);  // not a multiple of the stride or of a block
+  for (int y = 0; y < depth.height(); ++y) {
+    for (int x = 0; x < depth.width(); ++x) {
+      const int n = y * depth.width() + x;
+      depth(x, y) = n % 7 == 0 ? 0.0f : n % 11 == 0 ? std::nanf("") : 0.1f + 1e-6f * static_cast<float>(n % 9973);
+    }
+  }
+  depth(5, 5) = 40.0f;  // outliers metres off: outside the band
+  depth(6, 900) = 1e-4f;
+  const DepthMapSummary many = check(depth, "quantiles");
+  EXPECT_LT(many.far_m, 1.0);
+  Image32f sparse(640, 480, 0.0f);  // 12 valid pixels, two on the sampled grid
+  for (int k = 0; k < 12; ++k) sparse(3 + 50 * k, 7 + 30 * k) = 0.2f + 0.01f * static_cast<float>(k);
+  sparse.data()[0] = 0.15f;
+  sparse.data()[127 * 3] = 0.45f;
+  const DepthMapSummary few = check(sparse, "whole range");
+  EXPECT_FLOAT_EQ(static_cast<float>(few.near_m), 0.15f);
+  EXPECT_FLOAT_EQ(static_cast<float>(few.far_m), 0.45f);
+  const DepthMapSummary none = check(Image32f(320, 240, 0.0f), "nothing valid");
+  EXPECT_EQ(none.valid_pixels, 0u);
+  EXPECT_EQ(none.far_m, 0.0);
 }
 
 TEST(FusionCuda, VolumeThatDoesNotFitIsAClearError) {
