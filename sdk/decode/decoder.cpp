@@ -171,7 +171,7 @@ struct Decoder::Impl {
 #if defined(SLS_HAVE_CUDA)
   std::unique_ptr<detail::CudaDecodeContext> cuda;
 #endif
-  bool decoded_on_device = false;  // the GPU holds an accepted stack's outputs (download_depth_and_confidence)
+  bool decoded_on_device = false;  // the GPU holds an accepted stack's outputs (download_depth)
 };
 
 Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, const Device& device,
@@ -205,22 +205,19 @@ Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, c
 }
 
 #if defined(SLS_HAVE_CUDA)
-void Decoder::download_depth_and_confidence(DecodedFrame* frame) {
+void Decoder::download_depth(Image32f* depth_m) {
   if (!impl_->decoded_on_device) {
     if (impl_->device.is_cuda()) {
-      throw_error(ErrorCode::kInvalidArgument, "download_depth_and_confidence: no stack decoded on the GPU");
+      throw_error(ErrorCode::kInvalidArgument, "download_depth: no stack decoded on the GPU");
     }
     return;  // a CPU decoder decodes into the frame
   }
 #if defined(SLS_HAVE_CUDA)
   const int width = impl_->rays.width, height = impl_->rays.height;
-  for (Image32f* image : {&frame->depth_m, &frame->confidence}) {
-    if (image->width() != width || image->height() != height) image->resize(width, height);
-  }
+  if (depth_m->width() != width || depth_m->height() != height) depth_m->resize(width, height);
   require_device(impl_->device);
   detail::DecodeOutputsHost host;
-  host.depth = frame->depth_m.data();
-  host.confidence = frame->confidence.data();
+  host.depth = depth_m->data();
   impl_->cuda->download(host);
 #endif
 }

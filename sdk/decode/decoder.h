@@ -86,8 +86,8 @@ enum class DecodeOutputs {
   kDepthAndConfidence,
   // A CUDA decoder's depth and confidence left on the GPU (depth_device(), confidence_device()),
   // nothing downloaded and the frame's images left as they were: what a GPU scan fuses and
-  // tracks from, downloading (download_depth_and_confidence) only on the frames that need them
-  // on the host. A CPU decoder: as kDepthAndConfidence.
+  // tracks from, downloading the depth map (download_depth) only on the frames that need it on
+  // the host. A CPU decoder: as kDepthAndConfidence.
   kDepthAndConfidenceOnDevice,
 };
 
@@ -149,10 +149,10 @@ class Decoder {
   // Its confidence map beside it (DecodedFrame::confidence), on the same terms.
   const float* confidence_device() const;
 #endif
-  // The last decode's depth and confidence into `frame` (sized to the camera): for a decode
-  // that left them on the GPU (kDepthAndConfidenceOnDevice). A CPU decoder's are in `frame`
-  // already: nothing to do. Throws sls::Error(kInvalidArgument) before any decode.
-  void download_depth_and_confidence(DecodedFrame* frame);
+  // The last decode's depth map into `depth_m` (sized to the camera): for a decode that left it
+  // on the GPU (kDepthAndConfidenceOnDevice). A CPU decoder's is in its DecodedFrame already:
+  // nothing to do. Throws sls::Error(kInvalidArgument) before any stack was decoded on the GPU.
+  void download_depth(Image32f* depth_m);
 
  private:
   struct Impl;

@@ -218,7 +218,10 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
 #if defined(SLS_HAVE_CUDA)
     maps.depth_device = s.decoder->depth_device();
     maps.confidence_device = s.decoder->confidence_device();
-    if (on_gpu) maps.fetch = [&s] { s.decoder->download_depth_and_confidence(&s.decoded); };
+    if (on_gpu) {
+      maps.confidence = nullptr;  // on the GPU only: nothing on the host reads it
+      maps.fetch = [&s] { s.decoder->download_depth(&s.decoded.depth_m); };
+    }
 #endif
   } else if (frame.depth_m) {
     if (frame.depth_m->width() != s.calibration.camera.width ||

@@ -206,23 +206,19 @@ struct LoopClosureReport {
 };
 
 // A frame's depth map and the decoder's confidence beside it, as add_frame() holds them. On a
-// GPU a decoded frame's maps stay on the device (a 12-megapixel frame's are 96 MB), and come
-// to the host only for what needs them there (a keyframe's samples, the first frame's focus, a
-// frame observer that asks): host_depth() downloads them the first time it is called.
+// GPU a decoded frame's maps stay on the device (a 12-megapixel frame's are 96 MB); the depth
+// map comes to the host only for what needs it there (a keyframe's samples, the first frame's
+// focus, a frame observer that asks): host_depth() downloads it the first time it is called.
 struct FrameMaps {
   const Image32f* depth = nullptr;       // on the host once fetched; null: the frame has none
-  const Image32f* confidence = nullptr;  // null: none (a depth-map frame)
-  const float* depth_device = nullptr;   // on a CUDA device: the GPU copy, else null
+  const Image32f* confidence = nullptr;  // on the host; null: none there (a depth-map frame, a GPU decode)
+  const float* depth_device = nullptr;   // on a CUDA device: the GPU copies, else null
   const float* confidence_device = nullptr;
-  std::function<void()> fetch;           // brings the maps to the host; empty once done (or never needed)
+  std::function<void()> fetch;           // brings the depth map to the host; empty once done (or never needed)
 
   const Image32f* host_depth() {
     if (fetch) std::exchange(fetch, nullptr)();
     return depth;
-  }
-  const Image32f* host_confidence() {
-    host_depth();
-    return confidence;
   }
 };
 

@@ -205,29 +205,29 @@ TEST(DecoderCuda, DepthAndConfidenceIntoAReusedFrame) {
   }
 }
 
-// What a GPU scan decodes into: depth and confidence left on the device, the frame's images
-// untouched until downloaded, then equal to the host decode's; the device copy is final when
-// decode returns. Downloading before any decode is a clear error.
+// What a GPU scan decodes into: depth and confidence left on the device (final when decode
+// returns), the frame's images untouched; the depth map downloaded on demand equals the host
+// decode's. Downloading before any decode is a clear error.
 TEST(DecoderCuda, DepthAndConfidenceLeftOnTheDeviceDownloadAsTheHostDecodes) {
   SLS_REQUIRE_CUDA_DEVICE();
   const Case a = render_case("knurled-screw", 400);
   const Case b = render_case("knurled-knob", 400);
   Decoder gpu(a.rig.patterns, a.rig.calibration(), Device::cuda(), options());
   DecodedFrame kept;
-  EXPECT_THROW(gpu.download_depth_and_confidence(&kept), Error);
+  EXPECT_THROW(gpu.download_depth(&kept.depth_m), Error);
   for (const Case* c : {&a, &b}) {
     DecodedFrame host;
     gpu.decode(c->stack, DecodeOutputs::kDepthAndConfidence, &host);
     const Image32f before = kept.depth_m;
     gpu.decode(c->stack, DecodeOutputs::kDepthAndConfidenceOnDevice, &kept);
     EXPECT_EQ(kept.depth_m, before);  // nothing downloaded by the decode
-    std::vector<float> on_device(host.depth_m.pixel_count());
-    SLS_CUDA_CHECK(cudaMemcpy(on_device.data(), gpu.depth_device(), on_device.size() * sizeof(float),
+    EXPECT_TRUE(kept.confidence.empty());
+    std::vector<float> on_device(host.confidence.pixel_count());
+    SLS_CUDA_CHECK(cudaMemcpy(on_device.data(), gpu.confidence_device(), on_device.size() * sizeof(float),
                               cudaMemcpyDeviceToHost));
-    EXPECT_TRUE(std::equal(on_device.begin(), on_device.end(), host.depth_m.data()));
-    gpu.download_depth_and_confidence(&kept);
+    EXPECT_TRUE(std::equal(on_device.begin(), on_device.end(), host.confidence.data()));
+    gpu.download_depth(&kept.depth_m);
     EXPECT_EQ(kept.depth_m, host.depth_m);
-    EXPECT_EQ(kept.confidence, host.confidence);
   }
 }
 
