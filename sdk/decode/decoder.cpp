@@ -172,6 +172,7 @@ struct Decoder::Impl {
   std::unique_ptr<detail::CudaDecodeContext> cuda;
 #endif
   bool decoded_on_device = false;  // the GPU holds an accepted stack's outputs (download_depth)
+  StackCheckPlan check_plan;       // what the stack check judges (stack_check_shared.h)
 };
 
 Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, const Device& device,
@@ -185,6 +186,7 @@ Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, c
   impl_->options = options;
   impl_->params.layout = make_decode_layout(set);
   impl_->params.thresholds = make_decode_thresholds(options);
+  impl_->check_plan = make_stack_check_plan(impl_->params);
   impl_->triangulation = make_triangulation_params(calibration, options);
   const bool columns = impl_->params.layout.axes[0].extent > 0;
   const int coded_extent = impl_->params.layout.axes[columns ? 0 : 1].extent;
@@ -308,9 +310,9 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
   };
   if (impl_->device.is_cuda()) {
 #if defined(SLS_HAVE_CUDA)
-    // The checks' inputs are gathered where the stack lands, and judged here while the GPU
-    // decodes: they cost the frame ~0.1 ms instead of a pass over 22 images of 12 MP on the
-    // host (6.5 ms, docs/benchmarks.md).
+    // The checks run where the stack lands, each grid pixel judged there into histograms; the
+    // host takes their medians (judge_stack_histograms) while the GPU decodes. On the host the
+    // same check took the frame's critical path 6 ms (docs/benchmarks.md).
     require_device(impl_->device);
     detail::CudaDecodeContext& cuda = *impl_->cuda;
     impl_->decoded_on_device = false;
@@ -319,13 +321,13 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
     const StackCheckGrid grid =
         references && impl_->options.check_stack ? make_stack_check_grid(width, height, StackCheckLimits{}.max_samples)
                                                  : StackCheckGrid{};
-    cuda.gather_check_async(slot, grid, layout.white_index, layout.black_index);
+    cuda.gather_check_async(slot, grid, impl_->check_plan);
     cuda.decode_slot(slot);
     if (!on_device) cuda.queue_landing(true, true);
     try {
       const detail::StackCheckInputs check = cuda.wait_check();
       refuse_dark_stack(impl_->params, impl_->options, check.largest, references);
-      if (grid.count() > 0) check_stack_samples(set, impl_->params, grid, check.samples);
+      if (check.counts != nullptr) judge_stack_histograms(set, impl_->check_plan, check.lit, check.counts);
     } catch (...) {
       cuda.synchronize();  // the decode queued behind the check may still write the landing planes
       throw;

@@ -43,10 +43,19 @@ struct StackCheckLimits {
 void check_stack_behaves(const PatternSet& set, const DecodeParams& params, const std::vector<Image16u>& stack,
                          const StackCheckLimits& limits = {});
 
-// The same check on the pixels of `grid` only (make_stack_check_grid with limits.max_samples),
-// already gathered: `samples[k * grid.count() + n]` is image k at grid.pixel(n), for every
-// pattern of `set`. The GPU path gathers them where the stack is (cuda/stack_check.cu).
-void check_stack_samples(const PatternSet& set, const DecodeParams& params, const StackCheckGrid& grid,
-                         const std::uint16_t* samples, const StackCheckLimits& limits = {});
+// The check's histograms (stack_check_shared.h): `lit` pixels judged, and for each of the plan's
+// slots kStackCheckBins counts, slot after slot. CPU: check_stack_behaves fills them; GPU: the
+// decoder's kernel (cuda/stack_check.cu).
+struct StackCheckHistograms {
+  std::size_t lit = 0;
+  std::vector<std::uint32_t> counts;
+};
+// The grid's histograms of a stack on the host (all threads).
+StackCheckHistograms stack_check_histograms(const StackCheckPlan& plan, const StackCheckGrid& grid,
+                                            const std::vector<Image16u>& stack);
+// The verdict from the histograms (`counts`: plan.slot_count x kStackCheckBins): throws as
+// check_stack_behaves; returns with fewer than limits.min_lit_samples lit pixels.
+void judge_stack_histograms(const PatternSet& set, const StackCheckPlan& plan, std::size_t lit,
+                            const std::uint32_t* counts, const StackCheckLimits& limits = {});
 
 }  // namespace sls

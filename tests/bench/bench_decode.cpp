@@ -7,9 +7,11 @@
 // descriptions of samples/patterns/; <= 2 ms resident for heterodyne and micro phase shifting).
 #include <benchmark/benchmark.h>
 
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "drivers/sim/renderer.h"
 #include "sdk/core/device.h"
@@ -103,6 +105,7 @@ void BM_StackCheck(benchmark::State& state) {
   state.counters["Mpixel"] = static_cast<double>(stack.images[0].pixel_count()) / 1e6;
 }
 BENCHMARK(BM_StackCheck)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 
 #if defined(SLS_HAVE_CUDA)
 class CudaEvents {

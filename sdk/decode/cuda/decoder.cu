@@ -143,14 +143,15 @@ struct CudaDecodeContext::State {
   bool landing_queued[2] = {false, false};  // depth, confidence
   DeviceBuffer<float> u, v, confidence, depth;
   DeviceBuffer<std::uint8_t> mask;
-  // The stack check's inputs (allocated on first use): gathered samples and the largest
-  // contrast on the device, downloaded into one pinned block (the largest first), and an
-  // event once they have landed.
-  DeviceBuffer<std::uint16_t> check_samples;
+  // The stack check's results (allocated on first use): the largest contrast, the lit pixels
+  // and the histograms on the device, downloaded into one pinned block, and an event once
+  // they have landed.
   DeviceBuffer<int> check_largest;
+  DeviceBuffer<unsigned long long> check_lit;
+  DeviceBuffer<std::uint32_t> check_counts;  // the histograms (stack_check_shared.h)
   void* check_host = nullptr;
   std::size_t check_host_bytes = 0;
-  std::size_t check_sample_count = 0;
+  bool check_judged = false;  // the last check filled histograms
   cudaEvent_t check_ready = nullptr;
 
   ~State() {
@@ -370,17 +371,21 @@ __global__ void set_int_kernel(int* target, int value) { *target = value; }
 
 }  // namespace
 
-void CudaDecodeContext::gather_check_async(int slot, const StackCheckGrid& grid, int white_index, int black_index) {
+void CudaDecodeContext::gather_check_async(int slot, const StackCheckGrid& grid, const StackCheckPlan& plan) {
   State& s = *state_;
   require_uploaded(slot, "gather_check_async");
   const int images = s.decode.layout.pattern_count;
-  const std::size_t samples = static_cast<std::size_t>(images) * grid.count();
-  const std::size_t bytes = sizeof(int) + samples * sizeof(std::uint16_t);
+  const bool judged = plan.usable && grid.count() > 0;
+  const std::size_t bins = judged ? static_cast<std::size_t>(plan.slot_count) * kStackCheckBins : 0;
+  // Pinned on the host: the largest contrast, the lit count, then the histograms.
+  const std::size_t header = 2 * sizeof(unsigned long long);
+  const std::size_t bytes = header + bins * sizeof(std::uint32_t);
   if (s.check_largest.size() == 0) {
     s.check_largest.allocate(1);
+    s.check_lit.allocate(1);
     SLS_CUDA_CHECK(cudaEventCreateWithFlags(&s.check_ready, cudaEventDisableTiming));
   }
-  if (s.check_samples.size() < samples) s.check_samples.allocate(samples);
+  if (s.check_counts.size() < bins) s.check_counts.allocate(bins);
   if (s.check_host_bytes < bytes) {
     if (s.check_host != nullptr) SLS_CUDA_CHECK(cudaFreeHost(s.check_host));
     s.check_host = nullptr;
@@ -394,16 +399,22 @@ void CudaDecodeContext::gather_check_async(int slot, const StackCheckGrid& grid,
     }
     s.check_host_bytes = bytes;
   }
-  s.check_sample_count = samples;
+  s.check_judged = judged;
   SLS_CUDA_CHECK(cudaStreamWaitEvent(s.stream, s.uploaded[slot], 0));
   set_int_kernel<<<1, 1, 0, s.stream>>>(s.check_largest.data(), std::numeric_limits<int>::min());
   SLS_CUDA_CHECK_LAUNCH();
-  launch_stack_check_gather(s.slots[slot].data(), s.pixels, images, grid, white_index, black_index,
-                            s.check_samples.data(), s.check_largest.data(), s.stream);
+  if (judged) {
+    SLS_CUDA_CHECK(cudaMemsetAsync(s.check_lit.data(), 0, sizeof(unsigned long long), s.stream));
+    SLS_CUDA_CHECK(cudaMemsetAsync(s.check_counts.data(), 0, bins * sizeof(std::uint32_t), s.stream));
+  }
+  launch_stack_check(s.slots[slot].data(), s.pixels, images, judged ? grid : StackCheckGrid{}, plan,
+                     s.check_largest.data(), s.check_counts.data(), s.check_lit.data(), s.stream);
   auto* host = static_cast<unsigned char*>(s.check_host);
   SLS_CUDA_CHECK(cudaMemcpyAsync(host, s.check_largest.data(), sizeof(int), cudaMemcpyDeviceToHost, s.stream));
-  if (samples > 0) {
-    SLS_CUDA_CHECK(cudaMemcpyAsync(host + sizeof(int), s.check_samples.data(), samples * sizeof(std::uint16_t),
+  if (judged) {
+    SLS_CUDA_CHECK(cudaMemcpyAsync(host + sizeof(unsigned long long), s.check_lit.data(), sizeof(unsigned long long),
+                                   cudaMemcpyDeviceToHost, s.stream));
+    SLS_CUDA_CHECK(cudaMemcpyAsync(host + header, s.check_counts.data(), bins * sizeof(std::uint32_t),
                                    cudaMemcpyDeviceToHost, s.stream));
   }
   SLS_CUDA_CHECK(cudaEventRecord(s.check_ready, s.stream));
@@ -418,8 +429,12 @@ StackCheckInputs CudaDecodeContext::wait_check() {
   const auto* host = static_cast<const unsigned char*>(s.check_host);
   StackCheckInputs inputs;
   std::memcpy(&inputs.largest, host, sizeof(int));
-  inputs.samples =
-      s.check_sample_count > 0 ? reinterpret_cast<const std::uint16_t*>(host + sizeof(int)) : nullptr;
+  if (s.check_judged) {
+    unsigned long long lit = 0;
+    std::memcpy(&lit, host + sizeof(unsigned long long), sizeof(lit));
+    inputs.lit = static_cast<std::size_t>(lit);
+    inputs.counts = reinterpret_cast<const std::uint32_t*>(host + 2 * sizeof(unsigned long long));
+  }
   return inputs;
 }
 

@@ -41,18 +41,20 @@ void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& t
                         const std::uint16_t* stack, std::size_t plane_stride, const Vec3f* rays,
                         const std::uint8_t* ray_valid, const DecodeOutputsDevice& outputs, cudaStream_t stream);
 
-// One thread per sample of `grid` and image: samples[k * grid.count() + n] = image k at
-// grid.pixel(n); and into *largest (which the caller set to INT_MIN) the largest white - black
-// (both indices >= 0) or else the brightest pixel of any image. Asynchronous on `stream`
-// (stack_check.cu).
-void launch_stack_check_gather(const std::uint16_t* stack, std::size_t plane_stride, int images,
-                               const StackCheckGrid& grid, int white_index, int black_index, std::uint16_t* samples,
-                               int* largest, cudaStream_t stream);
+// The stack check where the stack is (stack_check.cu): into *largest (which the caller set to
+// INT_MIN) the largest white - black (both indices >= 0) or else the brightest pixel of any
+// image; and, for a usable plan and a grid, one thread per grid pixel judged as the CPU judges
+// it (judge_stack_pixel) into `counts` (plan.slot_count x kStackCheckBins, zeroed by the
+// caller) and the lit pixels into *lit (zeroed). Asynchronous on `stream`.
+void launch_stack_check(const std::uint16_t* stack, std::size_t plane_stride, int images, const StackCheckGrid& grid,
+                        const StackCheckPlan& plan, int* largest, std::uint32_t* counts, unsigned long long* lit,
+                        cudaStream_t stream);
 
 // What the decoder's stack check reads (Decoder::decode), on the host once wait_check returns.
 struct StackCheckInputs {
-  const std::uint16_t* samples = nullptr;  // images x grid.count(), image-major; nullptr without a grid
   int largest = 0;                         // white - black's maximum, or the brightest pixel
+  std::size_t lit = 0;                     // pixels judged
+  const std::uint32_t* counts = nullptr;   // the histograms; nullptr without a grid or a usable plan
 };
 
 // The decoder's device state: the ray map, an upload buffer for host stacks, the outputs and
@@ -99,7 +101,7 @@ class CudaDecodeContext {
   // The stack check's inputs from an uploaded slot, gathered on the GPU and downloaded on
   // stream() before what is queued next (the decode); wait_check() waits for them alone, so the
   // host judges the stack while the GPU decodes it. An empty `grid`: only `largest`.
-  void gather_check_async(int slot, const StackCheckGrid& grid, int white_index, int black_index);
+  void gather_check_async(int slot, const StackCheckGrid& grid, const StackCheckPlan& plan);
   StackCheckInputs wait_check();
   // Queues the download of the last decode's depth and/or confidence into pinned landing
   // planes (what download() then copies out), so that it runs while the host works.

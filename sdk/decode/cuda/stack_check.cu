@@ -1,6 +1,8 @@
-// The decoder's stack check, gathered where the stack is (decoder_cuda.h): the pixels of the
-// check's grid (stack_check_shared.h, the CPU gather's too) of every image, and the largest
-// contrast for the all-dark test, so that only ~1.4 MB of a 528 MB stack crosses to the host.
+// The decoder's stack check where the stack is (decoder_cuda.h): each pixel of the check's grid
+// judged as the CPU judges it (judge_stack_pixel, stack_check_shared.h) into the histograms the
+// host takes the medians of, and the largest contrast for the all-dark test, so that ~0.2 MB of
+// a 528 MB stack crosses to the host and the host's share is the medians. Compiled with
+// -fmad=false (sdk/decode/CMakeLists.txt): the histograms' bins are then the CPU's to the bit.
 #include <climits>
 
 #include <cub/block/block_reduce.cuh>
@@ -17,14 +19,21 @@ struct Larger {
   __device__ int operator()(int a, int b) const { return a > b ? a : b; }
 };
 
-__global__ void gather_kernel(const std::uint16_t* __restrict__ stack, std::size_t plane_stride, int images,
-                              StackCheckGrid grid, std::uint16_t* __restrict__ samples) {
+// One thread per grid pixel; one atomic per value into the histograms (~20 per lit pixel, over
+// 2048 bins each).
+__global__ void judge_kernel(const std::uint16_t* __restrict__ stack, std::size_t plane_stride, StackCheckGrid grid,
+                             StackCheckPlan plan, std::uint32_t* __restrict__ counts, unsigned long long* lit) {
   const std::size_t count = grid.count();
-  const std::size_t total = count * static_cast<std::size_t>(images);
-  for (std::size_t j = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x; j < total;
-       j += static_cast<std::size_t>(gridDim.x) * blockDim.x) {
-    const std::size_t k = j / count;
-    samples[j] = stack[k * plane_stride + grid.pixel(j - k * count)];
+  for (std::size_t n = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x; n < count;
+       n += static_cast<std::size_t>(gridDim.x) * blockDim.x) {
+    const std::size_t pixel = grid.pixel(n);
+    const auto sample = [&](int k) {
+      return static_cast<float>(stack[static_cast<std::size_t>(k) * plane_stride + pixel]);
+    };
+    const auto add = [&](int slot, int bin) {
+      atomicAdd(counts + static_cast<std::size_t>(slot) * kStackCheckBins + static_cast<std::size_t>(bin), 1u);
+    };
+    if (judge_stack_pixel(plan, sample, add)) atomicAdd(lit, 1ull);
   }
 }
 
@@ -55,16 +64,15 @@ unsigned blocks_for(std::size_t work) {
 
 }  // namespace
 
-void launch_stack_check_gather(const std::uint16_t* stack, std::size_t plane_stride, int images,
-                               const StackCheckGrid& grid, int white_index, int black_index, std::uint16_t* samples,
-                               int* largest, cudaStream_t stream) {
+void launch_stack_check(const std::uint16_t* stack, std::size_t plane_stride, int images, const StackCheckGrid& grid,
+                        const StackCheckPlan& plan, int* largest, std::uint32_t* counts, unsigned long long* lit,
+                        cudaStream_t stream) {
   // The stack's planes are whole images: plane_stride pixels each.
   largest_kernel<<<blocks_for(plane_stride), kThreads, 0, stream>>>(stack, plane_stride, plane_stride, images,
-                                                                     white_index, black_index, largest);
+                                                                     plan.white, plan.black, largest);
   SLS_CUDA_CHECK_LAUNCH();
-  const std::size_t total = grid.count() * static_cast<std::size_t>(images);
-  if (total == 0) return;
-  gather_kernel<<<blocks_for(total), kThreads, 0, stream>>>(stack, plane_stride, images, grid, samples);
+  if (!plan.usable || grid.count() == 0) return;
+  judge_kernel<<<blocks_for(grid.count()), kThreads, 0, stream>>>(stack, plane_stride, grid, plan, counts, lit);
   SLS_CUDA_CHECK_LAUNCH();
 }
 

@@ -16,6 +16,7 @@
 #include "sdk/core/error.h"
 #include "sdk/decode/cuda/decoder_cuda.h"
 #include "sdk/decode/decoder.h"
+#include "sdk/decode/stack_check.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -287,6 +288,40 @@ TEST(DecoderCuda, RefusesWhatTheCpuRefusesAndKeepsTheFrame) {
   EXPECT_EQ(refusal(blind, bad.front().stack, &frame), "decoded");
   EXPECT_NE(refusal(blind, bad.back().stack, &frame), "decoded");
   expect_equal(cpu.decode(c.stack), gpu.decode(c.stack), "a good stack after refusals");
+}
+
+// The stack check judged where the stack lands: for a genuine stack and for one with a stuck
+// phase image, the GPU's histograms and lit count are the host's to the bit (the same per-pixel
+// code, compiled without fused multiply-adds), so its verdicts and messages are the CPU's.
+TEST(DecoderCuda, StackCheckHistogramsEqualTheHosts) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Case c = render_case("knurled-screw", 1200);
+  Decoder cpu(c.rig.patterns, c.rig.calibration(), Device::cpu(), options());
+  const StackCheckPlan plan = make_stack_check_plan(cpu.decode_params());
+  ASSERT_TRUE(plan.usable);
+  ASSERT_GT(plan.slot_count, 0);
+  const int width = c.rig.camera.width, height = c.rig.camera.height;
+  const StackCheckGrid grid = make_stack_check_grid(width, height, StackCheckLimits{}.max_samples);
+  const RayMap& rays = cpu.rays();
+  detail::CudaDecodeContext context(cpu.decode_params(), cpu.triangulation_params(), width, height, rays.rays.data(),
+                                    rays.valid.data());
+  std::vector<Image16u> stuck = c.stack;
+  std::fill(stuck[17].data(), stuck[17].data() + stuck[17].pixel_count(), std::uint16_t{2048});
+  const std::vector<Image16u>& genuine = c.stack;
+  for (const std::vector<Image16u>* stack : {&genuine, static_cast<const std::vector<Image16u>*>(&stuck)}) {
+    std::vector<const std::uint16_t*> planes;
+    for (const Image16u& image : *stack) planes.push_back(image.data());
+    const int slot = context.upload_async(planes.data());
+    context.gather_check_async(slot, grid, plan);
+    context.decode_slot(slot);
+    const detail::StackCheckInputs gpu = context.wait_check();
+    const StackCheckHistograms host = stack_check_histograms(plan, grid, *stack);
+    ASSERT_NE(gpu.counts, nullptr);
+    EXPECT_GT(host.lit, grid.count() / 4);
+    EXPECT_EQ(gpu.lit, host.lit);
+    EXPECT_TRUE(std::equal(host.counts.begin(), host.counts.end(), gpu.counts));
+    context.synchronize();
+  }
 }
 
 // A live scan uploads frame n + 1 on another thread while it decodes frame n
