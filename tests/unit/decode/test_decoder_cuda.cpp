@@ -190,49 +190,37 @@ TEST(DecoderCuda, PipelinedUploadsGiveEachStacksOwnResult) {
 }
 
 // What a scan decodes each frame into: depth and confidence only, into one reused
-// DecodedFrame; two different frames in a row each equal the full decode's.
-TEST(DecoderCuda, DepthAndConfidenceIntoAReusedFrame) {
+// DecodedFrame; two different frames in a row each equal the full decode's. A GPU scan leaves
+// them on the device (final when decode returns, the frame's images untouched) and downloads
+// the depth map on demand, equal to the host decode's; before any decode that is a clear error.
+TEST(DecoderCuda, DepthAndConfidenceIntoAReusedFrameOrLeftOnTheDevice) {
   SLS_REQUIRE_CUDA_DEVICE();
   const Case a = render_case("knurled-screw", 400);
   const Case b = render_case("knurled-knob", 400);
   Decoder gpu(a.rig.patterns, a.rig.calibration(), Device::cuda(), options());
-  DecodedFrame reused;
+  DecodedFrame reused, kept;
+  EXPECT_THROW(gpu.download_depth(&kept.depth_m), Error);
   for (const Case* c : {&a, &b}) {
     const DecodedFrame full = gpu.decode(c->stack);
     gpu.decode(c->stack, DecodeOutputs::kDepthAndConfidence, &reused);
     EXPECT_EQ(reused.depth_m, full.depth_m);
     EXPECT_EQ(reused.confidence, full.confidence);
     EXPECT_TRUE(reused.projector_u.empty() && reused.projector_v.empty() && reused.mask.empty());
-  }
-}
 
-// What a GPU scan decodes into: depth and confidence left on the device (final when decode
-// returns), the frame's images untouched; the depth map downloaded on demand equals the host
-// decode's. Downloading before any decode is a clear error.
-TEST(DecoderCuda, DepthAndConfidenceLeftOnTheDeviceDownloadAsTheHostDecodes) {
-  SLS_REQUIRE_CUDA_DEVICE();
-  const Case a = render_case("knurled-screw", 400);
-  const Case b = render_case("knurled-knob", 400);
-  Decoder gpu(a.rig.patterns, a.rig.calibration(), Device::cuda(), options());
-  DecodedFrame kept;
-  EXPECT_THROW(gpu.download_depth(&kept.depth_m), Error);
-  for (const Case* c : {&a, &b}) {
-    DecodedFrame host;
-    gpu.decode(c->stack, DecodeOutputs::kDepthAndConfidence, &host);
     const Image32f before = kept.depth_m;
     gpu.decode(c->stack, DecodeOutputs::kDepthAndConfidenceOnDevice, &kept);
     EXPECT_EQ(kept.depth_m, before);  // nothing downloaded by the decode
     EXPECT_TRUE(kept.confidence.empty());
-    std::vector<float> on_device(host.confidence.pixel_count());
+    std::vector<float> on_device(full.confidence.pixel_count());
     SLS_CUDA_CHECK(cudaMemcpy(on_device.data(), gpu.confidence_device(), on_device.size() * sizeof(float),
                               cudaMemcpyDeviceToHost));
-    EXPECT_TRUE(std::equal(on_device.begin(), on_device.end(), host.confidence.data()));
+    EXPECT_TRUE(std::equal(on_device.begin(), on_device.end(), full.confidence.data()));
     gpu.download_depth(&kept.depth_m);
-    EXPECT_EQ(kept.depth_m, host.depth_m);
+    EXPECT_EQ(kept.depth_m, full.depth_m);
   }
 }
 
-// The stack check runs on what the GPU gathers where the stack lands (cuda/stack_check.cu):
+// The stack check runs where the stack lands (cuda/stack_check.cu):
 // every stack the CPU decoder refuses, the CUDA one refuses with the same error, leaving the
 // caller's frame as it was, and decodes the next good stack as the CPU does. 1200 px wide, so
 // that the check's grid skips pixels (stack_check_shared.h) as at 12 MP.
