@@ -168,6 +168,7 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
 
   const ProgressCallback progress = context.progress_callback("bench");
   std::vector<double> frame_ms, decode, track, integrate, move, raycast, deform;
+  std::vector<double> upload_wait;  // after its own work, each frame waiting for the next stack's upload
   std::vector<double> move_resample, move_ship, move_assemble;  // of the frames whose volume moved
   double render_s = 0.0, frames_s = 0.0;
   int lost = 0;
@@ -206,7 +207,13 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
       ahead = std::async(std::launch::async, [&session, &next] { return session.prefetch(next); });
     }
     const session::FrameReport report = session.add_frame(frame);
-    if (ahead.valid()) ahead.get();
+    double waited_ms = 0.0;
+    if (ahead.valid()) {
+      const SteadyClock::time_point fused = SteadyClock::now();
+      ahead.get();
+      waited_ms = ms_since(fused);
+    }
+    upload_wait.push_back(waited_ms);
     const double ms = ms_since(start);
     frames_s += ms * 1e-3;
     frame_ms.push_back(ms);
@@ -283,7 +290,8 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
         {"integrate", stage(integrate)},
         {"move", stage(move)},
         {"raycast", stage(raycast)},
-        {"deform", stage(deform)}}},
+        {"deform", stage(deform)},
+        {"upload_wait", stage(upload_wait)}}},
       {"loop_closure", loop},
       {"points", model.cloud.size()}};
   if (device.is_cuda()) {

@@ -102,8 +102,11 @@ class SlsCli(unittest.TestCase):
             # Frames fused at the turntable prior without being tracked are counted among the fused.
             self.assertLessEqual(bench["frames_unverified"], bench["frames_fused"])
             self.assertEqual(bench["frames_fused"] + bench["frames_lost"], frames)
-            for stage in ("decode", "track", "integrate", "move", "raycast", "deform"):
+            for stage in ("decode", "track", "integrate", "move", "raycast", "deform", "upload_wait"):
                 self.assertGreaterEqual(bench["stages"][stage]["total_s"], 0.0)
+            # The stages are parts of the frames' time, one after the other.
+            self.assertLessEqual(sum(figures["total_s"] for figures in bench["stages"].values()),
+                                 bench["frames_s"] + 1e-6)
             # A move's parts add up to no more than the moves' stage (on the CPU the ship is in the move).
             parts = bench["volume"]["move_stages"]
             self.assertLessEqual(parts["resample"]["total_s"] + parts["ship"]["total_s"],
@@ -112,6 +115,7 @@ class SlsCli(unittest.TestCase):
             self.assertLessEqual(bench["frame_ms"]["median"], bench["frame_ms"]["max"])
             self.assertNotIn("gpu", bench)
             self.assertFalse(bench["upload_ahead"])  # on the CPU there is nothing to upload
+            self.assertEqual(bench["stages"]["upload_wait"]["total_s"], 0.0)
             self.assertFalse(bench["background_shipping"])  # nor to ship beside the frames
             # The model's accuracy against the exact scene, measured after the timed part (JSON
             # has no NaN or infinity: a figure that could not be measured is null).
