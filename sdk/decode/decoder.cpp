@@ -290,7 +290,6 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
   std::vector<const std::uint16_t*> planes(stack.size());
   for (std::size_t k = 0; k < stack.size(); ++k) planes[k] = stack[k].data();
   const bool all = outputs == DecodeOutputs::kAll;
-  const bool on_device = outputs == DecodeOutputs::kDepthAndConfidenceOnDevice && impl_->device.is_cuda();
   // Sized only once the stack is accepted (a refused stack leaves the frame as it was); reused
   // when already of the camera's size (resize() writes every pixel); emptied when not asked for.
   const auto size_outputs = [&] {
@@ -315,6 +314,7 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
     // same check took the frame's critical path 6 ms (docs/benchmarks.md).
     require_device(impl_->device);
     detail::CudaDecodeContext& cuda = *impl_->cuda;
+    const bool on_device = outputs == DecodeOutputs::kDepthAndConfidenceOnDevice;
     impl_->decoded_on_device = false;
     int slot = cuda.take_prefetched(planes.data());
     if (slot < 0) slot = cuda.upload_async(planes.data());
