@@ -206,7 +206,6 @@ Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, c
   }
 }
 
-#if defined(SLS_HAVE_CUDA)
 void Decoder::download_depth(Image32f* depth_m) {
   if (!impl_->decoded_on_device) {
     if (impl_->device.is_cuda()) {
@@ -221,9 +220,12 @@ void Decoder::download_depth(Image32f* depth_m) {
   detail::DecodeOutputsHost host;
   host.depth = depth_m->data();
   impl_->cuda->download(host);
+#else
+  (void)depth_m;
 #endif
 }
 
+#if defined(SLS_HAVE_CUDA)
 const float* Decoder::depth_device() const { return impl_->cuda ? impl_->cuda->outputs().depth : nullptr; }
 const float* Decoder::confidence_device() const {
   return impl_->cuda ? impl_->cuda->outputs().confidence : nullptr;

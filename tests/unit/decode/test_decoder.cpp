@@ -509,6 +509,13 @@ TEST(Decoder, DepthAndConfidenceIntoAReusedFrame) {
     EXPECT_EQ(reused.depth_m, full.depth_m);
     EXPECT_EQ(reused.confidence, full.confidence);
     EXPECT_TRUE(reused.projector_u.empty() && reused.projector_v.empty() && reused.mask.empty());
+    // A CPU decoder has no device: "left on the device" decodes into the frame, and the
+    // download on demand leaves it as it is.
+    DecodedFrame on_device;
+    decoder.decode(r->stack, DecodeOutputs::kDepthAndConfidenceOnDevice, &on_device);
+    decoder.download_depth(&on_device.depth_m);
+    EXPECT_EQ(on_device.depth_m, full.depth_m);
+    EXPECT_EQ(on_device.confidence, full.confidence);
   }
   const float* depth = reused.depth_m.data();
   EXPECT_GT(std::count_if(depth, depth + reused.depth_m.pixel_count(), [](float z) { return z > 0.0f; }), 1000);
