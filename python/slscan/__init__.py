@@ -9,7 +9,7 @@ ctypes; pure Python, numpy for images.
         scan.write_mesh("knob.ply")
 
 Handles (:class:`Context`, :class:`Camera`, :class:`Projector`, :class:`Turntable`,
-:class:`Scan`, :class:`Calibration`) are context managers that free the C object on exit.
+:class:`Scan`, :class:`Calibration`, :class:`Evaluation`) are context managers that free the C object on exit.
 A failed call raises :class:`Error` (a subclass per status, e.g. :class:`NotFoundError`) with
 ``.status``, ``.function`` and the library's ``.message``. Where libsls is loaded from:
 ``slscan._lib`` (``$SLSCAN_LIBRARY`` first); :data:`library_path` says which was.
@@ -28,6 +28,7 @@ from ._results import Cloud, Mesh
 from ._log import get_log_level, set_log_callback, set_log_level
 from ._calibration import (Calibration, CalibrationProgress, CalibrationSummary, CalibrationView, Intrinsics,
                            calibrate)
+from ._eval import EvalProgress, Evaluation, EvaluationSummary, evaluate, write_report
 
 __version__ = f"{API_VERSION // 10000}.{API_VERSION // 100 % 100}.{API_VERSION % 100}"
 """The C API version this package speaks (SLS_API_VERSION of the headers it mirrors)."""
@@ -44,6 +45,7 @@ __all__ = [
     "Scan", "ScanConfig", "FrameReport", "ScanSummary", "LoopClosure", "Cloud", "Mesh",
     "set_log_callback", "set_log_level", "get_log_level",
     "calibrate", "Calibration", "CalibrationProgress", "CalibrationSummary", "CalibrationView", "Intrinsics",
+    "evaluate", "write_report", "Evaluation", "EvaluationSummary", "EvalProgress",
 ]
 
 # Public classes show as slscan.X (repr, tracebacks, pickling), not as the private module's.

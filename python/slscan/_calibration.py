@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import ctypes
 import os
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any, Callable, List, Optional, Tuple, Union
 
 import numpy as np
@@ -13,22 +13,13 @@ import numpy as np
 from . import _lib
 from ._context import Context, Handle, context_or_default
 from ._errors import call
+from ._progress import progress_trampoline
 from ._types import (CalibrationConfigC, CalibrationDevice, CalibrationProgressC, CalibrationSummaryC,
-                     CalibrationViewC, IntrinsicsC, copy_reported, has_field)
+                     CalibrationViewC, IntrinsicsC)
 
 PathLike = Union[str, "os.PathLike[str]"]
 
 
-def _from_c(cls, value: ctypes.Structure):
-    items = {}
-    for field in fields(cls):
-        item = getattr(value, field.name)
-        if field.type in ("bool", bool):
-            item = bool(item)
-        elif field.type in ("str", str):
-            item = _lib.decode(item)
-        items[field.name] = item
-    return cls(**items)
 
 
 @dataclass(frozen=True)
@@ -121,14 +112,14 @@ class Calibration(Handle):
         """RMS figures, views used and rejected, the board, errors against ground truth."""
         summary = _lib.init(CalibrationSummaryC, "sls_calibration_summary_init")
         call(_lib.lib.sls_calibration_get_summary, self._checked(), ctypes.byref(summary))
-        return _from_c(CalibrationSummary, summary)
+        return _lib.dataclass_from_c(CalibrationSummary, summary)
 
     def intrinsics(self, device: Union[CalibrationDevice, str]) -> Intrinsics:
         """The ``"camera"``'s or the ``"projector"``'s intrinsics."""
         which = CalibrationDevice[device.upper()] if isinstance(device, str) else CalibrationDevice(device)
         value = _lib.init(IntrinsicsC, "sls_intrinsics_init")
         call(_lib.lib.sls_calibration_get_intrinsics, self._checked(), int(which), ctypes.byref(value))
-        return _from_c(Intrinsics, value)
+        return _lib.dataclass_from_c(Intrinsics, value)
 
     @property
     def T_camera_projector(self) -> np.ndarray:
@@ -156,7 +147,7 @@ class Calibration(Handle):
         for index in range(count.value):
             view = _lib.init(CalibrationViewC, "sls_calibration_view_init")
             call(_lib.lib.sls_calibration_get_view, self._checked(), index, ctypes.byref(view))
-            views.append(_from_c(CalibrationView, view))
+            views.append(_lib.dataclass_from_c(CalibrationView, view))
         return views
 
     def write(self, path: PathLike, force: bool = False) -> None:
@@ -202,22 +193,7 @@ def calibrate(input_path: PathLike, context: Optional[Context] = None,
             value = float(value)
         setattr(c_config, key, value)
     raised: List[BaseException] = []
-
-    def trampoline(report: int, user: Optional[int]) -> int:
-        # Runs inside the C run: nothing may propagate out of it. Also where Ctrl-C surfaces.
-        try:
-            c_progress = copy_reported(CalibrationProgressC, report)
-            if progress is None:
-                return 1
-            value = CalibrationProgress(*(_lib.decode(getattr(c_progress, f.name)) if f.type in ("str", str)
-                                          else getattr(c_progress, f.name) if has_field(c_progress, f.name) else 0
-                                          for f in fields(CalibrationProgress)))
-            return 0 if progress(value) is False else 1
-        except BaseException as error:  # noqa: B036 - re-raised after the run
-            raised.append(error)
-            return 0
-
-    c_callback = _lib.CALIBRATION_PROGRESS_CALLBACK(trampoline)
+    c_callback = progress_trampoline(CalibrationProgressC, CalibrationProgress, progress, raised)
     result = Calibration()
     try:
         with context_or_default(context) as handle:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import dataclasses
 import os
 import pathlib
 from ctypes import (POINTER, c_char_p, c_double, c_int, c_size_t, c_uint16, c_void_p)
@@ -28,7 +29,7 @@ from . import _types as t
 # compares them). Passed to sls_context_create(), which refuses a library of another major
 # version or of an older minor version.
 API_VERSION_MAJOR = 0
-API_VERSION_MINOR = 5
+API_VERSION_MINOR = 6
 API_VERSION_PATCH = 0
 API_VERSION = API_VERSION_MAJOR * 10000 + API_VERSION_MINOR * 100 + API_VERSION_PATCH
 
@@ -214,6 +215,16 @@ _PROTOTYPES = {
     "sls_calibration_view_init_sized": (None, [c_void_p, c_size_t]),
     "sls_calibration_get_view": (c_int, [_P, c_size_t, POINTER(t.CalibrationViewC), _E]),
     "sls_calibration_write": (c_int, [_P, c_char_p, c_int, _E]),
+    # sls_eval.h
+    "sls_eval_config_init_sized": (None, [c_void_p, c_size_t]),
+    "sls_evaluate": (c_int, [_P, c_char_p, c_char_p, POINTER(t.EvalConfigC), c_void_p, c_void_p, POINTER(_P), _E]),
+    "sls_evaluation_destroy": (None, [_P]),
+    "sls_evaluation_summary_init_sized": (None, [c_void_p, c_size_t]),
+    "sls_evaluation_get_summary": (c_int, [_P, c_int, POINTER(t.EvaluationSummaryC), _E]),
+    "sls_evaluation_json": (c_int, [_P, POINTER(c_char_p), _E]),
+    "sls_evaluation_get_point_errors": (c_int, [_P, c_void_p, c_size_t, POINTER(c_size_t), _E]),
+    "sls_report_config_init_sized": (None, [c_void_p, c_size_t]),
+    "sls_report_write_html": (c_int, [_P, c_char_p, POINTER(t.ReportConfigC), c_void_p, c_void_p, _E]),
 }
 
 for _name, (_restype, _argtypes) in _PROTOTYPES.items():
@@ -225,8 +236,8 @@ for _name, (_restype, _argtypes) in _PROTOTYPES.items():
     _function.restype = _restype
     _function.argtypes = _argtypes
 
-# The frame and calibration-progress callbacks (sls_frame_callback,
-# sls_calibration_progress_callback); the report is passed as an address, copied with
+# The frame and progress callbacks (sls_frame_callback, sls_calibration_progress_callback,
+# sls_eval_progress_callback: the same C signature); the report is passed as an address, copied with
 # _types.copy_reported (the library's struct may be another version's).
 FRAME_CALLBACK = ctypes.CFUNCTYPE(None, c_void_p, c_void_p)
 CALIBRATION_PROGRESS_CALLBACK = ctypes.CFUNCTYPE(c_int, c_void_p, c_void_p)
@@ -252,3 +263,18 @@ def encode_path(path: "os.PathLike[str] | str | bytes") -> bytes:
 def decode(value: Optional[bytes]) -> str:
     """A const char* result as str ("" for NULL)."""
     return "" if value is None else value.decode(errors="replace")
+
+
+def dataclass_from_c(cls, value: ctypes.Structure):
+    """A frozen dataclass of the public API from the C struct mirror `value`: each field of
+    `cls` read from the struct's field of the same name, ints to bool and char* to str where
+    the dataclass says so."""
+    items = {}
+    for field in dataclasses.fields(cls):
+        item = getattr(value, field.name)
+        if field.type in ("bool", bool):
+            item = bool(item)
+        elif field.type in ("str", str):
+            item = decode(item)
+        items[field.name] = item
+    return cls(**items)

@@ -127,12 +127,6 @@ class LoopClosure:
     ms: float
 
 
-def _dataclass_from_c(cls, value: ctypes.Structure):
-    items = {}
-    for field in fields(cls):
-        item = getattr(value, field.name)
-        items[field.name] = bool(item) if field.type in ("bool", bool) else item
-    return cls(**items)
 
 
 FrameCallback = Callable[[FrameReport], Any]
@@ -312,7 +306,7 @@ class Scan(Handle):
         """What the last run did (all zero before the first)."""
         summary = _lib.init(ScanSummaryC, "sls_scan_summary_init")
         call(_lib.lib.sls_scan_get_summary, self._checked(), ctypes.byref(summary))
-        return _dataclass_from_c(ScanSummary, summary)
+        return _lib.dataclass_from_c(ScanSummary, summary)
 
     def close_loop(self) -> LoopClosure:
         """Closes the loop of the last run (a full revolution): registers the last fused frame
@@ -321,7 +315,7 @@ class Scan(Handle):
         frame fused, online_deformation off, too few keyframes, or no registration."""
         result = _lib.init(LoopClosureC, "sls_loop_closure_init")
         call(_lib.lib.sls_scan_close_loop, self._checked(), ctypes.byref(result))
-        return _dataclass_from_c(LoopClosure, result)
+        return _lib.dataclass_from_c(LoopClosure, result)
 
     def write_cloud(self, path: PathLike) -> None:
         """Writes the model's point cloud (normals, confidence) as binary PLY, atomically."""

@@ -1,4 +1,4 @@
-"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.5.0).
+"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.6.0).
 
 Each versioned struct (its first field `struct_size`) is mirrored field for field, in the
 order of the header. Fill one with :func:`init_struct`, which calls the library's own
@@ -250,6 +250,32 @@ class CalibrationViewC(Structure):
 
 
 # Every versioned struct with the name of its C type and of the library's _init() (tests).
+class EvalConfigC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("voxel_size_m", c_double), ("edge_band_voxels", c_double),
+                ("coverage_radius_voxels", c_double), ("visibility_stride", c_int), ("align_first_pose", c_int),
+                ("register_to_surface", c_int)]
+
+
+class EvalProgressC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("stage", c_char_p), ("done", c_size_t), ("total", c_size_t),
+                ("detail", c_char_p)]
+
+
+class EvaluationSummaryC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("voxel_size_m", c_double), ("points", c_size_t),
+                ("c2c_mean_m", c_double), ("c2c_rms_m", c_double), ("c2c_p95_m", c_double),
+                ("c2c_max_m", c_double), ("edge_points", c_size_t), ("edge_c2c_mean_m", c_double),
+                ("edge_c2c_rms_m", c_double), ("coverage", c_double), ("has_trajectory", c_int),
+                ("trajectory_frames", c_size_t), ("ate_rmse_m", c_double), ("ate_max_m", c_double),
+                ("loop_closure_error_m", c_double), ("loop_closure_error_deg", c_double),
+                ("has_undeformed", c_int)]
+
+
+class ReportConfigC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("recording_path", c_char_p), ("title", c_char_p),
+                ("image_size_px", c_int), ("voxel_size_m", c_double)]
+
+
 VERSIONED_STRUCTS: dict[str, tuple[Type[Structure], str]] = {
     "sls_context_config": (ContextConfigC, "sls_context_config_init"),
     "sls_device_info": (DeviceInfoC, "sls_device_info_init"),
@@ -269,11 +295,15 @@ VERSIONED_STRUCTS: dict[str, tuple[Type[Structure], str]] = {
     "sls_feed_config": (FeedConfigC, "sls_feed_config_init"),
     "sls_depth_frame": (DepthFrameC, "sls_depth_frame_init"),
     "sls_stack_frame": (StackFrameC, "sls_stack_frame_init"),
+    "sls_eval_config": (EvalConfigC, "sls_eval_config_init"),
+    "sls_evaluation_summary": (EvaluationSummaryC, "sls_evaluation_summary_init"),
+    "sls_report_config": (ReportConfigC, "sls_report_config_init"),
 }
 # Structs only the library fills, with no _init() (their struct_size is the library's).
 REPORTED_STRUCTS: dict[str, Type[Structure]] = {
     "sls_frame_report": FrameReportC,
     "sls_calibration_progress": CalibrationProgressC,
+    "sls_eval_progress": EvalProgressC,
 }
 
 S = TypeVar("S", bound=Structure)

@@ -6,7 +6,7 @@
 
 #include <fmt/format.h>
 
-#include "samples/sls/scan_report_detail.h"
+#include "sdk/report/scan_report_detail.h"
 #include "sdk/core/file_util.h"
 
 namespace sls::cli {

@@ -25,7 +25,7 @@
 #include "drivers/sim/rig.h"
 #include "drivers/sim/scene.h"
 #include "samples/sls/commands.h"
-#include "samples/sls/evaluate.h"
+#include "sdk/eval/evaluate.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/core/stopwatch.h"

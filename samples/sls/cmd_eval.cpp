@@ -1,5 +1,5 @@
 // sls eval: the quality of a fused result against a simulated recording's ground truth
-// (DESIGN.md section 4; definitions in samples/sls/evaluate.h): C2C mean / RMS / 95th
+// (DESIGN.md section 4; definitions in sdk/eval/evaluate.h): C2C mean / RMS / 95th
 // percentile, edge-region C2C, coverage of the surface the recording saw, and with a
 // trajectory.txt in the result, ATE and the loop-closure error against the true poses. A scan
 // with online deformation leaves the model as tracked in OUT/undeformed (cloud.ply,
@@ -8,7 +8,6 @@
 //
 //   sls eval --result OUT --truth OUT/recording [--json]
 #include <cmath>
-#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -17,8 +16,9 @@
 #include <nlohmann/json.hpp>
 
 #include "samples/sls/commands.h"
-#include "samples/sls/evaluate.h"
-#include "samples/sls/evaluate_regions.h"
+#include "sdk/eval/eval_json.h"
+#include "sdk/eval/evaluate.h"
+#include "sdk/eval/evaluate_regions.h"
 #include "sdk/core/error.h"
 
 namespace sls::cli {
@@ -36,70 +36,6 @@ struct EvalCommandOptions {
 
 constexpr double kUm = 1e6;
 
-// null where there is nothing to average (JSON has no NaN).
-nlohmann::json um_or_null(const eval::DistanceStats& stats, double eval::DistanceStats::*field) {
-  return stats.count > 0 ? nlohmann::json(stats.*field * kUm) : nlohmann::json(nullptr);
-}
-
-nlohmann::json errors_json(const eval::SurfaceErrors& errors) {
-  return {{"c2c_mean_um", um_or_null(errors.all, &eval::DistanceStats::mean_m)},
-          {"c2c_rms_um", um_or_null(errors.all, &eval::DistanceStats::rms_m)},
-          {"c2c_p95_um", um_or_null(errors.all, &eval::DistanceStats::p95_m)},
-          {"c2c_max_um", um_or_null(errors.all, &eval::DistanceStats::max_m)},
-          {"c2c_edge_mean_um", um_or_null(errors.edge, &eval::DistanceStats::mean_m)},
-          {"c2c_edge_rms_um", um_or_null(errors.edge, &eval::DistanceStats::rms_m)},
-          {"edge_points", errors.edge.count}};
-}
-
-nlohmann::json region_json(const eval::RegionErrors& region) {
-  return {{"points", region.to_raw_scan.count},
-          {"to_raw_scan_mean_um", um_or_null(region.to_raw_scan, &eval::DistanceStats::mean_m)},
-          {"to_raw_scan_rms_um", um_or_null(region.to_raw_scan, &eval::DistanceStats::rms_m)},
-          {"to_surface_mean_um", um_or_null(region.to_surface, &eval::DistanceStats::mean_m)},
-          {"to_surface_rms_um", um_or_null(region.to_surface, &eval::DistanceStats::rms_m)}};
-}
-
-}  // namespace
-
-nlohmann::json evaluation_json(const eval::EvalReport& report) {
-  nlohmann::json out = {{"result", report.result_folder},
-                         {"truth", report.recording_folder},
-                         {"scene", report.scene_name},
-                         {"voxel_size_m", report.voxel_size_m},
-                         {"voxel_size_source", report.voxel_size_source},
-                         {"points", report.cloud_points},
-                         {"edge_band_um", report.edge_band_m * kUm},
-                         {"coverage", report.coverage.considered > 0 ? nlohmann::json(report.coverage.fraction())
-                                                                     : nlohmann::json(nullptr)},
-                         {"coverage_radius_um", report.coverage_radius_m * kUm},
-                         {"coverage_basis", report.coverage_basis},
-                         {"reference_points", report.reference_points},
-                         {"reference_points_counted", report.coverage.considered},
-                         {"reference_points_covered", report.coverage.covered},
-                         {"frames_checked", report.frames_checked},
-                         {"alignment", report.alignment},
-                         {"alignment_translation_um", report.T_object_world.translation().norm() * kUm},
-                         {"alignment_angle_deg", report.T_object_world.angle_rad() * 180.0 / M_PI}};
-  if (report.trajectory) {
-    const eval::TrajectoryErrors& t = *report.trajectory;
-    out["ate_rmse_um"] = t.ate_rmse_m * kUm;
-    out["ate_max_um"] = t.ate_max_m * kUm;
-    out["ate_frames"] = t.matched_frames;
-    out["trajectory_frames_unmatched"] = t.unmatched_frames;
-    out["loop_closure_error_um"] = t.loop_closure_error_m * kUm;
-    out["loop_closure_error_deg"] = t.loop_closure_error_rad * 180.0 / M_PI;
-  } else {
-    // The keys are left out rather than null: there is no trajectory to measure, which is
-    // not a failed measurement.
-    out["trajectory_note"] = report.trajectory_note;
-  }
-  out.update(errors_json(report.cloud));
-  if (report.mesh) out["mesh"] = errors_json(*report.mesh);
-  return out;
-}
-
-namespace {
-
 std::string figure_text(const nlohmann::json& evaluation, const eval::SideBySideFigure& figure) {
   const auto found = evaluation.find(figure.key);
   if (found == evaluation.end() || !found->is_number()) return "n/a";
@@ -113,23 +49,16 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
   eval::EvalOptions eval_options = options.eval;
   eval_options.voxel_size_m = options.voxel_um * 1e-6;
   eval_options.align_first_pose = !options.no_align;
-  const eval::EvalReport report =
-      eval::evaluate_result(options.result, options.truth, eval_options, context.progress_callback("eval"));
-
-  nlohmann::json out = {{"ok", true}};
-  out.update(evaluation_json(report));
-
   // With online deformation, `sls scan` leaves the model as tracked in RESULT/undeformed: the
   // same figures for it, at the result's voxel size (undeformed/ has no report.json).
-  const std::string undeformed_folder = options.result + "/undeformed";
+  const eval::ResultEvaluation evaluation = eval::evaluate_with_undeformed(
+      options.result, options.truth, eval_options, context.progress_callback("eval"));
+  const eval::EvalReport& report = evaluation.report;
+
+  nlohmann::json out = {{"ok", true}};
+  out.update(eval::result_evaluation_json(evaluation));
   std::optional<nlohmann::json> undeformed;
-  if (std::filesystem::exists(undeformed_folder + "/cloud.ply")) {
-    eval::EvalOptions undeformed_options = eval_options;
-    undeformed_options.voxel_size_m = report.voxel_size_m;
-    undeformed = evaluation_json(
-        eval::evaluate_result(undeformed_folder, options.truth, undeformed_options, context.progress_callback("eval")));
-    out["undeformed"] = *undeformed;
-  }
+  if (evaluation.undeformed) undeformed = out["undeformed"];
   std::optional<eval::ViewRegionErrors> regions;
   if (!options.raw_scan.empty()) {
     regions = eval::result_region_errors(report, options.raw_scan, options.raw_scan_frame);
@@ -137,8 +66,8 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
                            {"frame", options.raw_scan_frame},
                            {"model_points", regions->model_points},
                            {"visible_points", regions->visible_points},
-                           {"all", region_json(regions->all)}};
-    for (const eval::RegionErrors& region : regions->regions) json[region.name] = region_json(region);
+                           {"all", eval::region_json(regions->all)}};
+    for (const eval::RegionErrors& region : regions->regions) json[region.name] = eval::region_json(region);
     out["regions"] = json;
   }
 
@@ -199,7 +128,7 @@ int run_eval(const Context& context, const EvalCommandOptions& options) {
     }
     if (undeformed) {
       std::cout << fmt::format("\nonline deformation: {} (deformed) beside {} (as tracked, {} points), voxel {:.2f} um\n",
-                               report.result_folder, undeformed_folder, (*undeformed)["points"].get<std::size_t>(),
+                               report.result_folder, evaluation.undeformed->result_folder, (*undeformed)["points"].get<std::size_t>(),
                                report.voxel_size_m * kUm);
       std::cout << fmt::format("  {:<20}{:>16}{:>16}\n", "", "deformed", "as tracked");
       for (const eval::SideBySideFigure& figure : eval::kSideBySideFigures) {

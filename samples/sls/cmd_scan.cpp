@@ -28,11 +28,12 @@
 #include "fusion/tracker.h"
 #include "samples/sls/capture.h"
 #include "samples/sls/commands.h"
-#include "samples/sls/evaluate.h"
+#include "sdk/eval/eval_json.h"
+#include "sdk/eval/evaluate.h"
 #include "samples/sls/output_files.h"
 #include "samples/sls/scan_capture.h"
 #include "samples/sls/scan_json.h"
-#include "samples/sls/scan_report.h"
+#include "sdk/report/scan_report.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/core/stopwatch.h"
@@ -431,14 +432,13 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
       eval_options.keep_point_errors = true;
       evaluation = eval::evaluate_result(options.out, recording.folder(), eval_options,
                                          context.progress_callback("eval"));
-      report["evaluation"] = evaluation_json(*evaluation);
+      report["evaluation"] = eval::evaluation_json(*evaluation);
       if (session.deformation_enabled()) {
         // The same figures for the model as tracked: what deformation changed.
         eval::EvalOptions undeformed_options;
         undeformed_options.voxel_size_m = geometry.voxel_size_m;
-        report["evaluation_undeformed"] =
-            evaluation_json(eval::evaluate_result(options.out + "/undeformed", recording.folder(), undeformed_options,
-                                                  context.progress_callback("eval")));
+        report["evaluation_undeformed"] = eval::evaluation_json(eval::evaluate_result(
+            options.out + "/undeformed", recording.folder(), undeformed_options, context.progress_callback("eval")));
       }
       report["ms_per_stage"]["evaluate"] = ms_since(start);
       html.evaluation = &*evaluation;

@@ -3,10 +3,8 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
-#include <nlohmann/json.hpp>
 
 #include "samples/sls/cli.h"
-#include "samples/sls/evaluate.h"
 
 namespace sls::cli {
 
@@ -20,8 +18,5 @@ void add_info_command(CLI::App& app, Context& context, int* exit_code);
 void add_inspect_command(CLI::App& app, Context& context, int* exit_code);
 void add_scan_command(CLI::App& app, Context& context, int* exit_code);
 void add_sim_command(CLI::App& app, Context& context, int* exit_code);
-
-// sls eval's figures as JSON (the keys `sls eval --json` prints, also in sls scan's report).
-nlohmann::json evaluation_json(const eval::EvalReport& report);
 
 }  // namespace sls::cli

@@ -12,6 +12,7 @@
 
 #include "sdk/capi/capi_guard.h"
 #include "sdk/capi/context_internal.h"
+#include "sdk/capi/progress_callback.h"
 #include "sdk/capi/versioned_struct.h"
 #include "sdk/core/error.h"
 #include "sls/sls_calibration.h"
@@ -102,21 +103,6 @@ sls::calib::CalibrateCaptureOptions capture_options(const sls_calibration_config
   return options;
 }
 
-// The caller's callback as the calibration's: 0 from it stops the run (kCancelled).
-sls::ProgressCallback progress_callback(sls_calibration_progress_callback callback, void* user) {
-  if (callback == nullptr) return {};
-  return [callback, user](const sls::ProgressUpdate& update) {
-    sls_calibration_progress progress;
-    std::memset(&progress, 0, sizeof(progress));
-    progress.struct_size = sizeof(progress);
-    progress.stage = update.stage.c_str();
-    progress.done = update.done;
-    progress.total = update.total;
-    progress.detail = update.detail.c_str();
-    return callback(&progress, user) != 0;
-  };
-}
-
 std::vector<std::string> rejected_reasons(const sls::calib::CalibrateCaptureResult& result) {
   std::vector<std::string> reasons;
   for (std::size_t i = 0; i < result.views.size(); ++i) {
@@ -172,7 +158,7 @@ SLS_API sls_status sls_calibration_run(sls_context* context, const char* input_p
             : sls::capi::read_versioned(config, defaults, kConfigFirstVersionSize, "sls_calibration_config");
     const sls::calib::CalibrateCaptureOptions options = capture_options(resolved, input_path, context->device);
     auto made = std::make_unique<sls_calibration>();
-    made->result = sls::calib::calibrate_capture(options, progress_callback(progress, user));
+    made->result = sls::calib::calibrate_capture(options, sls::capi::progress_callback(progress, user));
     made->max_rms_px = resolved.max_rms_px;
     made->rejected_reasons = rejected_reasons(made->result);
     *calibration = made.release();

@@ -29,8 +29,8 @@
 #include <vector>
 
 #include "drivers/sim/renderer.h"
-#include "samples/sls/evaluate.h"
-#include "samples/sls/evaluate_regions.h"
+#include "sdk/eval/evaluate.h"
+#include "sdk/eval/evaluate_regions.h"
 #include "sdk/core/calibration.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"

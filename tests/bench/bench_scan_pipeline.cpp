@@ -38,8 +38,8 @@
 #include <optional>
 
 #include "drivers/sim/renderer.h"
-#include "samples/sls/evaluate.h"
-#include "samples/sls/evaluate_regions.h"
+#include "sdk/eval/evaluate.h"
+#include "sdk/eval/evaluate_regions.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/session/scan_session.h"

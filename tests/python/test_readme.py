@@ -76,12 +76,18 @@ def test_c_example(tmp_path: pathlib.Path, sls_tool: str):
 def test_python_example(tmp_path: pathlib.Path, sls_tool: str):
     text = section("Python scripting")
     make_input(text, tmp_path, sls_tool)
-    (code,) = blocks(text, "python")
-    result = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    api, quality = blocks(text, "python")
+    result = subprocess.run([sys.executable, "-c", api], cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "(300, 400) uint16" in result.stdout and "fused 4 of 4 frames" in result.stdout
     assert "3 FUSED" in result.stdout and "NOT_FOUND sls_scan_run_recording" in result.stdout
     assert (tmp_path / "knob.ply").read_bytes().startswith(b"ply\n")
+    # The quality figures and the report of a result folder.
+    result = subprocess.run([sys.executable, "-c", quality], cwd=tmp_path, capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert re.search(r"C2C mean \d+\.\d um, ATE \d+\.\d um", result.stdout), result.stdout
+    assert "C2C" in (tmp_path / "out" / "report.html").read_text()
 
 
 def test_replay_examples(tmp_path: pathlib.Path, sls_tool: str):

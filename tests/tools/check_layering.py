@@ -23,10 +23,13 @@ ALLOWED = {
     "fusion": {"sdk/core"},
     "drivers": {"sdk/core", "firmware-interface", "sdk/decode"},
     "sdk/session": {"sdk/core", "firmware-interface", "calib", "sdk/decode", "fusion", "drivers"},
+    # Quality figures need the simulator's exact scenes (drivers/sim); the report draws them.
+    "sdk/eval": {"sdk/core", "drivers"},
+    "sdk/report": {"sdk/core", "drivers", "sdk/eval"},
     "sdk/capi": {"sdk/include", "sdk/core", "firmware-interface", "calib", "sdk/decode", "fusion", "drivers",
-                 "sdk/session"},
+                 "sdk/session", "sdk/eval", "sdk/report"},
     "samples": {"sdk/include", "sdk/core", "firmware-interface", "calib", "sdk/decode", "fusion", "drivers",
-                "sdk/session", "samples"},
+                "sdk/session", "sdk/eval", "sdk/report", "samples"},
     "tests": None,  # tests may include anything
 }
 # Third-party headers and the only folders allowed to include them.

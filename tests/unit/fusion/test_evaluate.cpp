@@ -1,7 +1,7 @@
-// The quality metrics of `sls eval` (samples/sls/evaluate.h): nearest neighbours, statistics,
+// The quality metrics of `sls eval` (sdk/eval/evaluate.h): nearest neighbours, statistics,
 // C2C and edge C2C against the simulator's exact scenes, visibility, coverage, and the whole
 // evaluation of a result folder against a small simulated recording.
-#include "samples/sls/evaluate.h"
+#include "sdk/eval/evaluate.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
-// The paper's Table I measure (samples/sls/evaluate_regions.h): a model against one view's raw
+// The paper's Table I measure (sdk/eval/evaluate_regions.h): a model against one view's raw
 // scan in the four image quadrants, and against the exact surface, on a plane of known offset.
-#include "samples/sls/evaluate_regions.h"
+#include "sdk/eval/evaluate_regions.h"
 
 #include <cmath>
 #include <string>

@@ -1,8 +1,8 @@
-// The scan report (samples/sls/scan_report.h): splat renders that show the object and its
+// The scan report (sdk/report/scan_report.h): splat renders that show the object and its
 // shading, heat-map colours that follow the errors, the trajectory plot, the chart of the
 // trajectory before and after deformation, and report.html with its figures and PNGs, with
 // and without ground truth, with and without online deformation.
-#include "samples/sls/scan_report.h"
+#include "sdk/report/scan_report.h"
 
 #include <cmath>
 #include <cstdlib>

@@ -9,8 +9,8 @@
 
 #include <fmt/format.h>
 
-#include "samples/sls/scan_report.h"
-#include "samples/sls/scan_report_detail.h"
+#include "sdk/report/scan_report.h"
+#include "sdk/report/scan_report_detail.h"
 
 namespace sls::report {
 

@@ -5,7 +5,7 @@
 // deformation (report["deformation"]["enabled"]): the graph and the loop closure, the quality
 // with and without deformation side by side, the trajectory's error (or correction) per frame
 // before and after, and a heat map of how far deformation moved each point.
-// Library sls_report (samples/sls/CMakeLists.txt); it knows nothing of cmd_scan's internals,
+// Library sls_report (sdk/report); it knows nothing of `sls scan`'s internals,
 // everything comes in through ScanReportInputs.
 //
 // The renders are a CPU splatting renderer (no GPU, no mesh needed): every point is drawn as
@@ -24,7 +24,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
-#include "samples/sls/evaluate.h"
+#include "sdk/eval/evaluate.h"
 #include "sdk/core/point_cloud.h"
 #include "sdk/core/trajectory.h"
 

@@ -1,4 +1,4 @@
-#include "samples/sls/evaluate.h"
+#include "sdk/eval/evaluate.h"
 
 #include <algorithm>
 #include <cmath>
@@ -422,7 +422,7 @@ EvalReport evaluate_result(const std::string& result_folder, const std::string& 
   report.recording_folder = recording_folder;
   const std::string cloud_path = result_folder + "/cloud.ply";
   if (!exists(result_folder)) {
-    throw_error(ErrorCode::kNotFound, "result folder {} does not exist (give the --out folder of sls scan)",
+    throw_error(ErrorCode::kNotFound, "result folder {} does not exist (a scan's output folder, e.g. sls scan --out)",
                 result_folder);
   }
   if (!exists(cloud_path)) {
@@ -449,7 +449,8 @@ EvalReport evaluate_result(const std::string& result_folder, const std::string& 
     report.voxel_size_source = "report.json";
     if (!(report.voxel_size_m > 0.0)) {
       throw_error(ErrorCode::kInvalidArgument,
-                  "no voxel size: {}/report.json has no voxel_size_m; give it with --voxel-um", result_folder);
+                  "no voxel size: {}/report.json has no voxel_size_m; give it (sls eval --voxel-um, "
+                  "sls_eval_config.voxel_size_m)", result_folder);
     }
   }
   report.edge_band_m = options.edge_band_voxels * report.voxel_size_m;

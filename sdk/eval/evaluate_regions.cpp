@@ -1,4 +1,4 @@
-#include "samples/sls/evaluate_regions.h"
+#include "sdk/eval/evaluate_regions.h"
 
 #include <cmath>
 #include <cstdint>

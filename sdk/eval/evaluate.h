@@ -1,5 +1,5 @@
 // Quality of a fused model against a simulated recording's ground truth (DESIGN.md section
-// 4), for `sls eval`, tests and benchmarks. Library sls_eval (samples/sls/CMakeLists.txt):
+// 4), for `sls eval`, the C API (sls_eval.h), tests and benchmarks. Library sls_eval (sdk/eval):
 // it needs the simulator's exact scene (drivers/sim), which the fusion library must not see.
 //
 // Definitions (all distances in metres here; `sls eval` prints µm):

@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "samples/sls/scan_report.h"
+#include "sdk/report/scan_report.h"
 
 namespace sls::report::detail {
 

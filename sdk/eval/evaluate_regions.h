@@ -27,7 +27,7 @@
 #include <Eigen/Core>
 
 #include "drivers/sim/scene.h"
-#include "samples/sls/evaluate.h"
+#include "sdk/eval/evaluate.h"
 #include "sdk/core/camera_model_shared.h"
 #include "sdk/core/image.h"
 #include "sdk/core/point_cloud.h"

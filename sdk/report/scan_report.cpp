@@ -1,5 +1,5 @@
-#include "samples/sls/scan_report.h"
-#include "samples/sls/scan_report_detail.h"
+#include "sdk/report/scan_report.h"
+#include "sdk/report/scan_report_detail.h"
 
 #include <algorithm>
 #include <cmath>
