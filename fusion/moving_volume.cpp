@@ -109,6 +109,9 @@ void resample_cpu(const VolumeView& from, const VolumeView& to, const Rigid3f& g
 
 }  // namespace
 
+// The revisit filter's cells: two voxels, about the drift between two passes of a scan.
+constexpr double kRevisitCellVoxels = 2.0;
+
 struct MovingVolume::Impl {
   MovingVolumeOptions options;
   Device device;
@@ -116,7 +119,8 @@ struct MovingVolume::Impl {
   int current = 0;
   PointCloud shipped_cloud;
   TriangleMesh shipped_mesh;
-  std::optional<RevisitFilter> revisits;  // with options.merge_revisits
+  std::optional<RevisitFilter> revisits;  // while merging
+  bool merging = false;                   // options.merge_revisits, or start_merging_revisits()
   std::size_t moves = 0;
 #if defined(SLS_HAVE_CUDA)
   cudaStream_t stream = nullptr;       // resampling
@@ -148,8 +152,8 @@ struct MovingVolume::Impl {
   void ship(const Volume& from, const OrientedRegion& leaving, MoveStats* stats) {
     const auto ship_start = std::chrono::steady_clock::now();
     ExtractedSurface part = extract_part(from, leaving, &stats->ship_assemble_ms);
-    if (options.merge_revisits) {
-      if (!revisits) revisits.emplace(2.0 * from.geometry().voxel_size_m);
+    if (merging) {
+      if (!revisits) revisits.emplace(kRevisitCellVoxels * from.geometry().voxel_size_m);
       part = revisits->filter(part);
     }
     stats->shipped_points = part.cloud.size();
@@ -242,6 +246,7 @@ MovingVolume::MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFor
     : impl_(std::make_unique<Impl>()) {
   options.validate();
   impl_->options = options;
+  impl_->merging = options.merge_revisits;
   impl_->device = device;
   VolumeGeometry geometry;
   geometry.nx = nx;
@@ -289,8 +294,21 @@ void MovingVolume::place(const Pose& T_world_camera) {
   s.shipped_cloud = PointCloud{};
   s.shipped_mesh = TriangleMesh{};
   s.revisits.reset();
+  s.merging = s.options.merge_revisits;
   s.moves = 0;
 }
+
+void MovingVolume::start_merging_revisits() {
+  Impl& s = *impl_;
+  s.wait_shipping();
+  if (s.merging) return;
+  if (!s.revisits) s.revisits.emplace(kRevisitCellVoxels * s.now().geometry().voxel_size_m);
+  s.revisits->remember(s.shipped_cloud);
+  s.revisits->remember(s.shipped_mesh.vertices);
+  s.merging = true;
+}
+
+bool MovingVolume::merging_revisits() const { return impl_->merging; }
 
 Volume& MovingVolume::volume() { return impl_->now(); }
 const Volume& MovingVolume::volume() const { return impl_->buffers[static_cast<std::size_t>(impl_->current)]; }

@@ -42,7 +42,7 @@ struct MovingVolumeOptions {
   // shipped (cells of two voxels, per facing direction), so a session that circles the object
   // many times keeps one copy and its model stays bounded by the object's surface; false
   // (default: what every measured figure used) ships every pass, and a second revolution adds
-  // a second copy.
+  // a second copy, until start_merging_revisits() (the scan session's policy, RevisitPolicy).
   bool merge_revisits = false;
   // A move's leaving surface is shipped (on a GPU found on a stream of its own, downloaded,
   // assembled, appended) on a worker thread while the caller goes on; move_to() returns after
@@ -110,6 +110,12 @@ class MovingVolume {
   MoveStats finish_shipping();
   // Whether a move's ship has not been collected by finish_shipping() yet.
   bool shipping() const;
+
+  // From now on ships only surface no earlier move shipped, as merge_revisits does, counting
+  // what was shipped so far as shipped (so a later pass over it adds nothing). Until the next
+  // place(). Waits for a ship in the background first.
+  void start_merging_revisits();
+  bool merging_revisits() const;
 
   // Everything shipped so far (world frame), in shipping order (a ship in the background
   // waited for).

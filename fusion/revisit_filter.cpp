@@ -99,4 +99,11 @@ ExtractedSurface RevisitFilter::filter(const ExtractedSurface& part) {
   return out;
 }
 
+void RevisitFilter::remember(const PointCloud& surface) {
+  for (std::size_t i = 0; i < surface.size(); ++i) {
+    const Cell cell = cell_of(surface.positions[i], surface.has_normals() ? &surface.normals[i] : nullptr);
+    cells_.insert(pack(cell.index, cell.facing));
+  }
+}
+
 }  // namespace sls::fusion

@@ -26,6 +26,8 @@ class RevisitFilter {
   // `part` without what earlier parts already covered; then remembers what it covered. Mesh
   // faces are kept only when all three vertices are; unused vertices go.
   ExtractedSurface filter(const ExtractedSurface& part);
+  // Remembers what `surface` covers without filtering it: surface shipped before merging began.
+  void remember(const PointCloud& surface);
   void clear() { cells_.clear(); }
   std::size_t cells() const { return cells_.size(); }
 

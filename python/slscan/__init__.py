@@ -16,7 +16,7 @@ A failed call raises :class:`Error` (a subclass per status, e.g. :class:`NotFoun
 """
 from ._lib import API_VERSION, library_path
 from ._types import (CalibrationDevice, DeviceKind, DeviceRole, FrameStatus, FusionMethod, GtsdfPenalty, IcpWeights,
-                     LogLevel, LoopClosureMode, PoseSource, Status)
+                     LogLevel, LoopClosureMode, PoseSource, RevisitPolicy, Status)
 from ._errors import (BusyError, CancelledError, DeviceError, DeviceTimeoutError, Error, FormatError, InternalError,
                       InvalidArgumentError, IoError, NotFoundError, OutOfMemoryError, UnsupportedError,
                       VersionMismatchError)
@@ -25,6 +25,7 @@ from ._devices import Camera, CameraInfo, Frame, FrameInfo, Projector, Projector
 from ._scan import FrameReport, LoopClosure, Scan, ScanSummary
 from ._scan_config import ScanConfig
 from ._results import Cloud, Mesh
+from ._device_array import LentArray
 from ._log import get_log_level, set_log_callback, set_log_level
 from ._calibration import (Calibration, CalibrationProgress, CalibrationSummary, CalibrationView, Intrinsics,
                            calibrate)
@@ -36,13 +37,13 @@ __version__ = f"{API_VERSION // 10000}.{API_VERSION // 100 % 100}.{API_VERSION %
 __all__ = [
     "API_VERSION", "library_path", "version", "build_info", "cuda_device_count",
     "Status", "LogLevel", "DeviceKind", "DeviceRole", "FusionMethod", "GtsdfPenalty", "PoseSource", "IcpWeights",
-    "LoopClosureMode", "FrameStatus", "CalibrationDevice",
+    "LoopClosureMode", "RevisitPolicy", "FrameStatus", "CalibrationDevice",
     "Error", "InvalidArgumentError", "IoError", "FormatError", "NotFoundError", "OutOfMemoryError",
     "UnsupportedError", "VersionMismatchError", "DeviceError", "DeviceTimeoutError", "CancelledError",
     "BusyError", "InternalError",
     "Context", "devices", "DeviceInfo", "DeviceList",
     "Camera", "CameraInfo", "Frame", "FrameInfo", "Projector", "ProjectorInfo", "Turntable",
-    "Scan", "ScanConfig", "FrameReport", "ScanSummary", "LoopClosure", "Cloud", "Mesh",
+    "Scan", "ScanConfig", "FrameReport", "ScanSummary", "LoopClosure", "Cloud", "Mesh", "LentArray",
     "set_log_callback", "set_log_level", "get_log_level",
     "calibrate", "Calibration", "CalibrationProgress", "CalibrationSummary", "CalibrationView", "Intrinsics",
     "evaluate", "write_report", "Evaluation", "EvaluationSummary", "EvalProgress",

@@ -101,6 +101,8 @@ class Context(Handle):
         super().__init__()
         config = _lib.init(ContextConfigC, "sls_context_config_init")
         config.device, config.cuda_device_id = _device_preference(device)
+        self.cuda_device_id = int(config.cuda_device_id)
+        """The CUDA device it asked for (0 for ``"cuda"`` and ``"auto"``, N for ``"cuda:N"``)."""
         if log_level is not None:
             config.log_level = LogLevel[log_level.upper()] if isinstance(log_level, str) else LogLevel(log_level)
         call(_lib.lib.sls_context_create, _lib.API_VERSION, ctypes.byref(config), ctypes.byref(self._handle))

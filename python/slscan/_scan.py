@@ -12,6 +12,7 @@ import numpy as np
 from . import _lib, _results, _scan_config
 from ._context import Context, Handle, context_or_default
 from ._errors import BusyError, call, make_error
+from ._device_array import KDL_CUDA, LentArray
 from ._results import Cloud, Mesh
 from ._scan_config import ScanConfig
 from ._types import (CaptureConfigC, DepthFrameC, ErrorC, FeedConfigC, FrameReportC, FrameStatus,
@@ -54,6 +55,11 @@ class FrameReport:
     deform_ms: float = 0.0
     unverified: bool = False
     """Fused at the turntable prior because tracking could not verify the pose."""
+    depth_device: Optional[LentArray] = None
+    """On a CUDA context, the frame's depth map where it lies on the GPU (H x W float32, metres),
+    lent without a copy: ``cupy.from_dlpack(report.depth_device)``, ``torch.from_dlpack(...)``,
+    or ``__cuda_array_interface__``. Valid during the frame callback only (read or copy it there;
+    afterwards it raises). None on the CPU."""
     depth_m: Optional[np.ndarray] = None
     """The depth map the frame was fused from (H x W float32, metres, 0: none; the decoded one for
     a pattern stack): a copy, only when the call was asked ``with_depth=True``, else None."""
@@ -64,11 +70,17 @@ class FrameReport:
         return self.status == FrameStatus.FUSED
 
     @classmethod
-    def _from_c(cls, report: FrameReportC, with_depth: bool = False) -> "FrameReport":
+    def _from_c(cls, report: FrameReportC, with_depth: bool = False, cuda_device_id: int = 0) -> "FrameReport":
         """From the library's report; with_depth copies its depth map (valid during the callback
-        only, so this must run inside it)."""
+        only, so this must run inside it). A device depth map is lent (release it after the
+        callback: _release_lent)."""
         values: Dict[str, Any] = {}
         for field in fields(cls):
+            if field.name == "depth_device":
+                if has_field(report, "depth_device") and report.depth_device and report.depth_width > 0:
+                    values["depth_device"] = LentArray(report.depth_device, (report.depth_height, report.depth_width),
+                                                       report.depth_stride_bytes, KDL_CUDA, cuda_device_id)
+                continue
             if field.name == "depth_m":
                 if with_depth and has_field(report, "depth_device") and report.depth_m:
                     values["depth_m"] = _copy_depth(report)
@@ -165,6 +177,7 @@ class Scan(Handle):
             raise TypeError(f"Scan: unknown config {', '.join(unknown)}; known: "
                             f"{', '.join(_scan_config.FIELD_NAMES)}")
         self._config = _scan_config.to_c(replace(config or ScanConfig(), **overrides))
+        self._cuda_device_id = context.cuda_device_id if context is not None else 0
         with context_or_default(context) as handle:
             call(_lib.lib.sls_scan_create, handle, ctypes.byref(self._config), ctypes.byref(self._handle))
 
@@ -240,11 +253,16 @@ class Scan(Handle):
             # Runs inside the C scan: nothing may propagate out of it.
             if raised or on_frame is None:
                 return
+            frame = None
             try:
-                on_frame(FrameReport._from_c(copy_reported(FrameReportC, report), with_depth))
+                frame = FrameReport._from_c(copy_reported(FrameReportC, report), with_depth, self._cuda_device_id)
+                on_frame(frame)
             except BaseException as error:  # noqa: B036 - re-raised after the run
                 raised.append(error)
                 _lib.lib.sls_scan_cancel(handle, None)
+            finally:
+                if frame is not None and frame.depth_device is not None:
+                    frame.depth_device._release()  # the library's buffer is reused after the callback
 
         # Kept referenced until the run is over and the library has forgotten it.
         c_callback = _lib.FRAME_CALLBACK(trampoline) if on_frame is not None else None
@@ -421,7 +439,9 @@ class Scan(Handle):
 
         def trampoline(report: int, user: Optional[int]) -> None:
             try:  # inside the C call: nothing may propagate out of it
-                reports.append(FrameReport._from_c(copy_reported(FrameReportC, report), with_depth))
+                # Returned after the call: a lent device depth map would no longer be valid.
+                reports.append(replace(FrameReport._from_c(copy_reported(FrameReportC, report), with_depth),
+                                       depth_device=None))
             except BaseException as error:  # noqa: B036 - re-raised after the call
                 reports.append(error)  # type: ignore[arg-type]
 

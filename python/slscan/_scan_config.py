@@ -10,7 +10,8 @@ from dataclasses import dataclass, fields
 from typing import Any, Dict, Optional, Tuple, Type, TypeVar, Union
 
 from . import _lib
-from ._types import FusionMethod, GtsdfPenalty, IcpWeights, LoopClosureMode, PoseSource, ScanConfigC
+from ._types import (FusionMethod, GtsdfPenalty, IcpWeights, LoopClosureMode, PoseSource, RevisitPolicy,
+                     ScanConfigC)
 
 E = TypeVar("E", bound=enum.IntEnum)
 
@@ -52,6 +53,9 @@ class ScanConfig:
             full turntable revolution) or ``"on"``.
         max_gpu_bytes: ``--max-gpu-memory``: a budget in bytes for what the scan allocates on a
             CUDA GPU (e.g. 6e9): the moving volume is sized to fit (default 0: none).
+        revisits: ``--revisits``: :class:`RevisitPolicy` or ``"auto"`` (default: every pass of the
+            first revolution, then only surface no earlier move shipped, so a long session's
+            model stays bounded), ``"keep"`` or ``"merge"``.
 
     A value out of range raises :class:`InvalidArgumentError` naming the field when the scan
     is made.
@@ -74,11 +78,13 @@ class ScanConfig:
     icp_weights: Optional[Union[IcpWeights, str]] = None
     loop_closure: Optional[Union[LoopClosureMode, str]] = None
     max_gpu_bytes: Optional[float] = None
+    revisits: Optional[Union[RevisitPolicy, str]] = None
 
 
 FIELD_NAMES = tuple(field.name for field in fields(ScanConfig))
 _ENUMS: Dict[str, Type[enum.IntEnum]] = {"fusion": FusionMethod, "gtsdf_penalty": GtsdfPenalty, "poses": PoseSource,
-                                         "icp_weights": IcpWeights, "loop_closure": LoopClosureMode}
+                                         "icp_weights": IcpWeights, "loop_closure": LoopClosureMode,
+                                         "revisits": RevisitPolicy}
 _BOOLS = ("use_turntable_prior", "online_deformation")
 _INTS = ("gtsdf_iterations", "loop_frames")
 

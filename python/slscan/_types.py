@@ -101,6 +101,14 @@ class LoopClosureMode(enum.IntEnum):
     ON = 2
 
 
+class RevisitPolicy(enum.IntEnum):
+    """sls_revisit_policy (sls_scan.h): what the moving volume ships of surface a later pass
+    revisits."""
+    AUTO = 0
+    KEEP = 1
+    MERGE = 2
+
+
 class FrameStatus(enum.IntEnum):
     """sls_frame_status (sls_scan.h)."""
     FUSED = 0
@@ -149,7 +157,7 @@ class ScanConfigC(Structure):
                 ("gtsdf_kappa", c_double), ("gtsdf_penalty", c_enum), ("gtsdf_iterations", c_int),
                 ("poses", c_enum), ("loop_frames", c_int), ("photometric_weight", c_double),
                 ("icp_crease_deg", c_double), ("icp_weights", c_enum), ("loop_closure", c_enum),
-                ("max_gpu_bytes", c_double)]
+                ("max_gpu_bytes", c_double), ("revisits", c_enum)]
 
 
 class FrameReportC(Structure):

@@ -112,6 +112,7 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
   }
   session_options.deformation.enabled = !groundtruth && options.deformation == "on";
   session_options.deformation.loop_frames = options.loop_frames;
+  session_options.revisits = session::parse_revisit_policy(options.revisits);
   // --calibration with --input: decode with that calibration instead of the recording's.
   std::optional<ScannerCalibration> calibration;
   if (!options.calibration.empty() && options.camera_uri.empty()) calibration = read_calibration(options.calibration);
@@ -409,6 +410,10 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
   report["ms_total"] = totals.total_ms() + extract_ms + loop_ms;
   report["deformation"] = deformation_json(session);
   report["loop_closure"] = loop_json;
+  const std::optional<int> merged_from = session.revisits_merged_from();
+  report["revisits"] = {{"policy", session::revisit_policy_name(session_options.revisits)},
+                        {"turned_deg", session.turned_deg()},
+                        {"merged_from_frame", merged_from ? nlohmann::json(*merged_from) : nlohmann::json(nullptr)}};
   report["ms_track_integrate_move_raycast_median"] = median(pipeline_ms);
   report["points"] = surface.cloud.size();
   report["triangles"] = surface.mesh.faces.size();
@@ -635,6 +640,12 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                       "With --loop-closure: how many of the last frames register to the first (each kept until "
                       "then; 1 .. 64)")
       ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  command->add_option("--revisits", options->revisits,
+                      "Surface the moving volume ships again on a later pass: auto (every pass until the scan has "
+                      "turned a revolution and one move's 15 degrees, then only what no earlier move shipped: a long "
+                      "session's model stays bounded), keep (every pass), merge (only new surface from the start)")
+      ->check(CLI::IsMember({"auto", "keep", "merge"}))
       ->capture_default_str();
   command->add_option("--voxel-um", options->voxel_um,
                       "Voxel size in um (0: twice the pixel footprint, grown to fit --max-voxels; else 0.1 .. 100000)")

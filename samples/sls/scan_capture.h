@@ -42,6 +42,7 @@ struct ScanOptions {
   double icp_crease_deg = fusion::TrackingOptions{}.crease_angle_deg;  // --poses track: the crease test (0: off)
   std::string deformation = "on";   // --poses track: online deformation (the graph)
   std::string loop_closure;         // on | off; empty: on for a full turntable revolution
+  std::string revisits = "auto";    // auto | keep | merge (session::RevisitPolicy)
   int loop_frames = session::DeformationOptions().loop_frames;  // last frames the loop closure registers
   bool resume = false;              // continue the capture in OUT/recording, then fuse it all
   bool object_given = false;

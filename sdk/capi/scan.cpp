@@ -61,6 +61,9 @@ static_assert(offsetof(sls_scan_config, max_gpu_bytes) >=
                   sls::capi::size_ending_at<sls_scan_config>(offsetof(sls_scan_config, loop_closure) +
                                                              sizeof(sls_loop_closure_mode)),
               "max_gpu_bytes lies in the padding of the struct that ended with loop_closure");
+static_assert(offsetof(sls_scan_config, revisits) >=
+                  sls::capi::size_ending_at<sls_scan_config>(offsetof(sls_scan_config, max_gpu_bytes) + sizeof(double)),
+              "revisits lies in the padding of the struct that ended with max_gpu_bytes");
 // An API 0.5 field starts past the 0.4 struct, padding included (versioned_struct.h).
 static_assert(offsetof(sls_scan_config, calibration_path) >= SLS_CAPI_SIZE_0_4(sls_scan_config, online_deformation),
               "a field appended in 0.5 lies in the 0.4 struct's padding");
@@ -171,6 +174,14 @@ sls::session::ScanSessionOptions session_options(const sls_scan_config& config, 
     sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.loop_closure {} is not an sls_loop_closure_mode", loop);
   }
   choices->loop_closure = static_cast<sls_loop_closure_mode>(loop);
+  switch (sls::capi::c_enum_value(config.revisits)) {
+    case SLS_REVISITS_AUTO: options.revisits = sls::session::RevisitPolicy::kAfterFirstRevolution; break;
+    case SLS_REVISITS_KEEP: options.revisits = sls::session::RevisitPolicy::kKeep; break;
+    case SLS_REVISITS_MERGE: options.revisits = sls::session::RevisitPolicy::kMerge; break;
+    default:
+      sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.revisits {} is not an sls_revisit_policy",
+                       sls::capi::c_enum_value(config.revisits));
+  }
   options.validate();
   return options;
 }

@@ -431,10 +431,45 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     report.deformation = s.feed_deformation(frame.index, T_world_camera, frame.turntable_angle_deg, maps);
     report.times.deform_ms += ms_since(start);
   }
+  start = Clock::now();
+  s.count_turn(frame.index, T_world_camera, frame.turntable_angle_deg);
+  report.times.move_ms += ms_since(start);
   s.before_last = s.last;
   s.last = Impl::Fused{frame.index, T_world_camera, frame.turntable_angle_deg};
   return finish(FrameStatus::kFused, report.reason);  // empty unless fused unverified
 }
+
+void ScanSession::Impl::count_turn(int frame, const Pose& T_world_camera, std::optional<double> angle_deg) {
+  if (last) rotation_travelled_deg += (last->T_world_camera.inverse() * T_world_camera).angle_rad() / kDegree;
+  turned_deg = first && first->angle_deg && angle_deg ? std::abs(*angle_deg - *first->angle_deg)
+                                                      : rotation_travelled_deg;
+  if (!moving) return;
+  if (!revisits_merged_from && moving->merging_revisits()) revisits_merged_from = frame;  // kMerge, or set by hand
+  if (options.revisits == RevisitPolicy::kAfterFirstRevolution && !revisits_merged_from &&
+      turned_deg >= 360.0 + options.moving.max_rotation_deg) {
+    moving->start_merging_revisits();
+    revisits_merged_from = frame;
+  }
+}
+
+const char* revisit_policy_name(RevisitPolicy policy) {
+  switch (policy) {
+    case RevisitPolicy::kKeep: return "keep";
+    case RevisitPolicy::kMerge: return "merge";
+    case RevisitPolicy::kAfterFirstRevolution: return "auto";
+  }
+  return "?";
+}
+
+RevisitPolicy parse_revisit_policy(const std::string& name) {
+  for (const RevisitPolicy policy : {RevisitPolicy::kKeep, RevisitPolicy::kMerge, RevisitPolicy::kAfterFirstRevolution}) {
+    if (name == revisit_policy_name(policy)) return policy;
+  }
+  throw_error(ErrorCode::kInvalidArgument, "revisits \"{}\" (auto, keep or merge)", name);
+}
+
+double ScanSession::turned_deg() const { return impl_->turned_deg; }
+std::optional<int> ScanSession::revisits_merged_from() const { return impl_->revisits_merged_from; }
 
 const std::vector<FrameReport>& ScanSession::frames() const { return impl_->frames; }
 

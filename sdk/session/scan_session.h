@@ -51,6 +51,24 @@ namespace sls::session {
 // budget").
 constexpr double kGpuBytesPerPixelAfterPlacement = 96.0;
 
+// What a moving volume's later passes over surface it already shipped ship (fusion/
+// revisit_filter.h). A session that circles the object again and again fuses the same surface
+// on every pass; kept, each pass adds a copy and a long session's model grows without bound.
+enum class RevisitPolicy {
+  kKeep,   // every pass is shipped (a second revolution adds a second copy)
+  kMerge,  // only surface no earlier move shipped, from the first move on
+  // Every pass until the scan has turned one revolution and one move's rotation
+  // (moving.max_rotation_deg) more, then merged: a single revolution keeps its seam's second
+  // pass, which the loop closure's deformation aligns, and is shipped exactly as kKeep ships it;
+  // a longer session's model stays bounded by the object's surface. "Turned": the turntable's
+  // angle from the first fused frame, or without angles the rotation of the camera's fused
+  // poses summed frame to frame.
+  kAfterFirstRevolution,
+};
+const char* revisit_policy_name(RevisitPolicy policy);  // "keep", "merge", "auto"
+// The policy of a name revisit_policy_name() gives; sls::Error(kInvalidArgument) for another.
+RevisitPolicy parse_revisit_policy(const std::string& name);
+
 struct ScanSessionOptions {
   Device device = Device::cpu();
   fusion::IntegrationOptions integration = fusion::IntegrationOptions::gtsdf();
@@ -78,6 +96,9 @@ struct ScanSessionOptions {
   // same model and poses either way. Ignored on the CPU, where it would share the frame loop's
   // cores; moving.ship_in_background is set from this.
   bool ship_in_background = true;
+  // Revisited surface (RevisitPolicy). kMerge sets moving.merge_revisits; kKeep and
+  // kAfterFirstRevolution leave it as it is (kAfterFirstRevolution merges from its turn on).
+  RevisitPolicy revisits = RevisitPolicy::kAfterFirstRevolution;
   // Instead, one fixed volume (e.g. around a known object for ground-truth poses): no moves.
   std::optional<fusion::VolumeGeometry> fixed_volume;
   // Use the recording's turntable angles with the calibration's axis as the pose guess (the
@@ -251,6 +272,11 @@ class ScanSession {
   const fusion::VolumeGeometry& volume_geometry() const;  // the current volume's
   std::size_t volume_bytes() const;                       // both buffers of a moving volume
   std::size_t moves() const;
+  // Revisited surface (RevisitPolicy): how far the scan has turned (degrees, as the policy
+  // counts it), and the first frame from which the moving volume merges revisits (nullopt
+  // while it ships every pass; with kMerge, the first fused frame).
+  double turned_deg() const;
+  std::optional<int> revisits_merged_from() const;
 
   // The model so far: the shipped parts plus the current volume's surface (world frame),
   // deformed by the graph when online deformation is on (each part by the nodes of its time;

@@ -50,6 +50,14 @@ struct ScanSession::Impl {
   };
   std::optional<Fused> last, before_last;
   std::optional<Fused> first;              // the first fused frame (the loop closure's reference)
+  // RevisitPolicy: the fused poses' rotation summed frame to frame, how far the scan turned (the
+  // turntable's angle when the frames have one), and the frame merging began at.
+  double rotation_travelled_deg = 0.0;
+  double turned_deg = 0.0;
+  std::optional<int> revisits_merged_from;
+  // After a frame is fused at T_world_camera: counts the turn, and merges revisits once the
+  // policy says so (RevisitPolicy::kAfterFirstRevolution).
+  void count_turn(int frame, const Pose& T_world_camera, std::optional<double> angle_deg);
 
   // Online deformation (scan_deformation.h): made with the moving volume.
   std::unique_ptr<ScanDeformation> deformation;
@@ -193,6 +201,7 @@ struct ScanSession::Impl {
     }
     if (moving) return;
     fusion::MovingVolumeOptions moving_options = options.moving;
+    if (options.revisits == RevisitPolicy::kMerge) moving_options.merge_revisits = true;
     if (!(moving_options.focus_distance_m > 0.0)) moving_options.focus_distance_m = median_depth(*maps.host_depth());
     // On a GPU a move's surface is shipped beside the frame loop (collect_ship()).
     moving_options.ship_in_background = options.ship_in_background && options.device.is_cuda();

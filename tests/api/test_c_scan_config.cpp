@@ -116,6 +116,10 @@ TEST(CStructVersions, InitWritesNothingPastTheCallersStruct) {
   SLS_CHECK_INIT(sls_calibration_summary);
   SLS_CHECK_INIT(sls_intrinsics);
   SLS_CHECK_INIT(sls_calibration_view);
+  // New in 0.6: the exported plain _init writes today's struct.
+  SLS_CHECK_INIT(sls_eval_config);
+  SLS_CHECK_INIT(sls_evaluation_summary);
+  SLS_CHECK_INIT(sls_report_config);
   // sls_scan_config grew in 0.5: a 0.4 program's struct ended with online_deformation, and the
   // library's 0.4 entry point must not write the fields appended since (it did: an overrun).
   check_init_sized<sls_scan_config>(sls_scan_config_init_sized, "sls_scan_config");
@@ -169,6 +173,7 @@ TEST_F(CScanConfig, DefaultsAreSlsScans) {
   EXPECT_EQ(config.icp_crease_deg, 15.0);
   EXPECT_EQ(config.icp_weights, SLS_ICP_WEIGHTS_CONFIDENCE);
   EXPECT_EQ(config.loop_closure, SLS_LOOP_CLOSURE_CALLER);
+  EXPECT_EQ(config.revisits, SLS_REVISITS_AUTO);
 
   // What samples/sls/cmd_scan.cpp sets for `sls scan` without options.
   const ScanPtr scan = create(config);
@@ -190,6 +195,7 @@ TEST_F(CScanConfig, DefaultsAreSlsScans) {
   EXPECT_FALSE(scan->groundtruth);
   EXPECT_EQ(scan->loop_closure, SLS_LOOP_CLOSURE_CALLER);
   EXPECT_FALSE(scan->calibration.has_value());
+  EXPECT_EQ(options.revisits, session::RevisitPolicy::kAfterFirstRevolution);
 }
 
 TEST_F(CScanConfig, EveryFieldReachesTheSession) {
@@ -213,9 +219,13 @@ TEST_F(CScanConfig, EveryFieldReachesTheSession) {
   config.icp_weights = SLS_ICP_WEIGHTS_EQUAL;
   config.loop_closure = SLS_LOOP_CLOSURE_AUTO;
   config.max_gpu_bytes = 6e9;
+  config.revisits = SLS_REVISITS_MERGE;
   const ScanPtr scan = create(config);
   const session::ScanSessionOptions& options = scan->options;
   EXPECT_EQ(options.max_gpu_bytes, 6e9);
+  EXPECT_EQ(options.revisits, session::RevisitPolicy::kMerge);
+  config.revisits = SLS_REVISITS_KEEP;
+  EXPECT_EQ(create(config)->options.revisits, session::RevisitPolicy::kKeep);
   EXPECT_EQ(options.integration.lambda, 2.5);
   EXPECT_EQ(options.integration.kappa, 0.07);
   EXPECT_EQ(options.integration.penalty, fusion::Penalty::kCharbonnier);
@@ -270,6 +280,7 @@ TEST_F(CScanConfig, BadValuesAreRefusedNamingTheField) {
       {"config.loop_closure", [](sls_scan_config& c) { store_int(c.loop_closure, 3); }},
       {"config.max_gpu_bytes", [](sls_scan_config& c) { c.max_gpu_bytes = -1.0; }},
       {"config.max_gpu_bytes", [](sls_scan_config& c) { c.max_gpu_bytes = INFINITY; }},
+      {"config.revisits", [](sls_scan_config& c) { store_int(c.revisits, 3); }},
       {"no-such-calibration.yml",
        [](sls_scan_config& c) { c.calibration_path = "no-such-calibration.yml"; }, SLS_ERROR_NOT_FOUND},
   };
@@ -304,6 +315,13 @@ TEST_F(CScanConfig, AnOlderStructGetsTheDefaultsOfTheFieldsItLacks) {
   EXPECT_EQ(scan->options.tracking.crease_angle_deg, 15.0);
   EXPECT_FALSE(scan->groundtruth);
   EXPECT_FALSE(scan->calibration.has_value());
+
+  // A 0.5 program's struct ends with max_gpu_bytes: revisits, beyond it, keeps its default.
+  sls_scan_config v05;
+  sls_scan_config_init(&v05);
+  store_int(v05.revisits, 7);
+  v05.struct_size = offsetof(sls_scan_config, max_gpu_bytes) + sizeof(double);
+  EXPECT_EQ(create(v05)->options.revisits, session::RevisitPolicy::kAfterFirstRevolution);
 }
 
 TEST_F(CScanConfig, KnownPosesAreTheRecordingsGroundTruth) {

@@ -2,11 +2,14 @@
 // 15°, depth maps of the knurled knob, turntable prior, a 1e6-voxel moving volume: the soak
 // test's scan, test_scan_soak.cpp) replayed 20 times back to back on the default device.
 // Argument: 0 a new ScanSession per revolution (many scans in one process), 1 one session fed
-// revolution after revolution (a long scan; online deformation off: its graph grows by design),
-// 2 the same with the moving volume's merge_revisits (one copy of revisited surface).
+// revolution after revolution (a long scan; online deformation off: its graph grows by design)
+// shipping every pass (RevisitPolicy::kKeep), 2 the same merging revisits from the start
+// (kMerge: one copy of revisited surface), 3 the session's default (kAfterFirstRevolution: every
+// pass of the first revolution, then merged) with online deformation on, as a scan runs.
 // Counters per revolution r: rss_mib_rNN (VmRSS after it; for mode 0 after the session and
 // its model are gone), heap_mib_rNN (bytes held on the heap, mallinfo2), ms_rNN (median
-// ms/frame, the session's stages), and gpu_mib_rNN with a CUDA device (cudaMemGetInfo).
+// ms/frame, the session's stages), model_mib_rNN for one session (its model, shipped parts and
+// volume, cloud and mesh), and gpu_mib_rNN with a CUDA device (cudaMemGetInfo).
 // Writing the recording is not timed.
 #include <benchmark/benchmark.h>
 #include <unistd.h>
@@ -24,6 +27,7 @@
 #include "sdk/core/device.h"
 #include "sdk/core/recording.h"
 #include "sdk/session/scan_session.h"
+#include "tests/support/model_size.h"
 #include "tests/support/process_memory.h"
 
 namespace sls {
@@ -55,8 +59,10 @@ void BM_Soak(benchmark::State& state) {
   options.device = device;
   options.max_voxels = 1e6;
   options.turntable_prior = true;
-  if (one_session) options.deformation.enabled = false;
-  options.moving.merge_revisits = state.range(0) == 2;
+  const int mode = static_cast<int>(state.range(0));
+  if (mode == 1 || mode == 2) options.deformation.enabled = false;
+  if (mode == 1) options.revisits = session::RevisitPolicy::kKeep;
+  if (mode == 2) options.revisits = session::RevisitPolicy::kMerge;
   const std::int64_t period_ns = rec.frame(rec.frame_count() - 1).timestamp_ns - rec.frame(0).timestamp_ns +
                                  (rec.frame(1).timestamp_ns - rec.frame(0).timestamp_ns);
   std::size_t fused = 0, frames = 0;
@@ -91,6 +97,10 @@ void BM_Soak(benchmark::State& state) {
       state.counters[name] = heap_mib();
       std::snprintf(name, sizeof name, "ms_r%02d", r);
       state.counters[name] = median(ms);
+      if (one_session) {
+        std::snprintf(name, sizeof name, "model_mib_r%02d", r);
+        state.counters[name] = test::model_mib(long_session->final_surface_undeformed());
+      }
       if (device.is_cuda()) {
         std::snprintf(name, sizeof name, "gpu_mib_r%02d", r);
         state.counters[name] = gpu_used_mib();
@@ -100,7 +110,7 @@ void BM_Soak(benchmark::State& state) {
   state.counters["fused_fraction"] = frames > 0 ? static_cast<double>(fused) / static_cast<double>(frames) : 0.0;
   std::filesystem::remove_all(folder);
 }
-BENCHMARK(BM_Soak)->Arg(0)->Arg(1)->Arg(2)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(BM_Soak)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 
 }  // namespace
 }  // namespace sls

@@ -239,6 +239,10 @@ class SlsCli(unittest.TestCase):
         self.assertIn("depth.png", report["lost_frames"][0]["reason"])
         self.assertEqual(report["frames_fused"], 35)
         self.assertGreater(report["volume"]["moves"], 0)
+        # One revolution (36 steps of 10 degrees, to 350): every pass shipped, none merged.
+        self.assertEqual(report["revisits"]["policy"], "auto")
+        self.assertAlmostEqual(report["revisits"]["turned_deg"], 350.0, delta=1e-6)
+        self.assertIsNone(report["revisits"]["merged_from_frame"])
         for stage in ("read", "decode", "track", "integrate", "move", "raycast", "extract"):
             self.assertIn(stage, report["ms_per_stage"])
         for name in ("cloud.ply", "mesh.ply", "trajectory.txt", "report.json", "report.html", "render.png"):

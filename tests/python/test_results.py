@@ -101,6 +101,7 @@ def test_live_model_from_the_callback_and_busy_elsewhere(context: slscan.Context
             seen.append((report.index, len(scan.cloud()), len(stamps), int((preview > 0).sum())))
             assert report.depth_m is not None and report.depth_m.shape == (300, 400)
             assert int(((report.depth_m > 0) & np.isfinite(report.depth_m)).sum()) == report.depth_pixels
+            assert report.depth_device is None  # a CPU context: nothing on a GPU to lend
             if report.index == 1:
                 def other() -> None:
                     try:
@@ -232,3 +233,38 @@ def test_log_callback(context: slscan.Context, recording: pathlib.Path):
         slscan.set_log_callback(None)
     with pytest.raises(KeyError):
         slscan.set_log_level("loud")
+
+
+def test_lent_arrays_are_dlpack_without_a_copy_and_raise_once_released():
+    """slscan.LentArray (a frame's device depth map on a CUDA context): DLPack and CUDA's array
+    interface over the library's memory, rows strided, no copy; released, it refuses every use.
+    Shown on host memory (numpy.from_dlpack), where no GPU is needed."""
+    import gc
+
+    from slscan import _device_array
+
+    buffer = np.arange(6 * 8, dtype=np.float32).reshape(6, 8)  # rows of 8, of which 5 are the map
+    lent = slscan.LentArray(buffer.ctypes.data, (6, 5), buffer.strides[0], _device_array.KDL_CPU)
+    assert lent.__dlpack_device__() == (_device_array.KDL_CPU, 0) and not lent.is_cuda
+    view = np.from_dlpack(lent)
+    assert view.shape == (6, 5) and view.dtype == np.float32 and np.array_equal(view, buffer[:, :5])
+    buffer[2, 3] = -1.0
+    assert view[2, 3] == -1.0  # the same memory
+    assert not hasattr(lent, "__cuda_array_interface__")
+    del view
+    gc.collect()
+    unconsumed = lent.__dlpack__()  # a capsule nobody took: freed with it
+    del unconsumed
+    gc.collect()
+    assert not _device_array._exported
+    lent._release()
+    with pytest.raises(RuntimeError, match="frame callback only"):
+        np.from_dlpack(lent)
+    assert "released" in repr(lent)
+
+    on_gpu = slscan.LentArray(0x7F0000000000, (300, 400), 1664, _device_array.KDL_CUDA, 1)
+    assert on_gpu.__dlpack_device__() == (_device_array.KDL_CUDA, 1)
+    assert on_gpu.__cuda_array_interface__ == {"shape": (300, 400), "typestr": "<f4", "data": (0x7F0000000000, True),
+                                               "strides": (1664, 4), "version": 3, "stream": None}
+    with pytest.raises(ValueError, match="row stride"):
+        slscan.LentArray(0x7F0000000000, (300, 400), 1000, _device_array.KDL_CUDA)

@@ -162,16 +162,16 @@ def test_every_config_field_round_trips(context: slscan.Context, recording: path
         max_voxels=0.0, online_deformation=True, calibration_path=None, gtsdf_lambda=0.0, gtsdf_kappa=0.0,
         gtsdf_penalty=slscan.GtsdfPenalty.DEFAULT, gtsdf_iterations=0, poses=slscan.PoseSource.TRACK, loop_frames=2,
         photometric_weight=0.0, icp_crease_deg=15.0, icp_weights=slscan.IcpWeights.CONFIDENCE,
-        loop_closure=slscan.LoopClosureMode.CALLER, max_gpu_bytes=0.0)
+        loop_closure=slscan.LoopClosureMode.CALLER, max_gpu_bytes=0.0, revisits=slscan.RevisitPolicy.AUTO)
     given = dict(fusion="gtsdf", use_turntable_prior=True, voxel_size_m=2e-4, volume_size_m=(0.03, 0.04, 0.05),
                  max_voxels=2e6, online_deformation=False, calibration_path=str(recording / "calibration.yml"),
                  gtsdf_lambda=2.5, gtsdf_kappa=0.07, gtsdf_penalty="charbonnier", gtsdf_iterations=5,
                  poses="groundtruth", loop_frames=4, photometric_weight=0.5, icp_crease_deg=30.0,
-                 icp_weights="equal", loop_closure="auto", max_gpu_bytes=6e9)
+                 icp_weights="equal", loop_closure="auto", max_gpu_bytes=6e9, revisits="merge")
     assert set(given) == {field.name for field in dataclasses.fields(slscan.ScanConfig)}
     expected = dict(given, fusion=slscan.FusionMethod.GTSDF, gtsdf_penalty=slscan.GtsdfPenalty.CHARBONNIER,
                     poses=slscan.PoseSource.GROUNDTRUTH, icp_weights=slscan.IcpWeights.EQUAL,
-                    loop_closure=slscan.LoopClosureMode.AUTO)
+                    loop_closure=slscan.LoopClosureMode.AUTO, revisits=slscan.RevisitPolicy.MERGE)
     with slscan.Scan(context, **given) as scan:
         assert dataclasses.asdict(scan.config) == expected
     with slscan.Scan(context, slscan.ScanConfig(**given), loop_frames=7) as scan:

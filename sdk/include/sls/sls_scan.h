@@ -101,6 +101,18 @@ typedef enum sls_loop_closure_mode {
   SLS_LOOP_CLOSURE_ON = 2      /* a run (not cancelled) always ends by closing the loop */
 } sls_loop_closure_mode;
 
+/* What the moving volume ships of surface it already shipped once (a long session circling the
+ * object again and again fuses the same surface on every pass). */
+typedef enum sls_revisit_policy {
+  SLS_REVISITS_AUTO = 0,  /* every pass until the scan has turned one revolution and one volume
+                           * move's rotation (15 degrees) more, then only surface no earlier move
+                           * shipped: a single revolution is kept whole (its seam's second pass
+                           * is what the loop closure aligns), a longer session's model stays
+                           * bounded by the object's surface */
+  SLS_REVISITS_KEEP = 1,  /* every pass: each revolution adds a copy */
+  SLS_REVISITS_MERGE = 2  /* only surface no earlier move shipped, from the first move on */
+} sls_revisit_policy;
+
 /* Scan configuration. Versioned by its size: initialise with sls_scan_config_init(), which sets
  * struct_size and the defaults, then change fields. Later library versions only append fields.
  * The volume moves with the camera; it is sized at the first fused frame.
@@ -128,6 +140,7 @@ typedef enum sls_loop_closure_mode {
  *   --voxel-um U                 voxel_size_m = U * 1e-6
  *   --max-voxels M               max_voxels = M * 1e6
  *   --max-gpu-memory B           max_gpu_bytes = B
+ *   --revisits auto|keep|merge   revisits
  *   --out, --resume, and the global --json, -q, -v: the tool's own (its output folder, its
  *   recovery of a cut-off capture, its printing); the library writes what the caller asks
  *   (sls_scan_write_*, sls_results.h) and logs through sls_log.h.
@@ -195,6 +208,8 @@ typedef struct sls_scan_config {
                                  * Under 64 voxels a side the run fails with
                                  * SLS_ERROR_OUT_OF_MEMORY saying what the budget leaves room for.
                                  * 0 .. 1e15; default 0: none. Not used on the CPU */
+  /* Appended in API 0.6: */
+  sls_revisit_policy revisits;  /* --revisits; default SLS_REVISITS_AUTO */
 } sls_scan_config;
 
 /* Fills *config with the defaults. */

@@ -49,6 +49,16 @@ TEST(RevisitFilter, ASecondPassOverTheSameSurfaceShipsNothing) {
   EXPECT_EQ(again.mesh.vertices.size(), 0u);
 }
 
+// Merging begun part-way (RevisitPolicy::kAfterFirstRevolution): what was shipped before counts
+// as shipped, facing included, and remembering it ships nothing.
+TEST(RevisitFilter, SurfaceRememberedBeforeMergingCountsAsShipped) {
+  RevisitFilter filter(kCell);
+  filter.remember(patch(10, 0.5 * kCell, 0.0, 1e-6f, 1.0f).cloud);
+  EXPECT_GT(filter.cells(), 0u);
+  EXPECT_EQ(filter.filter(patch(10, 0.5 * kCell, 0.1 * kCell, 2e-6f, 1.0f)).cloud.size(), 0u);
+  EXPECT_EQ(filter.filter(patch(10, 0.5 * kCell, 0.1 * kCell, 2e-6f, -1.0f)).cloud.size(), 100u);  // the back face
+}
+
 TEST(RevisitFilter, KeepsSurfaceElsewhereAndTheOtherFaceOfAThinWall) {
   RevisitFilter filter(kCell);
   (void)filter.filter(patch(4, kCell, 0.0, 1e-6f, 1.0f));

@@ -4,7 +4,8 @@
 //    after object): nothing may be left behind by a finished scan.
 //  - OneLongScan: revolution after revolution into ONE session (a long scan): the moving
 //    volume's moves, the tracker and the turntable checks must not leak (time per frame is
-//    printed; its trend is bench_soak's); with merge_revisits, the model and memory stay flat.
+//    printed; its trend is bench_soak's); with revisits merged (RevisitPolicy: kMerge, and the
+//    default, from the second revolution on), the model and memory stay flat.
 // Revolutions: SLS_SOAK_REVOLUTIONS (default 5: CI, ASan included; bench_soak runs 20).
 #include <gtest/gtest.h>
 
@@ -14,6 +15,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,6 +23,7 @@
 #include "sdk/core/recording.h"
 #include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_session.h"
+#include "tests/support/model_size.h"
 #include "tests/support/process_memory.h"
 #include "tests/support/test_support.h"
 #include "tests/unit/session/sim_frames.h"
@@ -45,17 +48,7 @@ int soak_revolutions() {
   return std::max(n, 4);  // the first is warm-up, and a trend needs at least three after it
 }
 
-template <typename T>
-double bytes(const std::vector<T>& v) {
-  return static_cast<double>(v.size() * sizeof(T));
-}
-double cloud_mib(const PointCloud& c) {
-  return (bytes(c.positions) + bytes(c.normals) + bytes(c.confidence) + bytes(c.colors)) / kMiB;
-}
-// What the model holds: the shipped parts and the current volume's surface, cloud and mesh.
-double model_mib(const fusion::ExtractedSurface& s) {
-  return cloud_mib(s.cloud) + cloud_mib(s.mesh.vertices) + bytes(s.mesh.faces) / kMiB;
-}
+using test::model_mib;
 
 struct Revolution {
   double rss_mib = 0.0, heap_mib = 0.0, gpu_mib = 0.0;
@@ -91,7 +84,17 @@ class ScanSoak : public ::testing::Test {
     return o;
   }
 
-  static std::vector<Revolution> long_scan(bool merge_revisits, int revolutions);
+
+ public:
+  // What the long scan also gives back: from which frame revisits were merged.
+  struct LongScan {
+    std::vector<Revolution> revolutions;
+    std::optional<int> merged_from;
+  };
+
+ protected:
+  static LongScan long_scan(RevisitPolicy policy, int revolutions, bool deformation = false,
+                            const Device& device = Device::cpu());
 
   // A new session per revolution; memory sampled after each scan and its model are gone.
   static std::vector<Revolution> many_scans(const Device& device, int revolutions) {
@@ -170,13 +173,13 @@ TEST_F(ScanSoak, ManyScansInOneProcessLeaveNothingBehind) {
 // a node per keyframe by design (a scan is one revolution, then close_loop()), so over 20
 // revolutions it grows without bound and its solves with it; with it off, what must stay flat is
 // the session itself: volume moves, tracker, raycaster.
-// Revolution after revolution into one session (deformation off: its graph gains a node per
-// keyframe by design); merge_revisits as the moving volume's option.
-std::vector<Revolution> ScanSoak::long_scan(bool merge_revisits, int revolutions) {
+// Revolution after revolution into one session (by default deformation off: its graph gains a
+// node per keyframe by design); revisited surface as `policy` says.
+ScanSoak::LongScan ScanSoak::long_scan(RevisitPolicy policy, int revolutions, bool deformation, const Device& device) {
   const RecordingReader rec = recording();
-  ScanSessionOptions o = options(Device::cpu());
-  o.deformation.enabled = false;
-  o.moving.merge_revisits = merge_revisits;
+  ScanSessionOptions o = options(device);
+  o.deformation.enabled = deformation;
+  o.revisits = policy;
   ScanSession session(rec.calibration(), nullptr, o);
   const std::int64_t period_ns = rec.frame(rec.frame_count() - 1).timestamp_ns - rec.frame(0).timestamp_ns +
                                  (rec.frame(1).timestamp_ns - rec.frame(0).timestamp_ns);
@@ -203,17 +206,19 @@ std::vector<Revolution> ScanSoak::long_scan(bool merge_revisits, int revolutions
     rev.model_mib = model_mib(session.final_surface_undeformed());
     revs.push_back(rev);
     std::printf(
-        "[ measured ] long scan%s, revolution %d: %zu of %d fused, %.2f ms/frame (fastest %.2f), RSS %.1f MiB, heap %.2f "
+        "[ measured ] long scan (revisits %s), revolution %d: %zu of %d fused, %.2f ms/frame (fastest %.2f), RSS %.1f MiB, heap %.2f "
         "MiB, "
         "model %.2f MiB, %zu moves\n",
-        merge_revisits ? " (revisits merged)" : "", r, rev.fused, kFramesPerRevolution, rev.median_ms, rev.fastest_ms, rev.rss_mib, rev.heap_mib, rev.model_mib,
+        revisit_policy_name(policy), r, rev.fused, kFramesPerRevolution, rev.median_ms, rev.fastest_ms, rev.rss_mib, rev.heap_mib, rev.model_mib,
         session.moves());
   }
-  return revs;
+  return {revs, session.revisits_merged_from()};
 }
 
 TEST_F(ScanSoak, OneLongScanGrowsOnlyByItsModel) {
-  const std::vector<Revolution> revs = long_scan(false, soak_revolutions());
+  const LongScan scan = long_scan(RevisitPolicy::kKeep, soak_revolutions());
+  EXPECT_FALSE(scan.merged_from.has_value());
+  const std::vector<Revolution>& revs = scan.revolutions;
   const Revolution& first = revs[1];
   const Revolution& last = revs.back();
   // Memory is not flat here, by design: every move ships the surface leaving the volume, and a
@@ -229,12 +234,14 @@ TEST_F(ScanSoak, OneLongScanGrowsOnlyByItsModel) {
   for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);
 }
 
-// The same long scan with merge_revisits: each pass after the first ships only what the
-// earlier ones missed, so the model and the heap stay flat (the per-frame reports, ~1 KiB a
-// frame, are what still grows: 4 MiB allowed for them and the allocator). Three revolutions
-// at most (CI's time): the second pass is where an unmerged model doubles.
+// The same long scan with revisits merged from the start: each pass after the first ships only
+// what the earlier ones missed, so the model and the heap stay flat (the per-frame reports,
+// ~1 KiB a frame, are what still grows: 4 MiB allowed for them and the allocator). Three
+// revolutions at most (CI's time): the second pass is where an unmerged model doubles.
 TEST_F(ScanSoak, OneLongScanWithMergedRevisitsStaysFlat) {
-  const std::vector<Revolution> revs = long_scan(true, std::min(soak_revolutions(), 3));
+  const LongScan scan = long_scan(RevisitPolicy::kMerge, std::min(soak_revolutions(), 3));
+  EXPECT_EQ(scan.merged_from, 0);
+  const std::vector<Revolution>& revs = scan.revolutions;
   const Revolution& first = revs[1];
   const Revolution& last = revs.back();
   const double one_revolution_mib = revs[1].model_mib - revs[0].model_mib;  // what a pass adds unmerged
@@ -245,7 +252,33 @@ TEST_F(ScanSoak, OneLongScanWithMergedRevisitsStaysFlat) {
   for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);
 }
 
+// The default (RevisitPolicy::kAfterFirstRevolution), with online deformation as a scan has it:
+// the first revolution ships every pass, as kKeep does, then merging begins once the turntable
+// has turned a revolution and one move's rotation (15 degrees: one 15-degree step), so the second
+// revolution adds next to nothing where kKeep adds a whole copy.
+void expect_merged_from_the_second_revolution(const ScanSoak::LongScan& scan) {
+  const int step_deg = 360 / kFramesPerRevolution;
+  const int max_rotation_deg = static_cast<int>(fusion::MovingVolumeOptions().max_rotation_deg);
+  EXPECT_EQ(scan.merged_from, (360 + max_rotation_deg + step_deg - 1) / step_deg);
+  const std::vector<Revolution>& revs = scan.revolutions;
+  EXPECT_LT(revs[1].model_mib - revs[0].model_mib, 0.1 * revs[0].model_mib)
+      << "model " << revs[0].model_mib << " -> " << revs[1].model_mib << " MiB";
+  for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);
+}
+
+TEST_F(ScanSoak, OneLongScanByDefaultMergesFromItsSecondRevolution) {
+  EXPECT_EQ(ScanSessionOptions().revisits, RevisitPolicy::kAfterFirstRevolution);
+  expect_merged_from_the_second_revolution(long_scan(ScanSessionOptions().revisits, 2, /*deformation=*/true));
+}
+
 #if defined(SLS_HAVE_CUDA)
+// The same on a GPU, where each move's surface ships beside the frame loop: merging begins
+// after the pending ship is in.
+TEST_F(ScanSoak, OneLongScanOnTheGpuByDefaultMergesFromItsSecondRevolution) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  expect_merged_from_the_second_revolution(
+      long_scan(ScanSessionOptions().revisits, 2, /*deformation=*/true, Device::cuda(0)));
+}
 TEST_F(ScanSoak, ManyScansOnTheGpuLeaveNoDeviceMemoryBehind) {
   SLS_REQUIRE_CUDA_DEVICE();
   const std::vector<Revolution> revs = many_scans(Device::cuda(0), soak_revolutions());
