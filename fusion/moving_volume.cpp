@@ -14,6 +14,7 @@
 #include "fusion/revisit_filter.h"
 #include "sdk/core/error.h"
 #include "sdk/core/host_memory.h"
+#include "sdk/core/serial_worker.h"
 
 #if defined(_OPENMP)
 #include <omp.h>
@@ -107,6 +108,14 @@ void resample_cpu(const VolumeView& from, const VolumeView& to, const Rigid3f& g
   }
 }
 
+// Every moving volume's ships in the background, on one thread for the process: a thread per
+// ship, or per volume, made an OpenMP team and malloc arenas each time, and a process scanning
+// again and again grew by ~15 MiB a scan (docs/reliability.md, "long runs"). Volumes of
+// concurrent scans take turns.
+SerialWorker& ship_worker() {
+  static SerialWorker worker;
+  return worker;
+}
 }  // namespace
 
 // The revisit filter's cells: two voxels, about the drift between two passes of a scan.
@@ -368,7 +377,7 @@ MoveStats MovingVolume::move_to(const Pose& T_world_volume) {
     s.ship_pending = true;
     Impl* impl = &s;
     const Volume* leaving_volume = &from;
-    s.ship_job = std::async(std::launch::async, [impl, leaving_volume, leaving] {
+    s.ship_job = ship_worker().submit([impl, leaving_volume, leaving] {
       require_device(impl->device);  // the worker thread's current device
 #if defined(_OPENMP)
       // A quarter of the cores (at most what OMP_NUM_THREADS allows) for the host's assembly:

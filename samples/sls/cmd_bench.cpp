@@ -28,6 +28,7 @@
 #include "sdk/eval/evaluate.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
+#include "sdk/core/serial_worker.h"
 #include "sdk/core/stopwatch.h"
 #include "sdk/core/trajectory.h"
 #include "sdk/session/scan_session.h"
@@ -197,14 +198,16 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
   // from here to the final model.
   const GpuAllocations before_scan = gpu_allocations();
   reset_gpu_allocation_peak();
+  SerialWorker uploader;  // the uploads ahead on one thread, as run_pipeline's
   for (int k = 0; k < frames; ++k) {
     report_progress(progress, {"bench", static_cast<std::size_t>(k), static_cast<std::size_t>(frames), ""});
     const session::ScanFrame frame = std::move(next);
     next = k + 1 < frames ? render(k + 1) : session::ScanFrame{};
     const SteadyClock::time_point start = SteadyClock::now();
     std::future<bool> ahead;
+    const WaitOnExit<bool> wait_upload(ahead);  // before `next` moves, also when add_frame throws
     if (upload_ahead && k + 1 < frames) {
-      ahead = std::async(std::launch::async, [&session, &next] { return session.prefetch(next); });
+      ahead = uploader.submit([&session, &next] { return session.prefetch(next); });
     }
     const session::FrameReport report = session.add_frame(frame);
     double waited_ms = 0.0;

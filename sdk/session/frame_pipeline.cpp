@@ -18,6 +18,7 @@
 #endif
 
 #include "sdk/core/error.h"
+#include "sdk/core/serial_worker.h"
 #include "sdk/core/stopwatch.h"
 #include "sdk/session/hdr_frame.h"
 
@@ -182,6 +183,10 @@ PipelineOutcome run_pipeline(const SessionProvider& session_provider, const Fram
   };
 
   PipelineOutcome outcome;
+  // The uploads ahead, on one thread for the process (a thread per frame, or per scan, also made
+  // an OpenMP team and malloc arenas each time; see ship_worker() in fusion/moving_volume.cpp).
+  // Pipelines of concurrent scans take turns.
+  static SerialWorker uploader;
   try {
     std::size_t fused = 0;
     ScanSession* session = nullptr;
@@ -193,11 +198,12 @@ PipelineOutcome run_pipeline(const SessionProvider& session_provider, const Fram
       if (!entry) break;
       if (session == nullptr) session = &session_provider();
       // The frame after this one, uploaded to the GPU while this one is fused (a CUDA session):
-      // joined before the next pop (the future's destructor waits), which may move it.
+      // joined before the next pop, which may move it, also when add_frame throws.
       std::future<bool> upload_ahead;
+      const WaitOnExit<bool> wait_upload(upload_ahead);  // before `next` moves, also when add_frame throws
       const ScanFrame* next = session->uploads_ahead() ? queue.next() : nullptr;
       if (next != nullptr && !next->images.empty()) {
-        upload_ahead = std::async(std::launch::async, [session, next] { return session->prefetch(*next); });
+        upload_ahead = uploader.submit([session, next] { return session->prefetch(*next); });
       }
       const FrameReport report = session->add_frame(entry->frame);
       if (upload_ahead.valid()) upload_ahead.get();

@@ -279,13 +279,24 @@ TEST_F(ScanSoak, OneLongScanOnTheGpuByDefaultMergesFromItsSecondRevolution) {
   expect_merged_from_the_second_revolution(
       long_scan(ScanSessionOptions().revisits, 2, /*deformation=*/true, Device::cuda(0)));
 }
+// RSS on a GPU host: the frame loop's OpenMP team (a thread per core) and the ships' worker each
+// allocate from a malloc arena of their own, whose freed memory glibc keeps; on a 16-core H200
+// host RSS climbs by ~20 MiB over the first ~6 scans and then levels off (166-169 MiB over scans
+// 9-13), while the bytes in use over all arenas (heap, mallinfo2) stay flat; with
+// MALLOC_ARENA_MAX=2, RSS is flat from the first scan (2026-11-29, docs/reliability.md). So ten
+// scans here, and RSS compared over the second half: what keeps growing there is a leak.
 TEST_F(ScanSoak, ManyScansOnTheGpuLeaveNoDeviceMemoryBehind) {
   SLS_REQUIRE_CUDA_DEVICE();
-  const std::vector<Revolution> revs = many_scans(Device::cuda(0), soak_revolutions());
+  const std::vector<Revolution> revs = many_scans(Device::cuda(0), std::max(soak_revolutions(), 10));
   // Device memory is allocated in whole buffers: a leaked volume or depth buffer is whole
   // MiB; the driver's own pools move by less than 2 MiB.
   EXPECT_LT(revs.back().gpu_mib - revs[1].gpu_mib, 2.0) << revs[1].gpu_mib << " -> " << revs.back().gpu_mib << " MiB";
-  expect_flat(revs, kCheckRss);
+  expect_flat(revs, false);
+  const Revolution& middle = revs[revs.size() / 2];
+  if (kCheckRss) {
+    EXPECT_LT(revs.back().rss_mib - middle.rss_mib, kRssGrowthMiB)
+        << "RSS grew from " << middle.rss_mib << " to " << revs.back().rss_mib << " MiB over the second half";
+  }
 }
 #endif
 
