@@ -2,7 +2,8 @@
 // (fusion/deformation) fed while the scan runs and solved beside the frame loop, on a worker
 // thread of its own, so the frame loop never waits for it.
 //
-// The frame loop (ScanSession::add_frame) hands it
+// The frame loop (ScanSession::add_frame) hands it, over the scan's first revolution
+// (DeformationOptions::first_revolution_only)
 //   - a keyframe when the scan's focus point has moved node_spacing_m from the last node's
 //     (or the camera turned node_angle_deg): a node there, and the frame's surface samples;
 //   - every part of the map the moving volume ships, sampled;
@@ -69,6 +70,13 @@ struct DeformationOptions {
   // the camera) while each table angle is off by its σ alone; the loop closure's constraints
   // correct the revolution's end, these its middle (docs/benchmarks.md).
   bool turntable_rotation_priors = true;
+  // The graph covers the scan's first revolution and one volume move's rotation more (how far
+  // the scan turned: ScanSession::turned_deg()); later frames add no node and no prior and are
+  // bound to its last nodes: by then they track against the closed model, which does not let
+  // drift grow, and a session that circles the object revolution after revolution keeps a
+  // graph of bounded size and solve time (docs/benchmarks.md, "Soak"). false: a node per
+  // keyframe however long the scan runs.
+  bool first_revolution_only = true;
   double max_correspondence_m = 0.0;  // 0: 10 voxels
   double max_normal_angle_deg = 30.0;
   int keyframe_samples = 2048;        // surface samples of a frame (a grid over its depth map)

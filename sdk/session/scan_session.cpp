@@ -445,8 +445,7 @@ void ScanSession::Impl::count_turn(int frame, const Pose& T_world_camera, std::o
                                                       : rotation_travelled_deg;
   if (!moving) return;
   if (!revisits_merged_from && moving->merging_revisits()) revisits_merged_from = frame;  // kMerge, or set by hand
-  if (options.revisits == RevisitPolicy::kAfterFirstRevolution && !revisits_merged_from &&
-      turned_deg >= 360.0 + options.moving.max_rotation_deg) {
+  if (options.revisits == RevisitPolicy::kAfterFirstRevolution && !revisits_merged_from && past_first_revolution()) {
     moving->start_merging_revisits();
     revisits_merged_from = frame;
   }

@@ -64,7 +64,11 @@ std::optional<fusion::MoveStats> ScanSession::Impl::collect_ship() {
 void ScanSession::Impl::record_shipped(int time, std::size_t shipped_before) {
   const PointCloud& shipped = moving->shipped_cloud();
   parts.push_back({time, shipped.size(), moving->shipped_mesh().vertices.size()});
-  if (deformation && shipped.size() > shipped_before) deformation->add_shipped(time, shipped, shipped_before, shipped.size());
+  // Past the graph's revolution no keyframe comes to match them (first_revolution_only).
+  const bool graph_grows = !(options.deformation.first_revolution_only && past_first_revolution());
+  if (deformation && graph_grows && shipped.size() > shipped_before) {
+    deformation->add_shipped(time, shipped, shipped_before, shipped.size());
+  }
 }
 
 void ScanSession::Impl::keep_loop_frame(int frame, const Pose& T_world_camera, std::optional<double> angle_deg,
@@ -132,6 +136,14 @@ FrameDeformation ScanSession::Impl::feed_deformation(int frame, const Pose& T_wo
                                                      std::optional<double> angle_deg, FrameMaps& maps) {
   FrameDeformation out;
   keep_loop_frame(frame, T_world_camera, angle_deg, maps);
+  if (options.deformation.first_revolution_only && past_first_revolution()) {
+    const DeformationStatus status = deformation->status();
+    out.nodes = status.nodes;
+    out.constraints = status.constraints;
+    out.pending = status.pending;
+    out.solve_ms = status.last_solve_ms;
+    return out;
+  }
   const Eigen::Vector3d focus = focus_point(T_world_camera);
   std::optional<fusion::deformation::RotationPrior> prior = turntable_rotation_prior(T_world_camera, angle_deg);
   if (deformation->wants_keyframe(T_world_camera, focus)) {

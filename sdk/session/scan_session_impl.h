@@ -58,6 +58,10 @@ struct ScanSession::Impl {
   // After a frame is fused at T_world_camera: counts the turn, and merges revisits once the
   // policy says so (RevisitPolicy::kAfterFirstRevolution).
   void count_turn(int frame, const Pose& T_world_camera, std::optional<double> angle_deg);
+  // Whether the scan has turned a revolution and one move's rotation (moving.max_rotation_deg):
+  // where revisits start to merge (kAfterFirstRevolution) and the graph stops growing
+  // (DeformationOptions::first_revolution_only).
+  bool past_first_revolution() const { return turned_deg >= 360.0 + options.moving.max_rotation_deg; }
 
   // Online deformation (scan_deformation.h): made with the moving volume.
   std::unique_ptr<ScanDeformation> deformation;

@@ -90,6 +90,7 @@ class ScanSoak : public ::testing::Test {
   struct LongScan {
     std::vector<Revolution> revolutions;
     std::optional<int> merged_from;
+    std::vector<std::size_t> nodes;  // the deformation graph's after each revolution (with deformation)
   };
 
  protected:
@@ -184,6 +185,7 @@ ScanSoak::LongScan ScanSoak::long_scan(RevisitPolicy policy, int revolutions, bo
   const std::int64_t period_ns = rec.frame(rec.frame_count() - 1).timestamp_ns - rec.frame(0).timestamp_ns +
                                  (rec.frame(1).timestamp_ns - rec.frame(0).timestamp_ns);
   std::vector<Revolution> revs;
+  std::vector<std::size_t> nodes;
   for (int r = 0; r < revolutions; ++r) {
     std::vector<double> ms;
     const std::size_t fused_before = session.fused_count();
@@ -205,6 +207,7 @@ ScanSoak::LongScan ScanSoak::long_scan(RevisitPolicy policy, int revolutions, bo
     rev.heap_mib = heap_mib();
     rev.model_mib = model_mib(session.final_surface_undeformed());
     revs.push_back(rev);
+    if (deformation) nodes.push_back(session.graph_summary().nodes);
     std::printf(
         "[ measured ] long scan (revisits %s), revolution %d: %zu of %d fused, %.2f ms/frame (fastest %.2f), RSS %.1f MiB, heap %.2f "
         "MiB, "
@@ -212,7 +215,7 @@ ScanSoak::LongScan ScanSoak::long_scan(RevisitPolicy policy, int revolutions, bo
         revisit_policy_name(policy), r, rev.fused, kFramesPerRevolution, rev.median_ms, rev.fastest_ms, rev.rss_mib, rev.heap_mib, rev.model_mib,
         session.moves());
   }
-  return {revs, session.revisits_merged_from()};
+  return {revs, session.revisits_merged_from(), nodes};
 }
 
 TEST_F(ScanSoak, OneLongScanGrowsOnlyByItsModel) {
@@ -255,7 +258,10 @@ TEST_F(ScanSoak, OneLongScanWithMergedRevisitsStaysFlat) {
 // The default (RevisitPolicy::kAfterFirstRevolution), with online deformation as a scan has it:
 // the first revolution ships every pass, as kKeep does, then merging begins once the turntable
 // has turned a revolution and one move's rotation (15 degrees: one 15-degree step), so the second
-// revolution adds next to nothing where kKeep adds a whole copy.
+// revolution adds next to nothing where kKeep adds a whole copy; and the graph stops growing
+// there (DeformationOptions::first_revolution_only): every 15-degree step is a keyframe (over
+// node_angle_deg), and of the second revolution's only the frames at 360 and 375 degrees, fed
+// before the turn they complete is counted.
 void expect_merged_from_the_second_revolution(const ScanSoak::LongScan& scan) {
   const int step_deg = 360 / kFramesPerRevolution;
   const int max_rotation_deg = static_cast<int>(fusion::MovingVolumeOptions().max_rotation_deg);
@@ -264,6 +270,9 @@ void expect_merged_from_the_second_revolution(const ScanSoak::LongScan& scan) {
   EXPECT_LT(revs[1].model_mib - revs[0].model_mib, 0.1 * revs[0].model_mib)
       << "model " << revs[0].model_mib << " -> " << revs[1].model_mib << " MiB";
   for (const Revolution& rev : revs) EXPECT_EQ(rev.fused, revs[0].fused);
+  ASSERT_EQ(scan.nodes.size(), revs.size());
+  EXPECT_EQ(scan.nodes[0], static_cast<std::size_t>(kFramesPerRevolution));
+  EXPECT_EQ(scan.nodes[1], scan.nodes[0] + 2);
 }
 
 TEST_F(ScanSoak, OneLongScanByDefaultMergesFromItsSecondRevolution) {
