@@ -136,18 +136,24 @@ FrameDeformation ScanSession::Impl::feed_deformation(int frame, const Pose& T_wo
                                                      std::optional<double> angle_deg, FrameMaps& maps) {
   FrameDeformation out;
   keep_loop_frame(frame, T_world_camera, angle_deg, maps);
-  if (options.deformation.first_revolution_only && past_first_revolution()) {
-    const DeformationStatus status = deformation->status();
-    out.nodes = status.nodes;
-    out.constraints = status.constraints;
-    out.pending = status.pending;
-    out.solve_ms = status.last_solve_ms;
-    return out;
+  // Past the graph's revolution (first_revolution_only) the frame adds nothing to it.
+  if (!(options.deformation.first_revolution_only && past_first_revolution())) {
+    add_to_graph(frame, T_world_camera, angle_deg, maps, &out);
   }
+  const DeformationStatus status = deformation->status();
+  out.nodes = status.nodes;
+  out.constraints = status.constraints;
+  out.pending = status.pending;
+  out.solve_ms = status.last_solve_ms;
+  return out;
+}
+
+void ScanSession::Impl::add_to_graph(int frame, const Pose& T_world_camera, std::optional<double> angle_deg,
+                                     FrameMaps& maps, FrameDeformation* out) {
   const Eigen::Vector3d focus = focus_point(T_world_camera);
   std::optional<fusion::deformation::RotationPrior> prior = turntable_rotation_prior(T_world_camera, angle_deg);
   if (deformation->wants_keyframe(T_world_camera, focus)) {
-    out.keyframe = true;
+    out->keyframe = true;
     deformation->add_keyframe(frame, T_world_camera, focus,
                               sample_depth_map(*maps.host_depth(), calibration.camera, options.deformation.keyframe_samples,
                                                edge_step_m(calibration.camera, focus_distance_m)),
@@ -157,12 +163,6 @@ FrameDeformation ScanSession::Impl::feed_deformation(int frame, const Pose& T_wo
     // and the more of them a node's blend weighs, the less of that is left.
     deformation->add_rotation_prior(frame, focus, *prior);
   }
-  const DeformationStatus status = deformation->status();
-  out.nodes = status.nodes;
-  out.constraints = status.constraints;
-  out.pending = status.pending;
-  out.solve_ms = status.last_solve_ms;
-  return out;
 }
 
 fusion::ExtractedSurface ScanSession::Impl::surface(bool deformed) const {

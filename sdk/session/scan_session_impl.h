@@ -279,6 +279,9 @@ struct ScanSession::Impl {
                                                                              std::optional<double> angle_deg) const;
   FrameDeformation feed_deformation(int frame, const Pose& T_world_camera, std::optional<double> angle_deg,
                                     FrameMaps& maps);
+  // A keyframe (node and samples) or the frame's turntable prior, into the graph.
+  void add_to_graph(int frame, const Pose& T_world_camera, std::optional<double> angle_deg, FrameMaps& maps,
+                    FrameDeformation* out);
   // The model (shipped parts and the current volume), deformed or not.
   fusion::ExtractedSurface surface(bool deformed) const;
 
