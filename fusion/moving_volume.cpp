@@ -1,6 +1,7 @@
 #include "fusion/moving_volume.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <future>
@@ -15,10 +16,7 @@
 #include "sdk/core/error.h"
 #include "sdk/core/host_memory.h"
 #include "sdk/core/serial_worker.h"
-
-#if defined(_OPENMP)
-#include <omp.h>
-#endif
+#include "sdk/core/stopwatch.h"
 
 #if defined(SLS_HAVE_CUDA)
 #include <cuda_runtime_api.h>
@@ -47,10 +45,6 @@ void MovingVolumeOptions::validate() const {
 namespace {
 
 constexpr double kDegPerRad = 57.295779513082320876798;
-
-double elapsed_ms(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
-}
 
 // Appends b's points to a (the same per-point arrays; a cloud that is empty takes b's layout).
 void append_cloud(PointCloud* a, const PointCloud& b) {
@@ -159,7 +153,7 @@ struct MovingVolume::Impl {
   // Extracts the leaving region of `from`, filters revisits, appends to the shipped surface,
   // and fills `stats`' ship figures.
   void ship(const Volume& from, const OrientedRegion& leaving, MoveStats* stats) {
-    const auto ship_start = std::chrono::steady_clock::now();
+    const auto ship_start = SteadyClock::now();
     ExtractedSurface part = extract_part(from, leaving, &stats->ship_assemble_ms);
     if (merging) {
       if (!revisits) revisits.emplace(kRevisitCellVoxels * from.geometry().voxel_size_m);
@@ -169,7 +163,7 @@ struct MovingVolume::Impl {
     stats->shipped_triangles = part.mesh.faces.size();
     append_cloud(&shipped_cloud, part.cloud);
     append_mesh(&shipped_mesh, part.mesh);
-    stats->ship_ms = elapsed_ms(ship_start);
+    stats->ship_ms = ms_since(ship_start);
   }
 
   Volume& now() { return buffers[static_cast<std::size_t>(current)]; }
@@ -226,11 +220,11 @@ struct MovingVolume::Impl {
     crossings.download(found.data(), found.size(), ship_stream);
     cells.download(found_cells.data(), found_cells.size(), ship_stream);
     SLS_CUDA_CHECK(cudaStreamSynchronize(ship_stream));
-    const auto assemble_start = std::chrono::steady_clock::now();
+    const auto assemble_start = SteadyClock::now();
     ExtractedSurface part;
     part.cloud = detail::crossing_cloud(found, T_world_volume, &filter, options.extract);
     part.mesh = detail::cell_mesh(view.nx, view.ny, found, found_cells, T_world_volume, options.extract);
-    *assemble_ms = elapsed_ms(assemble_start);
+    *assemble_ms = ms_since(assemble_start);
     return part;
   }
 #endif
@@ -379,21 +373,19 @@ MoveStats MovingVolume::move_to(const Pose& T_world_volume) {
     const Volume* leaving_volume = &from;
     s.ship_job = ship_worker().submit([impl, leaving_volume, leaving] {
       require_device(impl->device);  // the worker thread's current device
-#if defined(_OPENMP)
-      // A quarter of the cores (at most what OMP_NUM_THREADS allows) for the host's assembly:
-      // the frame loop's own host work (the decoder's staging copies on every thread) runs
-      // meanwhile, and OpenMP teams that oversubscribe the cores wait on each other's barriers.
-      omp_set_num_threads(std::max(1, std::min(omp_get_max_threads(), omp_get_num_procs() / 4)));
-#endif
+      // The host's assembly on every core: with the pattern stacks captured page-locked the
+      // frame loop stages nothing on the host, and at the paper's size the assembly took 40 ms
+      // on 16 cores against 110 ms on the quarter it was held to while staging competed
+      // (docs/benchmarks.md, 2026-11-29 night).
       impl->ship(*leaving_volume, leaving, &impl->ship_stats);
     });
   } else {
     s.ship(from, leaving, &stats);
   }
 
-  const auto resample_start = std::chrono::steady_clock::now();
+  const auto resample_start = SteadyClock::now();
   s.resample(from, to);
-  stats.resample_ms = elapsed_ms(resample_start);
+  stats.resample_ms = ms_since(resample_start);
   s.current = 1 - s.current;
   ++s.moves;
   return stats;
@@ -421,8 +413,12 @@ const TriangleMesh& MovingVolume::shipped_mesh() const {
 }
 std::size_t MovingVolume::moves() const { return impl_->moves; }
 
-ExtractedSurface MovingVolume::final_surface() const {
+MovingVolume::SurfaceParts MovingVolume::final_surface_parts(FinalSurfaceTimes* times) const {
+  FinalSurfaceTimes spent;
+  SteadyClock::time_point start = SteadyClock::now();
   impl_->wait_shipping();
+  spent.wait_ship_ms = ms_since(start);
+  start = SteadyClock::now();
   const Volume& current = volume();
   ExtractedSurface live;
   if (current.device().is_cuda()) {
@@ -435,16 +431,22 @@ ExtractedSurface MovingVolume::final_surface() const {
     everything.min = Eigen::Vector3d::Ones();
     everything.max = -Eigen::Vector3d::Ones();
     everything.keep_outside = true;
-    double assemble_ms = 0.0;
-    live = impl_->extract_part(current, everything, &assemble_ms);
+    live = impl_->extract_part(current, everything, &spent.assemble_ms);
   } else {
     live = extract_surface(current, impl_->options.extract);
   }
+  spent.extract_ms = ms_since(start);
+  if (times != nullptr) *times = spent;
+  return {&impl_->shipped_cloud, &impl_->shipped_mesh, std::move(live)};
+}
+
+ExtractedSurface MovingVolume::final_surface(FinalSurfaceTimes* times) const {
+  const SurfaceParts parts = final_surface_parts(times);
+  const SteadyClock::time_point start = SteadyClock::now();
   ExtractedSurface model;
-  model.cloud = impl_->shipped_cloud;
-  model.mesh = impl_->shipped_mesh;
-  append_cloud(&model.cloud, live.cloud);
-  append_mesh(&model.mesh, live.mesh);
+  model.cloud = join_clouds(*parts.shipped_cloud, parts.live.cloud);
+  model.mesh = join_meshes(*parts.shipped_mesh, parts.live.mesh);
+  if (times != nullptr) times->join_ms = ms_since(start);
   return model;
 }
 

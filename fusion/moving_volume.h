@@ -71,6 +71,16 @@ struct MoveStats {
   double ship_assemble_ms = 0.0;    // of ship_ms: assembling the points and triangles on the host (CUDA)
 };
 
+// Where MovingVolume::final_surface() spent its time (ms, wall): waiting for a ship still running
+// in the background; finding the current volume's surface and bringing it to the host (of it, the
+// host's assembly of its points and triangles); copying the shipped parts and it into one model.
+struct FinalSurfaceTimes {
+  double wait_ship_ms = 0.0;
+  double extract_ms = 0.0;
+  double assemble_ms = 0.0;
+  double join_ms = 0.0;
+};
+
 class MovingVolume {
  public:
   // counts and voxel size of the volume; its pose comes from place(). Allocates both buffers
@@ -124,7 +134,17 @@ class MovingVolume {
   std::size_t moves() const;
 
   // The model: the shipped parts plus the current volume's surface (cloud and mesh, world frame).
-  ExtractedSurface final_surface() const;
+  // `times`, when given: where the time went (FinalSurfaceTimes).
+  ExtractedSurface final_surface(FinalSurfaceTimes* times = nullptr) const;
+  // The same in pieces, not joined: the shipped parts as the volume holds them (valid until
+  // the next move or place()) and the current volume's surface. For a caller that writes the
+  // model in one pass of its own (the scan session's deformed model); join_ms is left 0.
+  struct SurfaceParts {
+    const PointCloud* shipped_cloud = nullptr;
+    const TriangleMesh* shipped_mesh = nullptr;
+    ExtractedSurface live;
+  };
+  SurfaceParts final_surface_parts(FinalSurfaceTimes* times = nullptr) const;
 
  private:
   struct Impl;

@@ -203,6 +203,7 @@ struct AravisCamera::Impl {
   DiscoveredCamera identity;
   std::string uri;
   std::string name;  // how messages name the camera
+  MemoryType image_memory = MemoryType::kHost;  // where convert() puts the images (set_image_memory)
   // `name` as the heartbeat thread may read it: that thread runs from arv_camera_new() on,
   // before `name` is written, and only GLib's signal lock (a futex, invisible to
   // ThreadSanitizer, which reported the read in on_control_lost as a race) ordered the write
@@ -531,6 +532,7 @@ struct AravisCamera::Impl {
         static_cast<std::size_t>(image_width) * static_cast<std::size_t>(layout->bytes_per_pixel) +
         static_cast<std::size_t>(padding_x);
     try {
+      captured.image = Image16u(image_memory);  // the one copy out of Aravis's buffer lands where the scan reads
       unpack_mono(data, size, image_width, image_height, row_stride, layout->bytes_per_pixel, captured.image);
     } catch (const Error& error) {
       return incomplete(error.what());
@@ -735,6 +737,11 @@ void AravisCamera::software_trigger() {
   GErrorSlot error;
   arv_camera_software_trigger(camera.camera, error.out());
   camera.check(error, "software trigger (TriggerSoftware)");
+}
+
+void AravisCamera::set_image_memory(MemoryType memory) {
+  Camera::set_image_memory(memory);
+  impl_->image_memory = memory;
 }
 
 CapturedImage AravisCamera::wait_image(std::chrono::milliseconds timeout) {

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "sdk/core/image.h"
+#include "sdk/core/memory_type.h"
 
 namespace sls::drivers {
 
@@ -75,6 +76,16 @@ class Camera {
   // simulator, recorded sessions). Cheap (no device I/O, callable after every image) and
   // never throws.
   virtual std::optional<TransportStatistics> transport_statistics() const { return std::nullopt; }
+
+  // Where wait_image() puts its images from now on: MemoryType::kPinned for a scan fused on a
+  // GPU, whose copy engine then uploads each stack without staging it (issue 18). A camera
+  // that cannot honour it (a kPinned request without CUDA or a GPU) delivers pageable images;
+  // CapturedImage::image.memory_type() says which. Default: kHost. Never throws.
+  virtual void set_image_memory(MemoryType memory) { image_memory_ = memory; }
+  MemoryType image_memory() const { return image_memory_; }
+
+ private:
+  MemoryType image_memory_ = MemoryType::kHost;
 };
 
 }  // namespace sls::drivers

@@ -205,7 +205,7 @@ Image16u Renderer::render(const PatternDesc& pattern, std::uint32_t image_key, d
     throw_error(ErrorCode::kInvalidArgument, "renderer: exposure scale {} must be finite and positive",
                 exposure_scale);
   }
-  Image16u image(rig_.camera.width, rig_.camera.height);
+  Image16u image(rig_.camera.width, rig_.camera.height, 0, image_memory_);
   PatternRenderParams params = pattern_params(rig_, frame_, pattern, image_key);
   params.exposure = exposure_scale;
   backend_->render_pattern(params, image.data());

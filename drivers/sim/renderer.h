@@ -16,6 +16,7 @@
 #include "drivers/sim/scene.h"
 #include "sdk/core/device.h"
 #include "sdk/core/image.h"
+#include "sdk/core/memory_type.h"
 #include "sdk/core/pose.h"
 #include "sdk/core/ray_map.h"
 
@@ -68,6 +69,9 @@ class Renderer {
   // Any pattern (e.g. a dark projector: PatternKind::kBlack); `image_key` selects the noise
   // draw within the frame (render_pattern(j) uses j).
   Image16u render(const PatternDesc& pattern, std::uint32_t image_key, double exposure_scale = 1.0);
+  // Where render() and render_pattern() put their images (default kHost; kPinned: a simulated
+  // camera delivering for a GPU scan).
+  void set_image_memory(MemoryType memory) { image_memory_ = memory; }
   // The same, left in device memory (benchmarks: what a GPU pipeline would decode in place).
   void render_pattern_resident(int pattern);
   // Waits for the device (benchmarks).
@@ -85,6 +89,7 @@ class Renderer {
   Scene scene_;
   Device device_;
   int frame_ = -1;
+  MemoryType image_memory_ = MemoryType::kHost;
   std::unique_ptr<RayMap> rays_;  // the backends read it for every frame
   std::unique_ptr<RenderBackend> backend_;
 };

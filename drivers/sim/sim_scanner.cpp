@@ -42,6 +42,10 @@ class SimCamera final : public drivers::Camera {
     if (!started_) throw_error(ErrorCode::kInvalidArgument, "{}: software trigger before start()", scanner_->uri());
     ++pending_;
   }
+  void set_image_memory(MemoryType memory) override {
+    drivers::Camera::set_image_memory(memory);
+    scanner_->set_image_memory(memory);
+  }
   drivers::CapturedImage wait_image(std::chrono::milliseconds timeout) override {
     if (!started_ || pending_ == 0) {
       throw_error(ErrorCode::kTimeout, "{}: no image within {} ms (camera not started or not triggered)",
@@ -280,6 +284,11 @@ int SimScanner::ensure_frame_traced() {
   }
   if (renderer_.frame() != frame) renderer_.set_frame(frame);
   return frame;
+}
+
+void SimScanner::set_image_memory(MemoryType memory) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  renderer_.set_image_memory(memory);
 }
 
 drivers::CapturedImage SimScanner::capture() {

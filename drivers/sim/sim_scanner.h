@@ -58,6 +58,9 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   // Whether the scanner's simulated operator places the board itself (calibration=1 above).
   bool simulated_operator() const { return hand_placements_ > 0; }
 
+  // Where the camera's images go (drivers::Camera::set_image_memory).
+  void set_image_memory(MemoryType memory);
+
   // The ground truth of the frame the turntable (or the operator) is at now.
   GroundTruthFrame ground_truth();
   // Depth-only mode: the noisy depth map of the current frame.

@@ -22,5 +22,11 @@ namespace sls::fusion::deformation {
 void deform_cloud_part(const DeformationGraph& graph, const std::vector<NodeTransform>& transforms, int time,
                        PointCloud* cloud, std::size_t begin, std::size_t end,
                        std::vector<float>* displacement_m = nullptr);
+// The same read from `from` and written to `to` from point `to_begin` on (positions, and
+// normals when `from` has them; `to` sized already, e.g. by join_clouds without its geometry):
+// the model deformed as it is joined, one pass over its points. `displacement_m` indexed as `to`.
+void deform_cloud_part(const DeformationGraph& graph, const std::vector<NodeTransform>& transforms, int time,
+                       const PointCloud& from, std::size_t begin, std::size_t end, PointCloud* to,
+                       std::size_t to_begin, std::vector<float>* displacement_m = nullptr);
 
 }  // namespace sls::fusion::deformation

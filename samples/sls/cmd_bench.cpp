@@ -28,6 +28,7 @@
 #include "sdk/eval/evaluate.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
+#include "sdk/core/memory_type.h"
 #include "sdk/core/serial_worker.h"
 #include "sdk/core/stopwatch.h"
 #include "sdk/core/trajectory.h"
@@ -45,6 +46,7 @@ struct BenchOptions {
   bool turntable_prior = false;
   std::string deformation = "on";
   std::string upload_ahead = "on";
+  std::string stack_memory = "auto";
   std::string background_shipping = "on";
   double max_gpu_memory = 0.0;
   std::string device;
@@ -150,6 +152,9 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
   const sim::Scene scene = sim::make_scene(options.object);
   const sim::SimRig rig = sim::make_rig(rig_options, scene);
   sim::Renderer renderer(rig, scene, device);
+  // As a camera delivers a GPU scan's images (drivers::Camera::set_image_memory).
+  const bool pinned_stacks = options.stack_memory == "pinned" || (options.stack_memory == "auto" && device.is_cuda());
+  renderer.set_image_memory(pinned_stacks ? MemoryType::kPinned : MemoryType::kHost);
   const int frames = rig.turntable.steps_per_revolution;
   const bool patterns = options.input == "patterns";
 
@@ -194,6 +199,8 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
   // until both are done.
   const bool upload_ahead = options.upload_ahead == "on" && session.uploads_ahead();
   session::ScanFrame next = render(0);
+  // What the images got (a pinned request falls back to pageable where none can be had).
+  MemoryType stack_memory = next.images.empty() ? MemoryType::kHost : next.images.front().memory_type();
   // What the GPU holds before the scan's first frame (the renderer, the decoder), and the most
   // from here to the final model.
   const GpuAllocations before_scan = gpu_allocations();
@@ -203,6 +210,7 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
     report_progress(progress, {"bench", static_cast<std::size_t>(k), static_cast<std::size_t>(frames), ""});
     const session::ScanFrame frame = std::move(next);
     next = k + 1 < frames ? render(k + 1) : session::ScanFrame{};
+    if (!next.images.empty()) stack_memory = next.images.front().memory_type();
     const SteadyClock::time_point start = SteadyClock::now();
     std::future<bool> ahead;
     const WaitOnExit<bool> wait_upload(ahead);  // before `next` moves, also when add_frame throws
@@ -249,7 +257,8 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
   }
   const double loop_s = ms_since(start) * 1e-3;
   start = SteadyClock::now();
-  const fusion::ExtractedSurface model = session.final_surface();
+  session::ModelTimes model_times;
+  const fusion::ExtractedSurface model = session.final_surface(&model_times);
   const double extract_s = ms_since(start) * 1e-3;
   const GpuAllocations scan_allocations = gpu_allocations();
 
@@ -262,6 +271,7 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
       {"object", options.object},
       {"input", options.input},
       {"upload_ahead", upload_ahead},
+      {"stack_memory", memory_type_name(stack_memory)},
       {"background_shipping", device.is_cuda() && session_options.ship_in_background},
       {"device", device.to_string()},
       {"frames", frames},
@@ -285,6 +295,13 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
       {"frames_s", frames_s},
       {"loop_closure_s", loop_s},
       {"extract_s", extract_s},
+      // The final model's parts (ScanSession::ModelTimes), seconds.
+      {"extract_stages",
+       {{"wait_ship_s", model_times.volume.wait_ship_ms * 1e-3},
+        {"volume_surface_s", model_times.volume.extract_ms * 1e-3},
+        {"assemble_s", model_times.volume.assemble_ms * 1e-3},
+        {"join_s", model_times.volume.join_ms * 1e-3},
+        {"deform_s", model_times.deform_ms * 1e-3}}},
       {"render_s", render_s},
       {"frame_ms", {{"median", quantile(frame_ms, 0.5)}, {"p95", quantile(frame_ms, 0.95)}, {"max", quantile(frame_ms, 1.0)}}},
       {"stages",
@@ -328,6 +345,12 @@ void print_bench(const nlohmann::json& r) {
                            "(rendering {:.2f} s, not timed)\n",
                            r["end_to_end_s"].get<double>(), r["frames_s"].get<double>(),
                            r["loop_closure_s"].get<double>(), r["extract_s"].get<double>(), r["render_s"].get<double>());
+  const nlohmann::json& m = r["extract_stages"];
+  std::cout << fmt::format("final model s: waiting for a ship {:.2f}, the volume's surface {:.2f} (host assembly "
+                           "{:.2f}), joined to the shipped parts {:.2f}, deformed {:.2f}; stacks in {} memory\n",
+                           m["wait_ship_s"].get<double>(), m["volume_surface_s"].get<double>(),
+                           m["assemble_s"].get<double>(), m["join_s"].get<double>(), m["deform_s"].get<double>(),
+                           r["stack_memory"].get<std::string>());
   std::cout << fmt::format("frame ms: median {:.1f}, p95 {:.1f}, max {:.1f}; fused {} of {} ({} at the turntable "
                            "prior, unverified), {} moves\n",
                            r["frame_ms"]["median"].get<double>(), r["frame_ms"]["p95"].get<double>(),
@@ -392,6 +415,11 @@ void add_bench_command(CLI::App& app, Context& context, int* exit_code) {
                       "On a GPU, upload the next frame's pattern stack while this one is fused, as a live scan does "
                       "(off: each frame uploads its own)")
       ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  command->add_option("--stack-memory", options->stack_memory,
+                      "Where the pattern images lie before the upload: pinned (page-locked, as a camera captures "
+                      "them for a GPU scan), pageable, or auto (pinned on a GPU)")
+      ->check(CLI::IsMember({"auto", "pinned", "pageable"}))
       ->capture_default_str();
   command->add_option("--background-shipping", options->background_shipping,
                       "On a GPU, ship a volume move's surface beside the frame loop, as a scan does (off: each move "

@@ -12,7 +12,9 @@
 #include <vector>
 
 #include "sdk/core/error.h"
+#include "sdk/core/host_buffer.h"
 #include "sdk/core/host_device.h"
+#include "sdk/core/memory_type.h"
 
 namespace sls {
 
@@ -40,27 +42,37 @@ struct ImageView {
   SLS_HOST_DEVICE operator ImageView<const T>() const { return {data, width, height, stride_bytes}; }
 };
 
+// An owning image in host memory: pageable, or page-locked (MemoryType::kPinned) for images a
+// GPU reads — a camera's pattern images when the scan fuses on a GPU. Copies live where the
+// source lives.
 template <typename T>
 class Image {
   static_assert(std::is_arithmetic_v<T>, "pixels are integers or floats");
 
  public:
   Image() = default;
-  Image(int width, int height, T fill = T{}) { resize(width, height, fill); }
+  // An empty image whose pixels, once resized, go to `memory` (a driver fills it with resize).
+  explicit Image(MemoryType memory) : memory_(memory) {}
+  Image(int width, int height, T fill = T{}, MemoryType memory = MemoryType::kHost) : memory_(memory) {
+    resize(width, height, fill);
+  }
 
+  // Into the memory the image was made for (a kPinned request may get pageable memory:
+  // memory_type() says where the pixels are).
   void resize(int width, int height, T fill = T{}) {
     if (width < 0 || height < 0) {
       throw_error(ErrorCode::kInvalidArgument, "image size {}x{} is negative", width, height);
     }
     width_ = width;
     height_ = height;
-    pixels_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), fill);
+    pixels_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), fill, memory_);
   }
 
   int width() const { return width_; }
   int height() const { return height_; }
   bool empty() const { return pixels_.empty(); }
   std::size_t pixel_count() const { return pixels_.size(); }
+  MemoryType memory_type() const { return pixels_.memory_type(); }
   std::size_t size_bytes() const { return pixels_.size() * sizeof(T); }
   std::size_t stride_bytes() const { return static_cast<std::size_t>(width_) * sizeof(T); }
 
@@ -84,7 +96,8 @@ class Image {
 
   int width_ = 0;
   int height_ = 0;
-  std::vector<T> pixels_;
+  MemoryType memory_ = MemoryType::kHost;  // where resize() puts the pixels
+  HostBuffer<T> pixels_;
 };
 
 using Image8u = Image<std::uint8_t>;

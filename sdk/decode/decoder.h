@@ -128,7 +128,9 @@ class Decoder {
   // it on another thread while this decoder decodes, and the scan fuses, the frame before, so
   // that the upload (~11 ms at 12 MP) overlaps that work; the decode() of these same images
   // then takes the stack instead of uploading it (and waits for this upload if it is still
-  // under way). The images must stay alive and unchanged until then. One stack waits at a
+  // under way). The images must stay alive until then (the decode knows them by address); once
+  // prefetch() has returned their pixels have been read (page-locked images too, which the copy
+  // engine reads in place: it waits for that). One stack waits at a
   // time: a newer prefetch replaces it. Thread-safe against one decode() at a time on another
   // thread. Returns false when nothing was uploaded: a CPU decoder, a stack decode() would
   // refuse for its count or sizes (it then says why), or no upload slot to spare. Throws what

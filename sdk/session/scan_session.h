@@ -243,6 +243,14 @@ struct FrameMaps {
   }
 };
 
+// Where ScanSession::final_surface() spent its time (ms, wall): the moving volume's part (the
+// wait for a ship, the volume's own surface, the join), then the deformation of the whole model
+// by the graph (0 without online deformation).
+struct ModelTimes {
+  fusion::FinalSurfaceTimes volume;
+  double deform_ms = 0.0;
+};
+
 class ScanSession {
  public:
   // `patterns`: the set the frames' stacks use (null: frames carry depth maps). Validates and
@@ -281,7 +289,8 @@ class ScanSession {
   // The model so far: the shipped parts plus the current volume's surface (world frame),
   // deformed by the graph when online deformation is on (each part by the nodes of its time;
   // the cloud then carries the float property "correction": how far each point moved, m).
-  fusion::ExtractedSurface final_surface() const;
+  // `times`, when given: where the time went (ModelTimes).
+  fusion::ExtractedSurface final_surface(ModelTimes* times = nullptr) const;
   // The same without the deformation (as tracked).
   fusion::ExtractedSurface final_surface_undeformed() const;
   // The fused frames' poses as tracked (trajectory() gives them deformed).

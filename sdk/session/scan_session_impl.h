@@ -283,7 +283,7 @@ struct ScanSession::Impl {
   void add_to_graph(int frame, const Pose& T_world_camera, std::optional<double> angle_deg, FrameMaps& maps,
                     FrameDeformation* out);
   // The model (shipped parts and the current volume), deformed or not.
-  fusion::ExtractedSurface surface(bool deformed) const;
+  fusion::ExtractedSurface surface(bool deformed, ModelTimes* times = nullptr) const;
 
   Eigen::Vector3d focus_point(const Pose& T_world_camera) const {
     return T_world_camera * Eigen::Vector3d(0.0, 0.0, focus_distance_m);

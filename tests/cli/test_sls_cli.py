@@ -84,7 +84,8 @@ class SlsCli(unittest.TestCase):
         # A short ci-preset revolution, both inputs: the end-to-end seconds hold the frames, the
         # loop closure and the final model, with every stage's median and total beside them.
         for extra in (("--input", "depth", "--deformation", "off"),
-                      ("--frames", "3", "--turntable-prior", "--upload-ahead", "off", "--background-shipping", "off")):
+                      ("--frames", "3", "--turntable-prior", "--upload-ahead", "off", "--background-shipping", "off",
+                       "--stack-memory", "pinned")):
             # A GPU memory budget does not apply on the CPU: accepted, and the run is the same.
             args = ("--json", "bench", "--preset", "ci", "--object", "knurled-knob", "--device", "cpu",
                     "--max-gpu-memory", "6e9")
@@ -97,6 +98,12 @@ class SlsCli(unittest.TestCase):
             self.assertEqual((bench["preset"], bench["frames"], bench["device"]), ("ci", frames, "cpu"))
             self.assertAlmostEqual(bench["end_to_end_s"],
                                    bench["frames_s"] + bench["loop_closure_s"] + bench["extract_s"], places=6)
+            # The final model's parts lie within it (the assembly is part of the volume's surface).
+            parts = bench["extract_stages"]
+            self.assertLessEqual(parts["wait_ship_s"] + parts["volume_surface_s"] + parts["join_s"] + parts["deform_s"],
+                                 bench["extract_s"] + 1e-6)
+            self.assertLessEqual(parts["assemble_s"], parts["volume_surface_s"] + 1e-9)
+            self.assertEqual(parts["deform_s"] > 0.0, "--deformation" not in extra)
             self.assertGreater(bench["frames_s"], 0.0)
             self.assertGreater(bench["points"], 0)
             # Frames fused at the turntable prior without being tracked are counted among the fused.
@@ -117,6 +124,12 @@ class SlsCli(unittest.TestCase):
             self.assertFalse(bench["upload_ahead"])  # on the CPU there is nothing to upload
             self.assertEqual(bench["stages"]["upload_wait"]["total_s"], 0.0)
             self.assertFalse(bench["background_shipping"])  # nor to ship beside the frames
+            # Pattern images page-locked only when asked for (auto: on a GPU) and a GPU can lock them.
+            if "--stack-memory" in extra:
+                has_gpu = bool(json.loads(run("--json", "info").stdout)["cuda_devices"])
+                self.assertEqual(bench["stack_memory"], "pinned" if has_gpu else "host")
+            else:
+                self.assertEqual(bench["stack_memory"], "host")
             # The model's accuracy against the exact scene, measured after the timed part (JSON
             # has no NaN or infinity: a figure that could not be measured is null).
             accuracy = bench["accuracy"]

@@ -12,6 +12,7 @@
 #include "sdk/core/cuda/cuda_check.h"
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/host_memory.h"
+#include "sdk/core/pinned_memory.h"
 
 namespace sls::detail {
 namespace {
@@ -87,20 +88,6 @@ void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& t
   }
   SLS_CUDA_CHECK_LAUNCH();
 }
-
-namespace {
-
-// Page-locked host memory (cudaMallocHost, cudaHostRegister): the copy engine reads it directly.
-bool is_pinned(const void* host) {
-  cudaPointerAttributes attributes{};
-  if (cudaPointerGetAttributes(&attributes, host) != cudaSuccess) {
-    (void)cudaGetLastError();  // older drivers: an error for plain pageable memory
-    return false;
-  }
-  return attributes.type == cudaMemoryTypeHost;
-}
-
-}  // namespace
 
 struct CudaDecodeContext::State {
   DecodeParams decode;
@@ -312,11 +299,15 @@ void CudaDecodeContext::upload_into(int slot, const std::uint16_t* const* planes
   // recorded lets the wait through; a free slot's last decode_slot has recorded it).
   SLS_CUDA_CHECK(cudaStreamWaitEvent(s.copy_stream, s.consumed[slot], 0));
   const std::size_t plane_bytes = s.pixels * sizeof(std::uint16_t);
+  bool read_in_place = false;  // a page-locked plane the copy engine reads after we return
   for (std::size_t k = 0; k < count; ++k) {
     std::uint16_t* destination = buffer.data() + k * s.pixels;
     // Small planes (under 4 MiB: the demo's 800x600) the driver stages well itself; ours pays off at 12 MP.
-    if (plane_bytes < (std::size_t{4} << 20) || is_pinned(planes[k])) {
+    // A page-locked plane (a camera's image captured for a GPU scan) needs no staging at all.
+    const bool page_locked = is_page_locked(planes[k]);
+    if (plane_bytes < (std::size_t{4} << 20) || page_locked) {
       SLS_CUDA_CHECK(cudaMemcpyAsync(destination, planes[k], plane_bytes, cudaMemcpyHostToDevice, s.copy_stream));
+      read_in_place = read_in_place || page_locked;
       continue;
     }
     const int b = s.next_staging;
@@ -338,6 +329,9 @@ void CudaDecodeContext::upload_into(int slot, const std::uint16_t* const* planes
     SLS_CUDA_CHECK(cudaEventRecord(s.staging_free[b], s.copy_stream));
   }
   SLS_CUDA_CHECK(cudaEventRecord(s.uploaded[slot], s.copy_stream));
+  // The caller may free or refill its images once this returns (the pageable paths have copied
+  // them by then); a page-locked plane is read by the copy engine meanwhile, so wait for it.
+  if (read_in_place) SLS_CUDA_CHECK(cudaEventSynchronize(s.uploaded[slot]));
 }
 
 void CudaDecodeContext::require_uploaded(int slot, const char* caller) {

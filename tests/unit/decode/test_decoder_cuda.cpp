@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <future>
 #include <string>
 #include <vector>
@@ -345,6 +346,37 @@ TEST(DecoderCuda, StacksUploadedAheadOnAnotherThreadDecodeAsTheirOwn) {
   for (std::size_t k = 0; k < a.stack.size(); ++k) small.emplace_back(8, 8);
   EXPECT_FALSE(gpu.prefetch(small));
   EXPECT_FALSE(cpu.prefetch(a.stack));
+}
+
+// A stack captured into page-locked memory (a camera's images for a GPU scan) is uploaded
+// without staging and decodes as the pageable one does, to the bit; its images may be
+// overwritten as soon as prefetch() returns (the copy engine has read them by then).
+TEST(DecoderCuda, APageLockedStackDecodesAsThePageableOneAndIsFreeOncePrefetched) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const Case a = render_case("knurled-screw", 400);
+  std::vector<Image16u> pinned;
+  for (const Image16u& image : a.stack) {
+    pinned.emplace_back(MemoryType::kPinned);
+    pinned.back().resize(image.width(), image.height());
+    std::copy(image.data(), image.data() + image.pixel_count(), pinned.back().data());
+    ASSERT_EQ(pinned.back().memory_type(), MemoryType::kPinned);
+  }
+  // Bit for bit (not ==: invalid pixels are NaN in the float maps).
+  const auto same_bits = [](const auto& a, const auto& b) {
+    return a.size_bytes() == b.size_bytes() && std::memcmp(a.data(), b.data(), a.size_bytes()) == 0;
+  };
+  Decoder gpu(a.rig.patterns, a.rig.calibration(), Device::cuda(), options());
+  const DecodedFrame from_pageable = gpu.decode(a.stack);
+  const DecodedFrame from_pinned = gpu.decode(pinned);
+  EXPECT_TRUE(same_bits(from_pinned.mask, from_pageable.mask));
+  EXPECT_TRUE(same_bits(from_pinned.depth_m, from_pageable.depth_m));
+  EXPECT_TRUE(same_bits(from_pinned.projector_u, from_pageable.projector_u));
+  // Prefetched, then the images scribbled over before the decode takes the upload.
+  ASSERT_TRUE(gpu.prefetch(pinned));
+  for (Image16u& image : pinned) std::fill(image.data(), image.data() + image.pixel_count(), std::uint16_t{0});
+  const DecodedFrame prefetched = gpu.decode(pinned);  // the same planes: the prefetched upload
+  EXPECT_TRUE(same_bits(prefetched.mask, from_pageable.mask));
+  EXPECT_TRUE(same_bits(prefetched.depth_m, from_pageable.depth_m));
 }
 
 // The context's slots: a prefetched stack is taken once, by its own planes only; with both

@@ -16,6 +16,7 @@
 #include "fusion/deformation/map_deformation.h"
 #include "fusion/deformation/sparse_cholesky.h"
 #include "sdk/core/error.h"
+#include "tests/support/test_support.h"
 
 namespace sls::fusion::deformation {
 namespace {
@@ -427,6 +428,54 @@ TEST(DeformationGraph, MapDeformationEqualsThePerPointDeformation) {
     const Eigen::Vector3d n = graph.deform_normal(original.normals[i].cast<double>(), binding);
     EXPECT_LT((cloud.normals[i].cast<double>() - n).norm(), 1e-6) << i;
   }
+}
+
+// The model deformed as it is joined (ScanSession's final model): read from one cloud, written
+// into another at an offset, the same points to the bit as deformed in place; a destination
+// too small, or without normals for a source that has them, is refused.
+TEST(DeformationGraph, MapDeformationIntoAnotherCloudEqualsInPlace) {
+  DeformationGraph graph = arc_graph(16, options_for_tests());
+  for (int j = 2; j < 16; ++j) {
+    graph.set_transform(j, Eigen::AngleAxisd(0.001 * j, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
+                        Eigen::Vector3d(2e-6 * j * j, -1e-6 * j, 0.0));
+  }
+  PointCloud source;
+  for (int j = 0; j < 16; ++j) {
+    for (const Eigen::Vector3d& p : points_near(graph, j, 5)) {
+      source.positions.push_back(p.cast<float>());
+      source.normals.push_back(Eigen::Vector3f(0.0f, 0.6f, 0.8f));
+    }
+  }
+  const int time = graph.node(11).time;
+  const std::vector<NodeTransform> transforms = graph.transforms();
+  PointCloud in_place = source;
+  std::vector<float> displacement_in_place;
+  deform_cloud_part(graph, transforms, time, &in_place, 10, 60, &displacement_in_place);
+  PointCloud into;
+  into.positions.assign(source.size() + 7, Eigen::Vector3f::Constant(-1.0f));
+  into.normals.assign(source.size() + 7, Eigen::Vector3f::Zero());
+  std::vector<float> displacement;
+  deform_cloud_part(graph, transforms, time, source, 10, 60, &into, 17, &displacement);
+  ASSERT_EQ(displacement.size(), into.size());
+  for (std::size_t i = 0; i < into.size(); ++i) {
+    if (i < 17 || i >= 67) {
+      EXPECT_EQ(into.positions[i], Eigen::Vector3f::Constant(-1.0f)) << i;  // outside the range: untouched
+      EXPECT_EQ(displacement[i], 0.0f);
+      continue;
+    }
+    EXPECT_EQ(into.positions[i], in_place.positions[i - 7]) << i;
+    EXPECT_EQ(into.normals[i], in_place.normals[i - 7]) << i;
+    EXPECT_EQ(displacement[i], displacement_in_place[i - 7]) << i;
+  }
+  PointCloud small;
+  small.positions.resize(40);
+  small.normals.resize(40);
+  EXPECT_EQ(test::code_of([&] { deform_cloud_part(graph, transforms, time, source, 10, 60, &small, 0); }),
+            ErrorCode::kInvalidArgument);
+  PointCloud no_normals;
+  no_normals.positions.resize(source.size());
+  EXPECT_EQ(test::code_of([&] { deform_cloud_part(graph, transforms, time, source, 10, 60, &no_normals, 0); }),
+            ErrorCode::kInvalidArgument);
 }
 
 TEST(DeformationGraph, BindsToTheNodesOfItsTime) {

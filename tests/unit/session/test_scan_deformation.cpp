@@ -94,6 +94,25 @@ TEST(ScanDeformation, ClosesATurntableRevolution) {
   for (float v : correction->values) largest = std::max(largest, static_cast<double>(v));
   EXPECT_GT(largest, 10e-6);
   EXPECT_EQ(model.mesh.vertices.size(), as_tracked.mesh.vertices.size());
+  // Deformed as it was joined: every point is the tracked one moved by its correction (none
+  // left unwritten), the mesh's vertices likewise within the largest, and everything else
+  // (confidence, properties, triangles) the tracked model's.
+  for (std::size_t i = 0; i < model.cloud.size(); ++i) {
+    const float moved = (model.cloud.positions[i] - as_tracked.cloud.positions[i]).norm();
+    ASSERT_NEAR(moved, correction->values[i], 1e-6f + 1e-3f * correction->values[i]) << "point " << i;
+    ASSERT_NEAR(model.cloud.normals[i].norm(), 1.0f, 1e-4f) << "point " << i;
+  }
+  for (std::size_t i = 0; i < model.mesh.vertices.size(); ++i) {
+    ASSERT_LE((model.mesh.vertices.positions[i] - as_tracked.mesh.vertices.positions[i]).norm(), 1.01 * largest + 1e-7)
+        << "vertex " << i;
+  }
+  EXPECT_EQ(model.cloud.confidence, as_tracked.cloud.confidence);
+  EXPECT_EQ(model.mesh.faces, as_tracked.mesh.faces);
+  for (const PointProperty& property : as_tracked.cloud.properties) {
+    const PointProperty* kept = model.cloud.find_property(property.name);
+    ASSERT_NE(kept, nullptr) << property.name;
+    EXPECT_EQ(kept->values, property.values) << property.name;
+  }
 
   const ScanSession::GraphSummary graph = session.graph_summary();
   EXPECT_EQ(graph.nodes, keyframes);

@@ -1,0 +1,105 @@
+// Host memory that knows where it lives: pageable buffers, page-locked ones from the pinned
+// cache where a GPU can lock them (else pageable, and saying so), deep copies that stay where
+// the source lives, and the cache's reuse and limit.
+#include <cstdint>
+
+#include <gtest/gtest.h>
+
+#include "sdk/core/device.h"
+#include "sdk/core/host_buffer.h"
+#include "sdk/core/image.h"
+#include "sdk/core/pinned_memory.h"
+
+namespace sls {
+namespace {
+
+bool gpu_present() { return cuda_compiled() && cuda_device_count() > 0; }
+
+TEST(HostBuffer, PageableBufferHoldsItsValuesAndCopiesDeep) {
+  HostBuffer<std::uint16_t> buffer(1000, 7);
+  EXPECT_EQ(buffer.size(), 1000u);
+  EXPECT_EQ(buffer.memory_type(), MemoryType::kHost);
+  EXPECT_FALSE(is_page_locked(buffer.data()));
+  buffer[999] = 9;
+  HostBuffer<std::uint16_t> copy = buffer;
+  EXPECT_EQ(copy, buffer);
+  EXPECT_NE(copy.data(), buffer.data());
+  copy[0] = 1;
+  EXPECT_EQ(buffer[0], 7);
+  HostBuffer<std::uint16_t> moved = std::move(copy);
+  EXPECT_TRUE(copy.empty());  // NOLINT(bugprone-use-after-move): a moved-from buffer is empty
+  EXPECT_EQ(moved[0], 1);
+  moved.assign(0, 0);
+  EXPECT_TRUE(moved.empty());
+  EXPECT_EQ(moved.data(), nullptr);
+}
+
+TEST(HostBuffer, PinnedRequestIsPinnedWhereAGpuIsElsePageable) {
+  const PinnedMemoryStatistics before = pinned_memory_statistics();
+  {
+    HostBuffer<float> buffer(4096, 0.5f, MemoryType::kPinned);
+    EXPECT_EQ(buffer.size(), 4096u);
+    EXPECT_EQ(buffer[4095], 0.5f);
+    if (gpu_present()) {
+      EXPECT_EQ(buffer.memory_type(), MemoryType::kPinned);
+      EXPECT_TRUE(is_page_locked(buffer.data()));
+      EXPECT_EQ(pinned_memory_statistics().in_use_bytes, before.in_use_bytes + 4096 * sizeof(float));
+    } else {
+      EXPECT_EQ(buffer.memory_type(), MemoryType::kHost);  // said, not pretended
+      EXPECT_FALSE(is_page_locked(buffer.data()));
+      EXPECT_EQ(pinned_memory_statistics().refusals, before.refusals + 1);
+    }
+    // A copy lives where its source lives.
+    const HostBuffer<float> copy = buffer;
+    EXPECT_EQ(copy.memory_type(), buffer.memory_type());
+    EXPECT_EQ(copy, buffer);
+  }
+  EXPECT_EQ(pinned_memory_statistics().in_use_bytes, before.in_use_bytes);
+}
+
+TEST(HostBuffer, PinnedBlocksAreReusedFromTheCacheWithinItsLimit) {
+  if (!gpu_present()) GTEST_SKIP() << "no GPU: nothing is page-locked here";
+  trim_pinned_cache();
+  const std::size_t count = 3 * 1024 * 1024 + 17;  // a size no other test asks for
+  const void* first = nullptr;
+  {
+    HostBuffer<std::uint16_t> buffer(count, 1, MemoryType::kPinned);
+    first = buffer.data();
+  }
+  const PinnedMemoryStatistics cached = pinned_memory_statistics();
+  EXPECT_EQ(cached.cached_bytes, count * sizeof(std::uint16_t));
+  {
+    const HostBuffer<std::uint16_t> again(count, 2, MemoryType::kPinned);
+    EXPECT_EQ(again.data(), first);  // the cached block, not a new page-locking
+    EXPECT_EQ(again[count - 1], 2);
+    EXPECT_EQ(pinned_memory_statistics().reuses, cached.reuses + 1);
+    EXPECT_EQ(pinned_memory_statistics().allocations, cached.allocations);
+  }
+  // Under a lower limit the cache keeps nothing more than it: blocks beyond go back at once.
+  set_pinned_cache_limit(1024);
+  EXPECT_EQ(pinned_memory_statistics().cached_bytes, 0u);
+  { const HostBuffer<std::uint16_t> more(count, 3, MemoryType::kPinned); }
+  EXPECT_EQ(pinned_memory_statistics().cached_bytes, 0u);
+  set_pinned_cache_limit(std::uint64_t{4} << 30);
+}
+
+TEST(Image, KeepsTheMemoryItWasMadeFor) {
+  Image16u plain(8, 4, 3);
+  EXPECT_EQ(plain.memory_type(), MemoryType::kHost);
+  // A driver makes an empty image for pinned memory and fills it by resize.
+  Image16u captured(MemoryType::kPinned);
+  captured.resize(64, 32, 5);
+  const MemoryType expected = gpu_present() ? MemoryType::kPinned : MemoryType::kHost;
+  EXPECT_EQ(captured.memory_type(), expected);
+  EXPECT_EQ(captured(63, 31), 5);
+  const Image16u copy = captured;
+  EXPECT_EQ(copy.memory_type(), expected);
+  EXPECT_EQ(copy, captured);
+  Image16u resized = copy;
+  resized.resize(16, 16, 1);  // still where it was made
+  EXPECT_EQ(resized.memory_type(), expected);
+  EXPECT_EQ(resized.pixel_count(), 256u);
+}
+
+}  // namespace
+}  // namespace sls
