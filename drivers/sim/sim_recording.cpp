@@ -4,6 +4,8 @@
 
 #include <cerrno>
 #include <filesystem>
+#include <memory>
+#include <optional>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -14,6 +16,7 @@
 #include "sdk/core/file_util.h"
 #include "sdk/core/ply.h"
 #include "sdk/core/recording.h"
+#include "sdk/core/recording_writer_thread.h"
 #include "sdk/core/trajectory.h"
 #include "sdk/decode/hdr_fusion.h"
 
@@ -193,73 +196,107 @@ SimRecordingSummary write_sim_recording(const std::string& folder, const SimReco
   info.has_groundtruth = true;
   // Depth maps around the 100 mm working distance: store 70 .. 135.5 mm at 1 µm steps.
   info.depth_offset_m = rig.optics.working_distance_m - 0.030;
-  std::vector<StampedPose> trajectory;
-  RecordingWriter writer = options.resume ? resume_recording(folder, info, *scanner, &trajectory)
-                                          : RecordingWriter::create(folder, info, rig.calibration());
-  const std::string truth_folder = writer.groundtruth_folder();
-  const std::string trajectory_path = truth_folder + "/trajectory.txt";
-  const double spacing =
-      options.reference_spacing_m > 0.0 ? options.reference_spacing_m : default_reference_spacing_m(options.rig.preset);
-  bool scene_written = true;
-  for (const char* name : {"scene.json", "rig.json", "reference.ply", "creases.ply"}) {
-    scene_written = scene_written && is_file(truth_folder + "/" + name);
+  if (options.resume && !options.record) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "resume continues the recording at {}; a capture that records nothing has none to continue", folder);
   }
-  if (!options.resume || !scene_written) write_scene_ground_truth(*scanner, truth_folder, spacing);
+  std::vector<StampedPose> trajectory;
+  std::optional<RecordingWriter> writer;
+  std::string truth_folder, trajectory_path;
+  if (options.record) {
+    writer.emplace(options.resume ? resume_recording(folder, info, *scanner, &trajectory)
+                                  : RecordingWriter::create(folder, info, rig.calibration()));
+    truth_folder = writer->groundtruth_folder();
+    trajectory_path = truth_folder + "/trajectory.txt";
+    const double spacing = options.reference_spacing_m > 0.0 ? options.reference_spacing_m
+                                                             : default_reference_spacing_m(options.rig.preset);
+    bool scene_written = true;
+    for (const char* name : {"scene.json", "rig.json", "reference.ply", "creases.ply"}) {
+      scene_written = scene_written && is_file(truth_folder + "/" + name);
+    }
+    if (!options.resume || !scene_written) write_scene_ground_truth(*scanner, truth_folder, spacing);
+  }
+  if (options.described) options.described(writer ? writer->info() : info, rig.calibration());
 
+  // The frames' writes beside the capture (recording_writer_thread.h); destroyed before the
+  // writer and the trajectory they use: unwinding writes every frame captured.
+  RecordingWriterThread writes(folder, options.write_queue_frames);
+  const auto keep_write_statistics = [&] {
+    if (options.write_statistics != nullptr) *options.write_statistics = writes.statistics();
+  };
   SimDevices devices = start_sim_devices(*scanner);
   const int frames = rig.turntable.steps_per_revolution;
-  const int first = static_cast<int>(writer.frame_count());
-  for (int frame = first; frame < frames; ++frame) {
-    devices.turntable->move_to_deg(rig.commanded_angle_deg(frame), kSimDeviceTimeout);
-    FrameMetadata metadata;
-    metadata.turntable_angle_deg = devices.turntable->position_deg();
-    std::vector<Image16u> images;
-    Image32f depth;
-    if (depth_mode) {
-      depth = scanner->depth_map();
-      metadata.timestamp_ns = static_cast<std::int64_t>(frame) * 333'333'333;
-    } else {
-      // Exposure-major: the whole stack at each exposure in turn, as the capture sequencer does.
-      for (std::size_t e = 0; e < exposures.count(); ++e) {
-        if (exposures.is_hdr()) devices.camera->set_exposure_us(kSimNominalExposureUs * exposures.scales[e]);
-        std::int64_t timestamp_ns = 0;
-        std::vector<Image16u> stack =
-            capture_pattern_stack(devices, static_cast<int>(rig.patterns.size()), &timestamp_ns);
-        if (e == 0) metadata.timestamp_ns = timestamp_ns;
-        for (Image16u& image : stack) images.push_back(std::move(image));
+  const int first = writer ? static_cast<int>(writer->frame_count()) : 0;
+  try {
+    for (int frame = first; frame < frames; ++frame) {
+      devices.turntable->move_to_deg(rig.commanded_angle_deg(frame), kSimDeviceTimeout);
+      FrameMetadata metadata;
+      metadata.turntable_angle_deg = devices.turntable->position_deg();
+      std::vector<Image16u> images;
+      Image32f depth;
+      if (depth_mode) {
+        depth = scanner->depth_map();
+        metadata.timestamp_ns = static_cast<std::int64_t>(frame) * 333'333'333;
+      } else {
+        // Exposure-major: the whole stack at each exposure in turn, as the capture sequencer does.
+        for (std::size_t e = 0; e < exposures.count(); ++e) {
+          if (exposures.is_hdr()) devices.camera->set_exposure_us(kSimNominalExposureUs * exposures.scales[e]);
+          std::int64_t timestamp_ns = 0;
+          std::vector<Image16u> stack =
+              capture_pattern_stack(devices, static_cast<int>(rig.patterns.size()), &timestamp_ns);
+          if (e == 0) metadata.timestamp_ns = timestamp_ns;
+          for (Image16u& image : stack) images.push_back(std::move(image));
+        }
       }
-    }
-    step(SimFrameStep::kCaptured, frame);
-    // Everything of the frame goes to disk before the manifest lists it (sim_recording.h).
-    const auto before_listing = [&](int index) {
-      if (index != frame) {
-        throw_error(ErrorCode::kInternal, "{}: the recording numbers frame {} as {}", writer.folder(), frame, index);
+      step(SimFrameStep::kCaptured, frame);
+      // Shared read-only between the writer thread and the scan that fuses the frame.
+      auto stack = std::make_shared<const std::vector<Image16u>>(std::move(images));
+      auto stored_depth = depth_mode ? std::make_shared<const Image32f>(std::move(depth)) : nullptr;
+      if (writer) {
+        // Everything of the frame goes to disk before the manifest lists it (sim_recording.h);
+        // the ground truth of this turntable position is rendered now, written with the frame.
+        auto truth = std::make_shared<const GroundTruthFrame>(scanner->ground_truth());
+        writes.push(frame, [&, frame, stack, truth, stored_depth, metadata] {
+          const auto before_listing = [&](int index) {
+            if (index != frame) {
+              throw_error(ErrorCode::kInternal, "{}: the recording numbers frame {} as {}", writer->folder(), frame,
+                          index);
+            }
+            step(SimFrameStep::kImagesWritten, frame);
+            write_frame_ground_truth(*truth, truth_folder);
+            step(SimFrameStep::kGroundTruthWritten, frame);
+            trajectory.push_back({static_cast<double>(metadata.timestamp_ns) * 1e-9, rig.T_object_camera(frame)});
+            write_tum_trajectory(trajectory_path, trajectory);
+            step(SimFrameStep::kTrajectoryWritten, frame);
+          };
+          try {
+            writer->append_frame(*stack, metadata, stored_depth.get(), before_listing);
+          } catch (...) {
+            if (static_cast<int>(trajectory.size()) > frame) {
+              trajectory.pop_back();
+              trim_trajectory(trajectory_path, trajectory);
+            }
+            throw;
+          }
+          step(SimFrameStep::kListed, frame);
+        });
       }
-      step(SimFrameStep::kImagesWritten, frame);
-      write_frame_ground_truth(scanner->ground_truth(), truth_folder);
-      step(SimFrameStep::kGroundTruthWritten, frame);
-      trajectory.push_back({static_cast<double>(metadata.timestamp_ns) * 1e-9, rig.T_object_camera(frame)});
-      write_tum_trajectory(trajectory_path, trajectory);
-      step(SimFrameStep::kTrajectoryWritten, frame);
-    };
-    try {
-      writer.append_frame(images, metadata, depth_mode ? &depth : nullptr, before_listing);
-    } catch (...) {
-      if (static_cast<int>(trajectory.size()) > frame) {
-        trajectory.pop_back();
-        trim_trajectory(trajectory_path, trajectory);
+      if (options.on_recorded) {
+        if (depth_mode) depth = recorded_depth_m(*stored_depth, info);  // as a replay reads it back
+        options.on_recorded(frame, stack, metadata, depth_mode ? &depth : nullptr);
       }
-      throw;
+      report_progress(progress, {"capture", static_cast<std::size_t>(frame + 1), static_cast<std::size_t>(frames), ""});
     }
-    step(SimFrameStep::kListed, frame);
-    if (options.on_recorded) {
-      if (depth_mode) depth = recorded_depth_m(depth, writer.info());  // as a replay reads it back
-      options.on_recorded(frame, images, metadata, depth_mode ? &depth : nullptr);
-    }
-    report_progress(progress, {"capture", static_cast<std::size_t>(frame + 1), static_cast<std::size_t>(frames), ""});
+    writes.finish();
+  } catch (...) {
+    // Every frame captured is written before this rethrows (a write error then is logged).
+    writes.drain();
+    keep_write_statistics();
+    throw;
   }
+  keep_write_statistics();
   stop_sim_devices(devices);
-  writer.close();
+  if (writer) writer->close();
 
   SimRecordingSummary summary = recording_summary(*scanner, frames, info.images_per_frame, truth_folder);
   summary.resumed_from = options.resume ? first : 0;

@@ -12,6 +12,8 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,6 +22,7 @@
 #include "sdk/core/image.h"
 #include "sdk/core/progress.h"
 #include "sdk/core/recording.h"
+#include "sdk/core/recording_writer_thread.h"
 
 namespace sls::sim {
 
@@ -46,13 +49,26 @@ struct SimRecordingOptions {
   // Tests: called at each step of each frame; one that throws there stops the writer as a
   // crash or a full disk would at that point.
   std::function<void(SimFrameStep step, int frame)> step_hook;
-  // Called with each frame once the manifest lists it (fusing while capturing: a scan session
-  // takes it): its position in the recording, its images (empty in depth mode) and metadata,
-  // and in depth mode its depth map as the recording stores it (recorded_depth_m). It may take (move out) the images and the depth map; the
-  // writer does not use them afterwards. An exception from it ends the capture after that frame,
-  // which stays recorded, and propagates unchanged.
-  std::function<void(int frame, std::vector<Image16u>& images, const FrameMetadata& metadata, Image32f* depth_m)>
+  // Called with each frame once it is handed to the recording's writer thread (fusing while
+  // capturing: a scan session takes it): its position in the recording, its images shared
+  // read-only with the writer (empty in depth mode) and metadata, and in depth mode its depth map
+  // as the recording stores it (recorded_depth_m), which it may take (move out). An exception
+  // from it ends the capture after that frame, which is still written, and propagates unchanged.
+  std::function<void(int frame, const std::shared_ptr<const std::vector<Image16u>>& images,
+                     const FrameMetadata& metadata, Image32f* depth_m)>
       on_recorded;
+  // false (`sls scan --sim --no-record`): nothing touches the disk — no folder, no recording, no
+  // ground truth —; the frames go to on_recorded only. Refused with resume.
+  bool record = true;
+  // Frames waiting for the writer thread, at most (sdk/core/recording_writer_thread.h; 0: each
+  // frame written on the capturing thread before on_recorded sees it).
+  std::size_t write_queue_frames = 2;
+  // Called before the first frame, on the capturing thread: what the recording holds (or would
+  // hold, without `record`) and the calibration it is simulated with: what a scan session is
+  // made from when there is no recording to open.
+  std::function<void(const RecordingInfo& info, const std::optional<ScannerCalibration>& calibration)> described;
+  // When given: the writer thread's figures, filled when the capture ends, also when it throws.
+  RecordingWriteStatistics* write_statistics = nullptr;
 };
 
 struct SimRecordingSummary {
@@ -65,8 +81,10 @@ struct SimRecordingSummary {
   std::string groundtruth_folder;
 };
 
-// Writes the recording to `folder` (created; must not exist or be empty). Every frame is
-// flushed as it is captured, so an interrupted run (an error, or the progress callback
+// Writes the recording to `folder` (created; must not exist or be empty) on a writer thread
+// beside the capture (options.write_queue_frames); it returns once every frame is written, and
+// an error or a cancel writes every frame captured before it propagates. Every frame is
+// flushed as it is written, so an interrupted run (an error, or the progress callback
 // asking to stop: kCancelled after the current frame) leaves a valid recording of the frames
 // done. Crash consistency: a frame's images, its groundtruth/frames/NNNNNN/ files and its
 // pose in trajectory.txt are all on disk (fsynced, renamed into place) before the manifest

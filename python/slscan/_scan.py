@@ -214,7 +214,8 @@ class Scan(Handle):
         recording without calibration or when no frame could be fused."""
         return self._run(_lib.lib.sls_scan_run_recording, on_frame, with_depth, _lib.encode_path(path))
 
-    def run_devices(self, *, camera: str, projector: str, recording: PathLike, calibration: Optional[PathLike] = None,
+    def run_devices(self, *, camera: str, projector: str, recording: Optional[PathLike],
+                    calibration: Optional[PathLike] = None,
                     turntable: Optional[str] = None, frames: int = 0,
                     on_frame: Optional[FrameCallback] = None, with_depth: bool = False) -> ScanSummary:
         """Captures from devices by URI into a new recording and scans each stack as it is
@@ -228,6 +229,7 @@ class Scan(Handle):
             calibration: calibration.yml of these devices (stored in the recording); None: with a
                 ``replay://`` camera the replayed recording's (others need one).
             recording: the recording folder to create (must not exist or be empty); it is kept.
+                None with ``ScanConfig(no_record=True)``: nothing is recorded.
             turntable: a turntable URI, or None: every stack at one position.
             frames: frames per revolution, one revolution; 0: 36 with a turntable, else 1 (with a
                 ``replay://`` camera the replayed recording's frames).
@@ -238,7 +240,7 @@ class Scan(Handle):
         capture.projector_uri = _lib.encode(projector)
         capture.turntable_uri = _lib.encode(turntable)
         capture.calibration_path = None if calibration is None else _lib.encode_path(calibration)
-        capture.recording_path = _lib.encode_path(recording)
+        capture.recording_path = None if recording is None else _lib.encode_path(recording)
         capture.frames = int(frames)
         return self._run(_lib.lib.sls_scan_run_devices, on_frame, with_depth, ctypes.byref(capture))
 

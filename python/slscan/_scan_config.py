@@ -56,6 +56,10 @@ class ScanConfig:
         revisits: ``--revisits``: :class:`RevisitPolicy` or ``"auto"`` (default: every pass of the
             first revolution, then only surface no earlier move shipped, so a long session's
             model stays bounded), ``"keep"`` or ``"merge"``.
+        no_record: ``--no-record`` (since 0.7): :meth:`Scan.run_devices` fuses the capture while
+            it runs and writes none of it (``recording=None``): no rescan, no resume of a capture
+            cut off. Refused with ``poses="groundtruth"`` (default False: recorded, on a writer
+            thread beside the capture).
 
     A value out of range raises :class:`InvalidArgumentError` naming the field when the scan
     is made.
@@ -79,13 +83,14 @@ class ScanConfig:
     loop_closure: Optional[Union[LoopClosureMode, str]] = None
     max_gpu_bytes: Optional[float] = None
     revisits: Optional[Union[RevisitPolicy, str]] = None
+    no_record: Optional[bool] = None
 
 
 FIELD_NAMES = tuple(field.name for field in fields(ScanConfig))
 _ENUMS: Dict[str, Type[enum.IntEnum]] = {"fusion": FusionMethod, "gtsdf_penalty": GtsdfPenalty, "poses": PoseSource,
                                          "icp_weights": IcpWeights, "loop_closure": LoopClosureMode,
                                          "revisits": RevisitPolicy}
-_BOOLS = ("use_turntable_prior", "online_deformation")
+_BOOLS = ("use_turntable_prior", "online_deformation", "no_record")
 _INTS = ("gtsdf_iterations", "loop_frames")
 
 

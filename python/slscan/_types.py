@@ -157,7 +157,8 @@ class ScanConfigC(Structure):
                 ("gtsdf_kappa", c_double), ("gtsdf_penalty", c_enum), ("gtsdf_iterations", c_int),
                 ("poses", c_enum), ("loop_frames", c_int), ("photometric_weight", c_double),
                 ("icp_crease_deg", c_double), ("icp_weights", c_enum), ("loop_closure", c_enum),
-                ("max_gpu_bytes", c_double), ("revisits", c_enum)]
+                ("max_gpu_bytes", c_double), ("revisits", c_enum),
+                ("padding_0_6", c_int), ("no_record", c_int)]
 
 
 class FrameReportC(Structure):

@@ -101,8 +101,8 @@ ProgressCallback StopOnSignal::wrap(const ProgressCallback& display) const {
 
 CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& request, bool resume,
                            const Device& device, const ProgressCallback& display, const StopOnSignal& stop,
-                           const session::RecordedFrame& on_recorded) {
-  check_folder(folder, resume);
+                           const session::RecordedFrame& on_recorded, const LiveRecording& live) {
+  if (live.record) check_folder(folder, resume);
   sim::SimRecordingOptions options;
   options.resume = resume;
   options.rig.preset = request.preset;
@@ -127,9 +127,15 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
     options.rig.noise = parsed.get_int("noise", 1) != 0;
     options.rig.projector = parsed.get("projector", options.rig.projector);
   }
+  options.record = live.record;
+  options.described = live.described;
+  CaptureOutcome outcome;
+  outcome.recording = live.record ? folder : std::string();
+  options.write_statistics = &outcome.writes;
+  int delivered = 0;  // frames captured this run (what a capture that records nothing has)
   if (on_recorded) {
-    options.on_recorded = [&on_recorded](int frame, std::vector<Image16u>& images, const FrameMetadata& metadata,
-                                      Image32f* depth_m) {
+    options.on_recorded = [&on_recorded, &delivered](int frame, const std::shared_ptr<const std::vector<Image16u>>& images,
+                                                     const FrameMetadata& metadata, Image32f* depth_m) {
       session::ScanFrame scan_frame;
       scan_frame.index = frame;
       scan_frame.timestamp_ns = metadata.timestamp_ns;
@@ -137,13 +143,12 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
       if (depth_m != nullptr) {
         scan_frame.depth_m = std::move(*depth_m);
       } else {
-        scan_frame.images = std::move(images);
+        scan_frame.shared_images = images;  // being written: shared with the writer, not copied
       }
+      ++delivered;
       on_recorded(std::move(scan_frame));
     };
   }
-  CaptureOutcome outcome;
-  outcome.recording = folder;
   std::size_t planned = 0;
   const ProgressCallback wrapped = stop.wrap(display);
   const ProgressCallback progress = [&planned, &wrapped](const ProgressUpdate& update) {
@@ -159,10 +164,18 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
     outcome.images_per_frame = summary.images_per_frame;
     return outcome;
   } catch (const Error& error) {
-    if (!stopped_by_signal(error, stop)) rethrow_keeping(error, folder);
+    if (!stopped_by_signal(error, stop)) {
+      if (!live.record) throw;
+      rethrow_keeping(error, folder);
+    }
+  }
+  outcome.interrupted = true;
+  if (!live.record) {
+    outcome.frames = delivered;
+    outcome.planned = planned > 0 ? static_cast<int>(planned) : delivered;
+    return outcome;
   }
   const RecordingReader recorded = RecordingReader::open(folder);
-  outcome.interrupted = true;
   outcome.source = recorded.info().device.uri;
   outcome.frames = static_cast<int>(recorded.frame_count());
   // Stopped before the first frame was reported: the count its URI was made with.
@@ -174,21 +187,39 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
 
 CaptureOutcome capture_devices(const std::string& folder, const session::DeviceCaptureRequest& request, bool resume,
                                const ProgressCallback& display, const StopOnSignal& stop,
-                               const session::RecordedFrame& on_recorded) {
-  check_folder(folder, resume);
+                               const session::RecordedFrame& on_recorded, const LiveRecording& live) {
+  if (live.record) check_folder(folder, resume);
   CaptureOutcome outcome;
-  outcome.recording = folder;
+  outcome.recording = live.record ? folder : std::string();
   outcome.source = request.camera_uri;
   const ProgressCallback progress = stop.wrap(display);
+  int delivered = 0;  // frames captured this run (what a capture that records nothing has)
+  const session::RecordedFrame counted = [&on_recorded, &delivered](session::ScanFrame&& frame) {
+    ++delivered;
+    on_recorded(std::move(frame));
+  };
   try {
     session::DeviceCaptureRequest resumable = request;
     resumable.resume = resume;
-    const session::DeviceCapture captured = session::capture_from_devices(folder, resumable, progress, on_recorded);
+    resumable.record = live.record;
+    resumable.described = live.described;
+    resumable.write_statistics = &outcome.writes;
+    const session::DeviceCapture captured =
+        session::capture_from_devices(folder, resumable, progress, on_recorded ? counted : session::RecordedFrame{});
     outcome.statistics = captured.statistics;
     outcome.resumed_from = captured.resumed_from;
+    outcome.calibrated = captured.calibrated;
   } catch (const Error& error) {
-    if (!stopped_by_signal(error, stop)) rethrow_keeping(error, folder);
+    if (!stopped_by_signal(error, stop)) {
+      if (!live.record) throw;
+      rethrow_keeping(error, folder);
+    }
     outcome.interrupted = true;
+  }
+  outcome.planned = request.frames > 0 ? request.frames : (request.turntable_uri.empty() ? 1 : 36);
+  if (!live.record) {
+    outcome.frames = delivered;
+    return outcome;
   }
   const RecordingReader recorded = RecordingReader::open(folder);
   outcome.frames = static_cast<int>(recorded.frame_count());

@@ -5,10 +5,15 @@
 
 #include <atomic>
 #include <cstddef>
+#include <functional>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "sdk/core/device.h"
 #include "sdk/core/progress.h"
+#include "sdk/core/recording.h"
+#include "sdk/core/recording_writer_thread.h"
 #include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_setup.h"
 
@@ -43,6 +48,17 @@ struct CaptureOutcome {
   bool interrupted = false;  // a signal stopped it; the recording holds `frames` frames
   bool calibrated = true;    // the recording holds a calibration (a scan can decode it)
   session::CaptureStatistics statistics;  // devices: of this run, when it was not interrupted
+  // The recording's writer thread (sdk/core/recording_writer_thread.h): also when interrupted;
+  // nothing written with --no-record.
+  RecordingWriteStatistics writes;
+};
+
+// Whether a capture writes its recording (`sls scan --no-record`: not; nothing of it touches
+// the disk), and who hears, before its first frame, what the recording holds or would hold (the
+// scan session is made from that when there is no recording to open).
+struct LiveRecording {
+  bool record = true;
+  std::function<void(const RecordingInfo& info, const std::optional<ScannerCalibration>& calibration)> described;
 };
 
 // The simulator's capture for `sls scan --sim` (empty preset with `resume`: the one the
@@ -61,7 +77,7 @@ struct SimCaptureRequest {
 // capturing: session::captured_frames), on the capturing thread.
 CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& request, bool resume,
                            const Device& device, const ProgressCallback& display, const StopOnSignal& stop,
-                           const session::RecordedFrame& on_recorded = {});
+                           const session::RecordedFrame& on_recorded = {}, const LiveRecording& live = {});
 
 // Captures one revolution from devices by URI into `folder` (session::capture_from_devices),
 // or with `resume` the frames the recording there lacks: the devices must be those it was
@@ -70,7 +86,7 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
 // `on_recorded` as capture_sim's.
 CaptureOutcome capture_devices(const std::string& folder, const session::DeviceCaptureRequest& request, bool resume,
                                const ProgressCallback& display, const StopOnSignal& stop,
-                               const session::RecordedFrame& on_recorded = {});
+                               const session::RecordedFrame& on_recorded = {}, const LiveRecording& live = {});
 
 // `sls scan --sim/--camera` fused while it records (cmd_scan.cpp): the capture as a frame
 // source (session::captured_frames over capture_sim or capture_devices, given `stop`), and its
@@ -85,6 +101,14 @@ struct LiveCapture {
   // The frames the capture will hold once complete, as its progress says (0 until it does):
   // the scan's progress total.
   std::atomic<std::size_t> planned_frames{0};
+  // --no-record: nothing is written; the session is made from what the capture described before
+  // its first frame (written on the source's thread before it delivers that frame, read once the
+  // pipeline has it), and the frames' turntable angles are kept here as they are captured (read
+  // once the pipeline has returned).
+  bool record = true;
+  std::optional<RecordingInfo> info;
+  std::optional<ScannerCalibration> calibration;
+  std::vector<std::optional<double>> turntable_angles;
 };
 
 }  // namespace sls::cli

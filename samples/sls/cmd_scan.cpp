@@ -71,13 +71,13 @@ struct LoopClosureChoice {
 };
 
 // --loop-closure on|off, or by default on for a full turntable revolution.
-LoopClosureChoice loop_closure_choice(const RecordingReader& recording, const ScanOptions& options,
-                                      bool deformation) {
+LoopClosureChoice loop_closure_choice(const std::vector<std::optional<double>>& turntable_angles,
+                                      const ScanOptions& options, bool deformation) {
   if (!deformation) return {false, options.poses == "groundtruth" ? "known poses" : "--deformation off"};
   if (options.loop_closure == "on") return {true, "--loop-closure on"};
   if (options.loop_closure == "off") return {false, "--loop-closure off"};
   std::string why;
-  const bool full = session::is_full_revolution(recording, &why);
+  const bool full = session::is_full_revolution(turntable_angles, &why);
   return {full, why};
 }
 
@@ -122,6 +122,14 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
   std::optional<session::ScanSession> made;
   std::vector<StampedPose> truth;
   const auto make_session = [&]() -> session::ScanSession& {
+    if (live != nullptr && !live->record) {
+      // --no-record: no recording to open; what the capture described before its first frame.
+      if (!live->info || !live->calibration) {
+        throw_error(ErrorCode::kInvalidArgument, "--no-record: the capture has no calibration to decode with");
+      }
+      made.emplace(session::make_capture_session(*live->info, *live->calibration, session_options));
+      return *made;
+    }
     opened.emplace(session::open_recording_for_scan(folder, calibration.has_value()));
     if (groundtruth) {
       try {
@@ -217,20 +225,31 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
   restore_signals();
   if (live != nullptr) {
     // The recording as the capture left it (the session was made from it at its first frame).
-    if (made) opened.emplace(RecordingReader::open(folder));
+    if (made && live->record) opened.emplace(RecordingReader::open(folder));
     if (live->outcome.interrupted && !failure) {
       outcome.interrupted = true;
-      outcome.interruption = fmt::format(
-          "interrupted by {} during the capture: {} of {} frame(s) captured into {} and fused (a valid recording; "
-          "continue the capture and fuse it all with: {})",
-          live->stop.signal_name(), live->outcome.frames, live->outcome.planned, folder, live->resume_command);
+      outcome.interruption =
+          live->record
+              ? fmt::format("interrupted by {} during the capture: {} of {} frame(s) captured into {} and fused (a "
+                            "valid recording; continue the capture and fuse it all with: {})",
+                            live->stop.signal_name(), live->outcome.frames, live->outcome.planned, folder,
+                            live->resume_command)
+              : fmt::format("interrupted by {} during the capture: {} of {} frame(s) captured and fused (--no-record: "
+                            "nothing was recorded, the capture cannot be resumed)",
+                            live->stop.signal_name(), live->outcome.frames, live->outcome.planned);
     }
   }
   if (fused_count() == 0) {
     throw_error(ErrorCode::kInvalidArgument, "{}: no frame could be fused ({} frames{})", folder,
                 made ? made->frames().size() : std::size_t{0}, outcome.interrupted ? ", interrupted" : "");
   }
-  const RecordingReader& recording = *opened;
+  // What was fused, as the recording holds it — or with --no-record, as the capture said.
+  const bool recorded = opened.has_value();
+  std::vector<std::optional<double>> turntable_angles = recorded ? std::vector<std::optional<double>>{}
+                                                                 : live->turntable_angles;
+  for (std::size_t i = 0; recorded && i < opened->frame_count(); ++i) {
+    turntable_angles.push_back(opened->frame(i).turntable_angle_deg);
+  }
   session::ScanSession& session = *made;
   // After a fault part-way, what stops the outputs too (the same full disk) is said with it.
   bool failure_said = false;
@@ -238,7 +257,7 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
 
   // The loop closure, after the revolution: asked for, or by default when the recording is a
   // full turntable revolution (its angles span 360° less at most two steps).
-  const LoopClosureChoice loop = loop_closure_choice(recording, options, session.deformation_enabled());
+  const LoopClosureChoice loop = loop_closure_choice(turntable_angles, options, session.deformation_enabled());
   nlohmann::json loop_json = {{"requested", loop.requested}, {"why", loop.why}};
   std::string loop_failure;
   auto start = Clock::now();
@@ -293,9 +312,11 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
   nlohmann::json report;
   report["format"] = "slscan-scan-report";
   report["format_version"] = 2;
-  report["input"] = recording.folder();
+  report["input"] = recorded ? nlohmann::json(opened->folder()) : nlohmann::json(nullptr);
   report["device"] = device.to_string();
-  report["calibration"] = calibration ? options.calibration : recording.folder() + "/calibration.yml";
+  report["calibration"] = calibration     ? options.calibration
+                          : recorded      ? opened->folder() + "/calibration.yml"
+                          : options.calibration.empty() ? "the simulator's" : options.calibration;
   report["poses"] = options.poses;
   report["turntable_prior"] = !groundtruth && options.turntable_prior;
   report["photometric_weight"] = groundtruth ? 0.0 : options.photometric_weight;
@@ -318,12 +339,21 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
                       {"format", fusion::voxel_format_name(session_options.voxel_format)},
                       {"bytes", session.volume_bytes()},
                       {"moves", session.moves()}};
-  report["frames"] = recording.frame_count();
+  report["frames"] = turntable_angles.size();
   report["frames_processed"] = session.frames().size();
   report["frames_fused"] = session.fused_count();
   report["interrupted"] = outcome.interrupted;
   if (outcome.interrupted) report["interruption"] = outcome.interruption;
   report["pipeline"] = pipeline_json(outcome, live != nullptr);
+  // The recording's writer thread beside the capture (none with --no-record: nothing written).
+  std::map<int, double> written_s;
+  if (live != nullptr) {
+    const RecordingWriteStatistics& writes = live->outcome.writes;
+    report["writer"] = writer_json(writes, live->record);
+    for (const RecordingWriteStatistics::Frame& frame : writes.frames) {
+      written_s[frame.frame] = std::chrono::duration<double>(frame.written - outcome.started).count();
+    }
+  }
   if (live != nullptr) {
     // The capture this scan fused while it recorded: how far it got, and how to continue it.
     report["live_capture"] = {{"frames_captured", live->outcome.frames},
@@ -331,7 +361,8 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
                               {"resumed_from", live->outcome.resumed_from},
                               {"interrupted", live->outcome.interrupted},
                               {"signal", live->stop.signal_name()},
-                              {"resume", live->resume_command}};
+                              {"recorded", live->record},
+                              {"resume", live->record ? nlohmann::json(live->resume_command) : nlohmann::json(nullptr)}};
   }
   // When each frame reached the session and left it (seconds since the frames began): a live
   // capture's frames as recorded, a replay's as read.
@@ -343,8 +374,8 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
   std::size_t active = 0;
   // What each frame's capture took, as the recording keeps it (device captures), by frame index.
   std::map<int, FrameCaptureCounters> capture_counters;
-  for (std::size_t i = 0; i < recording.frame_count(); ++i) {
-    if (recording.frame(i).capture) capture_counters[recording.frame(i).index] = *recording.frame(i).capture;
+  for (std::size_t i = 0; recorded && i < opened->frame_count(); ++i) {
+    if (opened->frame(i).capture) capture_counters[opened->frame(i).index] = *opened->frame(i).capture;
   }
   for (const session::FrameReport& frame : session.frames()) {
     nlohmann::json entry = {{"frame", frame.index}, {"status", session::frame_status_name(frame.status)},
@@ -355,6 +386,9 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
       entry["captured_s"] = timing->second->delivered_s;
       entry["fused_s"] = timing->second->fused_s;
       if (timing->second->waited_s > 0.0) entry["waited_s"] = timing->second->waited_s;
+    }
+    if (const auto written = written_s.find(frame.index); written != written_s.end()) {
+      entry["written_s"] = written->second;
     }
     if (const auto counters = capture_counters.find(frame.index); counters != capture_counters.end()) {
       entry["capture"] = capture_json(counters->second);
@@ -397,9 +431,11 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
                           frame.times.raycast_ms);
   }
   report["lost_frames"] = lost;
-  const ScannerCalibration& used_calibration = calibration ? *calibration : recording.calibration();
-  const bool turntable_known = used_calibration.turntable.has_value() && recording.frame_count() > 0 &&
-                               recording.frame(0).turntable_angle_deg.has_value();
+  const ScannerCalibration& used_calibration = calibration ? *calibration
+                                              : recorded  ? opened->calibration()
+                                                          : *live->calibration;
+  const bool turntable_known = used_calibration.turntable.has_value() && !turntable_angles.empty() &&
+                               turntable_angles.front().has_value();
   report["warnings"] = scan_warnings(session.frames(), turntable_known);
   report["active_voxels_per_frame"] =
       static_cast<double>(active) / static_cast<double>(std::max<std::size_t>(session.fused_count(), 1));
@@ -430,7 +466,8 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
   // report's heat map; the report.json written above is complete without them.
   sls::report::ScanReportInputs html;
   std::optional<eval::EvalReport> evaluation;
-  if (recording.info().has_groundtruth && !failure) {
+  if (recorded && opened->info().has_groundtruth && !failure) {
+    const RecordingReader& recording = *opened;
     try {
       start = Clock::now();
       eval::EvalOptions eval_options;
@@ -469,7 +506,7 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
   html.cloud = &surface.cloud;
   html.trajectory = trajectory;
   if (session.deformation_enabled()) html.trajectory_undeformed = session.trajectory_undeformed();
-  html.title = fmt::format("Scan of {}", recording.folder());
+  html.title = recorded ? fmt::format("Scan of {}", opened->folder()) : std::string("Scan (not recorded)");
   outputs.write("report.html", [&](const std::string&) { sls::report::write_scan_report_html(options.out, html); });
   if (failure) {
     failure_said = true;
@@ -573,6 +610,13 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
                     "recording is fused. Fusion keeps no checkpoint: a fusion cut off is run again from the complete "
                     "recording. Refused when OUT holds no recording or the options contradict it")
       ->excludes(input);
+  command->add_flag("--no-record", options->no_record,
+                    "With --sim/--camera: fuse the capture while it runs and write none of it (no OUT/recording: "
+                    "the model, trajectory and reports are still written to OUT). Lost with it: --resume after a "
+                    "cut-off capture, scanning the capture again, the evaluation against the simulator's ground "
+                    "truth. Refused with --resume, --input, --poses groundtruth, and a --camera without "
+                    "--calibration (unless a replay:// camera)")
+      ->excludes(input);
   command->add_option("--object", options->object, "Simulated object (with --sim)")
       ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
       ->capture_default_str();
@@ -663,6 +707,17 @@ void add_scan_command(CLI::App& app, Context& context, int* exit_code) {
   command->callback([&context, exit_code, options, command] {
     if (!options->input.empty() && options->frames > 0) {
       throw CLI::ValidationError("--frames", "not with --input: a recording's frames are all scanned");
+    }
+    if (options->no_record && options->resume) {
+      throw CLI::ValidationError("--no-record", "not with --resume: a capture that records nothing cannot be resumed");
+    }
+    if (options->no_record && !can_fuse_while_capturing(*options)) {
+      throw CLI::ValidationError(
+          "--no-record", options->poses != "track"
+                             ? "needs a scan fused while it captures: --poses groundtruth reads the simulator's poses "
+                               "from the whole recording"
+                             : "needs a scan fused while it captures: --camera without --calibration has no "
+                               "calibration before the capture");
     }
     if (!options->exposures.empty() && options->camera_uri.empty()) {
       throw CLI::ValidationError("--exposures", "needs --camera (an HDR recording says its own exposures)");

@@ -67,8 +67,9 @@ void print_capture(const Context& context, const ScanOptions& options, const Cap
     const session::CaptureStatistics& stats = outcome.statistics;
     how += fmt::format(" ({} incomplete, {} re-captured stacks this run)", stats.incomplete_frames, stats.retries);
   }
-  std::cerr << fmt::format("\ncaptured {} frame(s){} x {} images from {} into {}\n", outcome.frames, how,
-                           outcome.images_per_frame, outcome.source, folder);
+  std::cerr << fmt::format("\ncaptured {} frame(s){} x {} images from {} {}\n", outcome.frames, how,
+                           outcome.images_per_frame, outcome.source,
+                           outcome.recording.empty() ? std::string("(--no-record: not recorded)") : "into " + folder);
 }
 
 bool can_fuse_while_capturing(const ScanOptions& options) {
@@ -95,17 +96,37 @@ void start_live_capture(const Context& context, const ScanOptions& options, cons
     live->planned_frames.store(update.total);
     return !shown || shown(update);
   };
+  live->record = !options.no_record;
+  LiveRecording recording;
+  recording.record = live->record;
+  recording.described = [live](const RecordingInfo& info, const std::optional<ScannerCalibration>& calibration) {
+    live->info = info;
+    live->calibration = calibration;
+  };
+  // Each frame's turntable angle kept as it is captured (what --no-record has instead of a
+  // recording's manifest), then the frame handed on.
+  const auto keep_angle = [live](const session::RecordedFrame& recorded) {
+    return [live, recorded](session::ScanFrame&& frame) {
+      live->turntable_angles.push_back(frame.turntable_angle_deg);
+      recorded(std::move(frame));
+    };
+  };
+  // Without a recording nothing is read back (captured_frames with no folder).
+  const std::string recorded_folder = live->record ? folder : std::string();
   if (!options.camera_uri.empty()) {
     const session::DeviceCaptureRequest request = device_request(options, device);
-    live->frames = session::captured_frames(folder, [&options, live, request, display, folder](
-                                                        const session::RecordedFrame& recorded) {
-      live->outcome = capture_devices(folder, request, options.resume, display, live->stop, recorded);
+    live->frames = session::captured_frames(recorded_folder, [&options, live, request, display, folder, recording,
+                                                              keep_angle](const session::RecordedFrame& recorded) {
+      live->outcome = capture_devices(folder, request, options.resume, display, live->stop, keep_angle(recorded),
+                                      recording);
     });
   } else {
     const SimCaptureRequest request = sim_request(options);
-    live->frames = session::captured_frames(folder, [&options, live, request, device, display, folder](
-                                                        const session::RecordedFrame& recorded) {
-      live->outcome = capture_sim(folder, request, options.resume, device, display, live->stop, recorded);
+    live->frames = session::captured_frames(recorded_folder, [&options, live, request, device, display, folder,
+                                                              recording, keep_angle](
+                                                                 const session::RecordedFrame& recorded) {
+      live->outcome =
+          capture_sim(folder, request, options.resume, device, display, live->stop, keep_angle(recorded), recording);
     });
   }
 }

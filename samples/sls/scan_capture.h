@@ -45,6 +45,7 @@ struct ScanOptions {
   std::string revisits = "auto";    // auto | keep | merge (session::RevisitPolicy)
   int loop_frames = session::DeformationOptions().loop_frames;  // last frames the loop closure registers
   bool resume = false;              // continue the capture in OUT/recording, then fuse it all
+  bool no_record = false;           // --no-record: the capture fused while it runs, nothing of it written
   bool object_given = false;
   bool device_given = false;
 };
@@ -57,7 +58,8 @@ bool can_fuse_while_capturing(const ScanOptions& options);
 
 // Sets `live` up to capture into `folder` (OUT/recording) as a frame source: the simulator
 // (--sim), devices by URI (--camera), or with --resume the rest of the capture there, each frame
-// handed to the scan as it is recorded (session::captured_frames).
+// handed to the scan as it is captured while a writer thread records it (session::captured_frames);
+// with --no-record nothing is written (live->record false: no `folder` is made).
 void start_live_capture(const Context& context, const ScanOptions& options, const Device& device,
                         const std::string& folder, LiveCapture* live);
 

@@ -26,6 +26,17 @@ nlohmann::json pipeline_json(const session::PipelineOutcome& outcome, bool live)
           {"source_s", outcome.source_s}};
 }
 
+nlohmann::json writer_json(const RecordingWriteStatistics& writes, bool recorded) {
+  return {{"recorded", recorded},
+          {"queue_frames", writes.queue_frames},
+          {"frames_written", writes.frames.size()},
+          {"write_s_median", writes.write_s_median()},
+          {"write_s_total", writes.write_s_total()},
+          {"waits", writes.waits},
+          {"wait_s", writes.wait_s},
+          {"deepest_queue", writes.deepest_queue}};
+}
+
 nlohmann::json capture_json(const FrameCaptureCounters& counters) {
   nlohmann::json json = {{"attempts", counters.attempts},
                          {"incomplete_images", counters.incomplete_images},

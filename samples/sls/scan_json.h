@@ -5,6 +5,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sdk/core/recording_writer_thread.h"
+
 #include "sdk/core/recording.h"
 #include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_session.h"
@@ -19,6 +21,9 @@ nlohmann::json stage_json(const session::StageTimes& times);
 // and for how long in all, the deepest the queue got, and the source's (capture's, or
 // reader's) seconds.
 nlohmann::json pipeline_json(const session::PipelineOutcome& outcome, bool live);
+// report.json's "writer": the recording's writer thread beside a live capture (frames written,
+// their write times, the capture's waits for room in its queue); `recorded` false: --no-record.
+nlohmann::json writer_json(const RecordingWriteStatistics& writes, bool recorded);
 
 // A frame's capture counters (recording.h): re-captures, spoiled images and, from a GigE
 // Vision stream, packets and queue depth.

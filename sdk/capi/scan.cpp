@@ -64,6 +64,11 @@ static_assert(offsetof(sls_scan_config, max_gpu_bytes) >=
 static_assert(offsetof(sls_scan_config, revisits) >=
                   sls::capi::size_ending_at<sls_scan_config>(offsetof(sls_scan_config, max_gpu_bytes) + sizeof(double)),
               "revisits lies in the padding of the struct that ended with max_gpu_bytes");
+// (padding_0_6 fills the 0.6 struct's padding: never read.)
+static_assert(offsetof(sls_scan_config, no_record) >=
+                  sls::capi::size_ending_at<sls_scan_config>(offsetof(sls_scan_config, revisits) +
+                                                             sizeof(sls_revisit_policy)),
+              "no_record lies in the padding of the struct that ended with revisits");
 // An API 0.5 field starts past the 0.4 struct, padding included (versioned_struct.h).
 static_assert(offsetof(sls_scan_config, calibration_path) >= SLS_CAPI_SIZE_0_4(sls_scan_config, online_deformation),
               "a field appended in 0.5 lies in the 0.4 struct's padding");
@@ -109,6 +114,7 @@ void apply_gtsdf(const sls_scan_config& config, sls::fusion::IntegrationOptions*
 // What the C API keeps of a config beside the session's options.
 struct ScanChoices {
   bool groundtruth = false;
+  bool no_record = false;
   sls_loop_closure_mode loop_closure = SLS_LOOP_CLOSURE_CALLER;
 };
 
@@ -174,6 +180,12 @@ sls::session::ScanSessionOptions session_options(const sls_scan_config& config, 
     sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.loop_closure {} is not an sls_loop_closure_mode", loop);
   }
   choices->loop_closure = static_cast<sls_loop_closure_mode>(loop);
+  choices->no_record = config.no_record != 0;
+  if (choices->no_record && choices->groundtruth) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "config.no_record with config.poses SLS_POSES_GROUNDTRUTH: known poses are read from the "
+                     "recording a capture writes (record it, or track the poses)");
+  }
   switch (sls::capi::c_enum_value(config.revisits)) {
     case SLS_REVISITS_AUTO: options.revisits = sls::session::RevisitPolicy::kAfterFirstRevolution; break;
     case SLS_REVISITS_KEEP: options.revisits = sls::session::RevisitPolicy::kKeep; break;
@@ -198,7 +210,19 @@ sls_frame_status to_c(sls::session::FrameStatus status) {
 bool cancel_requested(const sls_scan& scan) { return scan.cancel_requested.load(); }
 
 sls_loop_closure close_loop(sls_scan& scan);
-void close_loop_after_run(sls_scan& scan, const sls::RecordingReader& recording);
+void close_loop_after_run(sls_scan& scan, const std::vector<std::optional<double>>& turntable_angles);
+
+// What a live capture tells the scan (sls_scan_run_devices): with no_record, what its
+// recording would hold (written on the capture's thread before its first frame, read once the
+// pipeline has that frame) and each frame's turntable angle (read once the pipeline returned).
+struct LiveCapture {
+  const sls::session::FrameSource* frames = nullptr;
+  std::size_t expected_frames = 0;
+  bool record = true;
+  std::optional<sls::RecordingInfo> info;
+  std::optional<sls::ScannerCalibration> calibration;
+  std::vector<std::optional<double>> turntable_angles;
+};
 
 // Fuses the recording at `folder` into a new session (scan.session), the frame callback after
 // each frame: replayed (`live` null; the next frames read while one is fused), or as a capture
@@ -206,21 +230,31 @@ void close_loop_after_run(sls_scan& scan, const sls::RecordingReader& recording)
 // `expected_frames` what the frame reports say the run holds). Throws kCancelled after a cancel
 // (the model keeps what was fused, a capture's recording what it recorded), the source's error
 // after fusing what came before it, kInvalidArgument when nothing was fused.
-void fuse_frames(sls_scan& scan, const std::string& folder, const sls::session::FrameSource* live,
-                 std::size_t expected_frames) {
+void fuse_frames(sls_scan& scan, const std::string& folder, LiveCapture* live) {
   std::optional<sls::RecordingReader> recording;
   std::vector<sls::StampedPose> truth;
+  const std::size_t expected_frames = live != nullptr ? live->expected_frames : 0;
   const auto make_session = [&]() -> sls::session::ScanSession& {
-    recording.emplace(sls::session::open_recording_for_scan(folder, scan.calibration.has_value()));
-    sls::session::ScanSessionOptions options = scan.options;
-    if (scan.groundtruth) {
-      // As `sls scan --poses groundtruth`: the true poses, one volume around the object.
-      truth = sls::session::groundtruth_poses(*recording);
-      options.fixed_volume =
-          sls::session::groundtruth_volume(*recording, options.voxel_size_m, options.max_voxels, options.integration);
+    if (live != nullptr && !live->record) {
+      // No recording to open: what the capture described before its first frame.
+      if (!live->info || !live->calibration) {
+        sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.no_record: the capture has no calibration");
+      }
+      scan.session.emplace(sls::session::make_capture_session(*live->info, scan.calibration ? *scan.calibration
+                                                                                            : *live->calibration,
+                                                              scan.options));
+    } else {
+      recording.emplace(sls::session::open_recording_for_scan(folder, scan.calibration.has_value()));
+      sls::session::ScanSessionOptions options = scan.options;
+      if (scan.groundtruth) {
+        // As `sls scan --poses groundtruth`: the true poses, one volume around the object.
+        truth = sls::session::groundtruth_poses(*recording);
+        options.fixed_volume =
+            sls::session::groundtruth_volume(*recording, options.voxel_size_m, options.max_voxels, options.integration);
+      }
+      scan.session.emplace(
+          sls::session::make_recording_session(*recording, options, scan.calibration ? &*scan.calibration : nullptr));
     }
-    scan.session.emplace(
-        sls::session::make_recording_session(*recording, options, scan.calibration ? &*scan.calibration : nullptr));
     const std::size_t frames = live != nullptr ? expected_frames : recording->frame_count();
     // Reported from inside the session's add_frame, where the frame's depth map still exists.
     scan.session->set_frame_observer([&scan, frames](const sls::session::FrameReport& frame,
@@ -234,12 +268,12 @@ void fuse_frames(sls_scan& scan, const std::string& folder, const sls::session::
   sls::session::PipelineOutcome outcome;
   if (live != nullptr) {
     try {
-      outcome = sls::session::run_pipeline(make_session, *live, sls::session::PipelineOptions{}, {}, progress);
+      outcome = sls::session::run_pipeline(make_session, *live->frames, sls::session::PipelineOptions{}, {}, progress);
     } catch (const sls::Error& error) {
       if (error.code() == sls::ErrorCode::kCancelled) scan.cancelled = true;
       throw;
     }
-    if (scan.session) recording.emplace(sls::RecordingReader::open(folder));  // as the capture left it
+    if (scan.session && live->record) recording.emplace(sls::RecordingReader::open(folder));  // as the capture left it
   } else {
     make_session();
     outcome = sls::session::run_recording(*scan.session, *recording, scan.groundtruth ? &truth : nullptr, {}, progress);
@@ -262,10 +296,16 @@ void fuse_frames(sls_scan& scan, const std::string& folder, const sls::session::
                                           sls::session::frame_status_name(frames.front().status) + ": " +
                                           frames.front().reason);
   }
-  close_loop_after_run(scan, *recording);
+  std::vector<std::optional<double>> angles;
+  if (recording) {
+    for (std::size_t i = 0; i < recording->frame_count(); ++i) angles.push_back(recording->frame(i).turntable_angle_deg);
+  } else {
+    angles = live->turntable_angles;
+  }
+  close_loop_after_run(scan, angles);
 }
 
-void scan_recording(sls_scan& scan, const std::string& folder) { fuse_frames(scan, folder, nullptr, 0); }
+void scan_recording(sls_scan& scan, const std::string& folder) { fuse_frames(scan, folder, nullptr); }
 
 // Captures through the devices into capture.recording_path and fuses each frame as it is
 // recorded (sls_scan_run_devices).
@@ -285,7 +325,13 @@ void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
     sls::throw_error(sls::ErrorCode::kInvalidArgument,
                      "capture.calibration_path is missing (only a replay:// camera brings its recording's)");
   }
-  const std::string folder = required(capture.recording_path, "recording_path");
+  const bool has_path = capture.recording_path != nullptr && capture.recording_path[0] != '\0';
+  if (scan.no_record && has_path) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "capture.recording_path {} with config.no_record: nothing is recorded (leave it NULL, or record)",
+                     capture.recording_path);
+  }
+  const std::string folder = scan.no_record ? std::string() : required(capture.recording_path, "recording_path");
   if (capture.turntable_uri != nullptr) request.turntable_uri = capture.turntable_uri;
   if (capture.frames < 0) {
     sls::throw_error(sls::ErrorCode::kInvalidArgument, "capture.frames {} (0: automatic, or positive)",
@@ -296,10 +342,21 @@ void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
   // Asked after every stack: a cancel stops the capture after the stack in progress (what it
   // recorded is fused).
   const sls::ProgressCallback progress = [&scan](const sls::ProgressUpdate&) { return !cancel_requested(scan); };
+  LiveCapture live;
+  live.record = !scan.no_record;
+  request.record = live.record;
+  request.described = [&live](const sls::RecordingInfo& info, const std::optional<sls::ScannerCalibration>& calibration) {
+    live.info = info;
+    live.calibration = calibration;
+  };
   const sls::session::FrameSource frames = sls::session::captured_frames(
-      folder, [&request, &progress, &folder](const sls::session::RecordedFrame& recorded) {
-        sls::session::capture_from_devices(folder, request, progress, recorded);
+      folder, [&request, &progress, &folder, &live](const sls::session::RecordedFrame& recorded) {
+        sls::session::capture_from_devices(folder, request, progress, [&](sls::session::ScanFrame&& frame) {
+          live.turntable_angles.push_back(frame.turntable_angle_deg);
+          recorded(std::move(frame));
+        });
       });
+  live.frames = &frames;
   // What the frame reports say the run holds: capture_from_devices' frame count.
   std::size_t expected =
       request.frames > 0 ? static_cast<std::size_t>(request.frames) : (request.turntable_uri.empty() ? 1 : 36);
@@ -307,7 +364,8 @@ void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
   if (request.frames == 0 && camera.scheme == "replay") {
     expected = sls::RecordingReader::open(camera.target).frame_count();
   }
-  fuse_frames(scan, folder, &frames, expected);
+  live.expected_frames = expected;
+  fuse_frames(scan, folder, &live);
 }
 
 // The loop closure of the last run's model; the model extracted before it is dropped, so the
@@ -336,10 +394,10 @@ sls_loop_closure close_loop(sls_scan& scan) {
 // config.loop_closure after a run that was not cancelled: SLS_LOOP_CLOSURE_ON always,
 // SLS_LOOP_CLOSURE_AUTO for a full turntable revolution (as `sls scan`). A loop that does not
 // close is a warning, as in the tool: the run's model stands.
-void close_loop_after_run(sls_scan& scan, const sls::RecordingReader& recording) {
+void close_loop_after_run(sls_scan& scan, const std::vector<std::optional<double>>& turntable_angles) {
   if (scan.loop_closure == SLS_LOOP_CLOSURE_CALLER || !scan.session->deformation_enabled()) return;
   std::string why = "config.loop_closure SLS_LOOP_CLOSURE_ON";
-  if (scan.loop_closure == SLS_LOOP_CLOSURE_AUTO && !sls::session::is_full_revolution(recording, &why)) return;
+  if (scan.loop_closure == SLS_LOOP_CLOSURE_AUTO && !sls::session::is_full_revolution(turntable_angles, &why)) return;
   try {
     close_loop(scan);
   } catch (const sls::Error& error) {
@@ -472,6 +530,7 @@ SLS_API sls_status sls_scan_create(sls_context* context, const sls_scan_config* 
     ScanChoices choices;
     created->options = session_options(resolved, context->device, &choices);
     created->groundtruth = choices.groundtruth;
+    created->no_record = choices.no_record;
     created->loop_closure = choices.loop_closure;
     if (resolved.calibration_path != nullptr && resolved.calibration_path[0] != '\0') {
       created->calibration = sls::read_calibration(resolved.calibration_path);

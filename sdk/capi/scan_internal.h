@@ -20,6 +20,7 @@ struct sls_scan {
   // The rest of the config: known poses (config.poses), what a run does about the loop, and
   // the calibration runs decode with instead of the recording's (config.calibration_path).
   bool groundtruth = false;
+  bool no_record = false;  // config.no_record: sls_scan_run_devices writes no recording
   sls_loop_closure_mode loop_closure = SLS_LOOP_CLOSURE_CALLER;
   std::optional<sls::ScannerCalibration> calibration;
   sls_frame_callback callback = nullptr;

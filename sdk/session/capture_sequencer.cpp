@@ -176,6 +176,17 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
   angle_deg_.reset();
   const int frames = frame_count();
   if (options_.first_frame >= frames) return statistics_;  // all captured already
+  // The recordings' writes, beside the capture (capture_sequencer.h, step 4). Declared after
+  // what the writes read (the writers) and destroyed first: unwinding writes what is queued.
+  std::optional<RecordingWriterThread> writes;
+  if (!recordings.empty()) {
+    std::string folders = recordings.front()->folder();
+    for (std::size_t c = 1; c < recordings.size(); ++c) folders += ", " + recordings[c]->folder();
+    writes.emplace(folders, options_.write_queue_frames);
+  }
+  const auto keep_write_statistics = [&] {
+    if (writes) statistics_.writes = writes->statistics();
+  };
   try {
     prepare();
     for (int frame = options_.first_frame; frame < frames; ++frame) {
@@ -183,19 +194,25 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
       queue_depth_ = 0;
       CapturedFrame captured = capture_frame(frame);
       captured.counters = frame_counters(before, captured.attempts);
-      for (std::size_t c = 0; c < recordings.size(); ++c) {
-        FrameMetadata metadata;
-        const CameraStack& stack = captured.cameras[c];
-        metadata.timestamp_ns = stack.metadata.empty() ? 0 : stack.metadata.front().timestamp_ns;
-        metadata.turntable_angle_deg = captured.turntable_angle_deg;
-        metadata.complete = captured.complete;
-        metadata.note = captured.note;
-        metadata.capture = captured.counters;
-        try {
-          captured.recording_indices.push_back(recordings[c]->append_frame(stack.images, metadata));
-        } catch (const Error& error) {
-          fail("recording " + recordings[c]->folder(), where(frame, -1), error);
+      if (writes) {
+        std::vector<FrameMetadata> metadata(recordings.size());
+        for (std::size_t c = 0; c < recordings.size(); ++c) {
+          CameraStack& stack = captured.cameras[c];
+          metadata[c].timestamp_ns = stack.metadata.empty() ? 0 : stack.metadata.front().timestamp_ns;
+          metadata[c].turntable_angle_deg = captured.turntable_angle_deg;
+          metadata[c].complete = captured.complete;
+          metadata[c].note = captured.note;
+          metadata[c].capture = captured.counters;
+          stack.shared_images = std::make_shared<const std::vector<Image16u>>(std::move(stack.images));
+          stack.images.clear();
+          // Each recording lists frames 0..n-1 in order (checked above): this one is next.
+          captured.recording_indices.push_back(frame);
         }
+        std::vector<std::shared_ptr<const std::vector<Image16u>>> stacks;
+        for (const CameraStack& stack : captured.cameras) stacks.push_back(stack.shared_images);
+        writes->push(frame, [recordings, stacks = std::move(stacks), metadata = std::move(metadata)] {
+          for (std::size_t c = 0; c < recordings.size(); ++c) recordings[c]->append_frame(*stacks[c], metadata[c]);
+        });
       }
       ++statistics_.frames;
       if (!captured.complete) ++statistics_.incomplete_frames;
@@ -203,11 +220,17 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
       report_progress(progress, {"capture", static_cast<std::size_t>(frame + 1), static_cast<std::size_t>(frames),
                                  captured.complete ? std::string() : captured.note});
     }
+    if (writes) writes->finish();
   } catch (...) {
     finish(true);
+    // Every frame captured is written before this rethrows; a write error then is logged by
+    // the writer thread (this exception is the scan's outcome).
+    if (writes) writes->drain();
+    keep_write_statistics();
     statistics_.seconds = seconds_since(start);
     throw;
   }
+  keep_write_statistics();
   finish(false);
   statistics_.seconds = seconds_since(start);
   return statistics_;

@@ -19,9 +19,14 @@
 //     belongs to another trigger are never used. Such a stack is re-captured whole, up to
 //     max_retries times; when the retries run out the frame is written marked incomplete, with the
 //     whole images it has (always the first ones of the sequence) and a note saying why;
-//  4. appends the stack to each camera's recording (flushed per frame by RecordingWriter), with
+//  4. hands the stack to each camera's recording (flushed per frame by RecordingWriter), with
 //     the frame's capture counters (CapturedFrame::counters), then calls the per-frame callback,
-//     then the progress callback.
+//     then the progress callback. The recordings are written on a writer thread
+//     (sdk/core/recording_writer_thread.h, CaptureOptions::write_queue_frames): the next stack is
+//     captured, and the callback fuses this one, while it is written; the stack is shared with
+//     the callback (CameraStack::shared_images), not copied. run() returns once every stack
+//     captured is written, and a capture ended by an error, a cancel or a callback's exception
+//     still writes every stack it captured before it rethrows.
 //
 // Per-frame counters: the attempts, and the images that were incomplete, lost or stale while
 // this frame was captured (they sum to CaptureStatistics' counts), and, from the cameras that
@@ -41,7 +46,9 @@
 // driver's (kTimeout, kDevice, ...). A camera counts as not answering when every attempt at a
 // stack timed out waiting for it; a projector or turntable error ends the scan at once (their
 // drivers retry themselves). Frames appended before the error stay in the recording, which
-// reads back as a valid recording of those frames. The progress callback returning false ends
+// reads back as a valid recording of those frames. A write that fails (a full disk, an
+// unwritable folder) ends the scan with the write's sls::Error naming the recording's folder and
+// the frame (RecordingWriterThread); the frames before it stay listed. The progress callback returning false ends
 // the scan with kCancelled after the current frame, which is kept; an exception from the
 // per-frame callback ends it the same way and propagates unchanged.
 //
@@ -50,8 +57,10 @@
 #pragma once
 
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -62,6 +71,7 @@
 #include "sdk/core/image.h"
 #include "sdk/core/progress.h"
 #include "sdk/core/recording.h"
+#include "sdk/core/recording_writer_thread.h"
 #include "sdk/decode/pattern_set.h"
 
 namespace sls::session {
@@ -98,6 +108,12 @@ struct CaptureOptions {
   std::chrono::milliseconds turntable_timeout{10000};
   // Re-captures of a stack that had a dropped, incomplete or timed-out image.
   int max_retries = 2;
+  // Stacks captured and waiting to be written to the recordings, at most (the writer thread's
+  // queue, sdk/core/recording_writer_thread.h); a full queue holds the capture back (counted:
+  // CaptureStatistics::writes). Each holds its stack (~0.5 GB at 12 MP) until written.
+  // 0: each stack is written on the capturing thread before the callback sees it (the capture
+  // as it was before the writer thread).
+  std::size_t write_queue_frames = 2;
 
   // Throws sls::Error(kInvalidArgument) naming the first bad value.
   void validate() const;
@@ -116,6 +132,9 @@ struct ImageMetadata {
 // images of the sequence only.
 struct CameraStack {
   std::vector<Image16u> images;
+  // With recordings: the images, moved here and shared read-only with the recording's writer
+  // thread (`images` is then empty). Release it when done: the stack's memory goes once both are.
+  std::shared_ptr<const std::vector<Image16u>> shared_images;
   std::vector<ImageMetadata> metadata;
 };
 
@@ -153,10 +172,13 @@ struct CaptureStatistics {
   double capture_seconds = 0.0;  // capturing stacks: turntable moves and recording excluded
   double projector_seconds = 0.0;  // of that, in show_pattern
   double camera_seconds = 0.0;     // of that, triggering cameras and waiting for their images
+  RecordingWriteStatistics writes;  // the recordings' writer thread (none without recordings)
 };
 
-// Called with each frame once it is recorded. It may take the frame's images (move them out:
-// a live scan fuses them without a copy); the sequencer does not use the frame afterwards.
+// Called with each frame once it is handed to the recordings (being written, or written with
+// write_queue_frames 0). It may take the frame's images (move them out, or share
+// shared_images: a live scan fuses them without a copy); the sequencer does not use the frame
+// afterwards.
 using FrameCallback = std::function<void(CapturedFrame& frame)>;
 
 // A recording's description for camera `camera` of a projector and pattern set: device from the
@@ -183,6 +205,8 @@ class CaptureSequencer {
                         const ProgressCallback& progress = {});
 
   const CaptureOptions& options() const { return options_; }
+  // What the last run() did, also when it threw (the frames written before an error, say).
+  const CaptureStatistics& statistics() const { return statistics_; }
   const PatternSet& patterns() const { return patterns_; }
   // How many stacks run() captures.
   int frame_count() const;

@@ -183,6 +183,7 @@ PipelineOutcome run_pipeline(const SessionProvider& session_provider, const Fram
   };
 
   PipelineOutcome outcome;
+  outcome.started = start;
   // The uploads ahead, on one thread for the process (a thread per frame, or per scan, also made
   // an OpenMP team and malloc arenas each time; see ship_worker() in fusion/moving_volume.cpp).
   // Pipelines of concurrent scans take turns.
@@ -202,7 +203,7 @@ PipelineOutcome run_pipeline(const SessionProvider& session_provider, const Fram
       std::future<bool> upload_ahead;
       const WaitOnExit<bool> wait_upload(upload_ahead);  // before `next` moves, also when add_frame throws
       const ScanFrame* next = session->uploads_ahead() ? queue.next() : nullptr;
-      if (next != nullptr && !next->images.empty()) {
+      if (next != nullptr && !next->pattern_images().empty()) {
         upload_ahead = uploader.submit([session, next] { return session->prefetch(*next); });
       }
       const FrameReport report = session->add_frame(entry->frame);
@@ -280,7 +281,7 @@ FrameSource captured_frames(const std::string& folder, std::function<void(const 
     bool stopped = false;
     // The recording's frames before `end` that were not handed over, read back.
     const auto read_back = [&](std::size_t end) {
-      if (next >= end || stopped) return;
+      if (folder.empty() || next >= end || stopped) return;  // no recording: nothing to read back
       const RecordingReader recording = RecordingReader::open(folder);
       end = std::min(end, recording.frame_count());
       for (; next < end; ++next) {
@@ -296,12 +297,12 @@ FrameSource captured_frames(const std::string& folder, std::function<void(const 
       read_back(position);
       if (stopped || !deliver(std::move(frame))) {
         stopped = true;
-        throw_error(ErrorCode::kCancelled, "capture into {} stopped after frame {}: the scan stopped fusing", folder,
-                    position);
+        throw_error(ErrorCode::kCancelled, "capture into {} stopped after frame {}: the scan stopped fusing",
+                    folder.empty() ? std::string("no recording") : folder, position);
       }
       next = position + 1;
     });
-    read_back(RecordingReader::open(folder).frame_count());
+    if (!folder.empty()) read_back(RecordingReader::open(folder).frame_count());
   };
 }
 

@@ -10,8 +10,9 @@
 //   }, options, on_frame, progress);
 //
 // Back-pressure is explicit: while the queue is full the source waits in deliver() — a capture
-// loses nothing by it (its frames are in its recording before they are delivered) — and the
-// waits are counted (PipelineOutcome::waits, wait_s, each frame's waited_s). No frame is
+// loses nothing by it (its frames are handed to its recording's writer thread before they are
+// delivered, sdk/core/recording_writer_thread.h, and that thread has its own bounded queue and
+// counted waits) — and the waits are counted (PipelineOutcome::waits, wait_s, each frame's waited_s). No frame is
 // dropped.
 //
 // How it ends:
@@ -43,6 +44,7 @@
 
 #include "sdk/core/progress.h"
 #include "sdk/core/recording.h"
+#include "sdk/core/stopwatch.h"
 #include "sdk/core/trajectory.h"
 #include "sdk/session/scan_session.h"
 
@@ -73,6 +75,7 @@ struct PipelineOutcome {
   double wait_s = 0.0;               // the waits summed
   std::size_t deepest_queue = 0;     // the most frames waiting to be fused at once
   double source_s = 0.0;             // the source's run, from its start to its return
+  SteadyClock::time_point started;   // what the seconds above count from
 };
 
 // Hands a frame to the pipeline, waiting while the queue is full; false when the pipeline has
@@ -114,8 +117,11 @@ FrameSource recording_frames(const RecordingReader& recording, const std::vector
 
 // A capture into the recording at `folder` as a frame source: fusing while capturing.
 // `capture` runs on the source thread; it records frames into `folder` (a new recording, or the
-// rest of one cut off) and hands each to `recorded` once it is in the recording, with
-// ScanFrame::index its position there. Frames the recording held before (a resumed capture),
+// rest of one cut off) on a writer thread of its own and hands each to `recorded` as soon as it
+// has handed it to that writer (the stack shared, ScanFrame::shared_images), with
+// ScanFrame::index its position there; it returns (or throws) only once every frame it captured
+// is written. An empty `folder`: the capture records nothing (`--no-record`), and nothing is read
+// back. Frames the recording held before (a resumed capture),
 // and any the capture recorded without handing over, are read back from the recording
 // (read_recording_frame), so the session sees every frame of the recording once, in order.
 // When the pipeline stops taking frames (a cancel or a fault while fusing), `recorded` throws

@@ -162,9 +162,9 @@ ScanSession& ScanSession::operator=(ScanSession&&) noexcept = default;
 
 bool ScanSession::prefetch(const ScanFrame& next) {
   Impl& s = *impl_;
-  if (!s.decoder || next.images.empty() || !next.problem.empty()) return false;
+  if (!s.decoder || next.pattern_images().empty() || !next.problem.empty()) return false;
   try {
-    return s.decoder->prefetch(next.images);
+    return s.decoder->prefetch(next.pattern_images());
   } catch (const Error&) {
     return false;  // add_frame(next) uploads it again and reports the problem as that frame's
   }
@@ -200,11 +200,12 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   }
   // On a GPU the decoded maps stay there (maps.fetch brings them down where the host needs them).
   const bool on_gpu = s.options.device.is_cuda();
-  if (!frame.images.empty()) {
+  const std::vector<Image16u>& stack = frame.pattern_images();
+  if (!stack.empty()) {
     if (!s.decoder) return finish(FrameStatus::kSkipped, "a pattern stack, but the session has no pattern set");
     const Clock::time_point start = Clock::now();
     try {
-      s.decoder->decode(frame.images,
+      s.decoder->decode(stack,
                         on_gpu ? DecodeOutputs::kDepthAndConfidenceOnDevice : DecodeOutputs::kDepthAndConfidence,
                         &s.decoded);
     } catch (const Error& error) {
@@ -271,8 +272,8 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     const Clock::time_point start = Clock::now();  // part of preparing the frame
     if (frame.texture) {
       texture = &*frame.texture;
-    } else if (!frame.images.empty() &&
-               stack_texture(frame.images, s.decoder->decode_params().layout, s.options.decode.black_level_dn,
+    } else if (!frame.pattern_images().empty() &&
+               stack_texture(frame.pattern_images(), s.decoder->decode_params().layout, s.options.decode.black_level_dn,
                              &derived_texture)) {
       texture = &derived_texture;
     }

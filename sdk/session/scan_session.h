@@ -129,6 +129,10 @@ struct ScanFrame {
   std::int64_t timestamp_ns = 0;
   std::optional<double> turntable_angle_deg;
   std::vector<Image16u> images;            // a pattern stack (the session's pattern set), or
+  // the same stack shared read-only with a live capture's recording writer, which writes it
+  // while the session fuses it (recording_writer_thread.h: no copy of a 0.5 GB stack); used
+  // when `images` is empty. pattern_images() is whichever the frame holds.
+  std::shared_ptr<const std::vector<Image16u>> shared_images;
   std::optional<Image32f> depth_m;         // a depth map (camera-frame z, 0 = none)
   // The grey texture for the tracker's photometric term (options.tracking.photometric_weight
   // > 0, else unused): linear intensity at the camera's size. Empty: a pattern stack's white −
@@ -138,6 +142,10 @@ struct ScanFrame {
   std::optional<Pose> known_T_world_camera;  // fuse here instead of tracking (ground truth)
   std::string problem;                     // non-empty: the source could not deliver the frame
   double read_ms = 0.0;                    // the source's time to deliver it (for the report)
+
+  const std::vector<Image16u>& pattern_images() const {
+    return images.empty() && shared_images ? *shared_images : images;
+  }
 };
 
 enum class FrameStatus { kFused, kLost, kSkipped };

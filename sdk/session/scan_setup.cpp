@@ -95,6 +95,10 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
                 request.camera_uri);
   }
   if (request.frames < 0) throw_error(ErrorCode::kInvalidArgument, "capture: {} frames (0 or more)", request.frames);
+  if (request.resume && !request.record) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "resume continues the recording at {}; a capture that records nothing has none to continue", folder);
+  }
   if (request.resume && !request.calibration_path.empty()) {
     throw_error(ErrorCode::kInvalidArgument,
                 "resume keeps the calibration {} was captured with; leave the calibration out", folder);
@@ -129,10 +133,22 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
       capture.frames_per_revolution = replay_turntable ? turntable->steps_per_revolution() : capture.frames;
     }
   }
-  RecordingWriter writer =
-      request.resume ? resume_writer(folder, *projector, *camera, turntable, patterns, &capture)
-                     : RecordingWriter::create(
-                           folder, make_recording_info(*projector, *camera, patterns, request.exposures), calibration);
+  capture.write_queue_frames = request.write_queue_frames;
+  std::optional<RecordingWriter> writer;
+  if (request.record) {
+    writer.emplace(request.resume
+                       ? resume_writer(folder, *projector, *camera, turntable, patterns, &capture)
+                       : RecordingWriter::create(folder,
+                                                 make_recording_info(*projector, *camera, patterns, request.exposures),
+                                                 calibration));
+    // A resumed recording keeps the calibration it was captured with.
+    if (request.resume && std::filesystem::exists(folder + "/calibration.yml")) {
+      calibration = RecordingReader::open(folder).calibration();
+    }
+  }
+  const RecordingInfo info =
+      writer ? writer->info() : make_recording_info(*projector, *camera, patterns, request.exposures);
+  if (request.described) request.described(info, calibration);
   CaptureSequencer sequencer(*projector, {camera}, turntable, patterns, capture);
 
   DeviceCapture result;
@@ -142,28 +158,38 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
   FrameCallback on_frame;
   if (recorded) {
     // The frame as a replay of the recording would read it back (read_recording_frame).
-    on_frame = [&recorded, &writer](CapturedFrame& captured) {
+    on_frame = [&recorded, &info](CapturedFrame& captured) {
       ScanFrame frame;
-      frame.index = captured.recording_indices.front();
+      frame.index = captured.recording_indices.empty() ? captured.index : captured.recording_indices.front();
       frame.timestamp_ns = captured.timestamp_ns();
       frame.turntable_angle_deg = captured.turntable_angle_deg;
       if (!captured.complete) {
         frame.problem = "incomplete pattern stack" + (captured.note.empty() ? std::string() : ": " + captured.note);
       } else {
-        frame.images = std::move(captured.cameras.front().images);
+        CameraStack& stack = captured.cameras.front();
+        frame.images = std::move(stack.images);
+        frame.shared_images = std::move(stack.shared_images);  // being written: shared, not copied
         try {
-          fuse_hdr_frame(writer.info(), hdr_decode_options(writer.info()), &frame);
+          fuse_hdr_frame(info, hdr_decode_options(info), &frame);
         } catch (const Error& error) {
           if (!is_frame_problem(error)) throw;
           frame.images.clear();
+          frame.shared_images.reset();
           frame.problem = fmt::format("cannot read: {}", error.what());
         }
       }
       recorded(std::move(frame));
     };
   }
-  result.statistics = sequencer.run({&writer}, on_frame, progress);
-  result.calibrated = std::filesystem::exists(folder + "/calibration.yml");  // given now, or when first captured
+  try {
+    result.statistics = sequencer.run(writer ? std::vector<RecordingWriter*>{&*writer} : std::vector<RecordingWriter*>{},
+                                      on_frame, progress);
+  } catch (...) {
+    if (request.write_statistics != nullptr) *request.write_statistics = sequencer.statistics().writes;
+    throw;
+  }
+  if (request.write_statistics != nullptr) *request.write_statistics = result.statistics.writes;
+  result.calibrated = calibration.has_value();  // given now, or when first captured
   return result;
 }
 
@@ -186,11 +212,15 @@ ScanSession make_recording_session(const RecordingReader& recording, ScanSession
                 calibration->camera.width, calibration->camera.height, recording.folder(), info.camera.width,
                 info.camera.height);
   }
+  return make_capture_session(info, calibration != nullptr ? *calibration : recording.calibration(), std::move(options));
+}
+
+ScanSession make_capture_session(const RecordingInfo& info, const ScannerCalibration& calibration,
+                                 ScanSessionOptions options) {
   options.decode.bit_depth = info.camera.bit_depth;
   std::optional<PatternSet> patterns;
   if (info.images_per_frame > 0) patterns = pattern_set_from_json(info.pattern_set_json);
-  return ScanSession(calibration != nullptr ? *calibration : recording.calibration(), patterns ? &*patterns : nullptr,
-                     options);
+  return ScanSession(calibration, patterns ? &*patterns : nullptr, options);
 }
 
 std::vector<StampedPose> groundtruth_poses(const RecordingReader& recording) {
@@ -239,9 +269,15 @@ fusion::VolumeGeometry groundtruth_volume(const RecordingReader& recording, doub
 }
 
 bool is_full_revolution(const RecordingReader& recording, std::string* why) {
+  std::vector<std::optional<double>> angles;
+  for (std::size_t i = 0; i < recording.frame_count(); ++i) angles.push_back(recording.frame(i).turntable_angle_deg);
+  return is_full_revolution(angles, why);
+}
+
+bool is_full_revolution(const std::vector<std::optional<double>>& frame_angles, std::string* why) {
   std::vector<double> angles;
-  for (std::size_t i = 0; i < recording.frame_count(); ++i) {
-    if (recording.frame(i).turntable_angle_deg) angles.push_back(*recording.frame(i).turntable_angle_deg);
+  for (const std::optional<double>& angle : frame_angles) {
+    if (angle) angles.push_back(*angle);
   }
   const auto say = [why](std::string text) {
     if (why != nullptr) *why = std::move(text);

@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,7 @@
 #include "sdk/core/device.h"
 #include "sdk/core/progress.h"
 #include "sdk/core/recording.h"
+#include "sdk/core/recording_writer_thread.h"
 #include "sdk/core/trajectory.h"
 #include "sdk/decode/pattern_set.h"
 #include "sdk/session/capture_sequencer.h"
@@ -46,6 +48,19 @@ struct DeviceCaptureRequest {
   // HDR: the stack at each of these exposures relative to the camera's (CaptureOptions::exposures);
   // empty: one exposure.
   std::vector<double> exposures;
+  // false (`sls scan --no-record`, sls_scan_config.no_record): nothing of the capture touches
+  // the disk — no folder, no recording —; the frames go to `recorded` only, so the capture can
+  // be neither resumed nor scanned again. Refused with resume.
+  bool record = true;
+  // Stacks waiting for the recording's writer thread, at most (CaptureOptions::write_queue_frames).
+  std::size_t write_queue_frames = CaptureOptions{}.write_queue_frames;
+  // Called once the devices are open, before the first frame, on the capturing thread: what the
+  // recording holds (or, without `record`, would hold) and the calibration it is captured with
+  // (none: uncalibrated). What a scan session is made from when there is no recording to open.
+  std::function<void(const RecordingInfo& info, const std::optional<ScannerCalibration>& calibration)> described;
+  // When given: the recording's writer thread's figures, filled when the capture ends, also when
+  // it throws.
+  RecordingWriteStatistics* write_statistics = nullptr;
 };
 
 struct DeviceCapture {
@@ -68,11 +83,13 @@ PatternSet scan_pattern_set(const drivers::Projector& projector);
 // sls::Error: the device registry's codes for a URI that opens nothing (the message names it),
 // kInvalidArgument without a camera or projector URI, the sequencer's codes for a device that
 // stops answering, kCancelled when `progress` asks to stop.
-// `recorded`, when given, is called on the capturing thread with each frame once it is in the
-// recording, as a scan session takes it (ScanFrame::index its position in the recording; HDR
-// stacks fused; an incomplete frame with ScanFrame::problem), the images moved, not copied:
-// fusing while capturing (frame_pipeline.h's captured_frames). An exception from it ends the
-// capture after that frame, which stays recorded, and propagates unchanged.
+// `recorded`, when given, is called on the capturing thread with each frame once it is handed to
+// the recording's writer thread, as a scan session takes it (ScanFrame::index its position in
+// the recording; HDR stacks fused; an incomplete frame with ScanFrame::problem), the stack shared
+// with the writer (ScanFrame::shared_images), not copied: fusing while capturing
+// (frame_pipeline.h's captured_frames). An exception from it ends the capture after that frame,
+// which is still written, and propagates unchanged. A write that fails ends the capture with
+// sls::Error naming the folder and the frame (the frames before it stay in the recording).
 DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptureRequest& request,
                                    const ProgressCallback& progress = {},
                                    const std::function<void(ScanFrame&& frame)>& recorded = {});
@@ -97,6 +114,10 @@ RecordingReader open_recording_for_scan(const std::string& folder, bool calibrat
 // camera size.
 ScanSession make_recording_session(const RecordingReader& recording, ScanSessionOptions options,
                                    const ScannerCalibration* calibration = nullptr);
+// The same from what a recording holds (its info and the calibration to decode with): for a
+// capture that records nothing (DeviceCaptureRequest::described).
+ScanSession make_capture_session(const RecordingInfo& info, const ScannerCalibration& calibration,
+                                 ScanSessionOptions options);
 
 // Known poses (`sls scan --poses groundtruth`, sls_scan_config.poses) for a simulated recording:
 // its ground-truth trajectory, one pose per frame (a pose written for a frame the manifest does
@@ -115,6 +136,8 @@ fusion::VolumeGeometry groundtruth_volume(const RecordingReader& recording, doub
 // Whether a recording is a full turntable revolution (its angles span 360 degrees less at most
 // two steps), as `sls scan` decides to close the loop by default; `why` says so in words.
 bool is_full_revolution(const RecordingReader& recording, std::string* why = nullptr);
+// The same from the frames' turntable angles (none: a frame without one), in frame order.
+bool is_full_revolution(const std::vector<std::optional<double>>& angles, std::string* why = nullptr);
 
 // The largest volume (one buffer of a moving volume) an automatic voxel size is grown to fit:
 // 256 million voxels on a GPU, 48 million on the CPU.

@@ -126,6 +126,21 @@ TEST(CStructVersions, InitWritesNothingPastTheCallersStruct) {
   check_init_0_4<sls_scan_config>(
       sls_scan_config_init,
       size_0_4<sls_scan_config>(offsetof(sls_scan_config, online_deformation) + sizeof(int)), "sls_scan_config");
+  // It grew again in 0.7 (no_record, after 0.6's revisits): a 0.6 program's struct, as its
+  // sls_scan_config_init macro sizes it, gets the defaults and not one byte past its end.
+  {
+    const std::size_t size_0_6 =
+        size_0_4<sls_scan_config>(offsetof(sls_scan_config, revisits) + sizeof(sls_revisit_policy));
+    ASSERT_LT(size_0_6, sizeof(sls_scan_config));
+    alignas(sls_scan_config) unsigned char buffer[sizeof(sls_scan_config) + 64];
+    std::memset(buffer, kCanary, sizeof(buffer));
+    sls_scan_config_init_sized(reinterpret_cast<sls_scan_config*>(buffer), size_0_6);
+    for (std::size_t i = size_0_6; i < sizeof(buffer); ++i) ASSERT_EQ(buffer[i], kCanary) << "byte " << i;
+    sls_scan_config whole;
+    sls_scan_config_init(&whole);
+    EXPECT_EQ(whole.no_record, 0);
+    EXPECT_GE(offsetof(sls_scan_config, no_record), size_0_6);
+  }
 }
 
 class CScanConfig : public ::testing::Test {
@@ -174,6 +189,7 @@ TEST_F(CScanConfig, DefaultsAreSlsScans) {
   EXPECT_EQ(config.icp_weights, SLS_ICP_WEIGHTS_CONFIDENCE);
   EXPECT_EQ(config.loop_closure, SLS_LOOP_CLOSURE_CALLER);
   EXPECT_EQ(config.revisits, SLS_REVISITS_AUTO);
+  EXPECT_EQ(config.no_record, 0);
 
   // What samples/sls/cmd_scan.cpp sets for `sls scan` without options.
   const ScanPtr scan = create(config);

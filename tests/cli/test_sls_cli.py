@@ -575,6 +575,45 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(result.returncode, 3, result.stderr)
         self.assertIn("nonsense://x", result.stderr)
 
+    def test_scan_no_record_writes_no_recording_and_the_recorded_runs_model(self):
+        uri = "sim://knurled-screw?preset=ci"
+        rec = self.dir / "calibration-source"
+        self.assertEqual(run("sim", "--preset", "ci", "--frames", "1", "--device", "cpu", "--out", str(rec)).returncode, 0)
+        common = ["--camera", uri, "--projector", uri, "--turntable", uri, "--frames", "3",
+                  "--calibration", str(rec / "calibration.yml"), "--device", "cpu"]
+        recorded, unrecorded = self.dir / "recorded", self.dir / "unrecorded"
+        result = run("scan", *common, "--out", str(recorded))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        result = run("scan", *common, "--no-record", "--out", str(unrecorded))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        # Nothing of the capture on disk, the same model.
+        self.assertFalse((unrecorded / "recording").exists())
+        self.assertEqual((recorded / "cloud.ply").read_bytes(), (unrecorded / "cloud.ply").read_bytes())
+        report = json.loads((unrecorded / "report.json").read_text())
+        self.assertIsNone(report["input"])
+        self.assertFalse(report["writer"]["recorded"])
+        self.assertEqual(report["writer"]["frames_written"], 0)
+        self.assertFalse(report["live_capture"]["recorded"])
+        self.assertEqual(report["live_capture"]["frames_captured"], 3)
+        self.assertTrue(all("written_s" not in frame for frame in report["per_frame"]))
+        # The recorded run: its writer's figures, and when each frame was written.
+        report = json.loads((recorded / "report.json").read_text())
+        self.assertTrue(report["writer"]["recorded"])
+        self.assertEqual(report["writer"]["frames_written"], 3)
+        self.assertGreater(report["writer"]["write_s_total"], 0)
+        for frame in report["per_frame"]:
+            self.assertLessEqual(frame["captured_s"], frame["written_s"])
+        # What cannot work is refused with exit status 2.
+        for extra, said in ((["--resume"], "--resume"), (["--poses", "groundtruth"], "--poses groundtruth")):
+            result = run("scan", "--sim", "ci", "--no-record", *extra, "--device", "cpu",
+                         "--out", str(self.dir / "refused"))
+            self.assertEqual(result.returncode, 2, result.stderr)
+            self.assertIn(said, result.stderr)
+        result = run("scan", "--camera", uri, "--projector", uri, "--no-record", "--device", "cpu",
+                     "--out", str(self.dir / "refused"))
+        self.assertEqual(result.returncode, 2, result.stderr)
+        self.assertIn("--calibration", result.stderr)
+
     def test_sim_writes_recording_with_ground_truth(self):
         out = self.dir / "rec"
         result = run("--json", "sim", "--preset", "ci", "--object", "knurled-knob", "--frames", "3",

@@ -162,12 +162,14 @@ def test_every_config_field_round_trips(context: slscan.Context, recording: path
         max_voxels=0.0, online_deformation=True, calibration_path=None, gtsdf_lambda=0.0, gtsdf_kappa=0.0,
         gtsdf_penalty=slscan.GtsdfPenalty.DEFAULT, gtsdf_iterations=0, poses=slscan.PoseSource.TRACK, loop_frames=2,
         photometric_weight=0.0, icp_crease_deg=15.0, icp_weights=slscan.IcpWeights.CONFIDENCE,
-        loop_closure=slscan.LoopClosureMode.CALLER, max_gpu_bytes=0.0, revisits=slscan.RevisitPolicy.AUTO)
+        loop_closure=slscan.LoopClosureMode.CALLER, max_gpu_bytes=0.0, revisits=slscan.RevisitPolicy.AUTO,
+        no_record=False)
     given = dict(fusion="gtsdf", use_turntable_prior=True, voxel_size_m=2e-4, volume_size_m=(0.03, 0.04, 0.05),
                  max_voxels=2e6, online_deformation=False, calibration_path=str(recording / "calibration.yml"),
                  gtsdf_lambda=2.5, gtsdf_kappa=0.07, gtsdf_penalty="charbonnier", gtsdf_iterations=5,
                  poses="groundtruth", loop_frames=4, photometric_weight=0.5, icp_crease_deg=30.0,
-                 icp_weights="equal", loop_closure="auto", max_gpu_bytes=6e9, revisits="merge")
+                 icp_weights="equal", loop_closure="auto", max_gpu_bytes=6e9, revisits="merge",
+                 no_record=False)  # True is refused with known poses (test_no_record_...)
     assert set(given) == {field.name for field in dataclasses.fields(slscan.ScanConfig)}
     expected = dict(given, fusion=slscan.FusionMethod.GTSDF, gtsdf_penalty=slscan.GtsdfPenalty.CHARBONNIER,
                     poses=slscan.PoseSource.GROUNDTRUTH, icp_weights=slscan.IcpWeights.EQUAL,
@@ -176,6 +178,28 @@ def test_every_config_field_round_trips(context: slscan.Context, recording: path
         assert dataclasses.asdict(scan.config) == expected
     with slscan.Scan(context, slscan.ScanConfig(**given), loop_frames=7) as scan:
         assert scan.config.loop_frames == 7 and scan.config.poses == slscan.PoseSource.GROUNDTRUTH
+
+
+def test_no_record_fuses_the_capture_and_writes_nothing(context: slscan.Context, recording: pathlib.Path,
+                                                        tmp_path: pathlib.Path):
+    """no_record=True (`sls scan --no-record`): run_devices fuses the capture with no recording,
+    and the model is the recorded run's; refused with known poses or a recording path."""
+    uri = "sim://knurled-screw?preset=ci"
+    calibration = recording / "calibration.yml"
+    with slscan.Scan(context) as scan:
+        scan.run_devices(camera=uri, projector=uri, calibration=calibration, recording=tmp_path / "recorded")
+        scan.write_cloud(tmp_path / "recorded.ply")
+    with slscan.Scan(context, no_record=True) as scan:
+        assert scan.config.no_record is True
+        summary = scan.run_devices(camera=uri, projector=uri, calibration=calibration, recording=None)
+        assert summary.fused == 1
+        scan.write_cloud(tmp_path / "unrecorded.ply")
+        with pytest.raises(slscan.InvalidArgumentError, match="no_record"):
+            scan.run_devices(camera=uri, projector=uri, calibration=calibration, recording=tmp_path / "refused")
+    assert (tmp_path / "recorded.ply").read_bytes() == (tmp_path / "unrecorded.ply").read_bytes()
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["recorded", "recorded.ply", "unrecorded.ply"]
+    with pytest.raises(slscan.InvalidArgumentError, match="no_record"):
+        slscan.Scan(context, no_record=True, poses="groundtruth")
 
 
 def test_bad_config_values_name_the_field(context: slscan.Context):

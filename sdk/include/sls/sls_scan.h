@@ -141,6 +141,7 @@ typedef enum sls_revisit_policy {
  *   --max-voxels M               max_voxels = M * 1e6
  *   --max-gpu-memory B           max_gpu_bytes = B
  *   --revisits auto|keep|merge   revisits
+ *   --no-record                  no_record (sls_scan_run_devices)
  *   --out, --resume, and the global --json, -q, -v: the tool's own (its output folder, its
  *   recovery of a cut-off capture, its printing); the library writes what the caller asks
  *   (sls_scan_write_*, sls_results.h) and logs through sls_log.h.
@@ -210,6 +211,17 @@ typedef struct sls_scan_config {
                                  * 0 .. 1e15; default 0: none. Not used on the CPU */
   /* Appended in API 0.6: */
   sls_revisit_policy revisits;  /* --revisits; default SLS_REVISITS_AUTO */
+  /* Appended in API 0.7: */
+  int padding_0_6;              /* not a setting: the 0.6 struct ended here in padding (a 0.6
+                                 * caller's bytes are undefined), so the library never reads it */
+  int no_record;                /* --no-record, since 0.7: sls_scan_run_devices fuses the capture
+                                 * while it runs and writes none of it (capture.recording_path
+                                 * must then be NULL or ""): nothing of the stacks touches the
+                                 * disk. Lost with it: the recording (no rescan with
+                                 * sls_scan_run_recording, no resume of a capture cut off).
+                                 * Refused with SLS_POSES_GROUNDTRUTH (known poses come from a
+                                 * recording). Not used by sls_scan_run_recording. Default 0: the
+                                 * capture is recorded, on a writer thread beside it */
 } sls_scan_config;
 
 /* Fills *config with the defaults. */
@@ -348,7 +360,8 @@ typedef struct sls_capture_config {
                                  * with a replay:// camera NULL or "" takes the replayed
                                  * recording's */
   const char* recording_path;   /* required: the recording folder to create; it must not exist
-                                 * or be empty. It is kept: scan it again with sls_scan_run_recording */
+                                 * or be empty. It is kept: scan it again with sls_scan_run_recording.
+                                 * With sls_scan_config.no_record (since 0.7): NULL or "" */
   int frames;                   /* frames per revolution, one revolution captured; default 0:
                                  * 36 with a turntable, else 1; with a replay:// camera the
                                  * replayed recording's frames */
@@ -364,10 +377,15 @@ SLS_API void sls_capture_config_init_sized(sls_capture_config* config, size_t st
  * camera and turntable (sls_device.h's URIs; sim:// devices render on the context's device),
  * homes the turntable, and per turntable position projects the scan's Gray code + phase-shift
  * patterns and captures one stack (a spoiled stack is captured again, up to twice), appending
- * each to the recording at capture->recording_path as it arrives; the scan fuses each frame once
- * it is recorded, on the calling thread, while the next is captured (on a thread of the
+ * each to the recording at capture->recording_path as it arrives; the scan fuses each frame as
+ * it is captured, on the calling thread, while the next is captured (on a thread of the
  * library's: a bounded queue of two frames between them; the capture waits when fusion falls
- * behind, and never drops a frame). The results and codes are sls_scan_run_recording()'s on that
+ * behind, and never drops a frame), and a writer thread writes it to the recording meanwhile
+ * (its own bounded queue of two stacks, shared with the scan, not copied: the capture waits when
+ * the disk falls behind). Every stack captured is written, also after a cancel or a fusion
+ * error; a write that fails (a full disk) ends the run with its code (SLS_ERROR_IO) and a
+ * message naming the folder and the frame, the frames before it kept in the recording and the
+ * model. With sls_scan_config.no_record nothing is written. The results and codes are sls_scan_run_recording()'s on that
  * recording, and the model is the same. The frame callback reports each frame as it is fused,
  * during the capture.
  * Also fails with SLS_ERROR_INVALID_ARGUMENT for a missing URI or path, the device registry's

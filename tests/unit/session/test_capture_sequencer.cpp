@@ -328,7 +328,10 @@ TEST(CaptureSequencer, SoftwareTriggeredScanRecordsEveryStackWithItsMetadata) {
     EXPECT_EQ(frame.recording_indices, std::vector<int>{f});
     ASSERT_EQ(frame.cameras.size(), 1u);
     const CameraStack& stack = frame.cameras[0];
-    ASSERT_EQ(stack.images.size(), 17u);
+    // Recorded: the stack is shared with the writer thread, not copied.
+    EXPECT_TRUE(stack.images.empty());
+    ASSERT_NE(stack.shared_images, nullptr);
+    ASSERT_EQ(stack.shared_images->size(), 17u);
     for (int k = 0; k < 17; ++k) {
       const ImageMetadata& meta = stack.metadata[static_cast<std::size_t>(k)];
       EXPECT_EQ(meta.pattern, k);
