@@ -20,6 +20,7 @@
 #include "drivers/sim/rig.h"
 #include "sdk/core/device.h"
 #include "sdk/core/image.h"
+#include "sdk/core/memory_type.h"
 #include "sdk/core/progress.h"
 #include "sdk/core/recording.h"
 #include "sdk/core/recording_writer_thread.h"
@@ -60,6 +61,9 @@ struct SimRecordingOptions {
   // false (`sls scan --sim --no-record`): nothing touches the disk — no folder, no recording, no
   // ground truth —; the frames go to on_recorded only. Refused with resume.
   bool record = true;
+  // Where the simulated camera delivers its images (drivers::Camera::set_image_memory):
+  // kPinned for a scan fused on a GPU, which then uploads each stack without staging it.
+  MemoryType image_memory = MemoryType::kHost;
   // Frames waiting for the writer thread, at most (sdk/core/recording_writer_thread.h; 0: each
   // frame written on the capturing thread before on_recorded sees it).
   std::size_t write_queue_frames = 2;

@@ -132,6 +132,7 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
   CaptureOutcome outcome;
   outcome.recording = live.record ? folder : std::string();
   options.write_statistics = &outcome.writes;
+  options.image_memory = session::capture_memory_for(device);  // where the scan reads them
   int delivered = 0;  // frames captured this run (what a capture that records nothing has)
   if (on_recorded) {
     options.on_recorded = [&on_recorded, &delivered](int frame, const std::shared_ptr<const std::vector<Image16u>>& images,

@@ -28,6 +28,7 @@ session::DeviceCaptureRequest device_request(const ScanOptions& options, const D
   request.calibration_path = options.calibration;
   request.frames = options.frames;
   request.sim_device = device;
+  request.image_memory = session::capture_memory_for(device);
   return request;
 }
 

@@ -339,6 +339,7 @@ void scan_devices(sls_scan& scan, const sls_capture_config& capture) {
   }
   request.frames = capture.frames;
   request.sim_device = scan.options.device;
+  request.image_memory = sls::session::capture_memory_for(scan.options.device);
   // Asked after every stack: a cancel stops the capture after the stack in progress (what it
   // recorded is fused).
   const sls::ProgressCallback progress = [&scan](const sls::ProgressUpdate&) { return !cancel_requested(scan); };

@@ -113,6 +113,7 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
       drivers::open_scanner_devices(request.projector_uri, request.camera_uri, request.turntable_uri, open_options);
   drivers::Projector* const projector = opened.projector.get();
   drivers::Camera* const camera = opened.camera.get();
+  camera->set_image_memory(request.image_memory);
   drivers::Turntable* const turntable = opened.turntable.get();
   const PatternSet patterns = scan_pattern_set(*projector);
   CaptureOptions capture;

@@ -18,6 +18,7 @@
 #include "drivers/interfaces/projector.h"
 #include "fusion/volume.h"
 #include "sdk/core/device.h"
+#include "sdk/core/memory_type.h"
 #include "sdk/core/progress.h"
 #include "sdk/core/recording.h"
 #include "sdk/core/recording_writer_thread.h"
@@ -48,6 +49,9 @@ struct DeviceCaptureRequest {
   // HDR: the stack at each of these exposures relative to the camera's (CaptureOptions::exposures);
   // empty: one exposure.
   std::vector<double> exposures;
+  // Where the camera delivers its images (drivers::Camera::set_image_memory): kPinned for a scan
+  // fused on a GPU (capture_memory_for), which then uploads each stack without staging it.
+  MemoryType image_memory = MemoryType::kHost;
   // false (`sls scan --no-record`, sls_scan_config.no_record): nothing of the capture touches
   // the disk — no folder, no recording —; the frames go to `recorded` only, so the capture can
   // be neither resumed nor scanned again. Refused with resume.
@@ -62,6 +66,11 @@ struct DeviceCaptureRequest {
   // it throws.
   RecordingWriteStatistics* write_statistics = nullptr;
 };
+
+// Where a capture for a scan fused on `device` puts its images: page-locked for a GPU.
+inline MemoryType capture_memory_for(const Device& device) {
+  return device.is_cuda() ? MemoryType::kPinned : MemoryType::kHost;
+}
 
 struct DeviceCapture {
   std::string recording_folder;

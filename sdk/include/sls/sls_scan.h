@@ -387,7 +387,8 @@ SLS_API void sls_capture_config_init_sized(sls_capture_config* config, size_t st
  * message naming the folder and the frame, the frames before it kept in the recording and the
  * model. With sls_scan_config.no_record nothing is written. The results and codes are sls_scan_run_recording()'s on that
  * recording, and the model is the same. The frame callback reports each frame as it is fused,
- * during the capture.
+ * during the capture. On a CUDA context the camera delivers its images into page-locked host
+ * memory (since 0.7), which the GPU uploads without staging them.
  * Also fails with SLS_ERROR_INVALID_ARGUMENT for a missing URI or path, the device registry's
  * codes for a URI that opens nothing (SLS_ERROR_UNSUPPORTED, SLS_ERROR_NOT_FOUND, ... naming
  * the URI), SLS_ERROR_DEVICE or SLS_ERROR_TIMEOUT for a device that stops answering (the frames

@@ -362,8 +362,8 @@ TEST(DecoderCuda, APageLockedStackDecodesAsThePageableOneAndIsFreeOncePrefetched
     ASSERT_EQ(pinned.back().memory_type(), MemoryType::kPinned);
   }
   // Bit for bit (not ==: invalid pixels are NaN in the float maps).
-  const auto same_bits = [](const auto& a, const auto& b) {
-    return a.size_bytes() == b.size_bytes() && std::memcmp(a.data(), b.data(), a.size_bytes()) == 0;
+  const auto same_bits = [](const auto& left, const auto& right) {
+    return left.size_bytes() == right.size_bytes() && std::memcmp(left.data(), right.data(), left.size_bytes()) == 0;
   };
   Decoder gpu(a.rig.patterns, a.rig.calibration(), Device::cuda(), options());
   const DecodedFrame from_pageable = gpu.decode(a.stack);

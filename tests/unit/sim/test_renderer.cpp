@@ -318,7 +318,19 @@ TEST(SimScanner, DevicePathCapturesWhatTheRendererRenders) {
         direct.render(scanner->rig().patterns.patterns[static_cast<std::size_t>(pattern)], capture++);
     EXPECT_TRUE(captured.image == expected) << "pattern " << pattern;
     EXPECT_TRUE(captured.complete);
+    EXPECT_EQ(captured.image.memory_type(), MemoryType::kHost);
   }
+  // For a scan fused on a GPU the camera delivers page-locked images (where a GPU can lock
+  // them; pageable elsewhere, and saying so), the same pixels.
+  EXPECT_EQ(camera->image_memory(), MemoryType::kHost);
+  camera->set_image_memory(MemoryType::kPinned);
+  EXPECT_EQ(camera->image_memory(), MemoryType::kPinned);
+  projector->show_pattern(5);
+  camera->software_trigger();
+  const drivers::CapturedImage pinned = camera->wait_image(timeout);
+  EXPECT_TRUE(pinned.image == direct.render(scanner->rig().patterns.patterns[5], capture++));
+  EXPECT_EQ(pinned.image.memory_type(),
+            cuda_compiled() && cuda_device_count() > 0 ? MemoryType::kPinned : MemoryType::kHost);
   EXPECT_THROW(projector->show_pattern(10000), Error);
 }
 
