@@ -15,8 +15,9 @@ A failed call raises :class:`Error` (a subclass per status, e.g. :class:`NotFoun
 ``slscan._lib`` (``$SLSCAN_LIBRARY`` first); :data:`library_path` says which was.
 """
 from ._lib import API_VERSION, library_path
-from ._types import (CalibrationDevice, DeviceKind, DeviceRole, FrameStatus, FusionMethod, GtsdfPenalty, IcpWeights,
-                     LogLevel, LoopClosureMode, PoseSource, RevisitPolicy, Status)
+from ._types import (CalibrationDevice, CalibrationPoseKind, DeviceKind, DeviceRole, FrameStatus, FusionMethod,
+                     GtsdfPenalty, IcpWeights, LogLevel, LoopClosureMode, PoseDecision, PoseSource, RevisitPolicy,
+                     Status)
 from ._errors import (BusyError, CancelledError, DeviceError, DeviceTimeoutError, Error, FormatError, InternalError,
                       InvalidArgumentError, IoError, NotFoundError, OutOfMemoryError, UnsupportedError,
                       VersionMismatchError)
@@ -27,8 +28,8 @@ from ._scan_config import ScanConfig
 from ._results import Cloud, Mesh
 from ._device_array import LentArray
 from ._log import get_log_level, set_log_callback, set_log_level
-from ._calibration import (Calibration, CalibrationProgress, CalibrationSummary, CalibrationView, Intrinsics,
-                           calibrate)
+from ._calibration import (Calibration, CalibrationCaptureResult, CalibrationPose, CalibrationProgress,
+                           CalibrationSummary, CalibrationView, Intrinsics, calibrate, capture_calibration)
 from ._eval import EvalProgress, Evaluation, EvaluationSummary, evaluate, write_report
 
 __version__ = f"{API_VERSION // 10000}.{API_VERSION // 100 % 100}.{API_VERSION % 100}"
@@ -37,7 +38,7 @@ __version__ = f"{API_VERSION // 10000}.{API_VERSION // 100 % 100}.{API_VERSION %
 __all__ = [
     "API_VERSION", "library_path", "version", "build_info", "cuda_device_count",
     "Status", "LogLevel", "DeviceKind", "DeviceRole", "FusionMethod", "GtsdfPenalty", "PoseSource", "IcpWeights",
-    "LoopClosureMode", "RevisitPolicy", "FrameStatus", "CalibrationDevice",
+    "LoopClosureMode", "RevisitPolicy", "FrameStatus", "CalibrationDevice", "CalibrationPoseKind", "PoseDecision",
     "Error", "InvalidArgumentError", "IoError", "FormatError", "NotFoundError", "OutOfMemoryError",
     "UnsupportedError", "VersionMismatchError", "DeviceError", "DeviceTimeoutError", "CancelledError",
     "BusyError", "InternalError",
@@ -46,6 +47,7 @@ __all__ = [
     "Scan", "ScanConfig", "FrameReport", "ScanSummary", "LoopClosure", "Cloud", "Mesh", "LentArray",
     "set_log_callback", "set_log_level", "get_log_level",
     "calibrate", "Calibration", "CalibrationProgress", "CalibrationSummary", "CalibrationView", "Intrinsics",
+    "capture_calibration", "CalibrationPose", "CalibrationCaptureResult",
     "evaluate", "write_report", "Evaluation", "EvaluationSummary", "EvalProgress",
 ]
 

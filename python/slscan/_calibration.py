@@ -1,25 +1,27 @@
 """Calibration from chessboard captures (sls_calibration.h): camera and projector intrinsics,
 their extrinsics and the turntable axis. Needs a libsls built with OpenCV; otherwise every call
-raises :class:`UnsupportedError`."""
+raises :class:`UnsupportedError`. And the capture of those views through the devices
+(sls_calibration_capture.h), in every build."""
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import os
 from dataclasses import dataclass
-from typing import Any, Callable, List, Optional, Tuple, Union
+from typing import Any, Callable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from . import _lib
 from ._context import Context, Handle, context_or_default
+from ._devices import Camera, Projector, Turntable
 from ._errors import call
 from ._progress import progress_trampoline
-from ._types import (CalibrationConfigC, CalibrationDevice, CalibrationProgressC, CalibrationSummaryC,
-                     CalibrationViewC, IntrinsicsC)
+from ._types import (CalibrationCaptureConfigC, CalibrationCaptureResultC, CalibrationConfigC, CalibrationDevice,
+                     CalibrationPoseC, CalibrationPoseKind, CalibrationProgressC, CalibrationSummaryC,
+                     CalibrationViewC, IntrinsicsC, PoseDecision, copy_reported)
 
 PathLike = Union[str, "os.PathLike[str]"]
-
-
 
 
 @dataclass(frozen=True)
@@ -206,3 +208,129 @@ def calibrate(input_path: PathLike, context: Optional[Context] = None,
     finally:
         del c_callback, pattern_set
     return result
+
+
+@dataclass(frozen=True)
+class CalibrationPose:
+    """The pose :func:`capture_calibration` asks its `confirm` about (sls_calibration_pose)."""
+    kind: CalibrationPoseKind
+    index: int
+    """Among the poses of its kind, from 0."""
+    count: int
+    """Poses of its kind in the capture."""
+    turntable_angle_deg: float
+    """Turntable poses: the angle the table is moved to; 0 by hand."""
+    description: str
+    """E.g. "hand pose 3 of 12", "turntable pose 2 of 5 (355.000 deg)"."""
+
+
+@dataclass(frozen=True)
+class CalibrationCaptureResult:
+    """What :func:`capture_calibration` did (sls_calibration_capture_result)."""
+    poses_captured: int
+    poses_skipped: int
+    stopped: bool
+    """`confirm` answered STOP."""
+    frames: int
+    """Frames in the recording now (with resume: the earlier ones included)."""
+    hand_frames: int
+    turntable_frames: int
+    resumed_from: int
+    """With resume: the frames the recording held before."""
+    images_per_frame: int
+    incomplete_frames: int
+    retries: int
+    seconds: float
+    """The whole call, the callbacks' time included."""
+    capture_seconds: float
+    """Capturing only."""
+
+
+def _pose_trampoline(confirm: Optional[Callable[[CalibrationPose], Any]], raised: List[BaseException]):
+    """The C pose callback (keep it referenced during the call) calling `confirm`. An exception
+    it raises (Ctrl-C included), or an answer that is no decision, is kept in `raised` and
+    answers STOP: the capture ends cleanly with the poses captured, and the caller raises it."""
+
+    def trampoline(address: int, user: Optional[int]) -> int:
+        try:
+            pose = _lib.dataclass_from_c(CalibrationPose, copy_reported(CalibrationPoseC, address))
+            pose = dataclasses.replace(pose, kind=CalibrationPoseKind(pose.kind))
+            answer = confirm(pose) if confirm is not None else None
+            if answer is None:
+                return int(PoseDecision.CAPTURE)
+            if isinstance(answer, PoseDecision):
+                return int(answer)
+            if isinstance(answer, str) and answer.upper() in PoseDecision.__members__:
+                return int(PoseDecision[answer.upper()])
+            error = ValueError if isinstance(answer, str) else TypeError
+            raise error(f"confirm returned {answer!r} for {pose.description}: a PoseDecision, 'capture', 'skip', "
+                        "'stop' or None")
+        except BaseException as error:  # noqa: B036 - re-raised after the call
+            raised.append(error)
+            return int(PoseDecision.STOP)
+
+    return _lib.CALIBRATION_POSE_CALLBACK(trampoline)
+
+
+def capture_calibration(camera: Camera, projector: Projector, folder: PathLike, *,
+                        turntable: Optional[Turntable] = None, hand_poses: Optional[int] = None,
+                        turntable_angles_deg: Sequence[float] = (),
+                        confirm: Optional[Callable[[CalibrationPose], Any]] = None,
+                        progress: Optional[Callable[[CalibrationProgress], Any]] = None, resume: bool = False,
+                        home_turntable: bool = True, pattern_set: Optional[str] = None, exposure_us: float = 0.0,
+                        image_timeout_ms: Optional[int] = None, turntable_timeout_ms: Optional[int] = None,
+                        max_retries: Optional[int] = None) -> CalibrationCaptureResult:
+    """Captures the chessboard views of a calibration through open devices into a recording at
+    `folder` (sls_calibration_capture): the hand poses, each confirmed first, then the board on
+    the turntable at each angle. Calibrate the recording with :func:`calibrate`. Blocks.
+
+    Args:
+        camera, projector: open devices; turntable: one for `turntable_angles_deg`. They belong
+            to the call while it runs (the callbacks must not use them).
+        folder: the recording to create (absent or empty), or with `resume` the one to continue.
+        hand_poses: board poses placed by hand (None: the library's 12).
+        turntable_angles_deg: table angles in [0, 360), captured in that order.
+        confirm: asked before each pose with a :class:`CalibrationPose`; returns a
+            :class:`PoseDecision` or its name (``"capture"``, ``"skip"``, ``"stop"``), None to
+            capture. None: every pose captured without asking. An exception it raises stops the
+            capture (the poses before kept) and is raised again.
+        progress: called after each pose with a :class:`CalibrationProgress` (stage
+            "calibration capture", done/total poses); returning False stops the capture
+            (:class:`CancelledError`, the recording kept); an exception stops it and is raised.
+        resume: continue the recording at `folder` (cut off by a cancel, an error, a signal).
+        home_turntable, pattern_set (e.g. ``"gray-phase:912x1140"``; None: the projector's
+            calibration set), exposure_us (0: left), image_timeout_ms, turntable_timeout_ms,
+            max_retries (None: the library's): sls_calibration_capture_config's fields.
+    A cancel, a device error or Ctrl-C ends the capture after the last whole pose; the recording
+    stays valid and ``resume=True`` continues it."""
+    config = _lib.init(CalibrationCaptureConfigC, "sls_calibration_capture_config_init")
+    angles = (ctypes.c_double * len(turntable_angles_deg))(*(float(a) for a in turntable_angles_deg))
+    config.turntable_angles_deg = ctypes.cast(angles, ctypes.POINTER(ctypes.c_double))
+    config.turntable_angle_count = len(angles)
+    config.home_turntable = int(bool(home_turntable))
+    config.resume = int(bool(resume))
+    encoded_patterns = _lib.encode(pattern_set)  # kept referenced during the call
+    config.pattern_set = encoded_patterns
+    config.exposure_us = float(exposure_us)
+    for key, value in (("hand_poses", hand_poses), ("image_timeout_ms", image_timeout_ms),
+                       ("turntable_timeout_ms", turntable_timeout_ms), ("max_retries", max_retries)):
+        if value is not None:
+            setattr(config, key, int(value))
+    result = _lib.init(CalibrationCaptureResultC, "sls_calibration_capture_result_init")
+    raised: List[BaseException] = []
+    c_progress = progress_trampoline(CalibrationProgressC, CalibrationProgress, progress, raised)
+    c_confirm = _pose_trampoline(confirm, raised)
+    try:
+        call(_lib.lib.sls_calibration_capture, camera._checked(), projector._checked(),
+             turntable._checked() if turntable is not None else None, _lib.encode_path(folder),
+             ctypes.byref(config), ctypes.cast(c_confirm, ctypes.c_void_p), ctypes.cast(c_progress, ctypes.c_void_p),
+             None, ctypes.byref(result))
+    except BaseException:
+        if raised:
+            raise raised[0] from None
+        raise
+    finally:
+        del c_progress, c_confirm, angles, encoded_patterns
+    if raised:
+        raise raised[0]
+    return _lib.dataclass_from_c(CalibrationCaptureResult, result)

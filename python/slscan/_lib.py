@@ -29,7 +29,7 @@ from . import _types as t
 # compares them). Passed to sls_context_create(), which refuses a library of another major
 # version or of an older minor version.
 API_VERSION_MAJOR = 0
-API_VERSION_MINOR = 6
+API_VERSION_MINOR = 7
 API_VERSION_PATCH = 0
 API_VERSION = API_VERSION_MAJOR * 10000 + API_VERSION_MINOR * 100 + API_VERSION_PATCH
 
@@ -215,6 +215,11 @@ _PROTOTYPES = {
     "sls_calibration_view_init_sized": (None, [c_void_p, c_size_t]),
     "sls_calibration_get_view": (c_int, [_P, c_size_t, POINTER(t.CalibrationViewC), _E]),
     "sls_calibration_write": (c_int, [_P, c_char_p, c_int, _E]),
+    # sls_calibration_capture.h
+    "sls_calibration_capture_config_init_sized": (None, [c_void_p, c_size_t]),
+    "sls_calibration_capture_result_init_sized": (None, [c_void_p, c_size_t]),
+    "sls_calibration_capture": (c_int, [_P, _P, _P, c_char_p, POINTER(t.CalibrationCaptureConfigC), c_void_p,
+                                        c_void_p, c_void_p, POINTER(t.CalibrationCaptureResultC), _E]),
     # sls_eval.h
     "sls_eval_config_init_sized": (None, [c_void_p, c_size_t]),
     "sls_evaluate": (c_int, [_P, c_char_p, c_char_p, POINTER(t.EvalConfigC), c_void_p, c_void_p, POINTER(_P), _E]),
@@ -241,6 +246,8 @@ for _name, (_restype, _argtypes) in _PROTOTYPES.items():
 # _types.copy_reported (the library's struct may be another version's).
 FRAME_CALLBACK = ctypes.CFUNCTYPE(None, c_void_p, c_void_p)
 CALIBRATION_PROGRESS_CALLBACK = ctypes.CFUNCTYPE(c_int, c_void_p, c_void_p)
+# sls_calibration_pose_callback: the pose by address likewise, the answer an int.
+CALIBRATION_POSE_CALLBACK = ctypes.CFUNCTYPE(c_int, c_void_p, c_void_p)
 LOG_CALLBACK = ctypes.CFUNCTYPE(None, c_int, c_char_p, c_void_p)
 
 

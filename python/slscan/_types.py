@@ -1,4 +1,4 @@
-"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.6.0).
+"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.7.0).
 
 Each versioned struct (its first field `struct_size`) is mirrored field for field, in the
 order of the header. Fill one with :func:`init_struct`, which calls the library's own
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import ctypes
 import enum
-from ctypes import (Structure, c_char_p, c_double, c_int, c_int64, c_size_t, c_uint,
+from ctypes import (POINTER, Structure, c_char_p, c_double, c_int, c_int64, c_size_t, c_uint,
                     c_uint64, c_void_p)
 from typing import Callable, Type, TypeVar
 
@@ -120,6 +120,19 @@ class CalibrationDevice(enum.IntEnum):
     """sls_calibration_device (sls_calibration.h)."""
     CAMERA = 0
     PROJECTOR = 1
+
+
+class CalibrationPoseKind(enum.IntEnum):
+    """sls_calibration_pose_kind (sls_calibration_capture.h)."""
+    HAND = 0
+    TURNTABLE = 1
+
+
+class PoseDecision(enum.IntEnum):
+    """sls_calibration_pose_decision (sls_calibration_capture.h): what a pose confirmation answers."""
+    CAPTURE = 0
+    SKIP = 1
+    STOP = 2
 
 
 class ErrorC(Structure):
@@ -285,6 +298,25 @@ class ReportConfigC(Structure):
                 ("image_size_px", c_int), ("voxel_size_m", c_double)]
 
 
+class CalibrationCaptureConfigC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("hand_poses", c_int), ("turntable_angles_deg", POINTER(c_double)),
+                ("turntable_angle_count", c_size_t), ("home_turntable", c_int), ("resume", c_int),
+                ("pattern_set", c_char_p), ("exposure_us", c_double), ("image_timeout_ms", c_int),
+                ("turntable_timeout_ms", c_int), ("max_retries", c_int)]
+
+
+class CalibrationPoseC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("kind", c_enum), ("index", c_int), ("count", c_int),
+                ("turntable_angle_deg", c_double), ("description", c_char_p)]
+
+
+class CalibrationCaptureResultC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("poses_captured", c_size_t), ("poses_skipped", c_size_t),
+                ("stopped", c_int), ("frames", c_size_t), ("hand_frames", c_size_t), ("turntable_frames", c_size_t),
+                ("resumed_from", c_size_t), ("images_per_frame", c_size_t), ("incomplete_frames", c_size_t),
+                ("retries", c_size_t), ("seconds", c_double), ("capture_seconds", c_double)]
+
+
 VERSIONED_STRUCTS: dict[str, tuple[Type[Structure], str]] = {
     "sls_context_config": (ContextConfigC, "sls_context_config_init"),
     "sls_device_info": (DeviceInfoC, "sls_device_info_init"),
@@ -307,12 +339,15 @@ VERSIONED_STRUCTS: dict[str, tuple[Type[Structure], str]] = {
     "sls_eval_config": (EvalConfigC, "sls_eval_config_init"),
     "sls_evaluation_summary": (EvaluationSummaryC, "sls_evaluation_summary_init"),
     "sls_report_config": (ReportConfigC, "sls_report_config_init"),
+    "sls_calibration_capture_config": (CalibrationCaptureConfigC, "sls_calibration_capture_config_init"),
+    "sls_calibration_capture_result": (CalibrationCaptureResultC, "sls_calibration_capture_result_init"),
 }
 # Structs only the library fills, with no _init() (their struct_size is the library's).
 REPORTED_STRUCTS: dict[str, Type[Structure]] = {
     "sls_frame_report": FrameReportC,
     "sls_calibration_progress": CalibrationProgressC,
     "sls_eval_progress": EvalProgressC,
+    "sls_calibration_pose": CalibrationPoseC,
 }
 
 S = TypeVar("S", bound=Structure)

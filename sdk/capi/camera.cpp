@@ -10,39 +10,15 @@
 #include "drivers/device_registry.h"
 #include "sdk/capi/capi_guard.h"
 #include "sdk/capi/context_internal.h"
+#include "sdk/capi/device_handles.h"
 #include "sdk/capi/versioned_struct.h"
 #include "sdk/core/error.h"
 #include "sls/sls_camera.h"
-
-struct sls_camera {
-  std::unique_ptr<sls::drivers::Camera> camera;
-  sls::drivers::CameraInfo info;  // the strings sls_camera_get_info hands out
-  bool acquiring = false;         // between start() and stop()
-
-  ~sls_camera() {
-    if (!acquiring) return;
-    try {
-      camera->stop();
-    } catch (...) {  // a camera that is gone cannot be stopped; closing must still succeed
-    }
-  }
-};
 
 namespace {
 
 constexpr std::size_t kCameraInfoFirstVersionSize = offsetof(sls_camera_info, bit_depth) + sizeof(int);
 constexpr std::size_t kFrameInfoFirstVersionSize = offsetof(sls_frame_info, frames_missed) + sizeof(std::uint64_t);
-
-// Stops acquisition so that the next grab starts afresh: an image still in flight for an
-// earlier trigger (after a timeout) or the rest of an incomplete one is dropped with the stream.
-void restart_on_next_grab(sls_camera& camera) noexcept {
-  if (!camera.acquiring) return;
-  camera.acquiring = false;
-  try {
-    camera.camera->stop();
-  } catch (...) {  // the grab's own error is what the caller needs to see
-  }
-}
 
 void grab(sls_camera& camera, int timeout_ms, std::uint16_t* pixels, std::size_t pixel_count, sls_frame_info* frame) {
   if (frame != nullptr) sls::capi::require_versioned(frame, kFrameInfoFirstVersionSize, "sls_frame_info");
@@ -60,11 +36,11 @@ void grab(sls_camera& camera, int timeout_ms, std::uint16_t* pixels, std::size_t
     camera.camera->software_trigger();
     captured = camera.camera->wait_image(std::chrono::milliseconds(timeout_ms));
   } catch (...) {
-    restart_on_next_grab(camera);
+    camera.stop_acquisition();  // the next grab starts afresh
     throw;
   }
   if (!captured.complete) {
-    restart_on_next_grab(camera);
+    camera.stop_acquisition();  // the next grab starts afresh
     sls::throw_error(sls::ErrorCode::kDevice, "{}: frame {} arrived incomplete ({}); grab again", camera.info.uri,
                      captured.frame_id, captured.problem);
   }

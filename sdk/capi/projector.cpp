@@ -7,22 +7,11 @@
 #include "drivers/device_registry.h"
 #include "sdk/capi/capi_guard.h"
 #include "sdk/capi/context_internal.h"
+#include "sdk/capi/device_handles.h"
 #include "sdk/capi/versioned_struct.h"
 #include "sdk/core/error.h"
 #include "sdk/session/scan_setup.h"
 #include "sls/sls_projector.h"
-
-struct sls_projector {
-  std::unique_ptr<sls::drivers::Projector> projector;
-  sls::drivers::ProjectorInfo info;  // the strings sls_projector_get_info hands out
-
-  ~sls_projector() {
-    try {
-      projector->go_dark();
-    } catch (...) {  // a projector that is gone cannot go dark; closing must still succeed
-    }
-  }
-};
 
 namespace {
 

@@ -6,12 +6,9 @@
 #include "drivers/device_registry.h"
 #include "sdk/capi/capi_guard.h"
 #include "sdk/capi/context_internal.h"
+#include "sdk/capi/device_handles.h"
 #include "sdk/core/error.h"
 #include "sls/sls_turntable.h"
-
-struct sls_turntable {
-  std::unique_ptr<sls::drivers::Turntable> turntable;
-};
 
 extern "C" {
 
@@ -24,7 +21,7 @@ SLS_API sls_status sls_turntable_open(sls_context* context, const char* uri, sls
   return sls::capi::guarded(__func__, error, [&] {
     sls::drivers::OpenOptions options;
     options.sim_device = context->device;
-    *turntable = new sls_turntable{sls::drivers::open_turntable(uri, options)};
+    *turntable = new sls_turntable{sls::drivers::open_turntable(uri, options), uri};
   });
 }
 

@@ -1,8 +1,9 @@
 """The README's copy-paste examples, run as they are written, one test per audience: the C
 example of "OEM integration: C and C++" compiled as C99 and as C++ against the build tree's
 headers and libsls, the Python example of "Python scripting", and the shell and Python examples
-of "Replay testing". Each section's `sls sim` command makes its input first (the build tree's
-`sls`, $SLS_TOOL, first on PATH)."""
+of "Replay testing", and the C and Python examples of "Calibration" on the simulated head. Each
+section's `sls sim` command makes its input first (the build tree's `sls`, $SLS_TOOL, first on
+PATH)."""
 from __future__ import annotations
 
 import os
@@ -46,21 +47,30 @@ def make_input(text: str, cwd: pathlib.Path, sls_tool: str) -> None:
     subprocess.run([sls_tool, *command[1:]], cwd=cwd, check=True, capture_output=True, timeout=120)
 
 
-def test_c_example(tmp_path: pathlib.Path, sls_tool: str):
-    text = section("OEM integration: C and C++")
-    make_input(text, tmp_path, sls_tool)
-    (source,) = blocks(text, "c")
-    (tmp_path / "scan.c").write_text(source)
+def compile_c(source: str, folder: pathlib.Path, name: str) -> Dict[str, pathlib.Path]:
+    """`source` built as C99 and as C++17 (warnings as errors) against the build tree's headers
+    and libsls: the programs by compiler."""
+    (folder / f"{name}.c").write_text(source)
     library = pathlib.Path(slscan.library_path).resolve()
     headers = REPO / "sdk" / "include"
+    programs = {}
     for compiler, flags in (("cc", ["-std=c99", "-Wall", "-Wextra", "-pedantic-errors", "-Werror"]),
                             ("c++", ["-x", "c++", "-std=c++17", "-Wall", "-Wextra", "-Werror"])):
         found = shutil.which(compiler)
         if found is None:
             pytest.skip(f"no {compiler}")
-        program = tmp_path / f"scan-{compiler}"
-        subprocess.run([found, *flags, f"-I{headers}", str(tmp_path / "scan.c"), "-x", "none", str(library),
+        program = folder / f"{name}-{compiler}"
+        subprocess.run([found, *flags, f"-I{headers}", str(folder / f"{name}.c"), "-x", "none", str(library),
                         f"-Wl,-rpath,{library.parent}", "-o", str(program)], check=True, timeout=120)
+        programs[compiler] = program
+    return programs
+
+
+def test_c_example(tmp_path: pathlib.Path, sls_tool: str):
+    text = section("OEM integration: C and C++")
+    make_input(text, tmp_path, sls_tool)
+    (source,) = blocks(text, "c")
+    for compiler, program in compile_c(source, tmp_path, "scan").items():
         mesh = tmp_path / f"knob-{compiler}.ply"
         result = subprocess.run([str(program), "knob", str(mesh)], cwd=tmp_path, capture_output=True, text=True,
                                 timeout=120)
@@ -107,3 +117,29 @@ def test_replay_examples(tmp_path: pathlib.Path, sls_tool: str):
                             timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "replayed 3 of 3 frames" in result.stdout and "identical: True" in result.stdout
+
+
+def test_calibration_examples(tmp_path: pathlib.Path):
+    """The calibration capture and calibration of "Calibration", the C program and the Python
+    script, on the simulated head: five hand poses answered Enter, Enter, s, Enter, Enter, then
+    the three table angles, calibrated and written. The C program is built as C99 and as C++ and
+    run as C99 (each run ~17 s on 2 cores)."""
+    text = section("Calibration")
+    (source,) = blocks(text, "c")
+    (code,) = blocks(text, "python")
+    uri = re.search(r'uri = "([^"]+)"', code).group(1)  # type: ignore[union-attr]
+    answers = "\n\ns\n" + "\n" * 5
+    programs = compile_c(source, tmp_path, "calibrate")
+    runs = {"cc": [str(programs["cc"]), uri, "calib-rec"], "python": [sys.executable, "-c", code]}
+    for name, command in runs.items():
+        work = tmp_path / name
+        work.mkdir()
+        result = subprocess.run(command, cwd=work, input=answers, capture_output=True, text=True, timeout=300)
+        if "built without OpenCV" in result.stderr:
+            pytest.skip("libsls built without OpenCV: the capture runs, the calibration is unsupported")
+        assert result.returncode == 0, f"{name}: {result.stdout}{result.stderr}"
+        assert "7 poses captured, 1 skipped" in result.stdout, result.stdout
+        assert "Place the board for hand pose 3 of 5" in result.stdout + result.stderr
+        assert re.search(r"stereo RMS 0\.\d+ px", result.stdout), result.stdout
+        assert (work / "calibration.yml").read_text().startswith("%YAML")
+        assert len(list((work / "calib-rec" / "frames").iterdir())) > 0

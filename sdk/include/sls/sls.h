@@ -38,6 +38,7 @@
 #include "sls/sls_results.h"
 #include "sls/sls_feed.h"
 #include "sls/sls_calibration.h"
+#include "sls/sls_calibration_capture.h"
 #include "sls/sls_eval.h"
 
 #endif /* SLS_SLS_H */

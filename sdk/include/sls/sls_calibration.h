@@ -102,13 +102,14 @@ SLS_API void sls_calibration_config_init(sls_calibration_config* config);
 SLS_API void sls_calibration_config_init_sized(sls_calibration_config* config, size_t struct_size);
 #define sls_calibration_config_init(config) sls_calibration_config_init_sized((config), sizeof(*(config)))
 
-/* Progress of sls_calibration_run(), handed to its callback. The library fills its own version
+/* Progress of sls_calibration_run() (and of sls_calibration_capture(), with its own stage and
+ * units: sls_calibration_capture.h), handed to its callback. The library fills its own version
  * of the struct and sets struct_size to its size: a field added later is there only when
  * struct_size covers it. */
 typedef struct sls_calibration_progress {
   size_t struct_size;
-  const char* stage;  /* "calibrate" */
-  size_t done;        /* views finished */
+  const char* stage;  /* "calibrate" (sls_calibration_capture: "calibration capture") */
+  size_t done;        /* views finished (the capture: poses) */
   size_t total;       /* views in all; done == total while solving */
   const char* detail; /* the view being read (its name), or "solve" */
 } sls_calibration_progress;
