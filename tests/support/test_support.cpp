@@ -2,11 +2,14 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdlib>
 #include <filesystem>
+#include <cstdint>
 
 #include "sdk/core/device.h"
+#include "sdk/core/file_util.h"
 
 namespace sls::test {
 
@@ -41,6 +44,27 @@ ErrorCode code_of(const std::function<void()>& f) {
     return error.code();
   }
   return ErrorCode::kInternal;
+}
+
+std::string bytes_of(const std::string& path) {
+  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
+  return {bytes.begin(), bytes.end()};
+}
+
+std::vector<std::pair<std::string, std::string>> recording_snapshot(const std::string& folder) {
+  std::vector<std::pair<std::string, std::string>> files;
+  for (const std::filesystem::directory_entry& entry : std::filesystem::recursive_directory_iterator(folder)) {
+    if (!entry.is_regular_file()) continue;
+    const std::string relative = std::filesystem::relative(entry.path(), folder).string();
+    std::string bytes = bytes_of(entry.path().string());
+    if (relative == "manifest.json") {
+      const std::size_t at = bytes.find("\"created_utc\"");
+      if (at != std::string::npos) bytes.erase(at, bytes.find('\n', at) - at);
+    }
+    files.emplace_back(relative, std::move(bytes));
+  }
+  std::sort(files.begin(), files.end());
+  return files;
 }
 
 }  // namespace sls::test

@@ -3,6 +3,8 @@
 
 #include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -32,6 +34,12 @@ bool has_cuda_device();
 
 // The code of the sls::Error that `f` throws; ErrorCode::kInternal when it throws none.
 ErrorCode code_of(const std::function<void()>& f);
+
+// A file's bytes as a string (throws sls::Error when it cannot be read).
+std::string bytes_of(const std::string& path);
+// Every file under a recording's `folder` (relative path -> bytes, sorted), its manifest without
+// the creation time: two recordings of the same frames compare equal.
+std::vector<std::pair<std::string, std::string>> recording_snapshot(const std::string& folder);
 
 }  // namespace sls::test
 

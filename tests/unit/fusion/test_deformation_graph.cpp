@@ -396,19 +396,31 @@ TEST(DeformationGraph, LinksFollowTimeAndSpace) {
   EXPECT_FALSE(linked(3, 12));
 }
 
-TEST(DeformationGraph, MapDeformationEqualsThePerPointDeformation) {
-  DeformationGraph graph = arc_graph(16, options_for_tests());
-  for (int j = 2; j < 16; ++j) {
-    graph.set_transform(j, Eigen::AngleAxisd(0.001 * j, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
-                        Eigen::Vector3d(2e-6 * j * j, -1e-6 * j, 0.0));
-  }
+// An arc of 16 nodes bent more and more along it (the first two pinned), and points with
+// normals near each node: a map to deform.
+struct BentMap {
+  DeformationGraph graph;
   PointCloud cloud;
+};
+BentMap bent_map() {
+  BentMap map{arc_graph(16, options_for_tests()), {}};
+  for (int j = 2; j < 16; ++j) {
+    map.graph.set_transform(j, Eigen::AngleAxisd(0.001 * j, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
+                            Eigen::Vector3d(2e-6 * j * j, -1e-6 * j, 0.0));
+  }
   for (int j = 0; j < 16; ++j) {
-    for (const Eigen::Vector3d& p : points_near(graph, j, 5)) {
-      cloud.positions.push_back(p.cast<float>());
-      cloud.normals.push_back(Eigen::Vector3f(0.0f, 0.6f, 0.8f));
+    for (const Eigen::Vector3d& p : points_near(map.graph, j, 5)) {
+      map.cloud.positions.push_back(p.cast<float>());
+      map.cloud.normals.push_back(Eigen::Vector3f(0.0f, 0.6f, 0.8f));
     }
   }
+  return map;
+}
+
+TEST(DeformationGraph, MapDeformationEqualsThePerPointDeformation) {
+  BentMap map = bent_map();
+  const DeformationGraph& graph = map.graph;
+  PointCloud& cloud = map.cloud;
   const PointCloud original = cloud;
   const int time = graph.node(11).time;
   std::vector<float> displacement;
@@ -434,18 +446,9 @@ TEST(DeformationGraph, MapDeformationEqualsThePerPointDeformation) {
 // into another at an offset, the same points to the bit as deformed in place; a destination
 // too small, or without normals for a source that has them, is refused.
 TEST(DeformationGraph, MapDeformationIntoAnotherCloudEqualsInPlace) {
-  DeformationGraph graph = arc_graph(16, options_for_tests());
-  for (int j = 2; j < 16; ++j) {
-    graph.set_transform(j, Eigen::AngleAxisd(0.001 * j, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
-                        Eigen::Vector3d(2e-6 * j * j, -1e-6 * j, 0.0));
-  }
-  PointCloud source;
-  for (int j = 0; j < 16; ++j) {
-    for (const Eigen::Vector3d& p : points_near(graph, j, 5)) {
-      source.positions.push_back(p.cast<float>());
-      source.normals.push_back(Eigen::Vector3f(0.0f, 0.6f, 0.8f));
-    }
-  }
+  const BentMap map = bent_map();
+  const DeformationGraph& graph = map.graph;
+  const PointCloud& source = map.cloud;
   const int time = graph.node(11).time;
   const std::vector<NodeTransform> transforms = graph.transforms();
   PointCloud in_place = source;

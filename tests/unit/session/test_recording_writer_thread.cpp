@@ -39,24 +39,6 @@ SimRecordingOptions small_options(std::size_t write_queue_frames) {
   return options;
 }
 
-// Every file under `folder` (relative path -> bytes), the manifest without its creation time.
-std::vector<std::pair<std::string, std::string>> snapshot(const std::string& folder) {
-  std::vector<std::pair<std::string, std::string>> files;
-  for (const fs::directory_entry& entry : fs::recursive_directory_iterator(folder)) {
-    if (!entry.is_regular_file()) continue;
-    const std::vector<std::uint8_t> raw = read_file_bytes(entry.path().string());
-    std::string bytes(raw.begin(), raw.end());
-    const std::string relative = fs::relative(entry.path(), folder).string();
-    if (relative == "manifest.json") {
-      const std::size_t at = bytes.find("\"created_utc\"");
-      bytes.erase(at, bytes.find('\n', at) - at);
-    }
-    files.emplace_back(relative, std::move(bytes));
-  }
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
 TEST(RecordingWriterThread, WritesEveryFrameInOrderAndTheRecordingEqualsTheSynchronousCapture) {
   test::TemporaryDirectory dir;
   RecordingWriteStatistics threaded, synchronous;
@@ -82,7 +64,7 @@ TEST(RecordingWriterThread, WritesEveryFrameInOrderAndTheRecordingEqualsTheSynch
   const RecordingReader recording = RecordingReader::open(dir.file("threaded"));
   ASSERT_EQ(recording.frame_count(), static_cast<std::size_t>(kFrames));
   for (std::size_t i = 0; i < recording.frame_count(); ++i) EXPECT_EQ(recording.frame(i).index, static_cast<int>(i));
-  EXPECT_EQ(snapshot(dir.file("threaded")), snapshot(dir.file("direct")));
+  EXPECT_EQ(test::recording_snapshot(dir.file("threaded")), test::recording_snapshot(dir.file("direct")));
 }
 
 TEST(RecordingWriterThread, AScanThatStopsFusingStillLeavesEveryCapturedFrameOnDisk) {

@@ -42,31 +42,9 @@ SimRecordingOptions small_options() {
   return options;
 }
 
-std::string bytes_of(const std::string& path) {
-  const std::vector<std::uint8_t> bytes = read_file_bytes(path);
-  return {bytes.begin(), bytes.end()};
-}
-
-// Every file under `folder` (relative path -> bytes), the manifest without its creation time.
-std::vector<std::pair<std::string, std::string>> snapshot(const std::string& folder) {
-  std::vector<std::pair<std::string, std::string>> files;
-  for (const fs::directory_entry& entry : fs::recursive_directory_iterator(folder)) {
-    if (!entry.is_regular_file()) continue;
-    const std::string relative = fs::relative(entry.path(), folder).string();
-    std::string bytes = bytes_of(entry.path().string());
-    if (relative == "manifest.json") {
-      const std::size_t at = bytes.find("\"created_utc\"");
-      bytes.erase(at, bytes.find('\n', at) - at);
-    }
-    files.emplace_back(relative, std::move(bytes));
-  }
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
 void expect_same_recording(const std::string& folder, const std::string& reference) {
-  const auto got = snapshot(folder);
-  const auto want = snapshot(reference);
+  const auto got = test::recording_snapshot(folder);
+  const auto want = test::recording_snapshot(reference);
   ASSERT_EQ(got.size(), want.size()) << folder;
   for (std::size_t i = 0; i < got.size(); ++i) {
     EXPECT_EQ(got[i].first, want[i].first);
@@ -92,7 +70,7 @@ std::size_t check_consistent(const std::string& folder, const std::string& refer
       const bool exists = fs::is_regular_file(folder + "/" + relative + name);
       EXPECT_TRUE(exists) << "listed frame " << i << " lacks " << name;
       if (exists) {
-        EXPECT_TRUE(bytes_of(folder + "/" + relative + name) == bytes_of(reference + "/" + relative + name));
+        EXPECT_TRUE(test::bytes_of(folder + "/" + relative + name) == test::bytes_of(reference + "/" + relative + name));
       }
     }
     EXPECT_DOUBLE_EQ(poses[i].timestamp_s, static_cast<double>(reader.frame(i).timestamp_ns) * 1e-9);
