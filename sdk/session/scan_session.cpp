@@ -154,6 +154,8 @@ ScanSession::ScanSession(const ScannerCalibration& calibration, const PatternSet
   require_device(options.device);
   impl_ = std::make_unique<Impl>(calibration, options);
   if (patterns != nullptr) impl_->decoder.emplace(*patterns, calibration, options.device, options.decode);
+  // A GPU decode's depth map comes down at keyframes only; page-locked, it comes straight.
+  if (options.device.is_cuda()) impl_->decoded.depth_m = Image32f(MemoryType::kPinned);
 }
 
 ScanSession::~ScanSession() = default;

@@ -456,9 +456,12 @@ void CudaDecodeContext::download(const DecodeOutputsHost& host) {
   if (host.u != nullptr) s.u.download(host.u, s.pixels, s.stream);
   if (host.v != nullptr) s.v.download(host.v, s.pixels, s.stream);
   if (host.mask != nullptr) s.mask.download(host.mask, s.pixels, s.stream);
-  // Depth and confidence, what a scan downloads every frame, land in pinned planes first.
-  queue_landing(host.depth != nullptr, host.confidence != nullptr);
+  // Depth and confidence land in pinned planes first, unless the caller's own image is
+  // page-locked (a GPU scan's keyframe depth): that one the copy engine fills directly.
   float* const wanted[2] = {host.depth, host.confidence};
+  const bool direct[2] = {wanted[0] != nullptr && !s.landing_queued[0] && is_page_locked(wanted[0]),
+                          wanted[1] != nullptr && !s.landing_queued[1] && is_page_locked(wanted[1])};
+  queue_landing(host.depth != nullptr && !direct[0], host.confidence != nullptr && !direct[1]);
   const DeviceBuffer<float>* const sources[2] = {&s.depth, &s.confidence};
   for (int i = 0; i < 2; ++i) {
     if (wanted[i] != nullptr && !s.landing_queued[i]) sources[i]->download(wanted[i], s.pixels, s.stream);
