@@ -203,7 +203,6 @@ struct AravisCamera::Impl {
   DiscoveredCamera identity;
   std::string uri;
   std::string name;  // how messages name the camera
-  MemoryType image_memory = MemoryType::kHost;  // where convert() puts the images (set_image_memory)
   // `name` as the heartbeat thread may read it: that thread runs from arv_camera_new() on,
   // before `name` is written, and only GLib's signal lock (a futex, invisible to
   // ThreadSanitizer, which reported the read in on_control_lost as a race) ordered the write
@@ -481,7 +480,8 @@ struct AravisCamera::Impl {
     negotiate_packet_size();
   }
 
-  CapturedImage convert(ArvBuffer* buffer) {
+  // `memory`: where the image goes (drivers::Camera::set_image_memory).
+  CapturedImage convert(ArvBuffer* buffer, MemoryType memory) {
     CapturedImage captured;
     captured.frame_id = arv_buffer_get_frame_id(buffer);
     captured.timestamp_ns = static_cast<std::int64_t>(arv_buffer_get_timestamp(buffer));
@@ -532,7 +532,7 @@ struct AravisCamera::Impl {
         static_cast<std::size_t>(image_width) * static_cast<std::size_t>(layout->bytes_per_pixel) +
         static_cast<std::size_t>(padding_x);
     try {
-      captured.image = Image16u(image_memory);  // the one copy out of Aravis's buffer lands where the scan reads
+      captured.image = Image16u(memory);  // the one copy out of Aravis's buffer lands where the scan reads
       unpack_mono(data, size, image_width, image_height, row_stride, layout->bytes_per_pixel, captured.image);
     } catch (const Error& error) {
       return incomplete(error.what());
@@ -739,11 +739,6 @@ void AravisCamera::software_trigger() {
   camera.check(error, "software trigger (TriggerSoftware)");
 }
 
-void AravisCamera::set_image_memory(MemoryType memory) {
-  Camera::set_image_memory(memory);
-  impl_->image_memory = memory;
-}
-
 CapturedImage AravisCamera::wait_image(std::chrono::milliseconds timeout) {
   Impl& camera = *impl_;
   camera.ensure_connected();
@@ -773,7 +768,7 @@ CapturedImage AravisCamera::wait_image(std::chrono::milliseconds timeout) {
   gint waiting_output = 0;
   arv_stream_get_n_buffers(camera.stream, &waiting_input, &waiting_output);
   camera.output_queue_depth = static_cast<std::uint64_t>(std::max(waiting_output, 0));
-  return camera.convert(buffer);
+  return camera.convert(buffer, image_memory());
 }
 
 std::string AravisCamera::feature_value(const std::string& feature) const {

@@ -97,7 +97,6 @@ class AravisCamera final : public Camera {
   void stop() override;
   void software_trigger() override;
   CapturedImage wait_image(std::chrono::milliseconds timeout) override;
-  void set_image_memory(MemoryType memory) override;
   // GigE Vision: the stream's packet counters (Aravis's n_resent_packets; n_missing_packets,
   // which counts per incomplete image the packets after the last one received in sequence),
   // summed over the streams of every start() since open, and the images its output queue held

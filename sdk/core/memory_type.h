@@ -1,6 +1,5 @@
-// Where a buffer's bytes live (issue 18; as nvblox's MemoryType). Host buffers (HostBuffer,
-// Image) are pageable or page-locked; device memory is fusion's and the decoder's own
-// (DeviceBuffer) for now.
+// Where a host buffer's bytes live (issue 18; as nvblox's MemoryType): HostBuffer and Image are
+// pageable or page-locked. GPU memory is a separate type, DeviceBuffer (sdk/core/cuda).
 #pragma once
 
 namespace sls {
