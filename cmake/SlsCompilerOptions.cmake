@@ -47,7 +47,9 @@ function(sls_target_defaults target)
   target_compile_options(${target} PRIVATE
     $<$<COMPILE_LANGUAGE:CXX>:${SLS_CXX_WARNINGS}>
     $<$<COMPILE_LANGUAGE:C>:${SLS_C_WARNINGS}>
-    $<$<COMPILE_LANGUAGE:CUDA>:-Xcompiler=-Wall,-Wextra>)
+    $<$<COMPILE_LANGUAGE:CUDA>:-Xcompiler=-Wall,-Wextra>
+    # parallel_for's bodies are lambdas that run on the device (sdk/core/parallel_for.h).
+    $<$<COMPILE_LANGUAGE:CUDA>:--extended-lambda>)
   if(SLS_WERROR)
     target_compile_options(${target} PRIVATE
       $<$<COMPILE_LANGUAGE:C,CXX>:-Werror>

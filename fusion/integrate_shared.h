@@ -124,6 +124,13 @@ SLS_HOST_DEVICE inline float relax_voxel(const VolumeView& v, const IntegrationP
   return numerator / denominator;
 }
 
+// Element n of a half-sweep over one parity's active voxels (both backends' parallel_for).
+SLS_HOST_DEVICE inline void relax_active_voxel(const VolumeView& v, const IntegrationParams& p,
+                                               const ActiveVoxel* active, std::size_t n) {
+  const ActiveVoxel voxel = active[n];
+  v.set_u(voxel.index, relax_voxel(v, p, voxel));
+}
+
 // Red (0) or black (1): the parity of i + j + k.
 SLS_HOST_DEVICE inline int voxel_parity(int i, int j, int k) { return (i + j + k) & 1; }
 

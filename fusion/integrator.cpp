@@ -9,11 +9,13 @@
 #include <vector>
 
 #include "sdk/core/error.h"
+#include "sdk/core/parallel_for.h"
 
 #if defined(SLS_HAVE_CUDA)
 #include <cuda_runtime_api.h>
 
 #include "fusion/cuda/integrate_cuda.h"
+#include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
 #endif
 
@@ -217,8 +219,9 @@ struct Integrator::Impl {
   IntegrationOptions options;
   // CPU: the active voxels of each parity.
   std::vector<ActiveVoxel> active[2];
+  GpuStream gpu_stream;  // the session's, or its own (CUDA)
 #if defined(SLS_HAVE_CUDA)
-  cudaStream_t stream = nullptr;
+  cudaStream_t stream = nullptr;  // gpu_stream's
   DeviceBuffer<float> depth;
   DeviceBuffer<ActiveVoxel> device_active[2];
   DeviceBuffer<std::uint32_t> counters;
@@ -240,19 +243,19 @@ struct Integrator::Impl {
       (void)cudaFree(sorted);
       note_gpu_allocation(-static_cast<std::ptrdiff_t>(sorted_capacity * sizeof(ActiveVoxel)));
     }
-    if (stream != nullptr) (void)cudaStreamDestroy(stream);
   }
 #endif
 };
 
-Integrator::Integrator(const Device& device, const IntegrationOptions& options) : impl_(std::make_unique<Impl>()) {
+Integrator::Integrator(const Device& device, const IntegrationOptions& options, const GpuStream& stream)
+    : impl_(std::make_unique<Impl>()) {
   options.validate(VoxelFormat::kFloat32);
   impl_->device = device;
   impl_->options = options;
   if (device.is_cuda()) {
-    require_device(device);
+    impl_->gpu_stream = GpuStream::or_create(stream, device);
 #if defined(SLS_HAVE_CUDA)
-    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&impl_->stream, cudaStreamNonBlocking));
+    impl_->stream = cuda_stream(impl_->gpu_stream);
     impl_->counters.allocate(2);
 #endif
   }
@@ -353,15 +356,9 @@ IntegrationStats integrate_cpu(const VolumeView& view, const IntegrationParams& 
   if (!collect) return stats;
   for (int t = 0; t < iterations; ++t) {
     for (int parity = 0; parity < 2; ++parity) {
-      const std::vector<ActiveVoxel>& list = active[parity];
-      const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(list.size());
-#if defined(_OPENMP)
-#pragma omp parallel for schedule(static)
-#endif
-      for (std::ptrdiff_t n = 0; n < count; ++n) {
-        const ActiveVoxel voxel = list[static_cast<std::size_t>(n)];
-        view.set_u(voxel.index, relax_voxel(view, params, voxel));
-      }
+      const ActiveVoxel* list = active[parity].data();
+      parallel_for(Device::cpu(), active[parity].size(),
+                   SLS_LAMBDA(std::size_t n) { relax_active_voxel(view, params, list, n); });
     }
   }
   return stats;

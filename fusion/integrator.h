@@ -15,6 +15,7 @@
 #include "fusion/volume.h"
 #include "sdk/core/camera_model_shared.h"
 #include "sdk/core/device.h"
+#include "sdk/core/gpu_stream.h"
 #include "sdk/core/image.h"
 #include "sdk/core/pose.h"
 
@@ -99,7 +100,8 @@ struct IntegrationStats {
 
 class Integrator {
  public:
-  Integrator(const Device& device, const IntegrationOptions& options);
+  // On a GPU, work is queued on `stream` (a session's; one of its own when none is given).
+  Integrator(const Device& device, const IntegrationOptions& options, const GpuStream& stream = {});
   ~Integrator();
   Integrator(Integrator&&) noexcept;
   Integrator& operator=(Integrator&&) noexcept;

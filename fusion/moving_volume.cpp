@@ -22,6 +22,7 @@
 #include <cuda_runtime_api.h>
 
 #include "fusion/cuda/resample_cuda.h"
+#include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
 #endif
 
@@ -125,9 +126,12 @@ struct MovingVolume::Impl {
   std::optional<RevisitFilter> revisits;  // while merging
   bool merging = false;                   // options.merge_revisits, or start_merging_revisits()
   std::size_t moves = 0;
+  // The session's or its own (CUDA): resampling follows the frames' work on `resample`;
+  // shipping (and final_surface's extraction) runs beside it on `ship`.
+  GpuStream resample_stream, ship_gpu_stream;
 #if defined(SLS_HAVE_CUDA)
-  cudaStream_t stream = nullptr;       // resampling
-  cudaStream_t ship_stream = nullptr;  // shipping (and final_surface's extraction)
+  cudaStream_t stream = nullptr;       // resample_stream's
+  cudaStream_t ship_stream = nullptr;  // ship_gpu_stream's
   DeviceBuffer<EdgeCrossing> crossings;
   DeviceBuffer<CellCase> cells;
   DeviceBuffer<std::uint32_t> counters;
@@ -141,10 +145,6 @@ struct MovingVolume::Impl {
 
   ~Impl() {
     if (ship_job.valid()) ship_job.wait();  // it reads the buffers and streams below
-#if defined(SLS_HAVE_CUDA)
-    if (stream != nullptr) (void)cudaStreamDestroy(stream);
-    if (ship_stream != nullptr) (void)cudaStreamDestroy(ship_stream);
-#endif
   }
   // Waits for a ship in the background; rethrows what it threw.
   void wait_shipping() {
@@ -245,7 +245,8 @@ struct MovingVolume::Impl {
 };
 
 MovingVolume::MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFormat format, const Device& device,
-                           const MovingVolumeOptions& options, AverageStorage average)
+                           const MovingVolumeOptions& options, AverageStorage average, const GpuStream& stream,
+                           const GpuStream& ship_stream)
     : impl_(std::make_unique<Impl>()) {
   options.validate();
   impl_->options = options;
@@ -267,10 +268,12 @@ MovingVolume::MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFor
   }
   impl_->buffers.emplace_back(geometry, format, device, average);
   impl_->buffers.emplace_back(geometry, format, device, average);
+  impl_->resample_stream = GpuStream::or_create(stream, device);
+  impl_->ship_gpu_stream = GpuStream::or_create(ship_stream, device);
 #if defined(SLS_HAVE_CUDA)
   if (device.is_cuda()) {
-    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&impl_->stream, cudaStreamNonBlocking));
-    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&impl_->ship_stream, cudaStreamNonBlocking));
+    impl_->stream = cuda_stream(impl_->resample_stream);
+    impl_->ship_stream = cuda_stream(impl_->ship_gpu_stream);
     impl_->counters.allocate(2);
   }
 #endif

@@ -22,6 +22,7 @@
 #include "fusion/extract.h"
 #include "fusion/volume.h"
 #include "sdk/core/device.h"
+#include "sdk/core/gpu_stream.h"
 #include "sdk/core/point_cloud.h"
 #include "sdk/core/pose.h"
 
@@ -85,9 +86,12 @@ class MovingVolume {
  public:
   // counts and voxel size of the volume; its pose comes from place(). Allocates both buffers
   // (sls::Error(kOutOfMemory) as Volume's when they do not fit). GTSDF integration needs
-  // AverageStorage::kSeparate; moves resample A with U.
+  // AverageStorage::kSeparate; moves resample A with U. On a GPU, resampling is queued on
+  // `stream` (the session's frame stream, after the frames' integration) and shipping on
+  // `ship_stream` (beside it); each is one of its own when none is given.
   MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFormat format, const Device& device,
-               const MovingVolumeOptions& options, AverageStorage average = AverageStorage::kInU);
+               const MovingVolumeOptions& options, AverageStorage average = AverageStorage::kInU,
+               const GpuStream& stream = {}, const GpuStream& ship_stream = {});
   ~MovingVolume();
   MovingVolume(MovingVolume&&) noexcept;
   MovingVolume& operator=(MovingVolume&&) noexcept;

@@ -10,6 +10,7 @@
 #include <cuda_runtime_api.h>
 
 #include "fusion/cuda/raycast_cuda.h"
+#include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
 #endif
 
@@ -19,17 +20,15 @@ struct Raycaster::Impl {
   Device device;
   CameraIntrinsics camera;
   RaycastOptions options;
-  RayMap rays;
+  std::shared_ptr<const SharedRayMap> shared_rays;  // the camera's, shared with the other stages
+  const RayMap* rays = nullptr;                     // shared_rays->host
+  GpuStream gpu_stream;                             // the session's, or its own (CUDA)
 #if defined(SLS_HAVE_CUDA)
-  cudaStream_t stream = nullptr;
-  DeviceBuffer<Vec3f> device_rays;
+  cudaStream_t stream = nullptr;  // gpu_stream's
   DeviceBuffer<float> depth;
   DeviceBuffer<Vec3f> points, normals;
   DeviceBuffer<std::uint8_t> shaded;
   DeviceBuffer<float> guide_tile_min, guide_tile_max;
-  ~Impl() {
-    if (stream != nullptr) (void)cudaStreamDestroy(stream);
-  }
 #endif
 
   RaycastParams params(const Volume& volume) const {
@@ -78,7 +77,7 @@ struct Raycaster::Impl {
     out.points = points.data();
     out.normals = normals.data();
     out.shaded = shaded.data();
-    detail::launch_raycast_cuda(volume.view(), params(volume), guide, T_volume_camera, device_rays.data(),
+    detail::launch_raycast_cuda(volume.view(), params(volume), guide, T_volume_camera, shared_rays->rays_device,
                                 camera.width, camera.height, out, stream);
   }
 #endif
@@ -95,8 +94,8 @@ void Raycaster::Impl::raycast_cpu(const Volume& volume, const Pose& T_world_came
 #endif
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
-      const std::size_t i = rays.index(x, y);
-      const Vec3f ray = rays.rays[i];
+      const std::size_t i = rays->index(x, y);
+      const Vec3f ray = rays->rays[i];
       RaycastParams pixel_params = base;
       guided_depth_range(guide, x, y, &pixel_params);
       const RaycastHit hit = raycast_pixel(view, pixel_params, T_volume_camera, ray);
@@ -108,7 +107,8 @@ void Raycaster::Impl::raycast_cpu(const Volume& volume, const Pose& T_world_came
   }
 }
 
-Raycaster::Raycaster(const Device& device, const CameraIntrinsics& camera, const RaycastOptions& options)
+Raycaster::Raycaster(const Device& device, const CameraIntrinsics& camera, const RaycastOptions& options,
+                     const GpuStream& stream)
     : impl_(std::make_unique<Impl>()) {
   if (camera.width <= 0 || camera.height <= 0) {
     throw_error(ErrorCode::kInvalidArgument, "raycast: camera of {}x{} pixels", camera.width, camera.height);
@@ -120,20 +120,18 @@ Raycaster::Raycaster(const Device& device, const CameraIntrinsics& camera, const
   impl_->device = device;
   impl_->camera = camera;
   impl_->options = options;
-  impl_->rays = compute_ray_map(camera, device);
+  impl_->shared_rays = shared_ray_map(camera, device);
+  impl_->rays = &impl_->shared_rays->host;
+  impl_->gpu_stream = GpuStream::or_create(stream, device);
 #if defined(SLS_HAVE_CUDA)
   if (device.is_cuda()) {
-    require_device(device);
     Impl& s = *impl_;
-    const std::size_t pixels = s.rays.rays.size();
-    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&s.stream, cudaStreamNonBlocking));
-    s.device_rays.allocate(pixels);
+    const std::size_t pixels = s.rays->rays.size();
+    s.stream = cuda_stream(s.gpu_stream);
     s.depth.allocate(pixels);
     s.points.allocate(pixels);
     s.normals.allocate(pixels);
     s.shaded.allocate(pixels);
-    s.device_rays.upload(s.rays.rays.data(), pixels, s.stream);
-    SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
   }
 #endif
 }
@@ -248,7 +246,7 @@ void Raycaster::raycast_device(const Volume& volume, const Pose& T_world_camera,
 
 void Raycaster::download(RaycastResult* result) {
   Impl& s = *impl_;
-  const std::size_t pixels = s.rays.rays.size();
+  const std::size_t pixels = s.rays->rays.size();
   s.depth.download(result->depth_m.data(), pixels, s.stream);
   s.points.download(result->points_camera.data(), pixels, s.stream);
   s.normals.download(result->normals_camera.data(), pixels, s.stream);

@@ -10,6 +10,7 @@
 #include "fusion/volume.h"
 #include "sdk/core/camera_model_shared.h"
 #include "sdk/core/device.h"
+#include "sdk/core/gpu_stream.h"
 #include "sdk/core/image.h"
 #include "sdk/core/pose.h"
 
@@ -34,7 +35,10 @@ struct RaycastOptions {
 
 class Raycaster {
  public:
-  Raycaster(const Device& device, const CameraIntrinsics& camera, const RaycastOptions& options = {});
+  // On a GPU, work is queued on `stream` (a session's; one of its own when none is given). The
+  // camera's ray map is shared with every stage that views through the same camera.
+  Raycaster(const Device& device, const CameraIntrinsics& camera, const RaycastOptions& options = {},
+            const GpuStream& stream = {});
   ~Raycaster();
   Raycaster(Raycaster&&) noexcept;
   Raycaster& operator=(Raycaster&&) noexcept;

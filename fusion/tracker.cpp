@@ -389,7 +389,8 @@ TrackingResult Tracker::Impl::run(const Frame& frame, const Pose& T_world_model,
   return result;
 }
 
-Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, const TrackingOptions& options)
+Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, const TrackingOptions& options,
+                 const GpuStream& stream)
     : impl_(std::make_unique<Impl>()) {
   options.validate();
   if (!(live_camera.fx > 0.0) || !(live_camera.fy > 0.0)) {
@@ -418,21 +419,19 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, cons
   for (int l = 0; l < level_count; ++l) {
     Level& level = s.levels[static_cast<std::size_t>(l)];
     level.camera = l == 0 ? camera : half_camera(s.levels[static_cast<std::size_t>(l - 1)].camera);
-    level.rays = compute_ray_map(level.camera);
+    level.shared_rays = shared_ray_map(level.camera, device);
+    level.rays = &level.shared_rays->host;
   }
+  s.gpu_stream = GpuStream::or_create(stream, device);
   if (device.is_cuda()) {
-    require_device(device);
 #if defined(SLS_HAVE_CUDA)
-    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&s.stream, cudaStreamNonBlocking));
+    s.stream = cuda_stream(s.gpu_stream);
     s.depth.resize(s.levels.size());
-    s.rays.resize(s.levels.size());
     s.normals.resize(s.levels.size());
     for (std::size_t l = 0; l < s.levels.size(); ++l) {
       const std::size_t pixels = s.levels[l].pixels();
       s.depth[l].allocate(pixels);
-      s.rays[l].allocate(pixels);
       s.normals[l].allocate(pixels);
-      s.rays[l].upload(s.levels[l].rays.rays.data(), pixels, s.stream);
     }
     if (!s.input_cameras.empty()) {
       s.live_upload.allocate(static_cast<std::size_t>(live_camera.width) * static_cast<std::size_t>(live_camera.height));
@@ -570,7 +569,7 @@ void Tracker::Impl::depth_pyramid(const float* depth_in, const float* weight_in,
     const float baseline = static_cast<float>(options.normal_baseline_m);
     const float* depth_l = level_depth[l];
     for_each_pixel(w, h, [&](int x, int y) {
-      level.normals[level.rays.index(x, y)] = live_normal(depth_l, level.rays.rays.data(), w, h, fx, baseline, x, y);
+      level.normals[level.rays->index(x, y)] = live_normal(depth_l, level.rays->rays.data(), w, h, fx, baseline, x, y);
     });
   }
 }
@@ -665,8 +664,8 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
   auto statistics = [&](Vec3f reference) {
     return parallel_sum<kFrameSums>(height, [&](int y, double* sums) {
       for (int x = 0; x < width; ++x) {
-        const std::size_t i = s.levels[0].rays.index(x, y);
-        accumulate_frame_statistics(model.points_camera[i], level_depth[0][i], s.levels[0].rays.rays[i], region,
+        const std::size_t i = s.levels[0].rays->index(x, y);
+        accumulate_frame_statistics(model.points_camera[i], level_depth[0][i], s.levels[0].rays->rays[i], region,
                                     reference, sums);
       }
     });
@@ -679,10 +678,10 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
     const float min_cos = s.crease_min_cos(), radius = static_cast<float>(s.options.crease_radius_m);
     const Vec3f* points = model.points_camera.data();
     for_each_pixel(width, height, [&](int x, int y) {
-      s.crease_normals[s.levels[0].rays.index(x, y)] = baseline_normal(PointMap{points}, width, height, fx, baseline, x, y);
+      s.crease_normals[s.levels[0].rays->index(x, y)] = baseline_normal(PointMap{points}, width, height, fx, baseline, x, y);
     });
     for_each_pixel(width, height, [&](int x, int y) {
-      s.crease_mask[s.levels[0].rays.index(x, y)] =
+      s.crease_mask[s.levels[0].rays->index(x, y)] =
           near_crease(s.crease_normals.data(), points, width, height, fx, radius, min_cos, x, y) ? 1 : 0;
     });
     model_view.creases = s.crease_mask.data();
@@ -691,7 +690,7 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
     const Level& level = s.levels[static_cast<std::size_t>(l)];
     TrackLiveView live;
     live.depth = level_depth[l];
-    live.rays = level.rays.rays.data();
+    live.rays = level.rays->rays.data();
     live.normals = level.normals.data();
     live.weights = level_weight[l];
     live.width = level.camera.width;
@@ -718,7 +717,7 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
       PhotometricLevelView ref, live;
       ref.texture = s.reference_frame.texture[static_cast<std::size_t>(l)].data();
       ref.depth = s.reference_frame.depth[static_cast<std::size_t>(l)].data();
-      ref.rays = level.rays.rays.data();
+      ref.rays = level.rays->rays.data();
       ref.width = live.width = level.camera.width;
       ref.height = live.height = level.camera.height;
       live.texture = level_texture[l];

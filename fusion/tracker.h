@@ -49,6 +49,7 @@
 #include "fusion/raycaster.h"
 #include "sdk/core/camera_model_shared.h"
 #include "sdk/core/device.h"
+#include "sdk/core/gpu_stream.h"
 #include "sdk/core/image.h"
 #include "sdk/core/pose.h"
 
@@ -179,7 +180,9 @@ struct TrackingResult {
 class Tracker {
  public:
   // camera: the live depth map's camera (ICP's finest level is it, halved to max_model_width).
-  Tracker(const Device& device, const CameraIntrinsics& camera, const TrackingOptions& options = {});
+  // On a GPU, work is queued on `stream` (a session's; one of its own when none is given).
+  Tracker(const Device& device, const CameraIntrinsics& camera, const TrackingOptions& options = {},
+          const GpuStream& stream = {});
   ~Tracker();
   Tracker(Tracker&&) noexcept;
   Tracker& operator=(Tracker&&) noexcept;

@@ -87,7 +87,7 @@ void Tracker::Impl::depth_pyramid_device(const float* depth_device, const float*
       level_weight[l] = coarse_weight;
     }
     if (!with_normals) continue;
-    detail::launch_live_normals_cuda(level_depth[l], s.rays[l].data(), level.camera.width, level.camera.height,
+    detail::launch_live_normals_cuda(level_depth[l], s.levels[static_cast<std::size_t>(l)].shared_rays->rays_device, level.camera.width, level.camera.height,
                                      static_cast<float>(level.camera.fx),
                                      static_cast<float>(s.options.normal_baseline_m), s.normals[l].data(), s.stream);
   }
@@ -168,7 +168,7 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
   };
   const TrackRegion region = s.region(T_world_camera_guess);
   auto statistics = [&](Vec3f reference) {
-    detail::launch_frame_statistics_cuda(model_points, depth_device, s.rays[0].data(), region, pixels, reference,
+    detail::launch_frame_statistics_cuda(model_points, depth_device, s.levels[0].shared_rays->rays_device, region, pixels, reference,
                                          s.partials.data(), s.device_sums.data(), s.stream);
     download(kFrameSums);
     FrameSums sums{};
@@ -189,7 +189,7 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
     const Level& level = s.levels[static_cast<std::size_t>(l)];
     TrackLiveView live;
     live.depth = level_depth[l];
-    live.rays = s.rays[static_cast<std::size_t>(l)].data();
+    live.rays = s.levels[static_cast<std::size_t>(l)].shared_rays->rays_device;
     live.normals = s.normals[static_cast<std::size_t>(l)].data();
     live.weights = level_weight[l];
     live.width = level.camera.width;
@@ -217,7 +217,7 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
       PhotometricLevelView ref, live;
       ref.texture = s.reference_texture[level].data();
       ref.depth = s.reference_depth[level].data();
-      ref.rays = s.rays[level].data();
+      ref.rays = s.levels[level].shared_rays->rays_device;
       ref.width = live.width = s.levels[level].camera.width;
       ref.height = live.height = s.levels[level].camera.height;
       live.texture = level_texture[l];

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -23,6 +24,7 @@
 #if defined(SLS_HAVE_CUDA)
 #include <cuda_runtime_api.h>
 
+#include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
 #endif
 
@@ -38,11 +40,13 @@ using Matrix6d = Eigen::Matrix<double, 6, 6>;
 // JᵀJ from a reduction's first 21 sums (the upper triangle, row-major; track_shared.h).
 Matrix6d normal_matrix(const double* sums);
 
-// One level of the live pyramid: its camera and ray map (host), and on the CPU its depth,
+// One level of the live pyramid: its camera and ray map (shared with the other stages that
+// view through that camera; on a GPU also in its memory), and on the CPU its depth,
 // measurement weights and normals (level 0's depth and weights are the caller's).
 struct Level {
   CameraIntrinsics camera;
-  RayMap rays;
+  std::shared_ptr<const SharedRayMap> shared_rays;
+  const RayMap* rays = nullptr;  // shared_rays->host
   std::vector<float> depth;
   std::vector<float> weight;  // with options.weight_by_confidence
   std::vector<Vec3f> normals;
@@ -136,8 +140,9 @@ struct Tracker::Impl {
     std::vector<std::vector<float>> depth, texture;  // per level (CPU)
   } reference_frame;
   using ReducePhotometric = std::function<PhotometricSums(int, const PhotometricParams&)>;
+  GpuStream gpu_stream;  // the session's, or its own (CUDA)
 #if defined(SLS_HAVE_CUDA)
-  cudaStream_t stream = nullptr;
+  cudaStream_t stream = nullptr;  // gpu_stream's
   std::vector<DeviceBuffer<float>> depth;  // level 0: uploads of host maps; the coarse levels
   DeviceBuffer<float> live_upload;         // a host live map at the live camera's size
   std::vector<DeviceBuffer<float>> input_device;  // the halvings down to level 0
@@ -145,7 +150,7 @@ struct Tracker::Impl {
   // is halved or uploaded), a host map's upload, the halvings down to level 0.
   std::vector<DeviceBuffer<float>> weight_device, input_weight_device;
   DeviceBuffer<float> weight_upload;
-  std::vector<DeviceBuffer<Vec3f>> rays, normals;
+  std::vector<DeviceBuffer<Vec3f>> normals;
   DeviceBuffer<Vec3f> crease_normals_device;
   DeviceBuffer<std::uint8_t> crease_mask_device;
   DeviceBuffer<Vec3f> uploaded_points, uploaded_normals;  // host models, uploaded
@@ -176,7 +181,6 @@ struct Tracker::Impl {
   ~Impl() {
     if (host_sums != nullptr) (void)cudaFreeHost(host_sums);
     if (photometric_host_sums != nullptr) (void)cudaFreeHost(photometric_host_sums);
-    if (stream != nullptr) (void)cudaStreamDestroy(stream);
   }
 #endif
 

@@ -6,6 +6,7 @@
 
 #include "sdk/core/cuda/cuda_check.h"
 #include "sdk/core/device.h"
+#include "sdk/core/parallel_for.h"
 
 namespace sls::fusion::detail {
 namespace {
@@ -43,14 +44,6 @@ __global__ void integrate_kernel(VolumeView volume, IntegrationParams params, De
       }
     }
   }
-}
-
-__global__ void relax_kernel(VolumeView volume, IntegrationParams params, const ActiveVoxel* __restrict__ active,
-                             std::uint32_t count) {
-  const std::uint32_t n = blockIdx.x * blockDim.x + threadIdx.x;
-  if (n >= count) return;
-  const ActiveVoxel voxel = active[n];
-  volume.set_u(voxel.index, relax_voxel(volume, params, voxel));
 }
 
 }  // namespace
@@ -141,10 +134,8 @@ void launch_depth_summary_cuda(const float* depth, std::size_t pixels, std::size
 
 void launch_relax_cuda(const VolumeView& volume, const IntegrationParams& params, const ActiveVoxel* active,
                        std::uint32_t count, cudaStream_t stream) {
-  if (count == 0) return;
-  const unsigned block = 256;
-  relax_kernel<<<(count + block - 1) / block, block, 0, stream>>>(volume, params, active, count);
-  SLS_CUDA_CHECK_LAUNCH();
+  parallel_for(
+      count, SLS_LAMBDA(std::size_t n) { relax_active_voxel(volume, params, active, n); }, stream);
 }
 
 }  // namespace sls::fusion::detail

@@ -8,6 +8,7 @@
 #include <cub/device/device_radix_sort.cuh>
 
 #include "sdk/core/cuda/cuda_check.h"
+#include "sdk/core/parallel_for.h"
 
 namespace sls::fusion::detail {
 namespace {
@@ -55,22 +56,8 @@ __global__ void region_cells_kernel(VolumeView volume, RegionFilter region, floa
   if (slot < capacity) out[slot] = CellCase{static_cast<std::uint64_t>(volume.index(i, j, k)), cube_case};
 }
 
-__device__ std::uint64_t sort_key(const EdgeCrossing& crossing) { return crossing.edge_id; }
-__device__ std::uint64_t sort_key(const CellCase& cell) { return cell.cell; }
-
-template <typename T>
-__global__ void sort_keys_kernel(const T* items, std::uint32_t count, std::uint64_t* keys, std::uint32_t* order) {
-  const std::uint32_t n = blockIdx.x * blockDim.x + threadIdx.x;
-  if (n >= count) return;
-  keys[n] = sort_key(items[n]);
-  order[n] = n;
-}
-
-template <typename T>
-__global__ void gather_kernel(const T* items, const std::uint32_t* order, std::uint32_t count, T* out) {
-  const std::uint32_t n = blockIdx.x * blockDim.x + threadIdx.x;
-  if (n < count) out[n] = items[order[n]];
-}
+SLS_HOST_DEVICE std::uint64_t sort_key(const EdgeCrossing& crossing) { return crossing.edge_id; }
+SLS_HOST_DEVICE std::uint64_t sort_key(const CellCase& cell) { return cell.cell; }
 
 template <typename T>
 void grow(DeviceBuffer<T>& buffer, std::size_t count) {
@@ -95,10 +82,15 @@ void sort_by_key(T* items, std::uint32_t count, std::uint64_t bound, DeviceBuffe
   grow(s.order_in, count);
   grow(s.order_out, count);
   grow(sorted, count);
-  const unsigned block = 256;
-  const unsigned blocks = (count + block - 1) / block;
-  sort_keys_kernel<<<blocks, block, 0, stream>>>(items, count, s.keys_in.data(), s.order_in.data());
-  SLS_CUDA_CHECK_LAUNCH();
+  std::uint64_t* keys = s.keys_in.data();
+  std::uint32_t* order = s.order_in.data();
+  parallel_for(
+      count,
+      SLS_LAMBDA(std::size_t n) {
+        keys[n] = sort_key(items[n]);
+        order[n] = static_cast<std::uint32_t>(n);
+      },
+      stream);
   const int end_bit = key_bits(bound);
   std::size_t needed = 0;
   SLS_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, needed, s.keys_in.data(), s.keys_out.data(),
@@ -108,8 +100,10 @@ void sort_by_key(T* items, std::uint32_t count, std::uint64_t bound, DeviceBuffe
   SLS_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(s.temp.data(), needed, s.keys_in.data(), s.keys_out.data(),
                                                  s.order_in.data(), s.order_out.data(), static_cast<int>(count), 0,
                                                  end_bit, stream));
-  gather_kernel<<<blocks, block, 0, stream>>>(items, s.order_out.data(), count, sorted.data());
-  SLS_CUDA_CHECK_LAUNCH();
+  const std::uint32_t* sorted_order = s.order_out.data();
+  T* out = sorted.data();
+  parallel_for(
+      count, SLS_LAMBDA(std::size_t n) { out[n] = items[sorted_order[n]]; }, stream);
   SLS_CUDA_CHECK(cudaMemcpyAsync(items, sorted.data(), count * sizeof(T), cudaMemcpyDeviceToDevice, stream));
 }
 

@@ -10,3 +10,12 @@
 #define SLS_HOST_DEVICE
 #define SLS_DEVICE
 #endif
+
+// The body handed to parallel_for (sdk/core/parallel_for.h): a lambda taking the element's
+// index that captures by value and, in CUDA sources, also runs on the device (nvcc's
+// --extended-lambda). `parallel_for(device, n, SLS_LAMBDA(std::size_t i) { ... }, stream)`.
+#if defined(__CUDACC__)
+#define SLS_LAMBDA [=] __host__ __device__
+#else
+#define SLS_LAMBDA [=]
+#endif

@@ -7,10 +7,12 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "sdk/core/camera_model_shared.h"
 #include "sdk/core/device.h"
+#include "sdk/core/gpu_stream.h"
 #include "sdk/core/host_device.h"
 #include "sdk/core/math_shared.h"
 
@@ -49,9 +51,35 @@ SLS_HOST_DEVICE inline bool ray_map_pixel(const CameraIntrinsics& intrinsics, in
   return true;
 }
 
+// Element i (= y * width + x) of a map: what both backends' loop runs (parallel_for).
+SLS_HOST_DEVICE inline void ray_map_element(const CameraIntrinsics& intrinsics, std::size_t i, Vec3f* rays,
+                                            std::uint8_t* valid) {
+  const auto width = static_cast<std::size_t>(intrinsics.width);
+  const int x = static_cast<int>(i % width), y = static_cast<int>(i / width);
+  valid[i] = ray_map_pixel(intrinsics, x, y, &rays[i]) ? std::uint8_t{1} : std::uint8_t{0};
+}
+
 // Computes the ray map of a camera on `device`. Throws sls::Error: invalid argument for a
 // non-positive image size or focal length; unsupported when CUDA is asked for in a build
 // without it; device / out-of-memory errors from the GPU.
 RayMap compute_ray_map(const CameraIntrinsics& intrinsics, const Device& device = Device::cpu());
+
+// A camera's ray map as every stage that views through the camera shares it (issue 18: the
+// decoder, the tracker's finest level and the raycasters of a 12-megapixel scan each held
+// 156 MB of the same rays on the GPU, and computed them): the host map and, on a CUDA device,
+// the same rays and flags in its memory. Made once per camera and device, kept while a stage
+// holds it.
+struct SharedRayMap {
+  RayMap host;
+  const Vec3f* rays_device = nullptr;          // host.width * host.height, on `device`; CPU: nullptr
+  const std::uint8_t* valid_device = nullptr;
+  Device device;
+  std::shared_ptr<void> device_memory;         // owns rays_device and valid_device
+};
+
+// The shared map of `intrinsics` on `device`: the one a live stage already holds (equal
+// intrinsics, same device), else a new one computed there. Thread-safe. Throws as
+// compute_ray_map.
+std::shared_ptr<const SharedRayMap> shared_ray_map(const CameraIntrinsics& intrinsics, const Device& device);
 
 }  // namespace sls

@@ -167,7 +167,8 @@ struct Decoder::Impl {
   DecodeOptions options;
   DecodeParams params;
   TriangulationParams triangulation;
-  RayMap rays;
+  std::shared_ptr<const SharedRayMap> shared_rays;  // the camera's, shared with the other stages
+  const RayMap* rays = nullptr;                     // shared_rays->host
 #if defined(SLS_HAVE_CUDA)
   std::unique_ptr<detail::CudaDecodeContext> cuda;
 #endif
@@ -176,7 +177,7 @@ struct Decoder::Impl {
 };
 
 Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, const Device& device,
-                 const DecodeOptions& options)
+                 const DecodeOptions& options, const GpuStream& stream, const GpuStream& upload_stream)
     : impl_(std::make_unique<Impl>()) {
   require_device(device);
   calibration.validate();
@@ -196,12 +197,15 @@ Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, c
                 "pattern set '{}' codes {} projector {}, the calibration's projector has {}", set.name,
                 coded_extent, columns ? "columns" : "rows", calibrated_extent);
   }
-  impl_->rays = compute_ray_map(calibration.camera, device);
+  impl_->shared_rays = shared_ray_map(calibration.camera, device);
+  impl_->rays = &impl_->shared_rays->host;
   if (device.is_cuda()) {
 #if defined(SLS_HAVE_CUDA)
-    impl_->cuda = std::make_unique<detail::CudaDecodeContext>(impl_->params, impl_->triangulation,
-                                                              impl_->rays.width, impl_->rays.height,
-                                                              impl_->rays.rays.data(), impl_->rays.valid.data());
+    impl_->cuda = std::make_unique<detail::CudaDecodeContext>(
+        impl_->params, impl_->triangulation, impl_->shared_rays, GpuStream::or_create(stream, device),
+        GpuStream::or_create(upload_stream, device));
+#else
+    (void)stream, (void)upload_stream;
 #endif
   }
 }
@@ -214,7 +218,7 @@ void Decoder::download_depth(Image32f* depth_m) {
     return;  // a CPU decoder decodes into the frame
   }
 #if defined(SLS_HAVE_CUDA)
-  const int width = impl_->rays.width, height = impl_->rays.height;
+  const int width = impl_->rays->width, height = impl_->rays->height;
   if (depth_m->width() != width || depth_m->height() != height) depth_m->resize(width, height);
   require_device(impl_->device);
   detail::DecodeOutputsHost host;
@@ -239,7 +243,7 @@ Decoder& Decoder::operator=(Decoder&&) noexcept = default;
 const PatternSet& Decoder::pattern_set() const { return impl_->set; }
 const DecodeOptions& Decoder::options() const { return impl_->options; }
 const Device& Decoder::device() const { return impl_->device; }
-const RayMap& Decoder::rays() const { return impl_->rays; }
+const RayMap& Decoder::rays() const { return *impl_->rays; }
 const DecodeParams& Decoder::decode_params() const { return impl_->params; }
 const TriangulationParams& Decoder::triangulation_params() const { return impl_->triangulation; }
 
@@ -252,7 +256,7 @@ DecodedFrame Decoder::decode(const std::vector<Image16u>& stack) {
 bool Decoder::prefetch(const std::vector<Image16u>& stack) {
   if (!impl_->device.is_cuda() || stack.size() != impl_->set.size()) return false;
   for (const Image16u& image : stack) {
-    if (image.width() != impl_->rays.width || image.height() != impl_->rays.height) return false;
+    if (image.width() != impl_->rays->width || image.height() != impl_->rays->height) return false;
   }
 #if defined(SLS_HAVE_CUDA)
   require_device(impl_->device);  // this thread's current device
@@ -266,8 +270,8 @@ bool Decoder::prefetch(const std::vector<Image16u>& stack) {
 
 void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, DecodedFrame* frame_out) {
   const PatternSet& set = impl_->set;
-  const int width = impl_->rays.width;
-  const int height = impl_->rays.height;
+  const int width = impl_->rays->width;
+  const int height = impl_->rays->height;
   if (stack.size() != set.size()) {
     throw_error(ErrorCode::kInvalidArgument, "decode: {} images given, pattern set '{}' has {} patterns",
                 stack.size(), set.name, set.size());
@@ -371,7 +375,7 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
   // per-pixel test yet moves whole stripes: refused here with the image named.
   if (impl_->options.check_stack) check_stack_behaves(set, impl_->params, stack);
   size_outputs();
-  decode_cpu(impl_->params, impl_->triangulation, impl_->rays, planes, frame_out);
+  decode_cpu(impl_->params, impl_->triangulation, *impl_->rays, planes, frame_out);
 }
 
 // --- Point clouds ----------------------------------------------------------------------

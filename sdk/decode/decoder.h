@@ -13,6 +13,7 @@
 
 #include "sdk/core/calibration.h"
 #include "sdk/core/device.h"
+#include "sdk/core/gpu_stream.h"
 #include "sdk/core/image.h"
 #include "sdk/core/point_cloud.h"
 #include "sdk/core/ray_map.h"
@@ -105,9 +106,11 @@ class Decoder {
  public:
   // Validates the set, the calibration and the options (sls::Error(kInvalidArgument)),
   // computes the camera's ray map on `device`, and on a CUDA device allocates its buffers.
-  // Asking for CUDA in a build without it: sls::Error(kUnsupported).
+  // Asking for CUDA in a build without it: sls::Error(kUnsupported). On a GPU, decoding is
+  // queued on `stream` and uploads on `upload_stream` (a session's; its own when none is given),
+  // and the camera's ray map is shared with the other stages that view through the camera.
   Decoder(const PatternSet& set, const ScannerCalibration& calibration, const Device& device = Device::cpu(),
-          const DecodeOptions& options = {});
+          const DecodeOptions& options = {}, const GpuStream& stream = {}, const GpuStream& upload_stream = {});
   ~Decoder();
   Decoder(Decoder&&) noexcept;
   Decoder& operator=(Decoder&&) noexcept;

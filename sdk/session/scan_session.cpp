@@ -153,7 +153,10 @@ ScanSession::ScanSession(const ScannerCalibration& calibration, const PatternSet
   }
   require_device(options.device);
   impl_ = std::make_unique<Impl>(calibration, options);
-  if (patterns != nullptr) impl_->decoder.emplace(*patterns, calibration, options.device, options.decode);
+  if (patterns != nullptr) {
+    impl_->decoder.emplace(*patterns, calibration, options.device, options.decode, impl_->streams.frame,
+                           impl_->streams.upload);
+  }
   // A GPU decode's depth map comes down at keyframes only; page-locked, it comes straight.
   if (options.device.is_cuda()) impl_->decoded.depth_m = Image32f(MemoryType::kPinned);
 }
@@ -240,8 +243,8 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
       const Clock::time_point start = Clock::now();
       const std::size_t pixels = frame.depth_m->pixel_count();
       if (s.depth_upload.size() != pixels) s.depth_upload.allocate(pixels);
-      s.depth_upload.upload(frame.depth_m->data(), pixels, nullptr);
-      SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+      s.depth_upload.upload(frame.depth_m->data(), pixels, cuda_stream(s.streams.frame));
+      s.streams.frame.synchronize();
       maps.depth_device = s.depth_upload.data();
       report.times.decode_ms = ms_since(start);
     }
@@ -282,8 +285,8 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
 #if defined(SLS_HAVE_CUDA)
     if (texture != nullptr && maps.depth_device != nullptr) {
       if (s.texture_upload.size() != texture->pixel_count()) s.texture_upload.allocate(texture->pixel_count());
-      s.texture_upload.upload(texture->data(), texture->pixel_count(), nullptr);
-      SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+      s.texture_upload.upload(texture->data(), texture->pixel_count(), cuda_stream(s.streams.frame));
+      s.streams.frame.synchronize();
       texture_device = s.texture_upload.data();
     }
 #endif
@@ -503,7 +506,8 @@ Image8u ScanSession::render(const Pose& T_world_camera) const {
   const fusion::Volume* volume = impl_->volume();
   if (volume == nullptr) throw_error(ErrorCode::kInvalidArgument, "nothing to render: no frame was fused");
   // Its own raycaster: the session's holds the tracker's model on the GPU.
-  fusion::Raycaster raycaster(impl_->options.device, impl_->calibration.camera, Impl::raycast_options(impl_->options));
+  fusion::Raycaster raycaster(impl_->options.device, impl_->calibration.camera, Impl::raycast_options(impl_->options),
+                              impl_->streams.frame);
   return raycaster.raycast(*volume, T_world_camera).shaded;
 }
 

@@ -40,7 +40,9 @@ void ScanSession::Impl::capture_reference(const fusion::Volume& volume) {
   reference_volume = volume.geometry();
 #if defined(SLS_HAVE_CUDA)
   if (options.device.is_cuda()) {
-    if (!reference_raycaster) reference_raycaster.emplace(options.device, tracker.model_camera(), raycast_options(options));
+    if (!reference_raycaster) {
+      reference_raycaster.emplace(options.device, tracker.model_camera(), raycast_options(options), streams.frame);
+    }
     reference_raycaster->raycast_device(volume, first->T_world_camera);
     reference_raycaster->synchronize();
     reference_taken = true;
@@ -88,14 +90,14 @@ void ScanSession::Impl::keep_loop_frame(int frame, const Pose& T_world_camera, s
     const float* confidence_device = maps.confidence_device;
     if (slot.depth_device.size() != pixels) slot.depth_device.allocate(pixels);
     SLS_CUDA_CHECK(cudaMemcpyAsync(slot.depth_device.data(), depth_device, pixels * sizeof(float),
-                                   cudaMemcpyDeviceToDevice, nullptr));
+                                   cudaMemcpyDeviceToDevice, cuda_stream(streams.frame)));
     slot.confidence_on_device = confidence_device != nullptr;
     if (confidence_device != nullptr) {
       if (slot.confidence_device.size() != pixels) slot.confidence_device.allocate(pixels);
       SLS_CUDA_CHECK(cudaMemcpyAsync(slot.confidence_device.data(), confidence_device, pixels * sizeof(float),
-                                     cudaMemcpyDeviceToDevice, nullptr));
+                                     cudaMemcpyDeviceToDevice, cuda_stream(streams.frame)));
     }
-    SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+    streams.frame.synchronize();
     slot.depth = Image32f();
     slot.confidence.reset();
     return;
@@ -349,8 +351,8 @@ LoopClosureReport ScanSession::close_loop() {
                                             frame->confidence_on_device ? frame->confidence_device.data() : nullptr,
                                             &prior, &s.reference_volume);
       depth = Image32f(s.calibration.camera.width, s.calibration.camera.height, 0.0f);
-      frame->depth_device.download(depth.data(), depth.pixel_count(), nullptr);
-      SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+      frame->depth_device.download(depth.data(), depth.pixel_count(), cuda_stream(s.streams.frame));
+      s.streams.frame.synchronize();
     } else {
       registration = s.tracker.track(frame->depth, s.reference_model, first.T_world_camera, guess, nullptr,
                                      frame->confidence ? &*frame->confidence : nullptr, &prior, &s.reference_volume);

@@ -14,9 +14,11 @@
 
 #include <fmt/format.h>
 
+#include "sdk/core/gpu_stream.h"
 #include "sdk/session/scan_session.h"
 
 #if defined(SLS_HAVE_CUDA)
+#include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
 #endif
 
@@ -25,9 +27,19 @@ namespace sls::session {
 // The median of the valid depths (the focus distance of a first frame).
 double median_depth(const Image32f& depth_m);
 
+// A CUDA session's streams, made once and handed down to every stage (issue 18); none on the CPU.
+struct SessionStreams {
+  GpuStream frame;   // a frame's decode, tracking, integration and raycast, and the volume's resampling, in order
+  GpuStream upload;  // the next pattern stack's upload, beside the frame before it
+  GpuStream ship;    // a move's shipping, beside the frame loop
+  explicit SessionStreams(const Device& device)
+      : frame(GpuStream::create(device)), upload(GpuStream::create(device)), ship(GpuStream::create(device)) {}
+};
+
 struct ScanSession::Impl {
   ScannerCalibration calibration;
   ScanSessionOptions options;
+  SessionStreams streams;
   std::optional<Decoder> decoder;
   // Each frame is decoded into these same images (a 12-megapixel frame's depth and confidence
   // are 96 MB: fresh memory every frame costs page faults and zeroing). Valid for the frame
@@ -112,9 +124,10 @@ struct ScanSession::Impl {
   Impl(const ScannerCalibration& calibration_in, const ScanSessionOptions& options_in)
       : calibration(calibration_in),
         options(options_in),
-        integrator(options_in.device, options_in.integration),
-        tracker(options_in.device, calibration_in.camera, options_in.tracking),
-        raycaster(options_in.device, tracker.model_camera(), raycast_options(options_in)) {}
+        streams(options_in.device),
+        integrator(options_in.device, options_in.integration, streams.frame),
+        tracker(options_in.device, calibration_in.camera, options_in.tracking, streams.frame),
+        raycaster(options_in.device, tracker.model_camera(), raycast_options(options_in), streams.frame) {}
 
   static fusion::RaycastOptions raycast_options(const ScanSessionOptions& options) {
     fusion::RaycastOptions raycast;
@@ -246,7 +259,7 @@ struct ScanSession::Impl {
       }
     }
     moving.emplace(counts.x(), counts.y(), counts.z(), voxel, options.voxel_format, options.device, moving_options,
-                   options.integration.average_storage());
+                   options.integration.average_storage(), streams.frame, streams.ship);
     moving->place(T_world_camera);
     focus_distance_m = focus;
     if (options.deformation.enabled) {

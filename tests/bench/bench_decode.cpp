@@ -15,6 +15,8 @@
 
 #include "drivers/sim/renderer.h"
 #include "sdk/core/device.h"
+#include "sdk/core/gpu_stream.h"
+#include "sdk/core/ray_map.h"
 #include "sdk/decode/decoder.h"
 #include "sdk/decode/pattern_families.h"
 #include "sdk/decode/stack_check.h"
@@ -144,14 +146,16 @@ struct PinnedStack {
   PinnedStack& operator=(const PinnedStack&) = delete;
 };
 
-// The CUDA decode context for a stack's rig, set up from a CPU decoder's parameters and ray map.
+// The CUDA decode context for a stack's rig, set up from a CPU decoder's parameters and the
+// camera's shared ray map, as a GPU decoder sets it up.
 struct StackDecodeContext {
   Decoder decoder;
   detail::CudaDecodeContext context;
   explicit StackDecodeContext(const Stack& stack)
       : decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu()),
-        context(decoder.decode_params(), decoder.triangulation_params(), decoder.rays().width, decoder.rays().height,
-                decoder.rays().rays.data(), decoder.rays().valid.data()) {}
+        context(decoder.decode_params(), decoder.triangulation_params(),
+                shared_ray_map(stack.rig.camera, Device::cuda(0)), GpuStream::create(Device::cuda(0)),
+                GpuStream::create(Device::cuda(0))) {}
 };
 
 // The stack resident on the device, decoded and triangulated per iteration (CUDA events).

@@ -7,9 +7,11 @@
 #include <cstring>
 #include <limits>
 #include <mutex>
+#include <utility>
 #include <vector>
 
 #include "sdk/core/cuda/cuda_check.h"
+#include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/host_memory.h"
 #include "sdk/core/pinned_memory.h"
@@ -95,10 +97,10 @@ struct CudaDecodeContext::State {
   int width = 0;
   int height = 0;
   std::size_t pixels = 0;
-  cudaStream_t stream = nullptr;       // decode
-  cudaStream_t copy_stream = nullptr;  // uploads, so they overlap the decode of the previous stack
-  DeviceBuffer<Vec3f> rays;
-  DeviceBuffer<std::uint8_t> ray_valid;
+  GpuStream decode_stream, upload_stream;  // the session's, or the decoder's own
+  cudaStream_t stream = nullptr;           // decode
+  cudaStream_t copy_stream = nullptr;      // uploads, so they overlap the decode of the previous stack
+  std::shared_ptr<const SharedRayMap> rays;
   // Upload slots for host stacks (allocated on first use), each with "upload landed" and
   // "decode done reading" events.
   DeviceBuffer<std::uint16_t> slots[2];
@@ -155,23 +157,25 @@ struct CudaDecodeContext::State {
       if (uploaded[i] != nullptr) (void)cudaEventDestroy(uploaded[i]);
       if (consumed[i] != nullptr) (void)cudaEventDestroy(consumed[i]);
     }
-    if (copy_stream != nullptr) (void)cudaStreamDestroy(copy_stream);
-    if (stream != nullptr) (void)cudaStreamDestroy(stream);
   }
 };
 
 CudaDecodeContext::CudaDecodeContext(const DecodeParams& decode, const TriangulationParams& triangulation,
-                                     int width, int height, const Vec3f* rays, const std::uint8_t* ray_valid)
+                                     std::shared_ptr<const SharedRayMap> rays, const GpuStream& stream,
+                                     const GpuStream& upload_stream)
     : state_(new State) {
   try {
     State& s = *state_;
     s.decode = decode;
     s.triangulation = triangulation;
-    s.width = width;
-    s.height = height;
-    s.pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
-    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&s.stream, cudaStreamNonBlocking));
-    SLS_CUDA_CHECK(cudaStreamCreateWithFlags(&s.copy_stream, cudaStreamNonBlocking));
+    s.width = rays->host.width;
+    s.height = rays->host.height;
+    s.pixels = static_cast<std::size_t>(s.width) * static_cast<std::size_t>(s.height);
+    s.rays = std::move(rays);
+    s.decode_stream = stream;
+    s.upload_stream = upload_stream;
+    s.stream = cuda_stream(stream);
+    s.copy_stream = cuda_stream(upload_stream);
     for (int i = 0; i < 2; ++i) {
       SLS_CUDA_CHECK(cudaEventCreateWithFlags(&s.uploaded[i], cudaEventDisableTiming));
       SLS_CUDA_CHECK(cudaEventCreateWithFlags(&s.consumed[i], cudaEventDisableTiming));
@@ -179,16 +183,11 @@ CudaDecodeContext::CudaDecodeContext(const DecodeParams& decode, const Triangula
     for (int i = 0; i < State::kStagingPlanes; ++i) {
       SLS_CUDA_CHECK(cudaEventCreateWithFlags(&s.staging_free[i], cudaEventDisableTiming));
     }
-    s.rays.allocate(s.pixels);
-    s.ray_valid.allocate(s.pixels);
     s.u.allocate(s.pixels);
     s.v.allocate(s.pixels);
     s.confidence.allocate(s.pixels);
     s.depth.allocate(s.pixels);
     s.mask.allocate(s.pixels);
-    s.rays.upload(rays, s.pixels, s.stream);
-    s.ray_valid.upload(ray_valid, s.pixels, s.stream);
-    SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
   } catch (...) {
     delete state_;
     throw;
@@ -206,8 +205,8 @@ CudaDecodeContext::~CudaDecodeContext() {
 void CudaDecodeContext::decode_resident(const std::uint16_t* stack_device, std::size_t plane_stride,
                                         cudaStream_t stream) {
   State& s = *state_;
-  launch_decode_cuda(s.decode, s.triangulation, s.width, s.height, stack_device, plane_stride, s.rays.data(),
-                     s.ray_valid.data(), outputs(), stream != nullptr ? stream : s.stream);
+  launch_decode_cuda(s.decode, s.triangulation, s.width, s.height, stack_device, plane_stride, s.rays->rays_device,
+                     s.rays->valid_device, outputs(), stream != nullptr ? stream : s.stream);
 }
 
 int CudaDecodeContext::claim_slot(bool prefetch, const std::uint16_t* const* planes) {

@@ -5,10 +5,13 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 
 #include <cuda_runtime_api.h>
 
+#include "sdk/core/gpu_stream.h"
 #include "sdk/core/math_shared.h"
+#include "sdk/core/ray_map.h"
 #include "sdk/decode/decode_shared.h"
 #include "sdk/decode/stack_check_shared.h"
 #include "sdk/decode/triangulate_shared.h"
@@ -61,10 +64,11 @@ struct StackCheckInputs {
 // a stream, allocated once per Decoder and reused for every frame.
 class CudaDecodeContext {
  public:
-  // `rays` / `ray_valid`: host ray map (width * height). Selects nothing: the caller has
-  // made the decoder's device current (require_device).
-  CudaDecodeContext(const DecodeParams& decode, const TriangulationParams& triangulation, int width, int height,
-                    const Vec3f* rays, const std::uint8_t* ray_valid);
+  // `rays`: the camera's shared ray map, on this device. Decodes on `stream`, uploads on
+  // `upload_stream` (both valid). Selects nothing: the caller has made the decoder's device
+  // current (require_device).
+  CudaDecodeContext(const DecodeParams& decode, const TriangulationParams& triangulation,
+                    std::shared_ptr<const SharedRayMap> rays, const GpuStream& stream, const GpuStream& upload_stream);
   ~CudaDecodeContext();
   CudaDecodeContext(const CudaDecodeContext&) = delete;
   CudaDecodeContext& operator=(const CudaDecodeContext&) = delete;

@@ -1,8 +1,12 @@
-// The per-pixel ray map: the CPU backend equals direct unprojection, CUDA equals CPU, a
-// full 4000x3000 map is fast, and the error cases are clear.
+// The per-pixel ray map: the CPU backend equals direct unprojection, CUDA equals CPU, the
+// shared map is made once per camera and device (its device copy equal to its host map), and
+// the error cases are clear.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <memory>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -11,6 +15,10 @@
 #include "sdk/core/error.h"
 #include "sdk/core/ray_map.h"
 #include "tests/support/test_support.h"
+
+#if defined(SLS_HAVE_CUDA)
+#include <cuda_runtime_api.h>
+#endif
 
 namespace sls {
 namespace {
@@ -191,6 +199,52 @@ TEST(RayMapCuda, EqualsCpuWithInvalidPixels) {
   SLS_REQUIRE_CUDA_DEVICE();
   expect_cuda_equals_cpu(folding_camera());
   expect_cuda_equals_cpu(wide_camera());
+}
+
+TEST(SharedRayMap, OneMapPerCameraWhileHeld) {
+  const CameraIntrinsics camera = folding_camera();
+  std::weak_ptr<const SharedRayMap> released;
+  {
+    const auto first = shared_ray_map(camera, Device::cpu());
+    const auto second = shared_ray_map(camera, Device::cpu());
+    EXPECT_EQ(first.get(), second.get());
+    CameraIntrinsics other = camera;
+    other.cx += 0.5;
+    const auto third = shared_ray_map(other, Device::cpu());
+    EXPECT_NE(first.get(), third.get());
+    EXPECT_EQ(first->rays_device, nullptr);  // a CPU map has no device copy
+    const RayMap direct = compute_ray_map(camera, Device::cpu());
+    EXPECT_EQ(first->host.rays.size(), direct.rays.size());
+    EXPECT_EQ(0, std::memcmp(first->host.rays.data(), direct.rays.data(), direct.rays.size() * sizeof(Vec3f)));
+    EXPECT_EQ(first->host.valid, direct.valid);
+    released = first;
+  }
+  EXPECT_TRUE(released.expired());  // nobody holds it: freed, not cached forever
+}
+
+TEST(SharedRayMap, BadIntrinsicsAreRejected) {
+  CameraIntrinsics camera = folding_camera();
+  camera.fx = 0.0;
+  EXPECT_THROW(shared_ray_map(camera, Device::cpu()), Error);
+}
+
+TEST(SharedRayMapCuda, DeviceCopyEqualsItsHostMap) {
+  SLS_REQUIRE_CUDA_DEVICE();
+#if defined(SLS_HAVE_CUDA)
+  const CameraIntrinsics camera = high_resolution_camera();
+  const auto map = shared_ray_map(camera, Device::cuda(0));
+  ASSERT_NE(map->rays_device, nullptr);
+  ASSERT_NE(map->valid_device, nullptr);
+  EXPECT_NE(map.get(), shared_ray_map(camera, Device::cpu()).get());  // one per device
+  const std::size_t count = map->host.rays.size();
+  std::vector<Vec3f> rays(count);
+  std::vector<std::uint8_t> valid(count);
+  ASSERT_EQ(cudaMemcpy(rays.data(), map->rays_device, count * sizeof(Vec3f), cudaMemcpyDeviceToHost), cudaSuccess);
+  ASSERT_EQ(cudaMemcpy(valid.data(), map->valid_device, count, cudaMemcpyDeviceToHost), cudaSuccess);
+  EXPECT_EQ(0, std::memcmp(rays.data(), map->host.rays.data(), count * sizeof(Vec3f)));
+  EXPECT_EQ(valid, map->host.valid);
+  EXPECT_EQ(map.get(), shared_ray_map(camera, Device::cuda(0)).get());
+#endif
 }
 
 TEST(RayMapCuda, BadOrdinalIsADeviceError) {

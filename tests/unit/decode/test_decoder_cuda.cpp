@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstring>
 #include <future>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,8 @@
 #include "drivers/sim/rig.h"
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/error.h"
+#include "sdk/core/gpu_stream.h"
+#include "sdk/core/ray_map.h"
 #include "sdk/decode/cuda/decoder_cuda.h"
 #include "sdk/decode/decoder.h"
 #include "sdk/decode/stack_check.h"
@@ -98,6 +101,15 @@ DecodedFrame download_outputs(const detail::CudaDecodeContext& context) {
   return frame;
 }
 
+// A decoder's device state on its own, as a Decoder on the GPU makes it: the camera's shared
+// ray map, a decode and an upload stream.
+std::unique_ptr<detail::CudaDecodeContext> cuda_context(const Decoder& decoder, const CameraIntrinsics& camera) {
+  const Device gpu = Device::cuda(0);
+  return std::make_unique<detail::CudaDecodeContext>(decoder.decode_params(), decoder.triangulation_params(),
+                                                     shared_ray_map(camera, gpu), GpuStream::create(gpu),
+                                                     GpuStream::create(gpu));
+}
+
 TEST(DecoderCuda, EqualsCpu) {
   SLS_REQUIRE_CUDA_DEVICE();
   for (const char* object : {"knurled-screw", "plane", "knurled-knob"}) {
@@ -123,9 +135,8 @@ TEST(DecoderCuda, DeviceResidentStackEqualsHostPath) {
   for (std::size_t k = 0; k < c.stack.size(); ++k) {
     std::copy(c.stack[k].data(), c.stack[k].data() + pixels, packed.begin() + static_cast<std::ptrdiff_t>(k * stride));
   }
-  const RayMap& rays = gpu.rays();
-  detail::CudaDecodeContext context(gpu.decode_params(), gpu.triangulation_params(), width, height, rays.rays.data(),
-                                    rays.valid.data());
+  const auto context_owner = cuda_context(gpu, c.rig.camera);
+  detail::CudaDecodeContext& context = *context_owner;
   DeviceBuffer<std::uint16_t> stack(packed.size());
   stack.upload(packed.data(), packed.size(), context.stream());
   context.decode_resident(stack.data(), stride);
@@ -162,9 +173,8 @@ TEST(DecoderCuda, PipelinedUploadsGiveEachStacksOwnResult) {
     }
   }
   Decoder cpu(rig.patterns, rig.calibration(), Device::cpu(), options());
-  const RayMap& rays = cpu.rays();
-  detail::CudaDecodeContext context(cpu.decode_params(), cpu.triangulation_params(), rays.width, rays.height,
-                                    rays.rays.data(), rays.valid.data());
+  const auto context_owner = cuda_context(cpu, rig.camera);
+  detail::CudaDecodeContext& context = *context_owner;
   // The same stacks in pageable memory (the images themselves) go through the pinned staging
   // planes: 22 planes through 3, each reused while the copy engine may still read another.
   std::vector<std::vector<const std::uint16_t*>> pageable(3);
@@ -291,9 +301,8 @@ TEST(DecoderCuda, StackCheckHistogramsEqualTheHosts) {
   ASSERT_GT(plan.slot_count, 0);
   const int width = c.rig.camera.width, height = c.rig.camera.height;
   const StackCheckGrid grid = make_stack_check_grid(width, height, StackCheckLimits{}.max_samples);
-  const RayMap& rays = cpu.rays();
-  detail::CudaDecodeContext context(cpu.decode_params(), cpu.triangulation_params(), width, height, rays.rays.data(),
-                                    rays.valid.data());
+  const auto context_owner = cuda_context(cpu, c.rig.camera);
+  detail::CudaDecodeContext& context = *context_owner;
   std::vector<Image16u> stuck = c.stack;
   std::fill(stuck[17].data(), stuck[17].data() + stuck[17].pixel_count(), std::uint16_t{2048});
   const std::vector<Image16u>& genuine = c.stack;
@@ -386,9 +395,8 @@ TEST(DecoderCuda, APrefetchedStackIsTakenOnceByItsOwnPlanes) {
   const Case a = render_case("knurled-screw", 400);
   const Case b = render_case("knurled-knob", 400);
   Decoder cpu(a.rig.patterns, a.rig.calibration(), Device::cpu(), options());
-  const RayMap& rays = cpu.rays();
-  detail::CudaDecodeContext context(cpu.decode_params(), cpu.triangulation_params(), rays.width, rays.height,
-                                    rays.rays.data(), rays.valid.data());
+  const auto context_owner = cuda_context(cpu, a.rig.camera);
+  detail::CudaDecodeContext& context = *context_owner;
   std::vector<const std::uint16_t*> planes_a, planes_b;
   for (const Image16u& image : a.stack) planes_a.push_back(image.data());
   for (const Image16u& image : b.stack) planes_b.push_back(image.data());

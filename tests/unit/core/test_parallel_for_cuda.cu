@@ -1,0 +1,60 @@
+// parallel_for on a CUDA GPU: the same body as on the CPU gives the same values, loops queued
+// on one GpuStream run in order, and a count beyond one block's threads reaches every element.
+// Skips with no GPU.
+#include <cmath>
+#include <cstddef>
+#include <vector>
+
+#include <cuda_runtime_api.h>
+
+#include <gtest/gtest.h>
+
+#include "sdk/core/cuda/device_buffer.h"
+#include "sdk/core/gpu_stream.h"
+#include "sdk/core/parallel_for.h"
+#include "tests/support/test_support.h"
+
+namespace sls {
+namespace {
+
+SLS_HOST_DEVICE float element_value(std::size_t i) { return std::sqrt(static_cast<float>(i)) * 0.5f + 1.0f; }
+
+// The loops live in free functions: nvcc refuses a device lambda inside a test's private body.
+void fill(const Device& device, float* out, std::size_t count, const GpuStream& stream) {
+  parallel_for(device, count, SLS_LAMBDA(std::size_t i) { out[i] = element_value(i); }, stream);
+}
+
+void double_values(const Device& device, float* values, std::size_t count, const GpuStream& stream) {
+  parallel_for(device, count, SLS_LAMBDA(std::size_t i) { values[i] = 2.0f * values[i]; }, stream);
+}
+
+TEST(ParallelForCuda, EqualsTheCpuLoop) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const std::size_t count = 3 * kParallelForThreads * 1000 + 17;
+  std::vector<float> cpu(count, 0.0f);
+  fill(Device::cpu(), cpu.data(), count, GpuStream{});
+
+  const GpuStream stream = GpuStream::create(Device::cuda(0));
+  DeviceBuffer<float> values(count);
+  fill(Device::cuda(0), values.data(), count, stream);
+  // A second loop on the same stream sees the first one's values.
+  double_values(Device::cuda(0), values.data(), count, stream);
+  std::vector<float> gpu(count, 0.0f);
+  values.download(gpu.data(), count, static_cast<cudaStream_t>(stream.native()));
+  stream.synchronize();
+  for (std::size_t i = 0; i < count; ++i) ASSERT_EQ(gpu[i], 2.0f * cpu[i]) << "element " << i;
+}
+
+TEST(ParallelForCuda, StreamsAreSharedAndOwned) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const GpuStream stream = GpuStream::create(Device::cuda(0));
+  ASSERT_TRUE(stream.valid());
+  const GpuStream copy = GpuStream::or_create(stream, Device::cuda(0));
+  EXPECT_EQ(copy, stream);  // handed down, not made anew
+  EXPECT_NE(GpuStream::or_create(GpuStream{}, Device::cuda(0)), stream);
+  EXPECT_FALSE(GpuStream::create(Device::cpu()).valid());
+  GpuStream{}.synchronize();  // none: nothing to wait for
+}
+
+}  // namespace
+}  // namespace sls
