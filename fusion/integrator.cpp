@@ -230,10 +230,14 @@ struct Integrator::Impl {
   std::size_t sort_scratch_bytes = 0;
   ActiveVoxel* sorted = nullptr;
   std::size_t sorted_capacity = 0;
-  // summarize_device's sample, valid count and depth bounds (float bits).
+  // summarize's sample, valid count and depth bounds (float bits).
   DeviceBuffer<float> summary_sample;
   DeviceBuffer<unsigned long long> summary_counts;
   DeviceBuffer<unsigned> summary_bounds;
+  // The GPU's share of integrate() and summarize(), on a map in device memory.
+  IntegrationStats integrate_on_device(Volume& volume, const float* depth_device, const CameraIntrinsics& camera,
+                                       const Pose& T_world_camera, const DepthBand& band);
+  DepthMapSummary summarize_on_device(const float* depth_device, std::size_t pixels);
   ~Impl() {
     if (sort_scratch != nullptr) {
       (void)cudaFree(sort_scratch);
@@ -367,34 +371,69 @@ IntegrationStats integrate_cpu(const VolumeView& view, const IntegrationParams& 
 }  // namespace
 
 IntegrationStats Integrator::integrate(Volume& volume, const Image32f& depth_m, const CameraIntrinsics& camera,
-                                       const Pose& T_world_camera) {
+                                       const Pose& T_world_camera, std::optional<DepthBand> band) {
   Impl& s = *impl_;
   check_inputs(volume, s.device, depth_m.width(), depth_m.height(), camera, s.options);
+  const bool on_device = depth_m.memory_type() == MemoryType::kDevice;
   if (!s.device.is_cuda()) {
+    if (on_device) {
+      throw_error(ErrorCode::kInvalidArgument, "fusion: the depth map lives on a GPU, the integrator on the CPU");
+    }
+    if (!band) {
+      const auto [near_m, far_m] = integration_depth_band(depth_m);
+      band = DepthBand{near_m, far_m};
+    }
     const VolumeView view = volume.view();
     const DepthFrameView frame = make_depth_frame_view(depth_m.data(), camera, T_world_camera, volume.geometry());
-    const auto [near_m, far_m] = integration_depth_band(depth_m);
-    const VoxelBox box = band_box(volume.geometry(), camera, T_world_camera, near_m, far_m, s.options);
+    const VoxelBox box = band_box(volume.geometry(), camera, T_world_camera, band->near_m, band->far_m, s.options);
     return integrate_cpu(view, s.options.params(volume.geometry().voxel_size_m), frame, box, s.options.iterations,
                          active_capacity(s.options, volume.geometry()), s.active);
   }
 #if defined(SLS_HAVE_CUDA)
   require_device(s.device);
-  const std::size_t pixels = depth_m.pixel_count();
-  if (s.depth.size() < pixels) s.depth.allocate(pixels);
-  s.depth.upload(depth_m.data(), pixels, s.stream);
-  const auto [near_m, far_m] = integration_depth_band(depth_m);
-  if (!(far_m > 0.0)) return IntegrationStats{};  // nothing measured
-  return integrate_device(volume, s.depth.data(), camera, T_world_camera, near_m, far_m);
+  if (!band && on_device) {
+    const DepthMapSummary summary = s.summarize_on_device(depth_m.data(), depth_m.pixel_count());
+    band = DepthBand{summary.near_m, summary.far_m};
+  } else if (!band) {
+    const auto [near_m, far_m] = integration_depth_band(depth_m);
+    band = DepthBand{near_m, far_m};
+  }
+  if (!(band->far_m > 0.0)) return IntegrationStats{};  // nothing measured
+  const float* depth_device = depth_m.data();
+  if (!on_device) {
+    const std::size_t pixels = depth_m.pixel_count();
+    if (s.depth.size() < pixels) s.depth.allocate(pixels);
+    s.depth.upload(depth_m.data(), pixels, s.stream);
+    depth_device = s.depth.data();
+  }
+  return s.integrate_on_device(volume, depth_device, camera, T_world_camera, *band);
 #else
   throw_error(ErrorCode::kUnsupported, "fusion: CUDA integration asked of a build without CUDA");
 #endif
 }
 
-#if defined(SLS_HAVE_CUDA)
-DepthMapSummary Integrator::summarize_device(const float* depth_device, std::size_t pixels) {
+DepthMapSummary Integrator::summarize(const Image32f& depth_m) {
   Impl& s = *impl_;
-  if (!s.device.is_cuda()) throw_error(ErrorCode::kInvalidArgument, "summarize_device: the integrator is not on a GPU");
+  if (depth_m.memory_type() != MemoryType::kDevice) {
+    DepthMapSummary summary;
+    const float* z = depth_m.data();
+    for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) summary.valid_pixels += z[i] > 0.0f && std::isfinite(z[i]);
+    std::tie(summary.near_m, summary.far_m) = integration_depth_band(depth_m);
+    return summary;
+  }
+  if (!s.device.is_cuda()) {
+    throw_error(ErrorCode::kInvalidArgument, "fusion: the depth map lives on a GPU, the integrator on the CPU");
+  }
+#if defined(SLS_HAVE_CUDA)
+  return s.summarize_on_device(depth_m.data(), depth_m.pixel_count());
+#else
+  throw_error(ErrorCode::kUnsupported, "fusion: a depth map on a GPU in a build without CUDA");
+#endif
+}
+
+#if defined(SLS_HAVE_CUDA)
+DepthMapSummary Integrator::Impl::summarize_on_device(const float* depth_device, std::size_t pixels) {
+  Impl& s = *this;
   require_device(s.device);
   DepthMapSummary summary;
   if (pixels == 0) return summary;
@@ -429,29 +468,31 @@ DepthMapSummary Integrator::summarize_device(const float* depth_device, std::siz
   return summary;
 }
 
-IntegrationStats Integrator::integrate_device(Volume& volume, const float* depth_device, const CameraIntrinsics& camera,
-                                              const Pose& T_world_camera, double min_depth_m, double max_depth_m) {
-  Impl& s = *impl_;
+IntegrationStats Integrator::Impl::integrate_on_device(Volume& volume, const float* depth_device,
+                                                      const CameraIntrinsics& camera, const Pose& T_world_camera,
+                                                      const DepthBand& band) {
+  Impl& s = *this;
+  const double min_depth_m = band.near_m, max_depth_m = band.far_m;
   check_inputs(volume, s.device, camera.width, camera.height, camera, s.options);
   require_device(s.device);
   const VolumeView view = volume.view();
   const IntegrationParams params = s.options.params(volume.geometry().voxel_size_m);
   const DepthFrameView frame = make_depth_frame_view(depth_device, camera, T_world_camera, volume.geometry());
   const bool sweeps = params.alpha > 0.0f && s.options.iterations > 0;
-  const std::uint32_t capacity = static_cast<std::uint32_t>(active_capacity(s.options, volume.geometry()));
-  if (sweeps && s.capacity < capacity) {
-    s.device_active[0].allocate(capacity);
-    s.device_active[1].allocate(capacity);
-    s.capacity = capacity;
+  const std::uint32_t wanted = static_cast<std::uint32_t>(active_capacity(s.options, volume.geometry()));
+  if (sweeps && s.capacity < wanted) {
+    s.device_active[0].allocate(wanted);
+    s.device_active[1].allocate(wanted);
+    s.capacity = wanted;
   }
   SLS_CUDA_CHECK(cudaMemsetAsync(s.counters.data(), 0, 2 * sizeof(std::uint32_t), s.stream));
-  ActiveVoxel* const active[2] = {s.device_active[0].data(), s.device_active[1].data()};
+  ActiveVoxel* const lists[2] = {s.device_active[0].data(), s.device_active[1].data()};
   const VoxelBox box = std::isfinite(max_depth_m)
                             ? band_box(volume.geometry(), camera, T_world_camera, min_depth_m, max_depth_m, s.options)
                             : frustum_voxel_box(volume.geometry(), camera, T_world_camera, 0.0, max_depth_m);
   const int first[3] = {box.i0, box.j0, box.k0};
   const int extent[3] = {box.i1 - box.i0, box.j1 - box.j0, box.k1 - box.k0};
-  detail::launch_integrate_cuda(view, params, frame, first, extent, active, s.counters.data(), sweeps ? capacity : 0u,
+  detail::launch_integrate_cuda(view, params, frame, first, extent, lists, s.counters.data(), sweeps ? wanted : 0u,
                                 s.stream);
   IntegrationStats stats;
   stats.voxels_visited = box.count();
@@ -464,9 +505,9 @@ IntegrationStats Integrator::integrate_device(Volume& volume, const float* depth
   SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
   stats.active_voxels = std::size_t{counts[0]} + counts[1];
   for (int parity = 0; parity < 2; ++parity) {
-    if (counts[parity] > capacity) {
-      stats.overflow += counts[parity] - capacity;
-      counts[parity] = capacity;
+    if (counts[parity] > wanted) {
+      stats.overflow += counts[parity] - wanted;
+      counts[parity] = wanted;
     }
   }
   for (int parity = 0; parity < 2; ++parity) {

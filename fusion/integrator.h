@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -80,6 +81,12 @@ constexpr std::size_t kDepthBandStride = 127;
 constexpr double kDepthBandQuantile = 1e-3;
 std::pair<double, double> integration_depth_band(const Image32f& depth_m);
 
+// The depth range a frame is integrated over (near_m, far_m: metres along the optical axis).
+struct DepthBand {
+  double near_m = 0.0;
+  double far_m = 0.0;
+};
+
 // What a frame loop needs of a depth map beside the map itself.
 struct DepthMapSummary {
   std::size_t valid_pixels = 0;       // > 0 and finite
@@ -110,22 +117,19 @@ class Integrator {
   const Device& device() const;
 
   // Integrates one depth map (camera-frame z in metres, 0 = none; the camera's size) taken
-  // from T_world_camera. The volume must live on the integrator's device. Throws
-  // sls::Error(kInvalidArgument) for a depth map of another size than the camera.
+  // from T_world_camera, wherever it lives: a CPU integrator reads a host map; a GPU one reads a
+  // map on its device in place (MemoryType::kDevice: the decoder's output) and uploads a host
+  // map first. Over `band` when given (summarize()'s; far_m infinite: the whole frustum), else
+  // over the map's integration_depth_band. The volume must live on the integrator's device.
+  // Throws sls::Error(kInvalidArgument) for a depth map of another size than the camera, or one
+  // on the GPU for a CPU integrator.
   IntegrationStats integrate(Volume& volume, const Image32f& depth_m, const CameraIntrinsics& camera,
-                             const Pose& T_world_camera);
-#if defined(SLS_HAVE_CUDA)
-  // A depth map already on the GPU (e.g. the decoder's output), width x height floats, whose
-  // values lie in [min_depth_m, max_depth_m] (the decoder's working range; 0 and infinity:
-  // the whole volume is visited).
-  IntegrationStats integrate_device(Volume& volume, const float* depth_device, const CameraIntrinsics& camera,
-                                    const Pose& T_world_camera, double min_depth_m = 0.0,
-                                    double max_depth_m = std::numeric_limits<double>::infinity());
-  // A depth map on the GPU (`pixels` floats) summarised there: its valid pixels, and the band
-  // integration_depth_band gives its host copy, from the same every kDepthBandStride-th pixel
-  // (that sample, 0.4 MB at 12 megapixels, comes down; the 48 MB map does not). Waits for it.
-  DepthMapSummary summarize_device(const float* depth_device, std::size_t pixels);
-#endif
+                             const Pose& T_world_camera, std::optional<DepthBand> band = std::nullopt);
+  // A depth map's valid pixels and integration band, summarised where it lives: on the host
+  // as integration_depth_band; on the GPU (a GPU integrator) from the same every
+  // kDepthBandStride-th pixel (that sample, 0.4 MB at 12 megapixels, comes down; the 48 MB map
+  // does not), waiting for it.
+  DepthMapSummary summarize(const Image32f& depth_m);
 
  private:
   struct Impl;

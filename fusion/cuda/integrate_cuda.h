@@ -25,7 +25,7 @@ void sort_active_cuda(ActiveVoxel* active, std::uint32_t count, void** scratch, 
 void launch_relax_cuda(const VolumeView& volume, const IntegrationParams& params, const ActiveVoxel* active,
                        std::uint32_t count, cudaStream_t stream);
 
-// A depth map's summary where it lives (Integrator::summarize_device): into counts[0] the
+// A depth map's summary where it lives (Integrator::summarize): into counts[0] the
 // valid pixels (> 0 and finite), into min_max_bits[0] / [1] the smallest / largest valid
 // depth as float bits (positive floats order as their bits do; the caller sets them to
 // UINT_MAX / 0 and counts[0] to 0), and sample[i / stride] = pixel i's depth (0 where not

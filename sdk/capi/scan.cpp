@@ -496,7 +496,8 @@ void report_frame(sls_scan& scan, const session::FrameReport& frame, std::size_t
   }
   if (scan.callback == nullptr) return;
   // The depth map comes to the host only for a callback (a GPU decode leaves it on the device).
-  const sls_frame_report report = frame_report_to_c(frame, recording_frames, {maps.host_depth(), maps.depth_device});
+  const float* depth_device = maps.depth_on_device != nullptr ? maps.depth_on_device->data() : nullptr;
+  const sls_frame_report report = frame_report_to_c(frame, recording_frames, {maps.host_depth(), depth_device});
   scan.callback_thread.store(std::this_thread::get_id());
   scan.callback(&report, scan.user);
   scan.callback_thread.store(std::thread::id());

@@ -11,8 +11,8 @@
 #include <variant>
 #include <vector>
 
+#include "sdk/core/buffer.h"
 #include "sdk/core/error.h"
-#include "sdk/core/host_buffer.h"
 #include "sdk/core/host_device.h"
 #include "sdk/core/memory_type.h"
 
@@ -42,9 +42,12 @@ struct ImageView {
   SLS_HOST_DEVICE operator ImageView<const T>() const { return {data, width, height, stride_bytes}; }
 };
 
-// An owning image in host memory: pageable, or page-locked (MemoryType::kPinned) for images a
-// GPU reads — a camera's pattern images when the scan fuses on a GPU. Copies live where the
-// source lives.
+// An owning image that knows where its pixels live (as nvblox's Image<T>(MemoryType)): pageable
+// host memory, page-locked (MemoryType::kPinned) for images a GPU reads — a camera's pattern
+// images when the scan fuses on a GPU — or a GPU's memory (kDevice: a depth map the decoder
+// left there for tracking and integration). Copies live where the source lives. Pixel access
+// (operator(), view()'s rows) is for host images; a device image is read by kernels through
+// data() and view(), or copied.
 template <typename T>
 class Image {
   static_assert(std::is_arithmetic_v<T>, "pixels are integers or floats");
@@ -84,6 +87,18 @@ class Image {
   ImageView<T> view() { return {pixels_.data(), width_, height_, stride_bytes()}; }
   ImageView<const T> view() const { return {pixels_.data(), width_, height_, stride_bytes()}; }
 
+  // A copy of the image in `memory` (kDevice: uploaded to the current GPU; from a device
+  // image to the host: downloaded). Throws as Buffer's allocation does.
+  Image copy_to(MemoryType memory) const {
+    Image out(memory);
+    out.width_ = width_;
+    out.height_ = height_;
+    out.pixels_.resize_uninitialized(pixels_.size(), memory);
+    copy_memory(out.data(), data(), size_bytes(),
+                out.memory_type() == MemoryType::kDevice || memory_type() == MemoryType::kDevice);
+    return out;
+  }
+
   bool operator==(const Image& other) const {
     return width_ == other.width_ && height_ == other.height_ && pixels_ == other.pixels_;
   }
@@ -97,7 +112,7 @@ class Image {
   int width_ = 0;
   int height_ = 0;
   MemoryType memory_ = MemoryType::kHost;  // where resize() puts the pixels
-  HostBuffer<T> pixels_;
+  Buffer<T> pixels_;
 };
 
 using Image8u = Image<std::uint8_t>;

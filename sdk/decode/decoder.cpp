@@ -229,12 +229,18 @@ void Decoder::download_depth(Image32f* depth_m) {
 #endif
 }
 
+const Image32f* Decoder::depth_on_device() const {
 #if defined(SLS_HAVE_CUDA)
-const float* Decoder::depth_device() const { return impl_->cuda ? impl_->cuda->outputs().depth : nullptr; }
-const float* Decoder::confidence_device() const {
-  return impl_->cuda ? impl_->cuda->outputs().confidence : nullptr;
-}
+  if (impl_->cuda) return &impl_->cuda->depth_image();
 #endif
+  return nullptr;
+}
+const Image32f* Decoder::confidence_on_device() const {
+#if defined(SLS_HAVE_CUDA)
+  if (impl_->cuda) return &impl_->cuda->confidence_image();
+#endif
+  return nullptr;
+}
 
 Decoder::~Decoder() = default;
 Decoder::Decoder(Decoder&&) noexcept = default;
@@ -340,7 +346,7 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
     }
     impl_->decoded_on_device = true;
     if (on_device) {
-      cuda.synchronize();  // depth_device() is final when decode returns, as after a download
+      cuda.synchronize();  // depth_on_device() is final when decode returns, as after a download
       return;
     }
     size_outputs();

@@ -85,7 +85,7 @@ enum class DecodeOutputs {
   // fuses and tracks from. On a GPU the others stay on the device, not downloaded (108 of
   // the 204 MB a 12-megapixel frame's outputs take).
   kDepthAndConfidence,
-  // A CUDA decoder's depth and confidence left on the GPU (depth_device(), confidence_device()),
+  // A CUDA decoder's depth and confidence left on the GPU (depth_on_device(), confidence_on_device()),
   // nothing downloaded and the frame's images left as they were: what a GPU scan fuses and
   // tracks from, downloading the depth map (download_depth) only on the frames that need it on
   // the host. A CPU decoder: as kDepthAndConfidence.
@@ -146,14 +146,12 @@ class Decoder {
   const RayMap& rays() const;
   const DecodeParams& decode_params() const;
   const TriangulationParams& triangulation_params() const;
-#if defined(SLS_HAVE_CUDA)
-  // A CUDA decoder's last depth map, still on the GPU (width x height floats, 0 = invalid),
-  // valid until the next decode: the scan session integrates and tracks from it without a
-  // second upload. nullptr for a CPU decoder.
-  const float* depth_device() const;
+  // A CUDA decoder's last depth map, still on the GPU (an Image32f of MemoryType::kDevice, the
+  // camera's size, 0 = invalid), valid until the next decode: the scan session integrates and
+  // tracks from it without a second upload. nullptr for a CPU decoder.
+  const Image32f* depth_on_device() const;
   // Its confidence map beside it (DecodedFrame::confidence), on the same terms.
-  const float* confidence_device() const;
-#endif
+  const Image32f* confidence_on_device() const;
   // The last decode's depth map into `depth_m` (sized to the camera): for a decode that left it
   // on the GPU (kDepthAndConfidenceOnDevice). A CPU decoder's is in its DecodedFrame already:
   // nothing to do. Throws sls::Error(kInvalidArgument) before any stack was decoded on the GPU.

@@ -222,8 +222,8 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     maps.depth = &s.decoded.depth_m;
     maps.confidence = &s.decoded.confidence;
 #if defined(SLS_HAVE_CUDA)
-    maps.depth_device = s.decoder->depth_device();
-    maps.confidence_device = s.decoder->confidence_device();
+    maps.depth_on_device = s.decoder->depth_on_device();
+    maps.confidence_on_device = s.decoder->confidence_on_device();
     if (on_gpu) {
       maps.confidence = nullptr;  // on the GPU only: nothing on the host reads it
       maps.fetch = [&s] { s.decoder->download_depth(&s.decoded.depth_m); };
@@ -241,11 +241,12 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     if (on_gpu) {
       // Uploaded once, then integrated and tracked on the GPU (counted with decoding).
       const Clock::time_point start = Clock::now();
-      const std::size_t pixels = frame.depth_m->pixel_count();
-      if (s.depth_upload.size() != pixels) s.depth_upload.allocate(pixels);
-      s.depth_upload.upload(frame.depth_m->data(), pixels, cuda_stream(s.streams.frame));
+      if (s.depth_upload.width() != camera.width || s.depth_upload.height() != camera.height) {
+        s.depth_upload.resize(camera.width, camera.height);
+      }
+      copy_memory(s.depth_upload.data(), frame.depth_m->data(), frame.depth_m->size_bytes(), true, s.streams.frame);
       s.streams.frame.synchronize();
-      maps.depth_device = s.depth_upload.data();
+      maps.depth_on_device = &s.depth_upload;
       report.times.decode_ms = ms_since(start);
     }
 #endif
@@ -257,13 +258,10 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   std::optional<fusion::DepthMapSummary> summary_on_gpu;
   {
     const Clock::time_point start = Clock::now();
-#if defined(SLS_HAVE_CUDA)
-    if (maps.depth_device != nullptr) {
-      const std::size_t pixels = static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height);
-      summary_on_gpu = s.integrator.summarize_device(maps.depth_device, pixels);
+    if (maps.depth_on_device != nullptr) {
+      summary_on_gpu = s.integrator.summarize(*maps.depth_on_device);
       report.depth_pixels = summary_on_gpu->valid_pixels;
     }
-#endif
     if (!summary_on_gpu) report.depth_pixels = count_valid(*maps.depth);
     report.times.decode_ms += ms_since(start);
   }
@@ -283,7 +281,7 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
       texture = &derived_texture;
     }
 #if defined(SLS_HAVE_CUDA)
-    if (texture != nullptr && maps.depth_device != nullptr) {
+    if (texture != nullptr && maps.depth_on_device != nullptr) {
       if (s.texture_upload.size() != texture->pixel_count()) s.texture_upload.allocate(texture->pixel_count());
       s.texture_upload.upload(texture->data(), texture->pixel_count(), cuda_stream(s.streams.frame));
       s.streams.frame.synchronize();
@@ -314,8 +312,10 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     const fusion::VolumeGeometry model_volume = s.moving->volume().geometry();
 #if defined(SLS_HAVE_CUDA)
     if (s.options.device.is_cuda()) {
-      tracked = s.tracker.track_device(maps.depth_device, s.raycaster, s.T_world_model, guess, texture_device,
-                                       maps.confidence_device, &prior, &model_volume);
+      tracked = s.tracker.track_device(maps.depth_on_device->data(), s.raycaster, s.T_world_model, guess,
+                                       texture_device,
+                                       maps.confidence_on_device ? maps.confidence_on_device->data() : nullptr,
+                                       &prior, &model_volume);
     } else {
       tracked = s.tracker.track(*maps.depth, s.model, s.T_world_model, guess, texture, maps.confidence, &prior,
                                 &model_volume);
@@ -360,7 +360,7 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     const Clock::time_point start = Clock::now();  // the reference's pyramid: tracking work
 #if defined(SLS_HAVE_CUDA)
     if (texture_device != nullptr) {
-      s.tracker.set_reference_frame_device(maps.depth_device, texture_device, T_world_camera);
+      s.tracker.set_reference_frame_device(maps.depth_on_device->data(), texture_device, T_world_camera);
     } else {
       s.tracker.set_reference_frame(*maps.host_depth(), *texture, T_world_camera);
     }
@@ -399,23 +399,23 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   }
   fusion::Volume& volume = *s.volume();  // the moved volume, if it moved
   start = Clock::now();
-#if defined(SLS_HAVE_CUDA)
+  // The map where it is: on the GPU (decoded there, or uploaded once) with the band summarised
+  // there, else on the host.
   if (summary_on_gpu) {
-    report.integration = s.integrator.integrate_device(volume, maps.depth_device, s.calibration.camera,
-                                                       T_world_camera, summary_on_gpu->near_m, summary_on_gpu->far_m);
+    report.integration =
+        s.integrator.integrate(volume, *maps.depth_on_device, s.calibration.camera, T_world_camera,
+                               fusion::DepthBand{summary_on_gpu->near_m, summary_on_gpu->far_m});
   } else {
     report.integration = s.integrator.integrate(volume, *maps.depth, s.calibration.camera, T_world_camera);
   }
-#else
-  report.integration = s.integrator.integrate(volume, *maps.depth, s.calibration.camera, T_world_camera);
-#endif
   report.times.integrate_ms = ms_since(start);
   if (!frame.known_T_world_camera) {
     start = Clock::now();
     // Guided by the depth just integrated from this pose: rays search only near it.
 #if defined(SLS_HAVE_CUDA)
     if (s.options.device.is_cuda()) {
-      s.raycaster.raycast_device(volume, T_world_camera, maps.depth_device, camera.width, camera.height);
+      s.raycaster.raycast_device(volume, T_world_camera, maps.depth_on_device->data(), camera.width,
+                                 camera.height);
       s.raycaster.synchronize();
     } else {
       s.model = s.raycaster.raycast(volume, T_world_camera, *maps.depth);

@@ -241,8 +241,8 @@ struct LoopClosureReport {
 struct FrameMaps {
   const Image32f* depth = nullptr;       // on the host once fetched; null: the frame has none
   const Image32f* confidence = nullptr;  // on the host; null: none there (a depth-map frame, a GPU decode)
-  const float* depth_device = nullptr;   // on a CUDA device: the GPU copies, else null
-  const float* confidence_device = nullptr;
+  const Image32f* depth_on_device = nullptr;  // on a CUDA device (MemoryType::kDevice): the GPU copies, else null
+  const Image32f* confidence_on_device = nullptr;
   std::function<void()> fetch;           // brings the depth map to the host; empty once done (or never needed)
 
   const Image32f* host_depth() {

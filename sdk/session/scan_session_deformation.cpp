@@ -83,11 +83,11 @@ void ScanSession::Impl::keep_loop_frame(int frame, const Pose& T_world_camera, s
   slot.T_world_camera = T_world_camera;
   slot.angle_deg = angle_deg;
 #if defined(SLS_HAVE_CUDA)
-  if (maps.depth_device != nullptr) {
+  if (maps.depth_on_device != nullptr) {
     const std::size_t pixels =
         static_cast<std::size_t>(calibration.camera.width) * static_cast<std::size_t>(calibration.camera.height);
-    const float* depth_device = maps.depth_device;
-    const float* confidence_device = maps.confidence_device;
+    const float* depth_device = maps.depth_on_device->data();
+    const float* confidence_device = maps.confidence_on_device ? maps.confidence_on_device->data() : nullptr;
     if (slot.depth_device.size() != pixels) slot.depth_device.allocate(pixels);
     SLS_CUDA_CHECK(cudaMemcpyAsync(slot.depth_device.data(), depth_device, pixels * sizeof(float),
                                    cudaMemcpyDeviceToDevice, cuda_stream(streams.frame)));

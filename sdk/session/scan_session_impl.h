@@ -116,8 +116,8 @@ struct ScanSession::Impl {
   std::vector<FrameReport> frames;
   ScanSession::FrameObserver frame_observer;  // set_frame_observer()
   StageTimes totals;
+  Image32f depth_upload{MemoryType::kDevice};  // a depth-map frame on the GPU (decoded frames stay there)
 #if defined(SLS_HAVE_CUDA)
-  DeviceBuffer<float> depth_upload;  // a depth-map frame on the GPU (decoded frames stay there)
   DeviceBuffer<float> texture_upload;  // the frame's texture (photometric term), kept on the GPU
 #endif
 

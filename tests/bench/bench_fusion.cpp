@@ -122,11 +122,10 @@ void integrate_benchmark(benchmark::State& state, const fusion::IntegrationOptio
   fusion::Volume volume(paper_volume(f), format_arg(state), Device::cuda(), options.average_storage());
   fusion::Integrator integrator(Device::cuda(), options);
   const CameraIntrinsics& camera = f.rig.camera;
-  std::vector<DeviceBuffer<float>> depth;
-  std::vector<std::pair<double, double>> ranges;
+  std::vector<Image32f> depth;
+  std::vector<fusion::DepthBand> ranges;
   for (const Image32f& d : f.depth) {
-    depth.emplace_back(d.pixel_count());
-    depth.back().upload(d.data(), d.pixel_count(), nullptr);
+    depth.push_back(d.copy_to(MemoryType::kDevice));
     float lo = 1e30f, hi = 0.0f;
     for (std::size_t i = 0; i < d.pixel_count(); ++i) {
       if (d.data()[i] > 0.0f) {
@@ -134,20 +133,19 @@ void integrate_benchmark(benchmark::State& state, const fusion::IntegrationOptio
         hi = std::max(hi, d.data()[i]);
       }
     }
-    ranges.emplace_back(state.range(1) != 0 ? static_cast<double>(lo) : 0.0,
-                        state.range(1) != 0 ? static_cast<double>(hi) : std::numeric_limits<double>::infinity());
+    ranges.push_back({state.range(1) != 0 ? static_cast<double>(lo) : 0.0,
+                      state.range(1) != 0 ? static_cast<double>(hi) : std::numeric_limits<double>::infinity()});
   }
   SLS_CUDA_CHECK(cudaDeviceSynchronize());
   for (std::size_t n = 0; n < depth.size(); ++n) {  // warm-up, and a volume with history
-    integrator.integrate_device(volume, depth[n].data(), camera, f.T_object_camera[n], ranges[n].first,
-                                ranges[n].second);
+    integrator.integrate(volume, depth[n], camera, f.T_object_camera[n], ranges[n]);
   }
   Events events;
   std::size_t frame = 0, active = 0, visited = 0;
   for (auto _ : state) {
     events.start();
-    const fusion::IntegrationStats stats = integrator.integrate_device(
-        volume, depth[frame].data(), camera, f.T_object_camera[frame], ranges[frame].first, ranges[frame].second);
+    const fusion::IntegrationStats stats =
+        integrator.integrate(volume, depth[frame], camera, f.T_object_camera[frame], ranges[frame]);
     state.SetIterationTime(events.stop_s());
     active = stats.active_voxels;
     visited = stats.voxels_visited;

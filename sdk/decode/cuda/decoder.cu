@@ -130,7 +130,8 @@ struct CudaDecodeContext::State {
   // rate, and the host's threads then copy it out.
   float* landing[2] = {nullptr, nullptr};
   bool landing_queued[2] = {false, false};  // depth, confidence
-  DeviceBuffer<float> u, v, confidence, depth;
+  DeviceBuffer<float> u, v;
+  Image32f confidence{MemoryType::kDevice}, depth{MemoryType::kDevice};  // what the session reads in place
   DeviceBuffer<std::uint8_t> mask;
   // The stack check's results (allocated on first use): the largest contrast, the lit pixels
   // and the histograms on the device, downloaded into one pinned block, and an event once
@@ -185,8 +186,8 @@ CudaDecodeContext::CudaDecodeContext(const DecodeParams& decode, const Triangula
     }
     s.u.allocate(s.pixels);
     s.v.allocate(s.pixels);
-    s.confidence.allocate(s.pixels);
-    s.depth.allocate(s.pixels);
+    s.confidence.resize(s.width, s.height);
+    s.depth.resize(s.width, s.height);
     s.mask.allocate(s.pixels);
   } catch (...) {
     delete state_;
@@ -434,7 +435,7 @@ StackCheckInputs CudaDecodeContext::wait_check() {
 void CudaDecodeContext::queue_landing(bool depth, bool confidence) {
   State& s = *state_;
   const bool wanted[2] = {depth, confidence};
-  const DeviceBuffer<float>* const sources[2] = {&s.depth, &s.confidence};
+  const float* const sources[2] = {s.depth.data(), s.confidence.data()};
   for (int i = 0; i < 2; ++i) {
     if (!wanted[i] || s.landing_queued[i]) continue;
     if (s.landing[i] == nullptr) {
@@ -445,7 +446,8 @@ void CudaDecodeContext::queue_landing(bool depth, bool confidence) {
       }
       s.landing[i] = static_cast<float*>(pinned);
     }
-    sources[i]->download(s.landing[i], s.pixels, s.stream);
+    SLS_CUDA_CHECK(
+        cudaMemcpyAsync(s.landing[i], sources[i], s.pixels * sizeof(float), cudaMemcpyDeviceToHost, s.stream));
     s.landing_queued[i] = true;
   }
 }
@@ -461,9 +463,12 @@ void CudaDecodeContext::download(const DecodeOutputsHost& host) {
   const bool direct[2] = {wanted[0] != nullptr && !s.landing_queued[0] && is_page_locked(wanted[0]),
                           wanted[1] != nullptr && !s.landing_queued[1] && is_page_locked(wanted[1])};
   queue_landing(host.depth != nullptr && !direct[0], host.confidence != nullptr && !direct[1]);
-  const DeviceBuffer<float>* const sources[2] = {&s.depth, &s.confidence};
+  const float* const sources[2] = {s.depth.data(), s.confidence.data()};
   for (int i = 0; i < 2; ++i) {
-    if (wanted[i] != nullptr && !s.landing_queued[i]) sources[i]->download(wanted[i], s.pixels, s.stream);
+    if (wanted[i] != nullptr && !s.landing_queued[i]) {
+      SLS_CUDA_CHECK(
+          cudaMemcpyAsync(wanted[i], sources[i], s.pixels * sizeof(float), cudaMemcpyDeviceToHost, s.stream));
+    }
   }
   const bool landed[2] = {s.landing_queued[0], s.landing_queued[1]};
   synchronize();
@@ -481,6 +486,9 @@ void CudaDecodeContext::synchronize() {
   s.landing_queued[0] = s.landing_queued[1] = false;
   SLS_CUDA_CHECK(status);
 }
+
+const Image32f& CudaDecodeContext::depth_image() const { return state_->depth; }
+const Image32f& CudaDecodeContext::confidence_image() const { return state_->confidence; }
 
 DecodeOutputsDevice CudaDecodeContext::outputs() const {
   State& s = *state_;

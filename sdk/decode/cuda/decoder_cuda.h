@@ -10,6 +10,7 @@
 #include <cuda_runtime_api.h>
 
 #include "sdk/core/gpu_stream.h"
+#include "sdk/core/image.h"
 #include "sdk/core/math_shared.h"
 #include "sdk/core/ray_map.h"
 #include "sdk/decode/decode_shared.h"
@@ -116,6 +117,9 @@ class CudaDecodeContext {
   void synchronize();
 
   DecodeOutputsDevice outputs() const;
+  // The last decode's depth and confidence maps, on the device (MemoryType::kDevice).
+  const Image32f& depth_image() const;
+  const Image32f& confidence_image() const;
   cudaStream_t stream() const;
   int width() const;
   int height() const;

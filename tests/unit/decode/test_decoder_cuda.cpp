@@ -223,7 +223,7 @@ TEST(DecoderCuda, DepthAndConfidenceIntoAReusedFrameOrLeftOnTheDevice) {
     EXPECT_EQ(kept.depth_m, before);  // nothing downloaded by the decode
     EXPECT_TRUE(kept.confidence.empty());
     std::vector<float> on_device(full.confidence.pixel_count());
-    SLS_CUDA_CHECK(cudaMemcpy(on_device.data(), gpu.confidence_device(), on_device.size() * sizeof(float),
+    SLS_CUDA_CHECK(cudaMemcpy(on_device.data(), gpu.confidence_on_device()->data(), on_device.size() * sizeof(float),
                               cudaMemcpyDeviceToHost));
     EXPECT_TRUE(std::equal(on_device.begin(), on_device.end(), full.confidence.data()));
     gpu.download_depth(&kept.depth_m);

@@ -130,10 +130,12 @@ TEST(FusionCuda, DepthMapSummaryOnTheGpuEqualsTheHosts) {
   Integrator integrator(Device::cuda(), IntegrationOptions{});
   const auto check = [&integrator](const Image32f& depth, const char* what) {
     SCOPED_TRACE(what);
-    DeviceBuffer<float> on_device(depth.pixel_count());
-    on_device.upload(depth.data(), depth.pixel_count(), nullptr);
-    SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
-    const DepthMapSummary summary = integrator.summarize_device(on_device.data(), depth.pixel_count());
+    const Image32f on_device = depth.copy_to(MemoryType::kDevice);
+    const DepthMapSummary summary = integrator.summarize(on_device);
+    const DepthMapSummary on_host = integrator.summarize(depth);  // the same call, the map on the host
+    EXPECT_EQ(on_host.valid_pixels, summary.valid_pixels);
+    EXPECT_EQ(on_host.near_m, summary.near_m);
+    EXPECT_EQ(on_host.far_m, summary.far_m);
     std::size_t valid = 0;
     for (std::size_t i = 0; i < depth.pixel_count(); ++i) valid += depth.data()[i] > 0.0f && std::isfinite(depth.data()[i]);
     const auto [near_m, far_m] = integration_depth_band(depth);
