@@ -138,8 +138,11 @@ void read_rows(png_structp png, png_bytepp rows) {
 }
 
 template <typename T>
-AnyImage decode_into(ReadContext& context, const DecodedLayout& layout, const std::string& name) {
-  Image<T> image(static_cast<int>(layout.width), static_cast<int>(layout.height));
+AnyImage decode_into(ReadContext& context, const DecodedLayout& layout, const std::string& name,
+                     MemoryType memory) {
+  // Decoded straight into the memory asked for (page-locked for a scan fused on a GPU): no copy.
+  Image<T> image(memory);
+  image.resize(static_cast<int>(layout.width), static_cast<int>(layout.height));
   std::vector<png_bytep> rows(layout.height);
   for (png_uint_32 y = 0; y < layout.height; ++y) {
     rows[y] = reinterpret_cast<png_bytep>(image.data() + static_cast<std::size_t>(y) * layout.width);
@@ -388,7 +391,10 @@ void check_chunk_lengths(const std::uint8_t* data, std::size_t size, const std::
 
 }  // namespace
 
-AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name) {
+AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name, MemoryType memory) {
+  if (memory == MemoryType::kDevice) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: a PNG decodes into host memory, not a GPU's", name);
+  }
   if (data == nullptr || !has_png_signature(data, size)) throw_not_png(name, data == nullptr ? 0 : size);
   check_chunk_lengths(data, size, name);
   ReadContext context;
@@ -427,16 +433,16 @@ AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::strin
     throw_error(ErrorCode::kFormat, "{}: unsupported PNG: {}x{} pixels, {} bytes per row", name, layout.width,
                 layout.height, layout.row_bytes);
   }
-  return layout.bit_depth == 16 ? decode_into<std::uint16_t>(context, layout, name)
-                                : decode_into<std::uint8_t>(context, layout, name);
+  return layout.bit_depth == 16 ? decode_into<std::uint16_t>(context, layout, name, memory)
+                                : decode_into<std::uint8_t>(context, layout, name, memory);
 }
 
-AnyImage read_png(const std::string& path) {
+AnyImage read_png(const std::string& path, MemoryType memory) {
   const RegularFile file(path);
   std::uint8_t header_bytes[kHeaderBytes] = {};
   const PngHeader header = parse_png_header(header_bytes, file.read_at(0, header_bytes, kHeaderBytes), path);
   const std::vector<std::uint8_t> bytes = file.read_all(max_png_file_bytes(header));
-  return decode_png(bytes.data(), bytes.size(), path);
+  return decode_png(bytes.data(), bytes.size(), path, memory);
 }
 
 Image8u read_png_u8(const std::string& path) {
@@ -445,11 +451,11 @@ Image8u read_png_u8(const std::string& path) {
   throw_error(ErrorCode::kFormat, "{}: is a 16-bit PNG where an 8-bit image was expected", path);
 }
 
-Image16u read_png_u16(const std::string& path) {
-  AnyImage image = read_png(path);
+Image16u read_png_u16(const std::string& path, MemoryType memory) {
+  AnyImage image = read_png(path, memory);
   if (auto* image16 = std::get_if<Image16u>(&image)) return std::move(*image16);
   const Image8u& image8 = std::get<Image8u>(image);
-  Image16u widened(image8.width(), image8.height());
+  Image16u widened(image8.width(), image8.height(), 0, memory);
   std::copy(image8.data(), image8.data() + image8.pixel_count(), widened.data());
   return widened;
 }

@@ -48,15 +48,18 @@ struct PngHeader {
 // Reads only the signature and the IHDR chunk (33 bytes) to validate a file cheaply.
 PngHeader read_png_header(const std::string& path);
 
-// Decodes to Image8u (stored bit depth <= 8) or Image16u (16 bits).
-AnyImage read_png(const std::string& path);
+// Decodes to Image8u (stored bit depth <= 8) or Image16u (16 bits), into host memory of the
+// kind asked for (MemoryType::kPinned: page-locked where a GPU can lock it, else pageable; not
+// kDevice).
+AnyImage read_png(const std::string& path, MemoryType memory = MemoryType::kHost);
 // As read_png, then: read_png_u8 rejects a 16-bit PNG (kFormat: it would lose bits);
 // read_png_u16 widens an 8-bit PNG by value (no scaling: 255 stays 255).
 Image8u read_png_u8(const std::string& path);
-Image16u read_png_u16(const std::string& path);
+Image16u read_png_u16(const std::string& path, MemoryType memory = MemoryType::kHost);
 
 // Decodes a PNG held in memory; `name` is used in error messages in place of a path.
-AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name);
+AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name,
+                    MemoryType memory = MemoryType::kHost);
 
 // Encodes to a PNG in memory (8-bit or 16-bit grayscale). Throws kInvalidArgument for an
 // empty image and kFormat/kOutOfMemory if libpng fails.

@@ -561,14 +561,14 @@ void check_size(const Image<T>& image, const RecordingCamera& camera, const std:
 
 }  // namespace
 
-Image16u RecordingReader::load_image(std::size_t position, std::size_t image) const {
+Image16u RecordingReader::load_image(std::size_t position, std::size_t image, MemoryType memory) const {
   const FrameInfo& info = frame(position);
   if (image >= info.image_files.size()) {
     throw_error(ErrorCode::kInvalidArgument, "recording {}: frame {} has {} images, no image {}", folder_, position,
                 info.image_files.size(), image);
   }
   const std::string path = file_path(info.image_files[image]);
-  Image16u pixels = read_png_u16(path);
+  Image16u pixels = read_png_u16(path, memory);
   check_size(pixels, info_.camera, path, "image");
   // Values beyond the camera's bit depth (an image scaled to 16 bits, another camera's) would
   // decode to wrong stripes, not to no data: the image is refused instead.
@@ -583,7 +583,7 @@ Image16u RecordingReader::load_image(std::size_t position, std::size_t image) co
   return pixels;
 }
 
-std::vector<Image16u> RecordingReader::load_images(std::size_t position) const {
+std::vector<Image16u> RecordingReader::load_images(std::size_t position, MemoryType memory) const {
   const FrameInfo& info = frame(position);
   // A 12 MP stack is ~1 GB: admitted before it is allocated, as the volume is (Linux
   // overcommits, so a stack that does not fit would otherwise end in the OOM killer).
@@ -596,7 +596,7 @@ std::vector<Image16u> RecordingReader::load_images(std::size_t position) const {
                         "free memory for it (other programs, a smaller volume: --voxel-um / --max-voxels)");
   // Decoding is CPU-bound (~0.3 s per 24 MB image): decode the frame's images side by side.
   std::vector<Image16u> images(info.image_files.size());
-  run_parallel(images.size(), 0, [&](std::size_t k) { images[k] = load_image(position, k); });
+  run_parallel(images.size(), 0, [&](std::size_t k) { images[k] = load_image(position, k, memory); });
   return images;
 }
 

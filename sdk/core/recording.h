@@ -240,9 +240,11 @@ class RecordingReader {
 
   // One image as captured, as 16-bit (8-bit PNGs widened by value, no scaling), checked to
   // exist, decode and have the camera's size.
-  Image16u load_image(std::size_t position, std::size_t image) const;
+  // `memory`: where the pixels go (MemoryType::kPinned for a scan fused on a GPU, whose decoder
+  // then uploads them without staging; page-locked where a GPU can lock it, else pageable).
+  Image16u load_image(std::size_t position, std::size_t image, MemoryType memory = MemoryType::kHost) const;
   // All images of a frame, in pattern order (decoded on several threads).
-  std::vector<Image16u> load_images(std::size_t position) const;
+  std::vector<Image16u> load_images(std::size_t position, MemoryType memory = MemoryType::kHost) const;
   // The frame's depth map in metres (0 = invalid), or nullopt when it has none.
   std::optional<Image32f> load_depth_m(std::size_t position) const;
 

@@ -236,7 +236,7 @@ PipelineOutcome run_pipeline(const SessionProvider& session_provider, const Fram
 }
 
 ScanFrame read_recording_frame(const RecordingReader& recording, std::size_t position,
-                               const std::vector<StampedPose>* known_poses) {
+                               const std::vector<StampedPose>* known_poses, MemoryType image_memory) {
   const FrameInfo& info = recording.frame(position);
   ScanFrame frame;
   frame.index = info.index;
@@ -248,7 +248,7 @@ ScanFrame read_recording_frame(const RecordingReader& recording, std::size_t pos
     if (!info.complete) {
       frame.problem = "incomplete pattern stack" + (info.note.empty() ? std::string() : ": " + info.note);
     } else if (recording.info().images_per_frame > 0) {
-      frame.images = recording.load_images(position);
+      frame.images = recording.load_images(position, image_memory);
       // HDR: the exposures' stacks fused into one; the decode options are scan_setup's.
       fuse_hdr_frame(recording.info(), hdr_decode_options(recording.info()), &frame);
     } else {
@@ -263,14 +263,15 @@ ScanFrame read_recording_frame(const RecordingReader& recording, std::size_t pos
   return frame;
 }
 
-FrameSource recording_frames(const RecordingReader& recording, const std::vector<StampedPose>* known_poses) {
+FrameSource recording_frames(const RecordingReader& recording, const std::vector<StampedPose>* known_poses,
+                             MemoryType image_memory) {
   if (known_poses != nullptr && known_poses->size() != recording.frame_count()) {
     throw_error(ErrorCode::kInvalidArgument, "{} known poses for the {} frames of {}", known_poses->size(),
                 recording.frame_count(), recording.folder());
   }
-  return [&recording, known_poses](const FrameDelivery& deliver) {
+  return [&recording, known_poses, image_memory](const FrameDelivery& deliver) {
     for (std::size_t i = 0; i < recording.frame_count(); ++i) {
-      if (!deliver(read_recording_frame(recording, i, known_poses))) return;
+      if (!deliver(read_recording_frame(recording, i, known_poses, image_memory))) return;
     }
   };
 }
@@ -310,7 +311,10 @@ ReplayOutcome run_recording(ScanSession& session, const RecordingReader& recordi
                             const std::vector<StampedPose>* known_poses,
                             const std::function<void(const FrameReport&)>& on_frame, const ProgressCallback& progress,
                             const PipelineOptions& options) {
-  return run_pipeline(session, recording_frames(recording, known_poses), options, on_frame, progress,
+  // Page-locked where the session uploads stacks to a GPU, so its decoder reads them without
+  // staging, as it reads a camera's (capture_memory_for).
+  const MemoryType image_memory = session.uploads_ahead() ? MemoryType::kPinned : MemoryType::kHost;
+  return run_pipeline(session, recording_frames(recording, known_poses, image_memory), options, on_frame, progress,
                       recording.frame_count());
 }
 

@@ -42,6 +42,7 @@
 #include <string>
 #include <vector>
 
+#include "sdk/core/memory_type.h"
 #include "sdk/core/progress.h"
 #include "sdk/core/recording.h"
 #include "sdk/core/stopwatch.h"
@@ -105,15 +106,19 @@ PipelineOutcome run_pipeline(const SessionProvider& session, const FrameSource& 
 // (the session reports and skips it); the known pose when given (one per recording frame);
 // the read time in ScanFrame::read_ms. Throws what reading throws beyond a frame's own
 // problems (is_frame_problem: a full machine, say).
+// `image_memory`: where the pattern images are read into (capture_memory_for(device): page-locked
+// for a session on a GPU, as a camera delivers them).
 ScanFrame read_recording_frame(const RecordingReader& recording, std::size_t position,
-                               const std::vector<StampedPose>* known_poses = nullptr);
+                               const std::vector<StampedPose>* known_poses = nullptr,
+                               MemoryType image_memory = MemoryType::kHost);
 
 // A recording as a frame source: its frames read in order (an unreadable or incomplete one
 // passed on with ScanFrame::problem, so the session reports and skips it), HDR stacks fused
 // (hdr_frame.h), with known poses when given (one per recording frame), each frame's read time
 // in ScanFrame::read_ms. `recording` and `known_poses` must outlive the source. Throws
 // kInvalidArgument when the known poses are not one per frame.
-FrameSource recording_frames(const RecordingReader& recording, const std::vector<StampedPose>* known_poses = nullptr);
+FrameSource recording_frames(const RecordingReader& recording, const std::vector<StampedPose>* known_poses = nullptr,
+                             MemoryType image_memory = MemoryType::kHost);
 
 // A capture into the recording at `folder` as a frame source: fusing while capturing.
 // `capture` runs on the source thread; it records frames into `folder` (a new recording, or the
@@ -131,7 +136,8 @@ using RecordedFrame = std::function<void(ScanFrame&& frame)>;
 FrameSource captured_frames(const std::string& folder, std::function<void(const RecordedFrame& recorded)> capture);
 
 // Replays a recording through a session: run_pipeline over recording_frames(), the next frames
-// read while the current one is fused (options.queue_frames ahead). A cancel from `progress`
+// read while the current one is fused (options.queue_frames ahead), page-locked where the
+// session uploads stacks to a GPU (ScanSession::uploads_ahead). A cancel from `progress`
 // stops after the current frame: the outcome says so and the session keeps everything fused.
 using ReplayOutcome = PipelineOutcome;
 ReplayOutcome run_recording(ScanSession& session, const RecordingReader& recording,

@@ -14,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include "sdk/core/device.h"
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
 #include "sdk/core/image_io.h"
@@ -249,6 +250,31 @@ TEST(Recording, RoundTrip8Bit) {
         ASSERT_EQ(images[k].data()[i], frames[f][k].data()[i]);  // widened by value
       }
     }
+  }
+}
+
+// A replay through a GPU session reads its images page-locked (as a camera delivers them), 8-bit
+// and 16-bit files alike: the same pixels, in page-locked memory where a GPU can lock it and
+// pageable (saying so) where not; a GPU's memory is refused.
+TEST(Recording, ImagesLoadIntoTheMemoryAskedFor) {
+  test::TemporaryDirectory dir;
+  const bool gpu = cuda_compiled() && cuda_device_count() > 0;
+  for (const int bits : {8, 16}) {
+    const std::string folder = dir.file("rec" + std::to_string(bits));
+    const std::vector<Image16u> images = random_images<std::uint16_t>(kImagesPerFrame, bits == 8 ? 255 : 4095, 9);
+    {
+      RecordingWriter writer = RecordingWriter::create(folder, make_info(bits), make_calibration());
+      writer.append_frame(images, metadata(1, std::nullopt));
+    }
+    const RecordingReader reader = RecordingReader::open(folder);
+    const std::vector<Image16u> pinned = reader.load_images(0, MemoryType::kPinned);
+    ASSERT_EQ(pinned.size(), images.size());
+    for (std::size_t k = 0; k < images.size(); ++k) {
+      EXPECT_EQ(pinned[k], images[k]) << bits << "-bit image " << k;
+      EXPECT_EQ(pinned[k].memory_type(), gpu ? MemoryType::kPinned : MemoryType::kHost);
+    }
+    expect_error([&] { (void)reader.load_image(0, 0, MemoryType::kDevice); }, ErrorCode::kInvalidArgument,
+                 "host memory, not a GPU's");
   }
 }
 
