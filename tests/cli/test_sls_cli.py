@@ -732,8 +732,11 @@ class SlsCli(unittest.TestCase):
         self.assertIn("camera1_matrix: !!opencv-matrix", text)
         self.assertTrue((self.dir / "report/calibration_report.html").exists())
         self.assertTrue((self.dir / "report/camera1/calibration_report.html").exists())
-        # The head's calibration scans as a one-camera one does (camera 0 with the projector).
-        self.assertTrue(json.loads(run("--json", "inspect", str(out)).stdout)["ok"])
+        inspected = json.loads(run("--json", "inspect", str(out)).stdout)
+        self.assertTrue(inspected["ok"])
+        self.assertEqual(inspected["results"][0]["camera_count"], 2)
+        self.assertAlmostEqual(inspected["results"][0]["additional_cameras"][0]["angle_to_camera0_deg"], 50.0,
+                               delta=2.0)
         # Bad layouts name the folder: a gap in the cameras, a camera with other poses, one camera.
         (head / "camera1").rename(head / "camera2")
         gap = run("calibrate", "--input", str(head), "--out", str(self.dir / "bad.yml"))
