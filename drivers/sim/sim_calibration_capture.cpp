@@ -362,6 +362,10 @@ std::vector<SimRig> make_calibration_rigs(const SimCalibrationOptions& options) 
     second.camera.k1 = -0.25;
     second.camera.p1 = -1e-4;
     second.camera.p2 = 1.5e-4;
+    // A sensor of its own: noise keyed by (seed, frame, pattern, pixel) would otherwise repeat
+    // the first camera's, pixel for pixel. The table's jitter (turntable.seed) is the same
+    // motion for both.
+    second.noise_seed = rig.noise_seed ^ 0x9e3779b97f4a7c15ULL;
     rigs.push_back(second);
     facing_rad = 0.5 * turn;
   }

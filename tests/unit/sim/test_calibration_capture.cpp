@@ -144,6 +144,8 @@ TEST(SimCalibrationCapture, ASecondCameraMirrorsTheFirstAcrossTheProjector) {
                 1e-12);
     EXPECT_NEAR(rigs[1].T_camera_projector.angle_rad() / kDegree, 25.0, 1e-9);
     EXPECT_NE(head.additional_cameras[0].intrinsics.k1, head.camera.k1);  // a lens of its own
+    EXPECT_NE(rigs[1].noise_seed, rigs[0].noise_seed);                     // and a sensor
+    EXPECT_EQ(rigs[1].turntable.seed, rigs[0].turntable.seed);             // the same table
     EXPECT_NO_THROW(head.validate());
   }
   SimCalibrationOptions one;
