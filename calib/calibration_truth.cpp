@@ -24,19 +24,24 @@ double CalibrationErrors::principal_point_err_px() const {
   return std::max(camera_principal_point_err_px, projector_principal_point_err_px);
 }
 
+PoseErrors compare_poses(const Pose& estimated, const Pose& exact) {
+  PoseErrors errors;
+  const double baseline = exact.translation().norm();
+  errors.baseline_rel_err = std::fabs(estimated.translation().norm() - baseline) / baseline;
+  errors.rotation_err_deg =
+      Pose(estimated.rotation().transpose() * exact.rotation(), Eigen::Vector3d::Zero()).angle_rad() / kDegree;
+  return errors;
+}
+
 CalibrationErrors compare_calibrations(const ScannerCalibration& estimated, const ScannerCalibration& exact) {
   CalibrationErrors errors;
   errors.camera_focal_rel_err = focal_error(estimated.camera, exact.camera);
   errors.projector_focal_rel_err = focal_error(estimated.projector, exact.projector);
   errors.camera_principal_point_err_px = principal_point_error(estimated.camera, exact.camera);
   errors.projector_principal_point_err_px = principal_point_error(estimated.projector, exact.projector);
-  const double baseline = exact.T_camera_projector.translation().norm();
-  errors.baseline_rel_err = std::fabs(estimated.T_camera_projector.translation().norm() - baseline) / baseline;
-  errors.rotation_err_deg =
-      Pose(estimated.T_camera_projector.rotation().transpose() * exact.T_camera_projector.rotation(),
-           Eigen::Vector3d::Zero())
-          .angle_rad() /
-      kDegree;
+  const PoseErrors pose = compare_poses(estimated.T_camera_projector, exact.T_camera_projector);
+  errors.baseline_rel_err = pose.baseline_rel_err;
+  errors.rotation_err_deg = pose.rotation_err_deg;
   if (estimated.turntable && exact.turntable) {
     const Eigen::Vector3d d = estimated.turntable->direction_camera.normalized();
     const Eigen::Vector3d d_exact = exact.turntable->direction_camera.normalized();

@@ -28,6 +28,14 @@ struct CalibrationErrors {
   double principal_point_err_px() const;
 };
 
+// A relative pose (camera–projector or camera–camera) against the exact one: its baseline's
+// relative error and the angle between the rotations (degrees).
+struct PoseErrors {
+  double baseline_rel_err = 0.0;
+  double rotation_err_deg = 0.0;
+};
+PoseErrors compare_poses(const Pose& estimated, const Pose& exact);
+
 CalibrationErrors compare_calibrations(const ScannerCalibration& estimated, const ScannerCalibration& exact);
 
 }  // namespace sls::calib

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <optional>
 #include <vector>
 
@@ -64,33 +65,38 @@ Eigen::Matrix3d rotation(double angle_rad, const Eigen::Vector3d& axis) {
 }
 
 // The board frame facing the camera upright: x -> world +y (image right), y -> world −z
-// (image down), z -> world −x (away from the camera, which looks along −x).
-Eigen::Matrix3d facing_camera() {
+// (image down), z -> world −x (away from the camera, which looks along −x). A head of several
+// cameras has the boards face the middle of them: this turned by `facing_rad` about the
+// vertical (world z) through the focus.
+Eigen::Matrix3d facing_camera(double facing_rad) {
   Eigen::Matrix3d r;
   r.col(0) = Eigen::Vector3d::UnitY();
   r.col(1) = -Eigen::Vector3d::UnitZ();
   r.col(2) = -Eigen::Vector3d::UnitX();
-  return r;
+  return rotation(facing_rad, Eigen::Vector3d::UnitZ()) * r;
 }
 
 Eigen::Vector3d board_centre(const ChessboardParameters& board) {
   return {0.5 * (board.inner_corners_x - 1) * board.square, 0.5 * (board.inner_corners_y - 1) * board.square, 0.0};
 }
 
-// T_world_board for a board centred at `centre_world`, turned by `turn` from facing the camera.
-Pose board_pose(const ChessboardParameters& board, const Eigen::Vector3d& centre_world, const Eigen::Matrix3d& turn) {
-  const Eigen::Matrix3d r = facing_camera() * turn;
+// T_world_board for a board centred at `centre_world`, turned by `turn` from facing the
+// cameras (facing_camera).
+Pose board_pose(const ChessboardParameters& board, const Eigen::Vector3d& centre_world, const Eigen::Matrix3d& turn,
+                double facing_rad) {
+  const Eigen::Matrix3d r = facing_camera(facing_rad) * turn;
   return Pose(r, centre_world - r * board_centre(board));
 }
 
 // T_table_board: the fixed mount. The world origin is on the axis (world = turntable frame).
 // The board stands where the head focuses: on the axis for a head set up for flat targets,
 // 16.1 mm in front of it for the knurled screw's (its surface).
-Pose turntable_mount(const ChessboardParameters& board, const Eigen::Vector3d& focus) {
+Pose turntable_mount(const ChessboardParameters& board, const Eigen::Vector3d& focus, double facing_rad) {
   const Eigen::Vector3d centre(std::max(kMountFaceOffsetM, focus.x()), 0.0, focus.z());
   return board_pose(board, centre,
                     rotation(-kMountLeanBackDeg * kDegree, Eigen::Vector3d::UnitX()) *
-                        rotation(kMountRollDeg * kDegree, Eigen::Vector3d::UnitZ()));
+                        rotation(kMountRollDeg * kDegree, Eigen::Vector3d::UnitZ()),
+                    facing_rad);
 }
 
 // Commanded angle of turntable pose `index` of `count`: spread over ±half_range_deg, rounded
@@ -176,18 +182,30 @@ bool plate_fits(const SimRig& rig, const ChessboardParameters& board, const Pose
   return true;
 }
 
+// plate_fits for every camera of the head (each rig one camera with the same projector).
+bool plate_fits_all(const std::vector<SimRig>& rigs, const ChessboardParameters& board, const Pose& T_world_board,
+                    double margin_fraction) {
+  return std::all_of(rigs.begin(), rigs.end(), [&](const SimRig& rig) {
+    return plate_fits(rig, board, rig.T_world_camera.inverse() * T_world_board, margin_fraction, nullptr);
+  });
+}
+
 // Throws when frame `frame` shows part of the plate outside the image or the projector's
-// light, or turns its face away from either, or leaves the depth of field.
-void check_board_in_view(const SimRig& rig, const ChessboardParameters& board, int frame) {
-  std::string why;
-  if (!plate_fits(rig, board, T_camera_board(rig, board, frame), kEdgeMarginFraction, &why)) {
-    throw_error(ErrorCode::kInvalidArgument, "calibration frame {}: {}", frame, why);
+// light, or turns its face away from either, or leaves the depth of field (naming the camera
+// in a head of several).
+void check_board_in_view(const std::vector<SimRig>& rigs, const ChessboardParameters& board, int frame) {
+  for (std::size_t k = 0; k < rigs.size(); ++k) {
+    std::string why;
+    if (!plate_fits(rigs[k], board, T_camera_board(rigs[k], board, frame), kEdgeMarginFraction, &why)) {
+      throw_error(ErrorCode::kInvalidArgument, "calibration frame {}{}: {}", frame,
+                  rigs.size() > 1 ? fmt::format(", camera {}", k) : "", why);
+    }
   }
 }
 
-// Hand pose `index` of `count` (see kHandTiltsDeg): T_world_board.
-Pose hand_pose(const SimRig& rig, const ChessboardParameters& board, const Eigen::Vector3d& focus,
-               std::uint64_t seed, int index, int count) {
+// Hand pose `index` of `count` (see kHandTiltsDeg): T_world_board, in view of every camera.
+Pose hand_pose(const std::vector<SimRig>& rigs, const ChessboardParameters& board, const Eigen::Vector3d& focus,
+               double facing_rad, std::uint64_t seed, int index, int count) {
   NoiseKey key;
   key.seed = seed;
   key.frame = static_cast<std::uint32_t>(index);
@@ -208,12 +226,13 @@ Pose hand_pose(const SimRig& rig, const ChessboardParameters& board, const Eigen
   const double direction = nominal_azimuth + 0.5 * M_PI;
   const double side_x = std::clamp(2.0 * std::cos(direction), -1.0, 1.0);
   const double side_y = std::clamp(2.0 * std::sin(direction), -1.0, 1.0);
-  const Eigen::Vector3d centre = focus + Eigen::Vector3d(depth, 0.0, 0.0);
-  // Image x is world +y, image y world −z.
-  const auto pose_at = [&](double x, double y) { return board_pose(board, centre + Eigen::Vector3d(0.0, x, -y), turn); };
-  const auto fits = [&](double x, double y) {
-    return plate_fits(rig, board, rig.T_world_camera.inverse() * pose_at(x, y), kHandReachMarginFraction, nullptr);
+  const Eigen::Vector3d centre = focus + rotation(facing_rad, Eigen::Vector3d::UnitZ()) * Eigen::Vector3d(depth, 0.0, 0.0);
+  // Image x is world +y, image y world −z (of a camera the boards face).
+  const Eigen::Matrix3d facing = rotation(facing_rad, Eigen::Vector3d::UnitZ());
+  const auto pose_at = [&](double x, double y) {
+    return board_pose(board, centre + facing * Eigen::Vector3d(0.0, x, -y), turn, facing_rad);
   };
+  const auto fits = [&](double x, double y) { return plate_fits_all(rigs, board, pose_at(x, y), kHandReachMarginFraction); };
   if (!fits(0.0, 0.0)) return pose_at(0.0, 0.0);  // left to check_board_in_view's report
   // The largest t in [0, limit] with fits(t) (those that fit are an interval from 0).
   const auto farthest = [](double limit, const auto& fits_at) {
@@ -297,11 +316,17 @@ Pose board_frame_in_object(const ChessboardParameters& board) {
   return Pose(flip, origin);
 }
 
-SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& board_scene) {
+std::vector<SimRig> make_calibration_rigs(const SimCalibrationOptions& options) {
   if (options.hand_poses < 0 || options.turntable_poses < 0 || options.hand_poses + options.turntable_poses < 1 ||
       options.hand_poses > 1000 || options.turntable_poses > 1000) {
     throw_error(ErrorCode::kInvalidArgument, "{} hand and {} turntable poses (each 0 .. 1000, at least one view)",
                 options.hand_poses, options.turntable_poses);
+  }
+  if (options.cameras < 1 || options.cameras > kMaxSimCalibrationCameras) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "{} cameras: the simulated head has places for 1 or {} (the second mirrors the first across the "
+                "projector)",
+                options.cameras, kMaxSimCalibrationCameras);
   }
   RigOptions rig_options = options.rig;
   rig_options.frames = kCalibrationTurntableSteps;
@@ -309,7 +334,6 @@ SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& b
   rig_options.mount_offset_m = 0.0;
   // The head as set up for its object: camera and projector where make_rig puts them to scan
   // it, so the turntable axis calibrated here is the one that object's scans use.
-  (void)board_scene;
   SimRig rig = make_rig(rig_options, make_scene(options.head_object));
 
   // Columns and rows: the calibration needs both projector coordinates of every corner. The
@@ -322,29 +346,55 @@ SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& b
       patterns.phase_period_px * rig.optics.projector.pixel_pitch_x_m / rig.optics.projector.pixel_pitch_y_m));
   rig.patterns = make_gray_phase_pattern_set(patterns);
 
+  const Eigen::Vector3d focus = rig.T_world_camera * Eigen::Vector3d(0.0, 0.0, rig.optics.working_distance_m);
+  std::vector<SimRig> rigs = {rig};
+  // A second camera mirrors the first across the projector: turned twice the triangulation
+  // angle about the vertical through the focus, the projector between them, with a lens of
+  // its own (another distortion). The boards then face the projector, halfway between them.
+  double facing_rad = 0.0;
+  if (options.cameras == 2) {
+    const double turn = 2.0 * rig.optics.triangulation_angle_rad;
+    const Pose about_focus(rotation(turn, Eigen::Vector3d::UnitZ()),
+                           focus - rotation(turn, Eigen::Vector3d::UnitZ()) * focus);
+    SimRig second = rig;
+    second.T_world_camera = about_focus * rig.T_world_camera;
+    second.T_camera_projector = second.T_world_camera.inverse() * rig.T_world_camera * rig.T_camera_projector;
+    second.camera.k1 = -0.25;
+    second.camera.p1 = -1e-4;
+    second.camera.p2 = 1.5e-4;
+    // A sensor of its own: noise keyed by (seed, frame, pattern, pixel) would otherwise repeat
+    // the first camera's, pixel for pixel. The table's jitter (turntable.seed) is the same
+    // motion for both.
+    second.noise_seed = rig.noise_seed ^ 0x9e3779b97f4a7c15ULL;
+    rigs.push_back(second);
+    facing_rad = 0.5 * turn;
+  }
+
   const ChessboardParameters& board = options.board;
   const Pose T_object_board = board_frame_in_object(board);
-  const Eigen::Vector3d focus = rig.T_world_camera * Eigen::Vector3d(0.0, 0.0, rig.optics.working_distance_m);
+  std::vector<ObjectPlacement> placements;
   for (int i = 0; i < options.hand_poses; ++i) {
-    const Pose T_world_board = hand_pose(rig, board, focus, options.rig.seed, i, options.hand_poses);
-    rig.placements.push_back({std::nullopt, T_world_board * T_object_board.inverse()});
+    const Pose T_world_board = hand_pose(rigs, board, focus, facing_rad, options.rig.seed, i, options.hand_poses);
+    placements.push_back({std::nullopt, T_world_board * T_object_board.inverse()});
   }
-  rig.T_table_object = turntable_mount(board, focus) * T_object_board.inverse();
+  const Pose T_table_object = turntable_mount(board, focus, facing_rad) * T_object_board.inverse();
   // The widest span up to ±40° over which the board stays whole in view and lit: a board
   // standing 16 mm off the axis swings out of the 12 mm field within a few degrees.
   const auto table_views = [&](double half_range_deg) {
     std::vector<ObjectPlacement> views;
     for (int i = 0; i < options.turntable_poses; ++i) {
-      views.push_back({turntable_angle_deg(rig, i, options.turntable_poses, half_range_deg), rig.T_table_object});
+      views.push_back({turntable_angle_deg(rig, i, options.turntable_poses, half_range_deg), T_table_object});
     }
     return views;
   };
   const auto table_views_fit = [&](double half_range_deg) {
-    SimRig trial = rig;
-    trial.placements = table_views(half_range_deg);
-    std::string why;
-    for (int frame = 0; frame < static_cast<int>(trial.placements.size()); ++frame) {
-      if (!plate_fits(trial, board, T_camera_board(trial, board, frame), kEdgeMarginFraction * 1.2, &why)) return false;
+    for (SimRig trial : rigs) {
+      trial.placements = table_views(half_range_deg);
+      for (int frame = 0; frame < static_cast<int>(trial.placements.size()); ++frame) {
+        if (!plate_fits(trial, board, T_camera_board(trial, board, frame), kEdgeMarginFraction * 1.2, nullptr)) {
+          return false;
+        }
+      }
     }
     return true;
   };
@@ -357,15 +407,44 @@ SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& b
     }
     half_range_deg = lo;
   }
-  for (const ObjectPlacement& view : table_views(half_range_deg)) rig.placements.push_back(view);
-  for (int frame = 0; frame < static_cast<int>(rig.placements.size()); ++frame) check_board_in_view(rig, board, frame);
-  return rig;
+  for (const ObjectPlacement& view : table_views(half_range_deg)) placements.push_back(view);
+  for (SimRig& camera_rig : rigs) {
+    camera_rig.placements = placements;
+    camera_rig.T_table_object = T_table_object;
+  }
+  for (int frame = 0; frame < static_cast<int>(placements.size()); ++frame) check_board_in_view(rigs, board, frame);
+  return rigs;
 }
 
-SimRecordingSummary write_sim_calibration_recording(const std::string& folder, const SimCalibrationOptions& options,
-                                                    const Device& device, const ProgressCallback& progress) {
+SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& board_scene) {
+  (void)board_scene;
+  return make_calibration_rigs(options).front();
+}
+
+ScannerCalibration head_calibration(const std::vector<SimRig>& rigs) {
+  ScannerCalibration calibration = rigs.front().calibration();
+  for (std::size_t k = 1; k < rigs.size(); ++k) {
+    calibration.additional_cameras.push_back(
+        {rigs[k].camera, rigs.front().T_world_camera.inverse() * rigs[k].T_world_camera, 0.0});
+  }
+  if (rigs.size() > 1) {
+    calibration.description = fmt::format("slscan simulator, preset {}, a head of {} cameras (exact calibration of the "
+                                          "simulated rig)",
+                                          rigs.front().preset, rigs.size());
+  }
+  return calibration;
+}
+
+namespace {
+
+std::string camera_folder_name(int camera) { return fmt::format("camera{}", camera); }
+
+// One camera's capture: its recording in `folder`, its truth (that camera with the projector)
+// in the recording's groundtruth/. Progress counts frames from `frames_before` of `frames_all`.
+SimRecordingSummary write_camera_capture(const std::string& folder, SimRig rig_built,
+                                         const SimCalibrationOptions& options, const Device& device,
+                                         const ProgressCallback& progress, int frames_before, int frames_all) {
   Scene board_scene = make_chessboard_scene(options.board);
-  SimRig rig_built = make_calibration_rig(options, board_scene);
   const std::string uri = fmt::format("sim://chessboard?preset={}&seed={}&noise={}&projector={}", rig_built.preset,
                                       options.rig.seed, options.rig.noise ? 1 : 0, options.rig.projector);
   const std::shared_ptr<SimScanner> scanner =
@@ -425,12 +504,40 @@ SimRecordingSummary write_sim_calibration_recording(const std::string& folder, c
     write_file_atomic(truth_folder + "/capture.json", capture.dump(2));
 
     writer.append_frame(images, metadata);
-    report_progress(progress, {"capture", static_cast<std::size_t>(frame + 1), static_cast<std::size_t>(frames), ""});
+    report_progress(progress, {"capture", static_cast<std::size_t>(frames_before + frame + 1),
+                               static_cast<std::size_t>(frames_all), ""});
   }
   stop_sim_devices(devices);
   writer.close();
 
   return recording_summary(*scanner, frames, info.images_per_frame, truth_folder);
+}
+
+}  // namespace
+
+SimRecordingSummary write_sim_calibration_recording(const std::string& folder, const SimCalibrationOptions& options,
+                                                    const Device& device, const ProgressCallback& progress) {
+  const std::vector<SimRig> rigs = make_calibration_rigs(options);
+  const int frames = static_cast<int>(rigs.front().placements.size());
+  if (rigs.size() == 1) return write_camera_capture(folder, rigs.front(), options, device, progress, 0, frames);
+  // A head of several cameras: one recording per camera (calib/multi_camera_capture.h reads
+  // this layout), the head's exact calibration beside them.
+  std::error_code error;
+  if (std::filesystem::exists(folder, error) && !std::filesystem::is_empty(folder, error)) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "{}: the folder exists and is not empty; refusing to write a calibration capture into it", folder);
+  }
+  create_directories(folder + "/groundtruth");
+  write_calibration(folder + "/groundtruth/calibration.yml", head_calibration(rigs));
+  SimRecordingSummary summary;
+  for (std::size_t k = 0; k < rigs.size(); ++k) {
+    const SimRecordingSummary camera =
+        write_camera_capture(folder + "/" + camera_folder_name(static_cast<int>(k)), rigs[k], options, device, progress,
+                             static_cast<int>(k) * frames, static_cast<int>(rigs.size()) * frames);
+    if (k == 0) summary = camera;
+  }
+  summary.groundtruth_folder = folder + "/groundtruth";
+  return summary;
 }
 
 }  // namespace sls::sim

@@ -21,6 +21,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "drivers/sim/rig.h"
 #include "drivers/sim/scene.h"
@@ -40,6 +41,9 @@ ChessboardParameters calibration_board();
 // microstepping, as the head controller's); commanded angles are whole steps.
 constexpr int kCalibrationTurntableSteps = 6400;
 
+// A simulated head has one camera, or two: the second mirrors the first across the projector.
+constexpr int kMaxSimCalibrationCameras = 2;
+
 struct SimCalibrationOptions {
   // Preset, camera width, projector, bit depth, gamma, turntable jitter, seed, noise. The
   // scan's frames per revolution and object mount (tilt, offset) do not apply.
@@ -52,20 +56,35 @@ struct SimCalibrationOptions {
   // use; the turntable views' board stands at that focus. "chessboard": focused on the axis.
   std::string head_object = "knurled-screw";
   ChessboardParameters board = calibration_board();
+  // Cameras of the head (1 .. kMaxSimCalibrationCameras). With 2 the second camera stands
+  // twice the triangulation angle round from the first (the projector halfway between them),
+  // every board faces the projector and stays in view of both, and the capture is one
+  // recording per camera (the layout below).
+  int cameras = 1;
 };
 
 // The board frame above in the scene's object frame (scene.json's frame).
 Pose board_frame_in_object(const ChessboardParameters& board);
 
-// The rig of the capture: one placement per frame (hand poses, then turntable poses), the
+// The rigs of the capture, one per camera (each that camera with the same projector): one
+// placement per frame (hand poses, then turntable poses, the same for every camera), the
 // column-and-row pattern set, kCalibrationTurntableSteps. Throws sls::Error
-// (kInvalidArgument) for bad counts, or when some pose puts part of the board outside the
-// camera image or the projector's light, or turns it away from either.
+// (kInvalidArgument) for bad counts, or when some pose puts part of the board outside a
+// camera's image or the projector's light, or turns it away from either.
+std::vector<SimRig> make_calibration_rigs(const SimCalibrationOptions& options);
+// The first camera's (of a one-camera head: the only one).
 SimRig make_calibration_rig(const SimCalibrationOptions& options, const Scene& board);
+// The exact calibration of the head: the first camera's, with the others as additional
+// cameras (their intrinsics, T_camera0_cameraK).
+ScannerCalibration head_calibration(const std::vector<SimRig>& rigs);
 
 // Writes the capture to `folder` (created; must not exist or be empty). Every frame is
 // flushed as it is captured; its ground truth is written just before it, so an interrupted
 // run leaves a valid recording whose frames all have their ground truth. Throws sls::Error.
+// A head of several cameras writes one such recording per camera into `folder`/camera0,
+// `folder`/camera1 (each with the truth of that camera and the projector), and the head's
+// exact calibration (head_calibration) as `folder`/groundtruth/calibration.yml; the summary
+// is camera 0's with that groundtruth folder.
 SimRecordingSummary write_sim_calibration_recording(const std::string& folder, const SimCalibrationOptions& options,
                                                     const Device& device, const ProgressCallback& progress);
 

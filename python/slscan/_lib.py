@@ -29,7 +29,7 @@ from . import _types as t
 # compares them). Passed to sls_context_create(), which refuses a library of another major
 # version or of an older minor version.
 API_VERSION_MAJOR = 0
-API_VERSION_MINOR = 7
+API_VERSION_MINOR = 8
 API_VERSION_PATCH = 0
 API_VERSION = API_VERSION_MAJOR * 10000 + API_VERSION_MINOR * 100 + API_VERSION_PATCH
 
@@ -215,6 +215,9 @@ _PROTOTYPES = {
     "sls_calibration_view_init_sized": (None, [c_void_p, c_size_t]),
     "sls_calibration_get_view": (c_int, [_P, c_size_t, POINTER(t.CalibrationViewC), _E]),
     "sls_calibration_write": (c_int, [_P, c_char_p, c_int, _E]),
+    "sls_calibration_camera_count": (c_int, [_P, POINTER(c_size_t), _E]),
+    "sls_calibration_camera_init_sized": (None, [c_void_p, c_size_t]),
+    "sls_calibration_get_camera": (c_int, [_P, c_size_t, POINTER(t.CalibrationCameraC), POINTER(t.IntrinsicsC), _E]),
     # sls_calibration_capture.h
     "sls_calibration_capture_config_init_sized": (None, [c_void_p, c_size_t]),
     "sls_calibration_capture_result_init_sized": (None, [c_void_p, c_size_t]),

@@ -1,4 +1,4 @@
-"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.7.0).
+"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.8.0).
 
 Each versioned struct (its first field `struct_size`) is mirrored field for field, in the
 order of the header. Fill one with :func:`init_struct`, which calls the library's own
@@ -271,6 +271,14 @@ class CalibrationViewC(Structure):
                 ("corners", c_size_t), ("projector_corners_valid", c_size_t), ("decoded_fraction", c_double)]
 
 
+class CalibrationCameraC(Structure):
+    _fields_ = [("struct_size", c_size_t), ("camera_rms_px", c_double), ("projector_rms_px", c_double),
+                ("stereo_rms_px", c_double), ("views_used", c_size_t), ("T_camera0_camera", c_double * 16),
+                ("camera_camera_rms_px", c_double), ("camera_camera_views", c_size_t), ("has_truth", c_int),
+                ("focal_rel_err", c_double), ("principal_point_err_px", c_double),
+                ("camera_camera_baseline_rel_err", c_double), ("camera_camera_rotation_err_deg", c_double)]
+
+
 # Every versioned struct with the name of its C type and of the library's _init() (tests).
 class EvalConfigC(Structure):
     _fields_ = [("struct_size", c_size_t), ("voxel_size_m", c_double), ("edge_band_voxels", c_double),
@@ -331,6 +339,7 @@ VERSIONED_STRUCTS: dict[str, tuple[Type[Structure], str]] = {
     "sls_calibration_summary": (CalibrationSummaryC, "sls_calibration_summary_init"),
     "sls_intrinsics": (IntrinsicsC, "sls_intrinsics_init"),
     "sls_calibration_view": (CalibrationViewC, "sls_calibration_view_init"),
+    "sls_calibration_camera": (CalibrationCameraC, "sls_calibration_camera_init"),
     "sls_cloud_data": (CloudDataC, "sls_cloud_data_init"),
     "sls_mesh_data": (MeshDataC, "sls_mesh_data_init"),
     "sls_feed_config": (FeedConfigC, "sls_feed_config_init"),

@@ -10,10 +10,6 @@
 #include "sdk/core/file_util.h"
 
 namespace sls::cli {
-namespace {
-
-using report::detail::add_row;
-using report::detail::escape_html;
 
 nlohmann::json intrinsics_json(const CameraIntrinsics& c) {
   return {{"width", c.width}, {"height", c.height}, {"fx", c.fx}, {"fy", c.fy}, {"cx", c.cx}, {"cy", c.cy},
@@ -21,6 +17,11 @@ nlohmann::json intrinsics_json(const CameraIntrinsics& c) {
 }
 
 nlohmann::json vector_json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+namespace {
+
+using report::detail::add_row;
+using report::detail::escape_html;
 
 // One view's corners and residuals in an image of width x height, residuals magnified.
 std::string residual_svg(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Vector2d>& residuals,

@@ -12,6 +12,9 @@
 
 namespace sls::cli {
 
+nlohmann::json intrinsics_json(const CameraIntrinsics& c);
+nlohmann::json vector_json(const Eigen::Vector3d& v);
+
 // The result as JSON: the figures, the views used and rejected, the calibration, the axis
 // and, for a simulated capture, "truth" (errors against the exact calibration).
 nlohmann::json calibration_json(const calib::CalibrateCaptureResult& result);

@@ -30,6 +30,8 @@
 
 #if defined(SLS_HAVE_CALIB)
 #include "calib/calibrate_capture.h"
+#include "calib/multi_camera_calibration.h"
+#include "samples/sls/calibrate_multi_camera.h"
 #include "samples/sls/calibration_report.h"
 #endif
 
@@ -285,6 +287,12 @@ int run_calibrate(const Context& context, const CalibrateOptions& options) {
     calibrate.input = options.record;
     calibrate.patterns.clear();  // the recording's own
   }
+  // A head of several cameras (camera0/, camera1/, ...): each against the projector, then
+  // camera to camera.
+  if (!captured && calib::is_multi_camera_capture(calibrate.input)) {
+    return run_multi_camera_calibrate(context, calibrate,
+                                      {options.out, options.report, options.max_rms_px, options.force});
+  }
   const ProgressCallback progress = context.progress_callback("calibrate");
   calib::CalibrateCaptureResult result;
   try {
@@ -385,8 +393,10 @@ void add_calibrate_command(CLI::App& app, Context& context, int* exit_code) {
       "kept (valid), exit status 4, and --resume continues it. sim://chessboard?calibration=1&preset=ci&hand_poses=N "
       "is a simulated board whose operator places it at each pose.");
   auto options = std::make_shared<CalibrateOptions>();
-  auto* input =
-      command->add_option("--input", options->input, "Recording, or folder of captures (one subfolder per board pose)");
+  auto* input = command->add_option("--input", options->input,
+                                    "Recording, or folder of captures (one subfolder per board pose), or a head of "
+                                    "several cameras: a folder with one such capture per camera in camera0, camera1, "
+                                    "... (the same board poses in the same order)");
   auto* camera = command->add_option("--camera", options->camera_uri,
                                      "Capture the views first with devices by URI (see `sls devices`): the camera, e.g. "
                                      "gige://192.168.1.20");

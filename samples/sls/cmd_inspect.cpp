@@ -82,7 +82,16 @@ nlohmann::json camera_json(const CameraIntrinsics& c) {
 nlohmann::json inspect_calibration(const std::string& path) {
   const ScannerCalibration calibration = read_calibration(path);
   const Eigen::Vector3d baseline = calibration.T_camera_projector.translation();
+  // A multi-camera head's other cameras: each lens and its pose against camera 0.
+  nlohmann::json additional = nlohmann::json::array();
+  for (const AdditionalCamera& extra : calibration.additional_cameras) {
+    additional.push_back({{"camera", camera_json(extra.intrinsics)},
+                          {"baseline_to_camera0_m", extra.T_camera0_camera.translation().norm()},
+                          {"angle_to_camera0_deg", extra.T_camera0_camera.angle_rad() * 180.0 / M_PI}});
+  }
   return {{"kind", "calibration"},
+          {"camera_count", calibration.camera_count()},
+          {"additional_cameras", additional},
           {"camera", camera_json(calibration.camera)},
           {"projector", camera_json(calibration.projector)},
           {"baseline_m", baseline.norm()},

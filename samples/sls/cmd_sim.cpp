@@ -1,8 +1,10 @@
 // sls sim: scans the simulated scanner into a recording with ground truth
 // (drivers/sim/sim_recording.h describes what is written), or with --calibration makes a
 // calibration capture (drivers/sim/sim_calibration_capture.h).
+#include <filesystem>
 #include <iostream>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "drivers/sim/rig.h"
@@ -34,6 +36,7 @@ struct SimOptions {
   bool resume = false;
   int hand_poses = sim::SimCalibrationOptions{}.hand_poses;
   int turntable_poses = sim::SimCalibrationOptions{}.turntable_poses;
+  int cameras = 1;  // of the head, with --calibration
   std::string exposures;  // HDR: relative exposure times, "1,0.25"; empty: one exposure
 };
 
@@ -59,6 +62,7 @@ int run_sim(const Context& context, const SimOptions& options) {
       calibration_options.hand_poses = options.hand_poses;
       calibration_options.turntable_poses = options.turntable_poses;
       calibration_options.head_object = options.object;
+      calibration_options.cameras = options.cameras;
       summary = sim::write_sim_calibration_recording(options.out, calibration_options, device, counting);
       object = "chessboard";  // what is imaged; the head is set up for options.object
     } else {
@@ -76,21 +80,27 @@ int run_sim(const Context& context, const SimOptions& options) {
     }
   } catch (const Error& error) {
     if (error.code() != ErrorCode::kCancelled || !stop.requested()) throw;
-    const std::size_t frames = RecordingReader::open(options.out).frame_count();
+    // A head of several cameras: the recording being written when the signal came.
+    std::string cut = options.out;
+    for (int k = options.cameras - 1; k >= 0 && options.cameras > 1; --k) {
+      cut = fmt::format("{}/camera{}", options.out, k);
+      if (std::filesystem::exists(cut + "/manifest.json")) break;
+    }
+    const std::size_t frames = RecordingReader::open(cut).frame_count();
     const std::string resume = options.calibration ? std::string("run it again into an empty folder")
                                                    : "resume with the same command and --resume";
     if (context.options.json) {
       std::cout << nlohmann::json({{"ok", false},
                                    {"interrupted", true},
                                    {"signal", stop.signal_name()},
-                                   {"recording", options.out},
+                                   {"recording", cut},
                                    {"frames", frames},
                                    {"frames_planned", planned}})
                        .dump(2)
                 << "\n";
     }
     std::cerr << "\ninterrupted by " << stop.signal_name() << ": wrote " << frames
-              << (planned > 0 ? " of " + std::to_string(planned) : std::string()) << " frames to " << options.out
+              << (planned > 0 ? " of " + std::to_string(planned) : std::string()) << " frames to " << cut
               << " (a valid recording); " << resume << "\n";
     return kExitInterrupted;
   }
@@ -111,13 +121,23 @@ int run_sim(const Context& context, const SimOptions& options) {
     result["hand_poses"] = options.hand_poses;
     result["turntable_poses"] = options.turntable_poses;
     result["head_object"] = options.object;
+    result["cameras"] = options.cameras;
+    if (options.cameras > 1) {
+      nlohmann::json recordings = nlohmann::json::array();
+      for (int k = 0; k < options.cameras; ++k) recordings.push_back(fmt::format("{}/camera{}", options.out, k));
+      result["camera_recordings"] = recordings;
+      result["groundtruth"] = summary.groundtruth_folder;
+    }
   }
   context.emit(result, [&] {
     if (options.calibration) {
       std::cout << "wrote a calibration capture of " << summary.frames << " frames (" << options.hand_poses
                 << " board poses by hand, " << options.turntable_poses << " on the turntable; "
-                << summary.images_per_frame << " images each, " << summary.width << "x" << summary.height << ") to "
-                << options.out << " (exact calibration in " << summary.groundtruth_folder << ")\n";
+                << summary.images_per_frame << " images each, " << summary.width << "x" << summary.height << ")"
+                << (options.cameras > 1 ? fmt::format(" per camera of {}, one recording each in camera0 .. camera{} of",
+                                                      options.cameras, options.cameras - 1)
+                                        : std::string(" to"))
+                << " " << options.out << " (exact calibration in " << summary.groundtruth_folder << ")\n";
       return;
     }
     std::cout << "wrote " << summary.frames << " frames"
@@ -224,6 +244,14 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--turntable-poses", options->turntable_poses,
                       "With --calibration: board views on the turntable (for its axis)")
       ->check(CLI::Range(0, 1000))
+      ->needs(calibration)
+      ->capture_default_str();
+  command
+      ->add_option("--cameras", options->cameras,
+                    "With --calibration: cameras of the head, 1 or 2; the second mirrors the first across the projector "
+                    "and each camera's capture is a recording of its own, OUT/camera0, OUT/camera1, the head's exact "
+                    "calibration in OUT/groundtruth (`sls calibrate --input OUT` calibrates them all)")
+      ->check(CLI::Range(1, sim::kMaxSimCalibrationCameras))
       ->needs(calibration)
       ->capture_default_str();
   for (CLI::Option* scan_only :

@@ -1,5 +1,5 @@
 // sls_calibration: calib::calibrate_capture (calib/calibrate_capture.h, what `sls calibrate`
-// runs) behind the C API. A run makes an immutable result; the getters copy out of it, its
+// runs) behind the C API, or calib::calibrate_multi_camera_capture for a head's folder. A run makes an immutable result; the getters copy out of it, its
 // strings stay in it until sls_calibration_destroy(). Built with SLS_HAVE_CALIB where the
 // sls_calib target exists (OpenCV found); elsewhere every function is a stub returning
 // SLS_ERROR_UNSUPPORTED, so the header and the exported symbols are the same in every build.
@@ -19,8 +19,13 @@
 
 #if defined(SLS_HAVE_CALIB)
 #include <cmath>
+#include <optional>
+#include <utility>
+
+#include <fmt/format.h>
 
 #include "calib/calibrate_capture.h"
+#include "calib/multi_camera_calibration.h"
 #include "sdk/core/calibration.h"
 #include "sdk/core/progress.h"
 #endif
@@ -51,12 +56,16 @@ SLS_CAPI_DEFINE_INIT(sls_intrinsics, p2, sls::capi::zeroed<sls_intrinsics>())
 SLS_CAPI_DEFINE_INIT(sls_calibration_view, decoded_fraction,
                      sls::capi::zeroed<sls_calibration_view>())
 
+SLS_CAPI_DEFINE_INIT(sls_calibration_camera, camera_camera_rotation_err_deg,
+                     sls::capi::zeroed<sls_calibration_camera>())
+
 }  // extern "C"
 
 #if defined(SLS_HAVE_CALIB)
 
 struct sls_calibration {
-  sls::calib::CalibrateCaptureResult result;
+  sls::calib::CalibrateCaptureResult result;  // of a head: camera 0's (every getter's but the cameras')
+  std::optional<sls::calib::MultiCameraCalibrateResult> head;
   double max_rms_px = 1.0;
   std::vector<std::string> rejected_reasons;  // per view: the solve's reason, else the observation's
 };
@@ -68,6 +77,15 @@ constexpr std::size_t kSummaryFirstVersionSize =
     offsetof(sls_calibration_summary, axis_point_err_um) + sizeof(double);
 constexpr std::size_t kIntrinsicsFirstVersionSize = offsetof(sls_intrinsics, p2) + sizeof(double);
 constexpr std::size_t kViewFirstVersionSize = offsetof(sls_calibration_view, decoded_fraction) + sizeof(double);
+constexpr std::size_t kCameraFirstVersionSize =
+    offsetof(sls_calibration_camera, camera_camera_rotation_err_deg) + sizeof(double);
+
+void copy_matrix(const sls::Pose& pose, double out[16]) {
+  const Eigen::Matrix4d T = pose.matrix();
+  for (int row = 0; row < 4; ++row) {
+    for (int column = 0; column < 4; ++column) out[4 * row + column] = T(row, column);
+  }
+}
 
 sls::calib::CalibrateCaptureOptions capture_options(const sls_calibration_config& config, const std::string& input,
                                                     const sls::Device& device) {
@@ -158,7 +176,12 @@ SLS_API sls_status sls_calibration_run(sls_context* context, const char* input_p
             : sls::capi::read_versioned(config, defaults, kConfigFirstVersionSize, "sls_calibration_config");
     const sls::calib::CalibrateCaptureOptions options = capture_options(resolved, input_path, context->device);
     auto made = std::make_unique<sls_calibration>();
-    made->result = sls::calib::calibrate_capture(options, sls::capi::progress_callback(progress, user));
+    if (sls::calib::is_multi_camera_capture(options.input)) {
+      made->head = sls::calib::calibrate_multi_camera_capture(options, sls::capi::progress_callback(progress, user));
+      made->result = made->head->cameras.front();
+    } else {
+      made->result = sls::calib::calibrate_capture(options, sls::capi::progress_callback(progress, user));
+    }
     made->max_rms_px = resolved.max_rms_px;
     made->rejected_reasons = rejected_reasons(made->result);
     *calibration = made.release();
@@ -227,12 +250,8 @@ SLS_API sls_status sls_calibration_get_extrinsics(const sls_calibration* calibra
                                                   sls_error** error) {
   SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
   SLS_CAPI_REQUIRE(T_camera_projector != nullptr, error, "T_camera_projector (the output array) is NULL");
-  return sls::capi::guarded(__func__, error, [&] {
-    const Eigen::Matrix4d T = calibration->result.procam.calibration.T_camera_projector.matrix();
-    for (int row = 0; row < 4; ++row) {
-      for (int column = 0; column < 4; ++column) T_camera_projector[4 * row + column] = T(row, column);
-    }
-  });
+  return sls::capi::guarded(__func__, error,
+                            [&] { copy_matrix(calibration->result.procam.calibration.T_camera_projector, T_camera_projector); });
 }
 
 SLS_API sls_status sls_calibration_get_turntable_axis(const sls_calibration* calibration, double point[3],
@@ -292,19 +311,82 @@ SLS_API sls_status sls_calibration_get_view(const sls_calibration* calibration, 
   });
 }
 
+SLS_API sls_status sls_calibration_camera_count(const sls_calibration* calibration, size_t* count, sls_error** error) {
+  SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
+  SLS_CAPI_REQUIRE(count != nullptr, error, "count (the output pointer) is NULL");
+  *count = calibration->head ? calibration->head->cameras.size() : 1;
+  return SLS_OK;
+}
+
+SLS_API sls_status sls_calibration_get_camera(const sls_calibration* calibration, size_t index,
+                                              sls_calibration_camera* camera, sls_intrinsics* intrinsics,
+                                              sls_error** error) {
+  SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
+  SLS_CAPI_REQUIRE(camera != nullptr || intrinsics != nullptr, error,
+                   "camera and intrinsics (the output pointers) are both NULL");
+  return sls::capi::guarded(__func__, error, [&] {
+    const std::size_t count = calibration->head ? calibration->head->cameras.size() : 1;
+    if (index >= count) {
+      sls::throw_error(sls::ErrorCode::kInvalidArgument, "camera index {} out of range (the head has {} camera{})",
+                       index, count, count == 1 ? "" : "s");
+    }
+    const sls::calib::CalibrateCaptureResult& result =
+        calibration->head ? calibration->head->cameras[index] : calibration->result;
+    if (intrinsics != nullptr) {
+      const sls_intrinsics lens = to_c(result.procam.calibration.camera);
+      sls::capi::write_versioned(lens, intrinsics, kIntrinsicsFirstVersionSize, "sls_intrinsics");
+    }
+    if (camera == nullptr) return;
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    sls_calibration_camera filled;
+    sls_calibration_camera_init(&filled);
+    filled.camera_rms_px = result.procam.camera_rms_px;
+    filled.projector_rms_px = result.procam.projector_rms_px;
+    filled.stereo_rms_px = result.procam.stereo_rms_px;
+    filled.views_used = static_cast<std::size_t>(result.procam.views_used);
+    copy_matrix(sls::Pose(), filled.T_camera0_camera);
+    filled.camera_camera_baseline_rel_err = nan;
+    filled.camera_camera_rotation_err_deg = nan;
+    if (index > 0) {
+      const sls::calib::CameraPairSolution& pair = calibration->head->pairs[index - 1];
+      copy_matrix(pair.T_camera0_camera, filled.T_camera0_camera);
+      filled.camera_camera_rms_px = pair.rms_px;
+      filled.camera_camera_views = static_cast<std::size_t>(pair.views);
+      if (index - 1 < calibration->head->pair_errors.size()) {
+        filled.camera_camera_baseline_rel_err = calibration->head->pair_errors[index - 1].baseline_rel_err;
+        filled.camera_camera_rotation_err_deg = calibration->head->pair_errors[index - 1].rotation_err_deg;
+      }
+    }
+    filled.has_truth = result.errors.has_value() ? 1 : 0;
+    filled.focal_rel_err = result.errors ? result.errors->camera_focal_rel_err : nan;
+    filled.principal_point_err_px = result.errors ? result.errors->camera_principal_point_err_px : nan;
+    sls::capi::write_versioned(filled, camera, kCameraFirstVersionSize, "sls_calibration_camera");
+  });
+}
+
 SLS_API sls_status sls_calibration_write(const sls_calibration* calibration, const char* path, int force,
                                          sls_error** error) {
   SLS_CAPI_REQUIRE(calibration != nullptr, error, kNoResult);
   SLS_CAPI_REQUIRE(path != nullptr, error, "path is NULL");
   return sls::capi::guarded(__func__, error, [&] {
-    const double rms = calibration->result.procam.stereo_rms_px;
-    if (force == 0 && !(rms <= calibration->max_rms_px)) {
-      sls::throw_error(sls::ErrorCode::kInvalidArgument,
-                       "{} not written: the stereo RMS {:.3f} px is above max_rms_px {:.3f} px (pass force to write "
-                       "it anyway)",
-                       path, rms, calibration->max_rms_px);
+    // Every RMS the calibration is judged by: the stereo one, and a head's per camera and per pair.
+    std::vector<std::pair<std::string, double>> judged = {{"the stereo RMS", calibration->result.procam.stereo_rms_px}};
+    if (calibration->head) {
+      const sls::calib::MultiCameraCalibrateResult& head = *calibration->head;
+      for (std::size_t k = 1; k < head.cameras.size(); ++k) {
+        judged.emplace_back(fmt::format("camera{}'s stereo RMS", k), head.cameras[k].procam.stereo_rms_px);
+        judged.emplace_back(fmt::format("the camera{}-camera0 RMS", k), head.pairs[k - 1].rms_px);
+      }
     }
-    sls::write_calibration(path, calibration->result.procam.calibration);
+    for (const auto& [what, rms] : judged) {
+      if (force == 0 && !(rms <= calibration->max_rms_px)) {
+        sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                         "{} not written: {} {:.3f} px is above max_rms_px {:.3f} px (pass force to write it anyway)",
+                         path, what, rms, calibration->max_rms_px);
+      }
+    }
+    sls::write_calibration(path, calibration->head ? calibration->head->calibration
+                                                   : calibration->result.procam.calibration);
   });
 }
 
@@ -364,6 +446,16 @@ SLS_API sls_status sls_calibration_get_view(const sls_calibration*, size_t, sls_
 }
 
 SLS_API sls_status sls_calibration_write(const sls_calibration*, const char*, int, sls_error** error) {
+  return unsupported(__func__, error);
+}
+
+SLS_API sls_status sls_calibration_camera_count(const sls_calibration*, size_t* count, sls_error** error) {
+  if (count != nullptr) *count = 0;
+  return unsupported(__func__, error);
+}
+
+SLS_API sls_status sls_calibration_get_camera(const sls_calibration*, size_t, sls_calibration_camera*, sls_intrinsics*,
+                                              sls_error** error) {
   return unsupported(__func__, error);
 }
 

@@ -20,16 +20,33 @@ namespace {
 // File keys. Distortion vectors use OpenCV's order k1 k2 p1 p2 k3.
 constexpr const char* kVersionKey = "slscan_calibration_version";
 
+constexpr const char* kCameraCountKey = "camera_count";
+
 struct DeviceKeys {
-  const char* name;  // "camera" / "projector", for messages
-  const char* width;
-  const char* height;
-  const char* matrix;
-  const char* distortion;
+  std::string name;  // "camera" / "projector" / "camera1", for messages
+  std::string width;
+  std::string height;
+  std::string matrix;
+  std::string distortion;
 };
-constexpr DeviceKeys kCameraKeys = {"camera", "camera_width", "camera_height", "camera_matrix", "camera_distortion"};
-constexpr DeviceKeys kProjectorKeys = {"projector", "projector_width", "projector_height", "projector_matrix",
-                                       "projector_distortion"};
+
+// `prefix`_width ... as the file names a device: "camera", "projector", "camera1".
+DeviceKeys device_keys(const std::string& prefix) {
+  return {prefix, prefix + "_width", prefix + "_height", prefix + "_matrix", prefix + "_distortion"};
+}
+const DeviceKeys& camera_keys() {
+  static const DeviceKeys keys = device_keys("camera");
+  return keys;
+}
+const DeviceKeys& projector_keys() {
+  static const DeviceKeys keys = device_keys("projector");
+  return keys;
+}
+
+// Camera K (≥ 1) of a multi-camera head: its keys, its pose's key and its RMS key.
+std::string additional_camera_prefix(std::size_t index) { return fmt::format("camera{}", index + 1); }
+std::string additional_camera_pose_key(std::size_t index) { return fmt::format("T_camera0_camera{}", index + 1); }
+std::string additional_camera_rms_key(std::size_t index) { return fmt::format("camera{}_rms_px", index + 1); }
 
 // ---- validation -----------------------------------------------------------------------------
 
@@ -130,9 +147,9 @@ void write_intrinsics(std::string& out, const CameraIntrinsics& c, const DeviceK
   auto it = std::back_inserter(out);
   fmt::format_to(it, "{}: {}\n{}: {}\n", keys.width, c.width, keys.height, c.height);
   const std::array<double, 9> k = {c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0};
-  write_matrix(out, keys.matrix, 3, 3, k.data());
+  write_matrix(out, keys.matrix.c_str(), 3, 3, k.data());
   const std::array<double, 5> d = {c.k1, c.k2, c.p1, c.p2, c.k3};
-  write_matrix(out, keys.distortion, 1, 5, d.data());
+  write_matrix(out, keys.distortion.c_str(), 1, 5, d.data());
 }
 
 // ---- reading --------------------------------------------------------------------------------
@@ -240,20 +257,20 @@ class Reader {
 
 CameraIntrinsics read_intrinsics(const Reader& reader, const DeviceKeys& keys) {
   CameraIntrinsics c;
-  c.width = reader.read_int(keys.width);
-  c.height = reader.read_int(keys.height);
-  const Matrix k = reader.read_matrix(keys.matrix, {{3, 3}});
+  c.width = reader.read_int(keys.width.c_str());
+  c.height = reader.read_int(keys.height.c_str());
+  const Matrix k = reader.read_matrix(keys.matrix.c_str(), {{3, 3}});
   // The model has no skew: anything but [fx 0 cx; 0 fy cy; 0 0 1] would be silently wrong.
   const double* m = k.data.data();
   if (std::fabs(m[1]) > 1e-9 * std::fabs(m[0]) || m[3] != 0.0 || m[6] != 0.0 || m[7] != 0.0 || m[8] != 1.0) {
-    const YAML::Node node = reader.required(keys.matrix);
+    const YAML::Node node = reader.required(keys.matrix.c_str());
     reader.fail(keys.matrix, &node, "expected a camera matrix [fx 0 cx; 0 fy cy; 0 0 1] (skew is not supported)");
   }
   c.fx = m[0];
   c.cx = m[2];
   c.fy = m[4];
   c.cy = m[5];
-  const Matrix d = reader.read_matrix(keys.distortion, {{1, 5}, {5, 1}, {1, 4}, {4, 1}});
+  const Matrix d = reader.read_matrix(keys.distortion.c_str(), {{1, 5}, {5, 1}, {1, 4}, {4, 1}});
   c.k1 = d.data[0];
   c.k2 = d.data[1];
   c.p1 = d.data[2];
@@ -267,6 +284,17 @@ Eigen::Vector3d read_vector3(const Reader& reader, const char* key) {
   return {m.data[0], m.data[1], m.data[2]};
 }
 
+// A 4x4 rigid transform (row-major in the file).
+Pose read_pose(const Reader& reader, const char* key) {
+  const Matrix t = reader.read_matrix(key, {{4, 4}});
+  try {
+    return Pose::from_matrix(Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(t.data.data()));
+  } catch (const Error& error) {
+    const YAML::Node node = reader.required(key);
+    reader.fail(key, &node, error.what());
+  }
+}
+
 // yaml-cpp rejects OpenCV's "%YAML:1.0" directive; turning that line into a comment keeps
 // the line numbers of parse errors right.
 std::string strip_opencv_directive(std::string text) {
@@ -277,8 +305,23 @@ std::string strip_opencv_directive(std::string text) {
 }  // namespace
 
 void ScannerCalibration::validate() const {
-  validate_intrinsics(camera, kCameraKeys);
-  validate_intrinsics(projector, kProjectorKeys);
+  validate_intrinsics(camera, camera_keys());
+  validate_intrinsics(projector, projector_keys());
+  if (camera_count() > kMaxCameras) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: {} cameras (at most {})", kCameraCountKey, camera_count(),
+                kMaxCameras);
+  }
+  for (std::size_t i = 0; i < additional_cameras.size(); ++i) {
+    const AdditionalCamera& extra = additional_cameras[i];
+    validate_intrinsics(extra.intrinsics, device_keys(additional_camera_prefix(i)));
+    if (!extra.T_camera0_camera.translation().allFinite() || !extra.T_camera0_camera.quaternion().coeffs().allFinite()) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: the pose is not finite", additional_camera_pose_key(i));
+    }
+    if (!std::isfinite(extra.rms_px)) {
+      throw_error(ErrorCode::kInvalidArgument, "{}: {} is not finite (use -1 for unknown)",
+                  additional_camera_rms_key(i), extra.rms_px);
+    }
+  }
   if (!T_camera_projector.translation().allFinite() || !T_camera_projector.quaternion().coeffs().allFinite()) {
     throw_error(ErrorCode::kInvalidArgument, "T_camera_projector: the pose is not finite");
   }
@@ -327,11 +370,22 @@ void write_calibration(const std::string& path, const ScannerCalibration& calibr
   auto it = std::back_inserter(out);
   fmt::format_to(it, "{}: {}\n", kVersionKey, ScannerCalibration::kFormatVersion);
   fmt::format_to(it, "description: {}\n", quote(calibration.description));
-  write_intrinsics(out, calibration.camera, kCameraKeys);
-  write_intrinsics(out, calibration.projector, kProjectorKeys);
+  write_intrinsics(out, calibration.camera, camera_keys());
+  write_intrinsics(out, calibration.projector, projector_keys());
   // Eigen is column-major; the file is row-major.
   const Eigen::Matrix<double, 4, 4, Eigen::RowMajor> t = calibration.T_camera_projector.matrix();
   write_matrix(out, "T_camera_projector", 4, 4, t.data());
+  // A one-camera head writes no camera keys beyond camera 0's: the file reads as it always did.
+  if (!calibration.additional_cameras.empty()) {
+    fmt::format_to(it, "{}: {}\n", kCameraCountKey, calibration.camera_count());
+  }
+  for (std::size_t i = 0; i < calibration.additional_cameras.size(); ++i) {
+    const AdditionalCamera& extra = calibration.additional_cameras[i];
+    write_intrinsics(out, extra.intrinsics, device_keys(additional_camera_prefix(i)));
+    const Eigen::Matrix<double, 4, 4, Eigen::RowMajor> pose = extra.T_camera0_camera.matrix();
+    write_matrix(out, additional_camera_pose_key(i).c_str(), 4, 4, pose.data());
+    if (extra.rms_px >= 0.0) fmt::format_to(it, "{}: {}\n", additional_camera_rms_key(i), format_real(extra.rms_px));
+  }
   if (calibration.turntable) {
     write_matrix(out, "turntable_axis_point", 3, 1, calibration.turntable->point_camera.data());
     write_matrix(out, "turntable_axis_direction", 3, 1, calibration.turntable->direction_camera.data());
@@ -379,16 +433,24 @@ ScannerCalibration parse_calibration(const std::string& file_text, const std::st
 
   ScannerCalibration calibration;
   if (reader.has("description")) calibration.description = reader.read_string("description");
-  calibration.camera = read_intrinsics(reader, kCameraKeys);
-  calibration.projector = read_intrinsics(reader, kProjectorKeys);
-
-  const Matrix t = reader.read_matrix("T_camera_projector", {{4, 4}});
-  try {
-    calibration.T_camera_projector =
-        Pose::from_matrix(Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(t.data.data()));
-  } catch (const Error& error) {
-    const YAML::Node node = reader.required("T_camera_projector");
-    reader.fail("T_camera_projector", &node, error.what());
+  calibration.camera = read_intrinsics(reader, camera_keys());
+  calibration.projector = read_intrinsics(reader, projector_keys());
+  calibration.T_camera_projector = read_pose(reader, "T_camera_projector");
+  if (reader.has(kCameraCountKey)) {
+    const int cameras = reader.read_int(kCameraCountKey);
+    if (cameras < 1 || cameras > ScannerCalibration::kMaxCameras) {
+      const YAML::Node node = reader.required(kCameraCountKey);
+      reader.fail(kCameraCountKey, &node,
+                  fmt::format("{} cameras (expected 1 .. {})", cameras, ScannerCalibration::kMaxCameras));
+    }
+    for (std::size_t i = 0; i + 1 < static_cast<std::size_t>(cameras); ++i) {
+      AdditionalCamera extra;
+      extra.intrinsics = read_intrinsics(reader, device_keys(additional_camera_prefix(i)));
+      extra.T_camera0_camera = read_pose(reader, additional_camera_pose_key(i).c_str());
+      const std::string rms_key = additional_camera_rms_key(i);
+      if (reader.has(rms_key.c_str())) extra.rms_px = reader.read_real(rms_key.c_str());
+      calibration.additional_cameras.push_back(extra);
+    }
   }
 
   const bool has_point = reader.has("turntable_axis_point");

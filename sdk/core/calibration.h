@@ -6,6 +6,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -35,8 +36,22 @@ struct TurntableAxis {
   std::optional<double> tilt_sigma_deg = std::nullopt;
 };
 
+// A camera of a multi-camera head other than the primary one (camera 0, `camera` below):
+// its intrinsics and where it is relative to the primary camera. Everything that scans
+// (decode, fusion, the session) uses the primary camera and the projector only; these are
+// carried for the OEM's own use (e.g. a second triangulation, or checking the head's build).
+struct AdditionalCamera {
+  CameraIntrinsics intrinsics;
+  Pose T_camera0_camera;  // this camera's frame -> the primary camera's frame
+  double rms_px = -1.0;   // its own calibrateCamera RMS; < 0 if unknown
+};
+
 struct ScannerCalibration {
+  // Additional cameras are optional keys of version 1 (an SDK that predates them reads such a
+  // file's primary camera and projector, which is all that scans).
   static constexpr int kFormatVersion = 1;
+  // More cameras than this in one head is a corrupt file, not a head.
+  static constexpr int kMaxCameras = 16;
 
   CameraIntrinsics camera;
   CameraIntrinsics projector;
@@ -48,10 +63,17 @@ struct ScannerCalibration {
   double projector_rms_px = -1.0;
   std::string calibrated_utc;         // ISO 8601 time of the calibration; empty if unknown
   std::string description;            // free text: rig name, date, tool
+  // Cameras 1 .. N−1 of a head with N cameras (empty: one camera). File keys camera_count,
+  // and per camera K: cameraK_width, cameraK_height, cameraK_matrix, cameraK_distortion,
+  // T_camera0_cameraK (cameraK frame -> camera 0 frame, 4x4) and optionally cameraK_rms_px.
+  std::vector<AdditionalCamera> additional_cameras;
+
+  int camera_count() const { return 1 + static_cast<int>(additional_cameras.size()); }
 
   // Throws sls::Error (invalid argument) naming the first problem: non-positive image size
   // or focal length, principal point far outside the image, non-finite values, a zero axis,
-  // a turntable angle or tilt σ negative, not finite or above TurntableAxis::kMaxSigmaDeg.
+  // a turntable angle or tilt σ negative, not finite or above TurntableAxis::kMaxSigmaDeg,
+  // more than kMaxCameras cameras, an additional camera's bad intrinsics or non-finite pose.
   void validate() const;
 };
 

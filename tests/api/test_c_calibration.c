@@ -99,6 +99,11 @@ static int check_unsupported(void) {
   CHECK_ERROR(sls_calibration_get_view(NULL, 0, &view, &error_), SLS_ERROR_UNSUPPORTED, UNSUPPORTED_MESSAGE);
   CHECK_ERROR(sls_calibration_write(NULL, "calibration.yml", 1, &error_), SLS_ERROR_UNSUPPORTED,
               UNSUPPORTED_MESSAGE);
+  count = 7;
+  CHECK_ERROR(sls_calibration_camera_count(NULL, &count, &error_), SLS_ERROR_UNSUPPORTED, UNSUPPORTED_MESSAGE);
+  CHECK(count == 0);
+  CHECK_ERROR(sls_calibration_get_camera(NULL, 0, NULL, &intrinsics, &error_), SLS_ERROR_UNSUPPORTED,
+              UNSUPPORTED_MESSAGE);
   CHECK(sls_calibration_run(context, "anywhere", NULL, NULL, NULL, &calibration, NULL) == SLS_ERROR_UNSUPPORTED);
   sls_calibration_destroy(NULL);
   sls_context_destroy(context);
@@ -341,6 +346,24 @@ static void check_result(const sls_calibration* calibration, const progress_log*
   }
   CHECK_ERROR(sls_calibration_get_extrinsics(calibration, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT,
               "T_camera_projector");
+
+  /* One camera: camera 0 is the camera above, at the identity; there is no camera 1. */
+  {
+    sls_calibration_camera only;
+    sls_intrinsics lens;
+    CHECK_OK(sls_calibration_camera_count(calibration, &count, &error_));
+    CHECK(count == 1);
+    sls_calibration_camera_init(&only);
+    sls_intrinsics_init(&lens);
+    CHECK_OK(sls_calibration_get_camera(calibration, 0, &only, &lens, &error_));
+    CHECK(lens.fx == camera.fx && lens.cy == camera.cy && only.stereo_rms_px == summary.stereo_rms_px);
+    CHECK(only.T_camera0_camera[0] == 1.0 && only.T_camera0_camera[3] == 0.0 && only.T_camera0_camera[15] == 1.0);
+    CHECK(only.camera_camera_views == 0 && only.has_truth == 0 && isnan(only.focal_rel_err));
+    CHECK_ERROR(sls_calibration_get_camera(calibration, 1, &only, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT,
+                "out of range");
+    CHECK_ERROR(sls_calibration_get_camera(calibration, 0, NULL, NULL, &error_), SLS_ERROR_INVALID_ARGUMENT,
+                "both NULL");
+  }
 
   /* No turntable in a folder of captures: no axis, said so, the arrays untouched. */
   CHECK_ERROR(sls_calibration_get_turntable_axis(calibration, point, direction, &error_), SLS_ERROR_NOT_FOUND,

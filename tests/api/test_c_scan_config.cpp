@@ -123,6 +123,8 @@ TEST(CStructVersions, InitWritesNothingPastTheCallersStruct) {
   // New in 0.7.
   SLS_CHECK_INIT(sls_calibration_capture_config);
   SLS_CHECK_INIT(sls_calibration_capture_result);
+  // New in 0.8.
+  SLS_CHECK_INIT(sls_calibration_camera);
   // sls_scan_config grew in 0.5: a 0.4 program's struct ended with online_deformation, and the
   // library's 0.4 entry point must not write the fields appended since (it did: an overrun).
   check_init_sized<sls_scan_config>(sls_scan_config_init_sized, "sls_scan_config");

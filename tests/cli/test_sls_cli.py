@@ -6,6 +6,7 @@ closure, each switched off), `eval` (the model as tracked side by side). Usage: 
 import json
 import os
 import pathlib
+import shutil
 import signal
 import struct
 import subprocess
@@ -683,6 +684,84 @@ class SlsCli(unittest.TestCase):
         help_text = run("sim", "--help").stdout
         for option in ("--calibration", "--hand-poses", "--turntable-poses"):
             self.assertIn(option, help_text)
+
+    def test_sim_and_calibrate_a_two_camera_head(self):
+        # --cameras 2: one recording per camera (camera0, camera1: the same board poses), the
+        # head's exact calibration in groundtruth/; `sls calibrate --input` on that folder
+        # calibrates each camera against the projector and the cameras against each other.
+        head = self.dir / "head"
+        result = run("--json", "sim", "--calibration", "--cameras", "2", "--preset", "ci", "--hand-poses", "3",
+                     "--turntable-poses", "0", "--device", "cpu", "--out", str(head))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        summary = json.loads(result.stdout)
+        self.assertEqual(summary["cameras"], 2)
+        self.assertEqual(summary["camera_recordings"], [str(head / "camera0"), str(head / "camera1")])
+        self.assertEqual(summary["frames"], 3)
+        truth_text = (head / "groundtruth/calibration.yml").read_text()
+        self.assertIn("camera_count: 2\n", truth_text)
+        self.assertIn("T_camera0_camera1: !!opencv-matrix", truth_text)
+        for camera in ("camera0", "camera1"):
+            inspect = json.loads(run("--json", "inspect", str(head / camera)).stdout)
+            self.assertEqual(inspect["results"][0]["frames"], 3, camera)
+            self.assertTrue((head / camera / "groundtruth/calibration.yml").exists(), camera)
+        out = self.dir / "head.yml"
+        result = run("--json", "calibrate", "--input", str(head), "--out", str(out), "--report", str(self.dir / "report"))
+        if result.returncode == 3 and "without OpenCV" in result.stderr:
+            self.skipTest("sls built without OpenCV: no calibration")
+        self.assertEqual(result.returncode, 0, result.stderr)
+        calibration = json.loads(result.stdout)
+        self.assertEqual(calibration["camera_count"], 2)
+        self.assertGreater(calibration["camera_camera_rms_px"], 0.0)
+        self.assertLess(calibration["camera_camera_rms_px"], 0.5)
+        cameras = calibration["cameras"]
+        self.assertEqual([c["folder"] for c in cameras], [str(head / "camera0"), str(head / "camera1")])
+        for camera in cameras:
+            for key in ("camera_rms_px", "projector_rms_px", "stereo_rms_px"):
+                self.assertGreater(camera[key], 0.0, key)
+            for key in ("focal_rel_err", "principal_point_err_px"):
+                self.assertIn(key, camera["truth"])
+        self.assertNotIn("T_camera0_camera", cameras[0])
+        pair = cameras[1]
+        self.assertEqual(pair["camera_camera_views"], 3)
+        self.assertAlmostEqual(pair["T_camera0_camera"]["rotation_deg"], 50.0, delta=2.0)
+        for block in (pair["truth"]["camera_camera"], pair["truth"]["camera_camera"]["via_projector"]):
+            self.assertIn("baseline_rel_err", block)
+            self.assertIn("rotation_err_deg", block)
+        text = out.read_text()
+        self.assertIn("camera_count: 2\n", text)
+        self.assertIn("camera1_matrix: !!opencv-matrix", text)
+        self.assertTrue((self.dir / "report/calibration_report.html").exists())
+        self.assertTrue((self.dir / "report/camera1/calibration_report.html").exists())
+        inspected = json.loads(run("--json", "inspect", str(out)).stdout)
+        self.assertTrue(inspected["ok"])
+        self.assertEqual(inspected["results"][0]["camera_count"], 2)
+        self.assertAlmostEqual(inspected["results"][0]["additional_cameras"][0]["angle_to_camera0_deg"], 50.0,
+                               delta=2.0)
+        # Bad layouts name the folder: a gap in the cameras, a camera with other poses, one camera.
+        (head / "camera1").rename(head / "camera2")
+        gap = run("calibrate", "--input", str(head), "--out", str(self.dir / "bad.yml"))
+        self.assertEqual(gap.returncode, 1)
+        self.assertIn(f"{head}/camera2 is there but {head}/camera1 is missing", gap.stderr)
+        (head / "camera2").rename(head / "camera1")
+        other = self.dir / "other"
+        self.assertEqual(run("sim", "--calibration", "--preset", "ci", "--hand-poses", "2", "--turntable-poses", "0",
+                             "--device", "cpu", "--out", str(other)).returncode, 0)
+        (head / "camera1").rename(self.dir / "camera1-kept")
+        other.rename(head / "camera1")
+        mismatched = run("calibrate", "--input", str(head), "--out", str(self.dir / "bad.yml"))
+        self.assertEqual(mismatched.returncode, 1)
+        self.assertIn(f"{head}/camera1: 2 board poses, {head}/camera0 has 3", mismatched.stderr)
+        shutil.rmtree(head / "camera1")
+        alone = run("calibrate", "--input", str(head), "--out", str(self.dir / "bad.yml"))
+        self.assertEqual(alone.returncode, 1)
+        self.assertIn("only camera0", alone.stderr)
+        self.assertFalse((self.dir / "bad.yml").exists())
+        # --cameras belongs to --calibration, and the simulated head has places for 1 or 2.
+        for args in (("--cameras", "2"), ("--calibration", "--cameras", "3"), ("--calibration", "--cameras", "0")):
+            bad = run("sim", *args, "--out", str(self.dir / "bad"))
+            self.assertEqual(bad.returncode, 2, args)
+            self.assertIn("--cameras", bad.stderr)
+        self.assertIn("--cameras", run("sim", "--help").stdout)
 
     def test_decode_reports_accuracy_against_ground_truth(self):
         rec, out = self.dir / "rec", self.dir / "decoded"

@@ -8,7 +8,13 @@
  *     with its exact calibration as ground truth: the result is then compared with it);
  *   - or a folder of captures, one subfolder per board pose (sorted by name), each holding the
  *     pattern set's images in its order (PNG files sorted by name); the pattern set must then be
- *     named (config->pattern_set, e.g. "opencv-graycode:1024x768").
+ *     named (config->pattern_set, e.g. "opencv-graycode:1024x768");
+ *   - or (API 0.8) a head of several cameras: a folder with one such capture per camera in
+ *     subfolders camera0, camera1, ... (the same board poses in the same order; `sls sim
+ *     --calibration --cameras 2` writes one). Each camera is calibrated against the projector,
+ *     then each camera's pose relative to camera 0 (docs/calibration.md, "Multi-camera heads").
+ *     Every getter above sls_calibration_camera_count() then describes camera 0, the primary
+ *     camera (the one scans use); the cameras are read with sls_calibration_get_camera().
  * Each view is loaded, decoded, the board's corners found in the camera and, through the decoded
  * patterns, in the projector (local homographies); a view that cannot be used (no board, too
  * few decoded corners, too oblique, unreadable) is rejected with its reason and the others go
@@ -264,12 +270,51 @@ SLS_API void sls_calibration_view_init_sized(sls_calibration_view* view, size_t 
 SLS_API sls_status sls_calibration_get_view(const sls_calibration* calibration, size_t index,
                                             sls_calibration_view* view, sls_error** error);
 
+/* The cameras of the head: 1 for a one-camera capture, N for a folder camera0 .. camera(N-1). */
+SLS_API sls_status sls_calibration_camera_count(const sls_calibration* calibration, size_t* count, sls_error** error);
+
+/* One camera of the head (API 0.8). Versioned like sls_calibration_summary
+ * (sls_calibration_camera_init()). Camera 0 is the primary camera, the frame of everything
+ * else. */
+typedef struct sls_calibration_camera {
+  size_t struct_size;
+  double camera_rms_px;          /* this camera calibrated alone */
+  double projector_rms_px;       /* the projector calibrated alone from this camera's views */
+  double stereo_rms_px;          /* this camera's joint refinement with the projector */
+  size_t views_used;             /* of this camera's views, in its solve */
+  double T_camera0_camera[16];   /* this camera's frame -> camera 0's, row-major, metres
+                                  * (identity for camera 0) */
+  double camera_camera_rms_px;   /* the camera-camera solve's RMS (both images); 0 for camera 0 */
+  size_t camera_camera_views;    /* board poses both this camera and camera 0 used; 0 for camera 0 */
+  /* Against a simulated capture's exact calibration. has_truth 0: these are NaN; the
+   * camera-camera ones are NaN for camera 0 too. */
+  int has_truth;
+  double focal_rel_err;          /* this camera's, the larger over fx, fy */
+  double principal_point_err_px;
+  double camera_camera_baseline_rel_err;
+  double camera_camera_rotation_err_deg;
+} sls_calibration_camera;
+
+/* Sets struct_size and clears the other fields. */
+SLS_API void sls_calibration_camera_init(sls_calibration_camera* camera);
+/* The caller's struct_size, which the macro gives (sls.h: versioned structs): */
+SLS_API void sls_calibration_camera_init_sized(sls_calibration_camera* camera, size_t struct_size);
+#define sls_calibration_camera_init(camera) sls_calibration_camera_init_sized((camera), sizeof(*(camera)))
+
+/* Camera `index` of the head: its figures and pose into *camera and its lens into *intrinsics
+ * (either may be NULL, not both; each from its _init()). SLS_ERROR_INVALID_ARGUMENT when index
+ * >= sls_calibration_camera_count(). */
+SLS_API sls_status sls_calibration_get_camera(const sls_calibration* calibration, size_t index,
+                                              sls_calibration_camera* camera, sls_intrinsics* intrinsics,
+                                              sls_error** error);
+
 /* Writes the calibration (camera, projector, extrinsics, the axis when fitted, the RMS figures,
- * the time and a description) as calibration.yml to `path`: OpenCV FileStorage YAML, readable by
+ * the time and a description; a head's other cameras with their poses against camera 0) as calibration.yml to `path`: OpenCV FileStorage YAML, readable by
  * cv::FileStorage, by sls_scan_run_devices' calibration_path and by `sls`; written to a
  * temporary name and renamed, so a failure never leaves half a file.
  * Refuses (SLS_ERROR_INVALID_ARGUMENT, nothing written, the message giving both figures) when
- * the stereo RMS is above the config's max_rms_px, unless `force` is nonzero.
+ * the stereo RMS (of a head: any camera's, or any camera-camera RMS) is above the config's
+ * max_rms_px, unless `force` is nonzero.
  * SLS_ERROR_IO naming the path when it cannot be written. */
 SLS_API sls_status sls_calibration_write(const sls_calibration* calibration, const char* path, int force,
                                          sls_error** error);

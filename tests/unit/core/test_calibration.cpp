@@ -8,6 +8,7 @@
 #include <string>
 #include <utility>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "sdk/core/calibration.h"
@@ -116,6 +117,34 @@ void expect_calibrations_equal(const ScannerCalibration& written, const ScannerC
   }
   EXPECT_EQ(bits(written.reprojection_rms_px), bits(read.reprojection_rms_px));
   EXPECT_EQ(written.description, read.description);
+  ASSERT_EQ(written.camera_count(), read.camera_count());
+  for (std::size_t i = 0; i < written.additional_cameras.size(); ++i) {
+    const AdditionalCamera& w = written.additional_cameras[i];
+    const AdditionalCamera& r = read.additional_cameras[i];
+    expect_intrinsics_bit_exact(w.intrinsics, r.intrinsics);
+    EXPECT_LE((w.T_camera0_camera.matrix() - r.T_camera0_camera.matrix()).cwiseAbs().maxCoeff(), 1e-15) << i;
+    EXPECT_EQ(w.T_camera0_camera.translation(), r.T_camera0_camera.translation()) << i;
+    EXPECT_EQ(bits(w.rms_px), bits(r.rms_px)) << i;
+  }
+}
+
+// A head with `cameras` cameras: the simple calibration plus cameras mirrored across the
+// projector, each with intrinsics of its own.
+ScannerCalibration multi_camera_calibration(int cameras) {
+  ScannerCalibration c = simple_calibration();
+  for (int k = 1; k < cameras; ++k) {
+    AdditionalCamera extra;
+    extra.intrinsics = c.camera;
+    extra.intrinsics.fx += 10.25 * k;
+    extra.intrinsics.cy -= 3.5 * k;
+    extra.intrinsics.k1 = 0.125 * k;
+    extra.T_camera0_camera =
+        Pose(Eigen::Quaterniond(Eigen::AngleAxisd(-0.5 * k, Eigen::Vector3d(0.1, 1.0, 0.0).normalized())),
+             Eigen::Vector3d(0.17 * k, 0.001, 0.04));
+    extra.rms_px = k == 1 ? 0.0625 : -1.0;  // camera 2's RMS unknown
+    c.additional_cameras.push_back(extra);
+  }
+  return c;
 }
 
 TEST(CalibrationFile, RoundTripIsBitExact) {
@@ -124,6 +153,29 @@ TEST(CalibrationFile, RoundTripIsBitExact) {
     const std::string path = directory.file("calibration.yml");
     write_calibration(path, calibration);
     expect_calibrations_equal(calibration, read_calibration(path));
+  }
+}
+
+// One camera writes no camera_count (the file reads as it did before heads had more); two and
+// three cameras round-trip bit-exactly, their keys OpenCV's matrices.
+TEST(CalibrationFile, AdditionalCamerasRoundTrip) {
+  test::TemporaryDirectory directory;
+  const std::string path = directory.file("calibration.yml");
+  write_calibration(path, multi_camera_calibration(1));
+  EXPECT_EQ(read_file_text(path).find("camera_count"), std::string::npos);
+  EXPECT_EQ(read_calibration(path).camera_count(), 1);
+  for (const int cameras : {2, 3}) {
+    const ScannerCalibration calibration = multi_camera_calibration(cameras);
+    write_calibration(path, calibration);
+    const std::string text = read_file_text(path);
+    EXPECT_NE(text.find(fmt::format("camera_count: {}\n", cameras)), std::string::npos) << text;
+    EXPECT_NE(text.find("T_camera0_camera1: !!opencv-matrix\n   rows: 4\n   cols: 4\n"), std::string::npos) << text;
+    EXPECT_NE(text.find("camera1_matrix: !!opencv-matrix\n"), std::string::npos) << text;
+    EXPECT_NE(text.find("camera1_rms_px: 0.0625\n"), std::string::npos) << text;
+    EXPECT_EQ(text.find("camera2_rms_px"), std::string::npos) << text;
+    const ScannerCalibration read = read_calibration(path);
+    EXPECT_EQ(read.camera_count(), cameras);
+    expect_calibrations_equal(calibration, read);
   }
 }
 
@@ -255,6 +307,34 @@ TEST_F(BrokenCalibration, BadTurntableAngleSigma) {
                         {"key 'turntable_angle_sigma_deg'", "without a turntable axis"});
   expect_error_for_text(text + "turntable_tilt_sigma_deg: 0.001\n", ErrorCode::kFormat,
                         {"key 'turntable_tilt_sigma_deg'", "without a turntable axis"});
+}
+
+// A camera the count promises but the file lacks, a count out of range, a camera's bad pose or
+// intrinsics: each names its key.
+TEST_F(BrokenCalibration, BadAdditionalCameras) {
+  write_calibration(path_, multi_camera_calibration(2));
+  const std::string two = read_file_text(path_);
+  std::string text = two;
+  text.replace(text.find("camera_count: 2"), 15, "camera_count: 3");
+  expect_error_for_text(text, ErrorCode::kFormat, {"camera2_width", "missing"});
+  for (const char* count : {"camera_count: 0", "camera_count: 17", "camera_count: two"}) {
+    text = two;
+    text.replace(text.find("camera_count: 2"), 15, count);
+    expect_error_for_text(text, ErrorCode::kFormat, {"camera_count"});
+  }
+  text = two;
+  text.replace(text.find("T_camera0_camera1: !!opencv-matrix\n   rows: 4"), 44,
+               "T_camera0_camera1: !!opencv-matrix\n   rows: 3");
+  expect_error_for_text(text, ErrorCode::kFormat, {"T_camera0_camera1", "4x4"});
+  text = two;
+  text.replace(text.find("camera1_width: 1280"), 19, "camera1_width: 0");
+  expect_error_for_text(text, ErrorCode::kFormat, {"camera1_width", "camera1"});
+  ScannerCalibration bad = multi_camera_calibration(2);
+  bad.additional_cameras[0].T_camera0_camera = Pose(Eigen::Quaterniond::Identity(), Eigen::Vector3d(NAN, 0.0, 0.0));
+  EXPECT_THROW(bad.validate(), Error);
+  bad = multi_camera_calibration(2);
+  bad.additional_cameras.resize(ScannerCalibration::kMaxCameras, bad.additional_cameras[0]);
+  EXPECT_THROW(bad.validate(), Error);
 }
 
 TEST_F(BrokenCalibration, MissingKey) {

@@ -117,6 +117,50 @@ TEST(SimCalibrationCapture, EveryPoseKeepsTheWholeBoardInViewAndLitAtEveryPreset
   EXPECT_THROW(make_calibration_rig(none, board), Error);
 }
 
+// A head of two cameras: the second mirrors the first across the projector (twice the 25°
+// triangulation angle round the focus), the same placements for both, every pose in view and
+// lit for both (make_calibration_rigs checks each camera), the exact head calibration with
+// both; one camera is the one-camera capture unchanged; three cameras are refused.
+TEST(SimCalibrationCapture, ASecondCameraMirrorsTheFirstAcrossTheProjector) {
+  for (const char* preset : {"ci", "demo", "paper"}) {
+    SimCalibrationOptions options;
+    options.rig.preset = preset;
+    options.cameras = 2;
+    const std::vector<SimRig> rigs = make_calibration_rigs(options);
+    ASSERT_EQ(rigs.size(), 2u);
+    ASSERT_EQ(rigs[1].placements.size(), 19u);
+    for (std::size_t i = 0; i < rigs[0].placements.size(); ++i) {
+      EXPECT_EQ(rigs[0].placements[i].mount.matrix(), rigs[1].placements[i].mount.matrix());
+      EXPECT_EQ(rigs[0].placements[i].commanded_angle_deg, rigs[1].placements[i].commanded_angle_deg);
+    }
+    const ScannerCalibration head = head_calibration(rigs);
+    ASSERT_EQ(head.camera_count(), 2);
+    const Pose& T_camera0_camera1 = head.additional_cameras[0].T_camera0_camera;
+    EXPECT_NEAR(T_camera0_camera1.angle_rad() / kDegree, 50.0, 1e-9) << preset;
+    const double working_distance = rigs[0].optics.working_distance_m;
+    EXPECT_NEAR(T_camera0_camera1.translation().norm(), 2.0 * working_distance * std::sin(25.0 * kDegree), 1e-12);
+    // The projector halfway: the same distance from both cameras, each pair 25° apart.
+    EXPECT_NEAR(rigs[1].T_camera_projector.translation().norm(), rigs[0].T_camera_projector.translation().norm(),
+                1e-12);
+    EXPECT_NEAR(rigs[1].T_camera_projector.angle_rad() / kDegree, 25.0, 1e-9);
+    EXPECT_NE(head.additional_cameras[0].intrinsics.k1, head.camera.k1);  // a lens of its own
+    EXPECT_NE(rigs[1].noise_seed, rigs[0].noise_seed);                     // and a sensor
+    EXPECT_EQ(rigs[1].turntable.seed, rigs[0].turntable.seed);             // the same table
+    EXPECT_NO_THROW(head.validate());
+  }
+  SimCalibrationOptions one;
+  one.rig.preset = "ci";
+  const SimRig alone = make_calibration_rig(one, make_chessboard_scene(one.board));
+  const std::vector<SimRig> head_of_one = make_calibration_rigs(one);
+  ASSERT_EQ(head_of_one.size(), 1u);
+  for (std::size_t i = 0; i < alone.placements.size(); ++i) {
+    EXPECT_EQ(alone.placements[i].mount.matrix(), head_of_one[0].placements[i].mount.matrix());
+  }
+  SimCalibrationOptions three = one;
+  three.cameras = 3;
+  EXPECT_THROW(make_calibration_rigs(three), Error);
+}
+
 // Over the default 12 hand poses the corners reach out over the whole image, as calibration
 // wants (distortion and the principal point are constrained by corners near the image's
 // edges): every image quadrant holds corners of several views, the corners' bounding box spans
