@@ -37,6 +37,18 @@ static void check_error(sls_status got, sls_status expected, sls_error* error, c
   sls_error_free(error);
 }
 
+/* 1 when the file can be read and contains `text` (files of a few kilobytes). */
+static inline int file_contains(const char* path, const char* text) {
+  char buffer[65536];
+  size_t length;
+  FILE* file = fopen(path, "rb");
+  if (file == NULL) return 0;
+  length = fread(buffer, 1, sizeof(buffer) - 1, file);
+  fclose(file);
+  buffer[length] = '\0';
+  return strstr(buffer, text) != NULL;
+}
+
 /* `call` must use `&error_` as its sls_error** argument. */
 #define CHECK_ERROR(call, expected, part)                         \
   do {                                                            \

@@ -42,18 +42,6 @@ static int file_exists(const char* path) {
   return 1;
 }
 
-/* 1 when the file can be read and contains `text` (files of a few kilobytes). */
-static int file_contains(const char* path, const char* text) {
-  char buffer[65536];
-  size_t length;
-  FILE* file = fopen(path, "rb");
-  if (file == NULL) return 0;
-  length = fread(buffer, 1, sizeof(buffer) - 1, file);
-  fclose(file);
-  buffer[length] = '\0';
-  return strstr(buffer, text) != NULL;
-}
-
 static sls_context* make_context(void) {
   sls_context* context = NULL;
   sls_error* error = NULL;

@@ -23,18 +23,6 @@
 
 #include "c_checks.h"
 
-/* 1 when the file can be read and contains `text` (files of a few kilobytes). */
-static int file_contains(const char* path, const char* text) {
-  char buffer[65536];
-  size_t length;
-  FILE* file = fopen(path, "rb");
-  if (file == NULL) return 0;
-  length = fread(buffer, 1, sizeof(buffer) - 1, file);
-  fclose(file);
-  buffer[length] = '\0';
-  return strstr(buffer, text) != NULL;
-}
-
 /* The rotation angle of a row-major 4x4 rigid transform, degrees. */
 static double rotation_deg(const double T[16]) {
   double cosine = 0.5 * (T[0] + T[5] + T[10] - 1.0);

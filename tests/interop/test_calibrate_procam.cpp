@@ -10,7 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "calib/calibrate_capture.h"
-#include "tests/interop/opencv_intrinsics.h"
+#include "calib/opencv_conversions.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -32,8 +32,8 @@ Reference load_reference() {
   file["proj_dist"] >> projector_distortion;
   file["translation"] >> translation;
   Reference reference;
-  reference.camera = test::intrinsics_from_opencv(camera_matrix, camera_distortion, 1280, 1024);
-  reference.projector = test::intrinsics_from_opencv(projector_matrix, projector_distortion, 1024, 768);
+  reference.camera = calib::intrinsics_from(camera_matrix, camera_distortion, 1280, 1024);
+  reference.projector = calib::intrinsics_from(projector_matrix, projector_distortion, 1024, 768);
   reference.baseline = cv::norm(translation);
   reference.rms = static_cast<double>(file["rms"]);
   return reference;

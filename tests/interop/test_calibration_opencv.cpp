@@ -10,10 +10,10 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
+#include "calib/opencv_conversions.h"
 #include "sdk/core/calibration.h"
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
-#include "tests/interop/opencv_intrinsics.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -35,7 +35,7 @@ ScannerCalibration real_procam_calibration() {
     cv::Mat k, d;
     storage[matrix_key] >> k;
     storage[distortion_key] >> d;
-    return test::intrinsics_from_opencv(k, d, width, height);
+    return calib::intrinsics_from(k, d, width, height);
   };
   ScannerCalibration c;
   c.camera = intrinsics("cam_int", "cam_dist", 1280, 1024);

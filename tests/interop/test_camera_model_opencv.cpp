@@ -13,8 +13,8 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
+#include "calib/opencv_conversions.h"
 #include "sdk/core/camera_model_shared.h"
-#include "tests/interop/opencv_intrinsics.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -41,7 +41,7 @@ CameraIntrinsics real_procam_camera() {
   storage["cam_int"] >> k;
   storage["cam_dist"] >> d;
   if (k.rows != 3 || k.cols != 3 || d.total() != 5) throw std::runtime_error("unexpected matrices in " + path);
-  return test::intrinsics_from_opencv(k, d, 1280, 1024);
+  return calib::intrinsics_from(k, d, 1280, 1024);
 }
 
 // A 4000x3000 camera behind a long lens, as in the paper's scanner.

@@ -12,10 +12,10 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "calib/opencv_conversions.h"
 #include "sdk/core/image_io.h"
 #include "sdk/decode/decoder.h"
 #include "tests/interop/opencv_graycode.h"
-#include "tests/interop/opencv_intrinsics.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -40,8 +40,8 @@ ProcamData load_calibration() {
   cv::Mat rotation, translation;
   file["roration"] >> rotation;  // sic: the key's spelling in that file
   file["translation"] >> translation;
-  data.calibration.camera = test::intrinsics_from_opencv(data.camera_matrix, data.camera_distortion, 1280, 1024);
-  data.calibration.projector = test::intrinsics_from_opencv(data.projector_matrix, data.projector_distortion, kProjectorWidth,
+  data.calibration.camera = calib::intrinsics_from(data.camera_matrix, data.camera_distortion, 1280, 1024);
+  data.calibration.projector = calib::intrinsics_from(data.projector_matrix, data.projector_distortion, kProjectorWidth,
                                           kProjectorHeight);
   // OpenCV's stereo convention: X_projector = R X_camera + T, in chessboard units (75 per
   // square, size unknown): taken as millimetres. Only the projector coordinates matter here.
