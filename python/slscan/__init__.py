@@ -28,8 +28,9 @@ from ._scan_config import ScanConfig
 from ._results import Cloud, Mesh
 from ._device_array import LentArray
 from ._log import get_log_level, set_log_callback, set_log_level
-from ._calibration import (Calibration, CalibrationCaptureResult, CalibrationPose, CalibrationProgress,
-                           CalibrationSummary, CalibrationView, Intrinsics, calibrate, capture_calibration)
+from ._calibration import (Calibration, CalibrationCamera, CalibrationCaptureResult, CalibrationPose,
+                           CalibrationProgress, CalibrationSummary, CalibrationView, Intrinsics, calibrate,
+                           capture_calibration)
 from ._eval import EvalProgress, Evaluation, EvaluationSummary, evaluate, write_report
 
 __version__ = f"{API_VERSION // 10000}.{API_VERSION // 100 % 100}.{API_VERSION % 100}"
@@ -46,7 +47,7 @@ __all__ = [
     "Camera", "CameraInfo", "Frame", "FrameInfo", "Projector", "ProjectorInfo", "Turntable",
     "Scan", "ScanConfig", "FrameReport", "ScanSummary", "LoopClosure", "Cloud", "Mesh", "LentArray",
     "set_log_callback", "set_log_level", "get_log_level",
-    "calibrate", "Calibration", "CalibrationProgress", "CalibrationSummary", "CalibrationView", "Intrinsics",
+    "calibrate", "Calibration", "CalibrationCamera", "CalibrationProgress", "CalibrationSummary", "CalibrationView", "Intrinsics",
     "capture_calibration", "CalibrationPose", "CalibrationCaptureResult",
     "evaluate", "write_report", "Evaluation", "EvaluationSummary", "EvalProgress",
 ]

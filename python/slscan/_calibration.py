@@ -17,8 +17,8 @@ from ._context import Context, Handle, context_or_default
 from ._devices import Camera, Projector, Turntable
 from ._errors import call
 from ._progress import progress_trampoline
-from ._types import (CalibrationCaptureConfigC, CalibrationCaptureResultC, CalibrationConfigC, CalibrationDevice,
-                     CalibrationPoseC, CalibrationPoseKind, CalibrationProgressC, CalibrationSummaryC,
+from ._types import (CalibrationCameraC, CalibrationCaptureConfigC, CalibrationCaptureResultC, CalibrationConfigC,
+                     CalibrationDevice, CalibrationPoseC, CalibrationPoseKind, CalibrationProgressC, CalibrationSummaryC,
                      CalibrationViewC, IntrinsicsC, PoseDecision, copy_reported)
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -104,6 +104,25 @@ class CalibrationView:
     decoded_fraction: float
 
 
+@dataclass(frozen=True)
+class CalibrationCamera:
+    """One camera of a head (sls_calibration_camera): camera 0 is the primary camera, the frame
+    of everything else (a one-camera calibration has only it)."""
+    intrinsics: Intrinsics
+    T_camera0_camera: np.ndarray       # 4x4, this camera's frame -> camera 0's, metres (identity for camera 0)
+    camera_rms_px: float               # this camera calibrated alone
+    projector_rms_px: float            # the projector from this camera's views
+    stereo_rms_px: float               # this camera's joint refinement with the projector
+    views_used: int
+    camera_camera_rms_px: float        # the camera-camera solve's (0 for camera 0)
+    camera_camera_views: int           # board poses both this camera and camera 0 used (0 for camera 0)
+    has_truth: bool                    # a simulated capture's exact calibration known: the errors below
+    focal_rel_err: float
+    principal_point_err_px: float
+    camera_camera_baseline_rel_err: float  # NaN for camera 0
+    camera_camera_rotation_err_deg: float
+
+
 class Calibration(Handle):
     """The result of :func:`calibrate` (sls_calibration); immutable. Close it (or use ``with``)."""
 
@@ -139,6 +158,25 @@ class Calibration(Handle):
         point, direction = (ctypes.c_double * 3)(), (ctypes.c_double * 3)()
         call(_lib.lib.sls_calibration_get_turntable_axis, self._checked(), point, direction)
         return np.array(point), np.array(direction)
+
+    @property
+    def cameras(self) -> List[CalibrationCamera]:
+        """Every camera of the head, camera 0 first: its lens, its pose in camera 0's frame and its
+        RMS figures (sls_calibration_get_camera)."""
+        count = ctypes.c_size_t(0)
+        call(_lib.lib.sls_calibration_camera_count, self._checked(), ctypes.byref(count))
+        cameras = []
+        for index in range(count.value):
+            camera = _lib.init(CalibrationCameraC, "sls_calibration_camera_init")
+            lens = _lib.init(IntrinsicsC, "sls_intrinsics_init")
+            call(_lib.lib.sls_calibration_get_camera, self._checked(), index, ctypes.byref(camera), ctypes.byref(lens))
+            figures = {field.name: getattr(camera, field.name) for field in dataclasses.fields(CalibrationCamera)
+                       if field.name not in ("intrinsics", "T_camera0_camera")}
+            figures["has_truth"] = bool(figures["has_truth"])
+            cameras.append(CalibrationCamera(intrinsics=_lib.dataclass_from_c(Intrinsics, lens),
+                                             T_camera0_camera=np.array(camera.T_camera0_camera).reshape(4, 4),
+                                             **figures))
+        return cameras
 
     @property
     def views(self) -> List[CalibrationView]:

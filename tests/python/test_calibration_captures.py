@@ -30,6 +30,12 @@ def test_calibrate_real_captures(context: slscan.Context, tmp_path: pathlib.Path
         pose = calibration.T_camera_projector
         np.testing.assert_allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3), atol=1e-9)
         assert calibration.turntable_axis is None  # no turntable angles in these captures
+        cameras = calibration.cameras  # a one-camera head: camera 0 is the camera
+        assert len(cameras) == 1
+        assert cameras[0].intrinsics == camera
+        np.testing.assert_array_equal(cameras[0].T_camera0_camera, np.eye(4))
+        assert cameras[0].stereo_rms_px == summary.stereo_rms_px
+        assert cameras[0].camera_camera_views == 0
         views = calibration.views
         assert [view.used for view in views] == [True] * 5 + [False]
         assert views[5].name == "graycode_pattern" and views[5].rejected_reason
