@@ -7,11 +7,8 @@
 #include "sdk/core/ray_map.h"
 
 #if defined(SLS_HAVE_CUDA)
-#include <cuda_runtime_api.h>
-
 #include "fusion/cuda/raycast_cuda.h"
 #include "sdk/core/cuda/cuda_stream.h"
-#include "sdk/core/cuda/device_buffer.h"
 #endif
 
 namespace sls::fusion {
@@ -23,13 +20,11 @@ struct Raycaster::Impl {
   std::shared_ptr<const SharedRayMap> shared_rays;  // the camera's, shared with the other stages
   const RayMap* rays = nullptr;                     // shared_rays->host
   GpuStream gpu_stream;                             // the session's, or its own (CUDA)
-#if defined(SLS_HAVE_CUDA)
-  cudaStream_t stream = nullptr;  // gpu_stream's
-  DeviceBuffer<float> depth;
-  DeviceBuffer<Vec3f> points, normals;
-  DeviceBuffer<std::uint8_t> shaded;
-  DeviceBuffer<float> guide_tile_min, guide_tile_max;
-#endif
+  // A CUDA raycaster's: the maps of a raycast asked for in host memory (made on first such
+  // call), a host guide's upload and the guide's depth range per tile.
+  std::unique_ptr<RaycastResult> device_maps;
+  Image32f guide_upload{MemoryType::kDevice};
+  Buffer<float> guide_tile_min, guide_tile_max;
 
   RaycastParams params(const Volume& volume) const {
     RaycastParams p;
@@ -68,27 +63,63 @@ struct Raycaster::Impl {
 
   void raycast_cpu(const Volume& volume, const Pose& T_world_camera, const RaycastGuideView& guide,
                    RaycastResult* result) const;
-#if defined(SLS_HAVE_CUDA)
-  // The kernel into this raycaster's device maps, on its stream.
-  void launch(const Volume& volume, const Pose& T_world_camera, const RaycastGuideView& guide) {
-    const Rigid3f T_volume_camera = (volume.geometry().T_world_volume.inverse() * T_world_camera).to_rigid3f();
-    detail::RaycastOutputsDevice out;
-    out.depth = depth.data();
-    out.points = points.data();
-    out.normals = normals.data();
-    out.shaded = shaded.data();
-    detail::launch_raycast_cuda(volume.view(), params(volume), guide, T_volume_camera, shared_rays->rays_device,
-                                camera.width, camera.height, out, stream);
+  // Sized to the camera in the memory `out` was made for (kept when it already is).
+  void size_maps(RaycastResult& out) const {
+    const int w = camera.width, h = camera.height;
+    if (out.depth_m.width() == w && out.depth_m.height() == h && out.points_camera.width() == w &&
+        out.points_camera.height() == h && out.normals_camera.width() == w && out.normals_camera.height() == h &&
+        out.shaded.width() == w && out.shaded.height() == h) {
+      return;
+    }
+    out.depth_m.resize(w, h, 0.0f);
+    out.points_camera.resize(w, h, Vec3f{0.0f, 0.0f, 0.0f});
+    out.normals_camera.resize(w, h, Vec3f{0.0f, 0.0f, 0.0f});
+    out.shaded.resize(w, h, 0);
   }
-#endif
+  void raycast_cpu(const Volume& volume, const Pose& T_world_camera, const Image32f* guide, RaycastResult& out) const;
+  void raycast_gpu(const Volume& volume, const Pose& T_world_camera, const Image32f* guide, RaycastResult& out);
 };
 
-void Raycaster::Impl::raycast_cpu(const Volume& volume, const Pose& T_world_camera, const RaycastGuideView& guide,
-                                  RaycastResult* result) const {
+
+void Raycaster::Impl::raycast_cpu(const Volume& volume, const Pose& T_world_camera, const Image32f* guide_depth_m,
+                                  RaycastResult& out) const {
+  // The tiles' measured depth range, for rays whose own guide pixels have none.
+  RaycastGuideView guide;
+  std::vector<float> tile_min, tile_max;
+  if (guide_depth_m != nullptr) {
+    const int tiles_x = this->tiles_x(), tiles_y = this->tiles_y();
+    tile_min.assign(static_cast<std::size_t>(tiles_x) * static_cast<std::size_t>(tiles_y),
+                    std::numeric_limits<float>::infinity());
+    tile_max.assign(tile_min.size(), 0.0f);
+    for (int ty = 0; ty < tiles_y; ++ty) {
+      int y0 = 0, y1 = 0;
+      guide_span(ty * kRaycastGuideTile, kRaycastGuideTile, camera.height, guide_depth_m->height(), &y0, &y1);
+      for (int tx = 0; tx < tiles_x; ++tx) {
+        int x0 = 0, x1 = 0;
+        guide_span(tx * kRaycastGuideTile, kRaycastGuideTile, camera.width, guide_depth_m->width(), &x0, &x1);
+        const std::size_t t =
+            static_cast<std::size_t>(ty) * static_cast<std::size_t>(tiles_x) + static_cast<std::size_t>(tx);
+        for (int y = y0; y < y1; ++y) {
+          for (int x = x0; x < x1; ++x) {
+            const float depth = (*guide_depth_m)(x, y);
+            if (!is_measured_depth(depth)) continue;
+            tile_min[t] = std::min(tile_min[t], depth);
+            tile_max[t] = std::max(tile_max[t], depth);
+          }
+        }
+      }
+    }
+    guide = guide_view(volume, guide_depth_m->data(), guide_depth_m->width(), guide_depth_m->height(),
+                       tile_min.data(), tile_max.data());
+  }
   const VolumeView view = volume.view();
   const RaycastParams base = params(volume);
   const Rigid3f T_volume_camera = (volume.geometry().T_world_volume.inverse() * T_world_camera).to_rigid3f();
   const int width = camera.width, height = camera.height;
+  float* depth = out.depth_m.data();
+  Vec3f* points = out.points_camera.data();
+  Vec3f* normals = out.normals_camera.data();
+  std::uint8_t* shaded = out.shaded.data();
 #if defined(_OPENMP)
 #pragma omp parallel for schedule(dynamic, 4)
 #endif
@@ -99,12 +130,59 @@ void Raycaster::Impl::raycast_cpu(const Volume& volume, const Pose& T_world_came
       RaycastParams pixel_params = base;
       guided_depth_range(guide, x, y, &pixel_params);
       const RaycastHit hit = raycast_pixel(view, pixel_params, T_volume_camera, ray);
-      result->depth_m.data()[i] = hit.depth_m;
-      result->points_camera[i] = hit.point_camera;
-      result->normals_camera[i] = hit.normal_camera;
-      result->shaded.data()[i] = shade(hit, ray);
+      depth[i] = hit.depth_m;
+      points[i] = hit.point_camera;
+      normals[i] = hit.normal_camera;
+      shaded[i] = shade(hit, ray);
     }
   }
+}
+
+void Raycaster::Impl::raycast_gpu(const Volume& volume, const Pose& T_world_camera, const Image32f* guide_depth_m,
+                                  RaycastResult& out) {
+#if defined(SLS_HAVE_CUDA)
+  require_device(device);
+  const cudaStream_t stream = cuda_stream(gpu_stream);
+  RaycastGuideView guide;
+  if (guide_depth_m != nullptr) {
+    const Image32f* guide_on_device = guide_depth_m;
+    if (guide_depth_m->memory_type() != MemoryType::kDevice) {
+      guide_upload.copy_from(*guide_depth_m, gpu_stream);
+      guide_on_device = &guide_upload;
+    }
+    const std::size_t tiles = static_cast<std::size_t>(tiles_x()) * static_cast<std::size_t>(tiles_y());
+    guide_tile_min.resize_uninitialized(tiles, MemoryType::kDevice);
+    guide_tile_max.resize_uninitialized(tiles, MemoryType::kDevice);
+    detail::launch_raycast_guide_tiles_cuda(guide_on_device->data(), guide_on_device->width(),
+                                            guide_on_device->height(), camera.width, camera.height,
+                                            guide_tile_min.data(), guide_tile_max.data(), stream);
+    guide = guide_view(volume, guide_on_device->data(), guide_on_device->width(), guide_on_device->height(),
+                       guide_tile_min.data(), guide_tile_max.data());
+  }
+  // Host maps: raycast into device maps kept for that, then downloaded.
+  const bool download = out.memory_type() != MemoryType::kDevice;
+  if (download && !device_maps) device_maps = std::make_unique<RaycastResult>(MemoryType::kDevice);
+  RaycastResult& maps = download ? *device_maps : out;
+  size_maps(maps);
+  const Rigid3f T_volume_camera = (volume.geometry().T_world_volume.inverse() * T_world_camera).to_rigid3f();
+  detail::RaycastOutputsDevice outputs;
+  outputs.depth = maps.depth_m.data();
+  outputs.points = maps.points_camera.data();
+  outputs.normals = maps.normals_camera.data();
+  outputs.shaded = maps.shaded.data();
+  detail::launch_raycast_cuda(volume.view(), params(volume), guide, T_volume_camera, shared_rays->rays_device,
+                              camera.width, camera.height, outputs, stream);
+  if (download) {
+    out.depth_m.copy_from(maps.depth_m, gpu_stream);
+    out.points_camera.copy_from(maps.points_camera, gpu_stream);
+    out.normals_camera.copy_from(maps.normals_camera, gpu_stream);
+    out.shaded.copy_from(maps.shaded, gpu_stream);
+    gpu_stream.synchronize();
+  }
+#else
+  (void)volume, (void)T_world_camera, (void)guide_depth_m, (void)out;
+  throw_error(ErrorCode::kUnsupported, "raycast: CUDA asked of a build without CUDA");
+#endif
 }
 
 Raycaster::Raycaster(const Device& device, const CameraIntrinsics& camera, const RaycastOptions& options,
@@ -123,17 +201,6 @@ Raycaster::Raycaster(const Device& device, const CameraIntrinsics& camera, const
   impl_->shared_rays = shared_ray_map(camera, device);
   impl_->rays = &impl_->shared_rays->host;
   impl_->gpu_stream = GpuStream::or_create(stream, device);
-#if defined(SLS_HAVE_CUDA)
-  if (device.is_cuda()) {
-    Impl& s = *impl_;
-    const std::size_t pixels = s.rays->rays.size();
-    s.stream = cuda_stream(s.gpu_stream);
-    s.depth.allocate(pixels);
-    s.points.allocate(pixels);
-    s.normals.allocate(pixels);
-    s.shaded.allocate(pixels);
-  }
-#endif
 }
 
 Raycaster::~Raycaster() = default;
@@ -143,121 +210,39 @@ Raycaster& Raycaster::operator=(Raycaster&&) noexcept = default;
 const CameraIntrinsics& Raycaster::camera() const { return impl_->camera; }
 const Device& Raycaster::device() const { return impl_->device; }
 
-namespace {
-
-RaycastResult empty_result(const CameraIntrinsics& camera) {
-  const std::size_t pixels = static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height);
-  RaycastResult result;
-  result.depth_m = Image32f(camera.width, camera.height, 0.0f);
-  result.shaded = Image8u(camera.width, camera.height, 0);
-  result.points_camera.assign(pixels, Vec3f{0.0f, 0.0f, 0.0f});
-  result.normals_camera.assign(pixels, Vec3f{0.0f, 0.0f, 0.0f});
-  return result;
-}
-
-}  // namespace
-
-RaycastResult Raycaster::raycast(const Volume& volume, const Pose& T_world_camera) {
+void Raycaster::raycast(const Volume& volume, const Pose& T_world_camera, RaycastResult& out,
+                        const Image32f* guide_depth_m) {
   Impl& s = *impl_;
   if (!(volume.device() == s.device)) {
     throw_error(ErrorCode::kInvalidArgument, "raycast: the volume lives on {}, the raycaster on {}",
                 volume.device().to_string(), s.device.to_string());
   }
-  RaycastResult result = empty_result(s.camera);
+  if (guide_depth_m != nullptr) s.check_guide(guide_depth_m->width(), guide_depth_m->height());
   if (s.device.is_cuda()) {
-#if defined(SLS_HAVE_CUDA)
-    raycast_device(volume, T_world_camera);
-    download(&result);
-    return result;
-#endif
+    s.raycast_gpu(volume, T_world_camera, guide_depth_m, out);
+    return;
   }
-  s.raycast_cpu(volume, T_world_camera, RaycastGuideView{}, &result);
+  const bool device_guide = guide_depth_m != nullptr && guide_depth_m->memory_type() == MemoryType::kDevice;
+  if (out.memory_type() == MemoryType::kDevice || device_guide) {
+    throw_error(ErrorCode::kInvalidArgument, "raycast: a raycaster for {} reads and writes host maps, not {} on a GPU",
+                s.device.to_string(), device_guide ? "a guide depth map" : "maps");
+  }
+  s.size_maps(out);
+  s.raycast_cpu(volume, T_world_camera, guide_depth_m, out);
+}
+
+RaycastResult Raycaster::raycast(const Volume& volume, const Pose& T_world_camera) {
+  RaycastResult result;
+  raycast(volume, T_world_camera, result);
   return result;
 }
 
 RaycastResult Raycaster::raycast(const Volume& volume, const Pose& T_world_camera, const Image32f& guide_depth_m) {
-  Impl& s = *impl_;
-  if (!(volume.device() == s.device)) {
-    throw_error(ErrorCode::kInvalidArgument, "raycast: the volume lives on {}, the raycaster on {}",
-                volume.device().to_string(), s.device.to_string());
-  }
-  s.check_guide(guide_depth_m.width(), guide_depth_m.height());
-  RaycastResult result = empty_result(s.camera);
-  if (s.device.is_cuda()) {
-#if defined(SLS_HAVE_CUDA)
-    DeviceBuffer<float> guide(guide_depth_m.pixel_count());
-    guide.upload(guide_depth_m.data(), guide_depth_m.pixel_count(), s.stream);
-    raycast_device(volume, T_world_camera, guide.data(), guide_depth_m.width(), guide_depth_m.height());
-    download(&result);
-    return result;
-#endif
-  }
-  // The tiles' measured depth range, for rays whose own guide pixels have none.
-  const int tiles_x = s.tiles_x(), tiles_y = s.tiles_y();
-  std::vector<float> tile_min(static_cast<std::size_t>(tiles_x) * static_cast<std::size_t>(tiles_y),
-                              std::numeric_limits<float>::infinity());
-  std::vector<float> tile_max(tile_min.size(), 0.0f);
-  for (int ty = 0; ty < tiles_y; ++ty) {
-    int y0 = 0, y1 = 0;
-    guide_span(ty * kRaycastGuideTile, kRaycastGuideTile, s.camera.height, guide_depth_m.height(), &y0, &y1);
-    for (int tx = 0; tx < tiles_x; ++tx) {
-      int x0 = 0, x1 = 0;
-      guide_span(tx * kRaycastGuideTile, kRaycastGuideTile, s.camera.width, guide_depth_m.width(), &x0, &x1);
-      const std::size_t t = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tiles_x) + static_cast<std::size_t>(tx);
-      for (int y = y0; y < y1; ++y) {
-        for (int x = x0; x < x1; ++x) {
-          const float depth = guide_depth_m(x, y);
-          if (!is_measured_depth(depth)) continue;
-          tile_min[t] = std::min(tile_min[t], depth);
-          tile_max[t] = std::max(tile_max[t], depth);
-        }
-      }
-    }
-  }
-  s.raycast_cpu(volume, T_world_camera,
-                s.guide_view(volume, guide_depth_m.data(), guide_depth_m.width(), guide_depth_m.height(),
-                             tile_min.data(), tile_max.data()),
-                &result);
+  RaycastResult result;
+  raycast(volume, T_world_camera, result, &guide_depth_m);
   return result;
 }
 
-#if defined(SLS_HAVE_CUDA)
-void Raycaster::raycast_device(const Volume& volume, const Pose& T_world_camera) {
-  require_device(impl_->device);
-  impl_->launch(volume, T_world_camera, RaycastGuideView{});
-}
-
-void Raycaster::raycast_device(const Volume& volume, const Pose& T_world_camera, const float* guide_depth_device,
-                               int guide_width, int guide_height) {
-  Impl& s = *impl_;
-  require_device(s.device);
-  s.check_guide(guide_width, guide_height);
-  const std::size_t tiles = static_cast<std::size_t>(s.tiles_x()) * static_cast<std::size_t>(s.tiles_y());
-  if (s.guide_tile_min.size() < tiles) {
-    s.guide_tile_min.allocate(tiles);
-    s.guide_tile_max.allocate(tiles);
-  }
-  detail::launch_raycast_guide_tiles_cuda(guide_depth_device, guide_width, guide_height, s.camera.width,
-                                          s.camera.height, s.guide_tile_min.data(), s.guide_tile_max.data(), s.stream);
-  s.launch(volume, T_world_camera,
-           s.guide_view(volume, guide_depth_device, guide_width, guide_height, s.guide_tile_min.data(),
-                        s.guide_tile_max.data()));
-}
-
-void Raycaster::download(RaycastResult* result) {
-  Impl& s = *impl_;
-  const std::size_t pixels = s.rays->rays.size();
-  s.depth.download(result->depth_m.data(), pixels, s.stream);
-  s.points.download(result->points_camera.data(), pixels, s.stream);
-  s.normals.download(result->normals_camera.data(), pixels, s.stream);
-  s.shaded.download(result->shaded.data(), pixels, s.stream);
-  SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
-}
-
-void Raycaster::synchronize() { SLS_CUDA_CHECK(cudaStreamSynchronize(impl_->stream)); }
-const float* Raycaster::depth_device() const { return impl_->depth.data(); }
-const Vec3f* Raycaster::points_device() const { return impl_->points.data(); }
-const Vec3f* Raycaster::normals_device() const { return impl_->normals.data(); }
-#endif
+void Raycaster::synchronize() { impl_->gpu_stream.synchronize(); }
 
 }  // namespace sls::fusion

@@ -16,10 +16,18 @@
 
 namespace sls::fusion {
 
+// The maps a raycast gives, each the raycaster's camera size, row-major, where they were made
+// to live (RaycastResult(MemoryType::kDevice): on the GPU, for the tracker).
 struct RaycastResult {
+  RaycastResult() = default;
+  explicit RaycastResult(MemoryType memory)
+      : depth_m(memory), points_camera(memory), normals_camera(memory), shaded(memory) {}
+  // Where the maps are (or will be, before the first raycast).
+  MemoryType memory_type() const { return depth_m.memory_requested(); }
+
   Image32f depth_m;                 // camera-frame z; 0 = no surface
-  std::vector<Vec3f> points_camera;  // row-major, {0,0,0} where depth is 0
-  std::vector<Vec3f> normals_camera;
+  Image<Vec3f> points_camera;       // {0,0,0} where depth is 0
+  Image<Vec3f> normals_camera;
   Image8u shaded;                   // Lambertian, light at the camera
 };
 
@@ -46,33 +54,27 @@ class Raycaster {
   const CameraIntrinsics& camera() const;
   const Device& device() const;
 
-  // The volume from T_world_camera. The volume must live on the raycaster's device.
+  // The volume from T_world_camera into `out`, in the memory its maps were made for, sized to
+  // the camera on first use and reused after (no allocation per frame). The volume must live on
+  // the raycaster's device. A CUDA raycaster writes device maps in place, asynchronously on its
+  // stream: stages on the same stream (a session's) read them in order, others call
+  // synchronize() first; host maps are complete on return. A CPU raycaster writes host maps
+  // only (sls::Error(kInvalidArgument) for device ones).
+  // `guide_depth_m` (null: none): a guided raycast (raycast_shared.h, RaycastGuideView), from a
+  // depth map measured from the same pose, at least the raycaster's size (e.g. the full live
+  // map for a halved raycaster), read where it lives (a host map is uploaded to a GPU, a device
+  // map read in place; a CPU raycaster takes host maps): each ray searches only near the
+  // guide's depths under it. Equal to the unguided raycast wherever the first surface lies
+  // within that range; about twice as fast on a 960³ volume.
+  void raycast(const Volume& volume, const Pose& T_world_camera, RaycastResult& out,
+               const Image32f* guide_depth_m = nullptr);
+  // The same, into new host maps.
   RaycastResult raycast(const Volume& volume, const Pose& T_world_camera);
-  // Guided (raycast_shared.h, RaycastGuideView): `guide_depth_m` is a depth map measured from
-  // the same pose, at least the raycaster's size (e.g. the full live map for a halved
-  // raycaster); each ray searches only near the guide's depths under it (raycast_shared.h).
-  // Equal to the unguided raycast wherever the first surface lies within that range; about
-  // twice as fast on a 960³ volume.
   RaycastResult raycast(const Volume& volume, const Pose& T_world_camera, const Image32f& guide_depth_m);
-#if defined(SLS_HAVE_CUDA)
-  // Leaves the result on the GPU (depth, points, normals: width x height each), for the
-  // tracker and for timing; asynchronous on the raycaster's stream until synchronize().
-  void raycast_device(const Volume& volume, const Pose& T_world_camera);
-  // Guided, with the guide on the GPU (guide_width x guide_height floats, complete when called).
-  void raycast_device(const Volume& volume, const Pose& T_world_camera, const float* guide_depth_device,
-                      int guide_width, int guide_height);
+  // Waits for the raycaster's queued work (nothing to wait for on a CPU).
   void synchronize();
-  // The maps of the last raycast_device (width x height each, row-major; what RaycastResult
-  // holds, on the GPU): for the tracker. Read them after synchronize().
-  const float* depth_device() const;
-  const Vec3f* points_device() const;
-  const Vec3f* normals_device() const;
-#endif
 
  private:
-#if defined(SLS_HAVE_CUDA)
-  void download(RaycastResult* result);  // the last raycast_device's maps (synchronizes)
-#endif
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

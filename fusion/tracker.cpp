@@ -611,12 +611,12 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
     throw_error(ErrorCode::kInvalidArgument, "tracking: the live depth map is {}x{}, the camera {}x{}",
                 depth_m.width(), depth_m.height(), s.live_camera.width, s.live_camera.height);
   }
-  if (model.depth_m.width() != width || model.depth_m.height() != height || model.points_camera.size() != pixels ||
-      model.normals_camera.size() != pixels) {
+  if (model.depth_m.width() != width || model.depth_m.height() != height ||
+      model.points_camera.pixel_count() != pixels || model.normals_camera.pixel_count() != pixels) {
     throw_error(ErrorCode::kInvalidArgument,
                 "tracking: the model maps are {}x{} with {} points and {} normals, the camera {}x{} ({} pixels)",
-                model.depth_m.width(), model.depth_m.height(), model.points_camera.size(),
-                model.normals_camera.size(), width, height, pixels);
+                model.depth_m.width(), model.depth_m.height(), model.points_camera.pixel_count(),
+                model.normals_camera.pixel_count(), width, height, pixels);
   }
   if (texture != nullptr) s.check_size(*texture, "live texture");
   if (confidence != nullptr) s.check_size(*confidence, "live confidence map");
@@ -625,34 +625,14 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
   const Image32f* live_texture = s.photometric_on ? texture : nullptr;
   const Image32f* live_weight = s.options.weight_by_confidence ? confidence : nullptr;
   if (s.device.is_cuda()) {
-#if defined(SLS_HAVE_CUDA)
-    require_device(s.device);
-    const float* live = nullptr;
-    if (s.input_cameras.empty()) {
-      s.depth[0].upload(depth_m.data(), pixels, s.stream);
-      live = s.depth[0].data();
-    } else {
-      s.live_upload.upload(depth_m.data(), depth_m.pixel_count(), s.stream);
-      live = s.live_upload.data();
-    }
-    s.uploaded_points.upload(model.points_camera.data(), pixels, s.stream);
-    s.uploaded_normals.upload(model.normals_camera.data(), pixels, s.stream);
-    const float* texture_device = nullptr;
-    if (live_texture != nullptr) {
-      s.texture_upload.upload(live_texture->data(), live_texture->pixel_count(), s.stream);
-      texture_device = s.texture_upload.data();
-    }
-    const float* weight_device = nullptr;
-    if (live_weight != nullptr) {
-      s.weight_upload.upload(live_weight->data(), live_weight->pixel_count(), s.stream);
-      weight_device = s.weight_upload.data();
-    }
-    return s.track_on_device(live, s.uploaded_points.data(), s.uploaded_normals.data(), T_world_model,
-                             T_world_camera_guess, texture_device, weight_device);
-#else
-    throw_error(ErrorCode::kUnsupported, "tracking: CUDA asked of a build without CUDA");
-#endif
+    return s.track_gpu(depth_m, model.points_camera, model.normals_camera, T_world_model, T_world_camera_guess,
+                       live_texture, live_weight);
   }
+  s.check_on_host(depth_m, "live depth map");
+  s.check_on_host(model.points_camera, "model's point map");
+  s.check_on_host(model.normals_camera, "model's normal map");
+  if (live_texture != nullptr) s.check_on_host(*live_texture, "live texture");
+  if (live_weight != nullptr) s.check_on_host(*live_weight, "live confidence map");
 
   const float* level_depth[8] = {};  // validate(): at most 8 levels
   const float* level_weight[8] = {};
@@ -665,7 +645,7 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
     return parallel_sum<kFrameSums>(height, [&](int y, double* sums) {
       for (int x = 0; x < width; ++x) {
         const std::size_t i = s.levels[0].rays->index(x, y);
-        accumulate_frame_statistics(model.points_camera[i], level_depth[0][i], s.levels[0].rays->rays[i], region,
+        accumulate_frame_statistics(model.points_camera.data()[i], level_depth[0][i], s.levels[0].rays->rays[i], region,
                                     reference, sums);
       }
     });

@@ -5,7 +5,8 @@
 // track_shared.h for both backends) and solves them on the host.
 //
 //   Tracker tracker(Device::cuda(), camera, TrackingOptions{});
-//   raycaster.raycast(volume, T_world_model)                       -> model (camera frame of T_world_model)
+//   RaycastResult model(MemoryType::kDevice);                      // (kHost for a CPU tracker)
+//   raycaster.raycast(volume, T_world_model, model);               // camera frame of T_world_model
 //   TrackingResult r = tracker.track(depth_m, model, T_world_model, T_world_camera_guess);
 //   if (!r.lost) integrate with r.T_world_camera;
 //
@@ -206,32 +207,23 @@ class Tracker {
   // volume the model was raycast from (null: unknown). Nothing outside it is in the model, so
   // the overlap test (min_inlier_fraction) counts only the live pixels whose point the guess
   // puts inside it: a view that sees more than a small volume holds is not lost for that.
+  // Every map is read where it lives (Image::memory_type()): a CUDA tracker reads maps on the
+  // GPU in place — the decoder's depth and confidence, a raycast into
+  // RaycastResult(MemoryType::kDevice) — and uploads host maps into buffers made once (no
+  // allocation per frame); maps on the GPU must be complete in the tracker's stream order (made
+  // on the same stream, a session's, or synchronized). A CPU tracker reads host maps
+  // (sls::Error(kInvalidArgument) naming a map on a GPU).
   TrackingResult track(const Image32f& depth_m, const RaycastResult& model, const Pose& T_world_model,
                        const Pose& T_world_camera_guess, const Image32f* texture = nullptr,
                        const Image32f* confidence = nullptr, const PosePrior* prior = nullptr,
                        const VolumeGeometry* model_volume = nullptr);
   // The photometric term's reference for the next track(): a frame fused without tracking
   // (its depth map and texture, the camera's size, and the pose it was fused at). Ignored when
-  // photometric_weight is 0. sls::Error(kInvalidArgument) for images of another size.
+  // photometric_weight is 0. sls::Error(kInvalidArgument) for images of another size. Read
+  // where they live, as track() reads its maps; copied before it returns.
   void set_reference_frame(const Image32f& depth_m, const Image32f& texture, const Pose& T_world_camera);
   void clear_reference_frame();
   bool has_reference_frame() const;
-#if defined(SLS_HAVE_CUDA)
-  // Both on the GPU: the live depth map (the decoder's output, width x height floats, complete
-  // when called: synchronize its stream first) and the model in `raycaster` (a CUDA raycaster
-  // with the tracker's camera) after raycast_device(volume, T_world_model); the raycaster's
-  // stream is synchronized here. No allocation: the pyramid lives in buffers made once.
-  // `texture_device`: as track()'s texture, on the GPU (complete when called), or null; the
-  // reference frame stays on the GPU. `confidence_device`: as track()'s confidence, on the GPU.
-  // `prior`, `model_volume`: as track()'s (the prior added to the 6x6 system on the host).
-  TrackingResult track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
-                              const Pose& T_world_camera_guess, const float* texture_device = nullptr,
-                              const float* confidence_device = nullptr, const PosePrior* prior = nullptr,
-                              const VolumeGeometry* model_volume = nullptr);
-  // set_reference_frame with both maps on the GPU (width x height floats, complete when called).
-  void set_reference_frame_device(const float* depth_device, const float* texture_device,
-                                  const Pose& T_world_camera);
-#endif
 
  private:
   struct Impl;

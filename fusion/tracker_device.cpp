@@ -1,5 +1,6 @@
-// The Tracker's CUDA path: track_device, the device pyramids and reference frame, and the
-// Gauss–Newton loop's reductions on the GPU (one copy of the sums to the host per step).
+// The Tracker's CUDA path: maps read where they live (uploaded from the host, else in place),
+// the device pyramids and reference frame, and the Gauss–Newton loop's reductions on the GPU
+// (one copy of the sums to the host per step).
 #include "fusion/tracker_internal.h"
 
 #if defined(SLS_HAVE_CUDA)
@@ -11,48 +12,38 @@ namespace sls::fusion {
 
 using namespace tracking_detail;
 
-TrackingResult Tracker::track_device(const float* depth_device, Raycaster& raycaster, const Pose& T_world_model,
-                                     const Pose& T_world_camera_guess, const float* texture_device,
-                                     const float* confidence_device, const PosePrior* prior,
-                                     const VolumeGeometry* model_volume) {
-  Impl& s = *impl_;
-  const Impl::CallScope call_scope(s, prior, model_volume);
-  if (!s.device.is_cuda()) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: track_device on a tracker for {}; make it for CUDA",
-                s.device.to_string());
-  }
-  require_device(s.device);
-  if (!raycaster.device().is_cuda()) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: track_device needs a CUDA raycaster, not {}",
-                raycaster.device().to_string());
-  }
-  if (raycaster.camera().width != s.camera.width || raycaster.camera().height != s.camera.height) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: the raycaster's camera is {}x{}, the tracker's {}x{}",
-                raycaster.camera().width, raycaster.camera().height, s.camera.width, s.camera.height);
-  }
-  if (depth_device == nullptr) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: no live depth map (null device pointer)");
-  }
-  raycaster.synchronize();
-  return s.track_on_device(depth_device, raycaster.points_device(), raycaster.normals_device(), T_world_model,
-                           T_world_camera_guess, s.photometric_on ? texture_device : nullptr,
-                           s.options.weight_by_confidence ? confidence_device : nullptr);
+namespace {
+
+// `image` on the GPU: itself where it lives there, else uploaded into `upload` (made once, the
+// size of the largest map it takes) on `stream`.
+template <typename T>
+const T* on_device(const Image<T>& image, DeviceBuffer<T>& upload, cudaStream_t stream) {
+  if (image.memory_type() == MemoryType::kDevice) return image.data();
+  if (upload.size() < image.pixel_count()) upload.allocate(image.pixel_count());
+  upload.upload(image.data(), image.pixel_count(), stream);
+  return upload.data();
 }
 
-void Tracker::set_reference_frame_device(const float* depth_device, const float* texture_device,
-                                         const Pose& T_world_camera) {
-  Impl& s = *impl_;
-  if (!s.device.is_cuda()) {
-    throw_error(ErrorCode::kInvalidArgument,
-                "tracking: set_reference_frame_device on a tracker for {}; make it for CUDA", s.device.to_string());
-  }
-  if (depth_device == nullptr || texture_device == nullptr) {
-    throw_error(ErrorCode::kInvalidArgument, "tracking: no reference {} (null device pointer)",
-                depth_device == nullptr ? "depth map" : "texture");
-  }
-  if (!s.photometric_on) return;
-  require_device(s.device);
-  s.set_reference_on_device(depth_device, texture_device, T_world_camera);
+}  // namespace
+
+TrackingResult Tracker::Impl::track_gpu(const Image32f& depth_m, const Image<Vec3f>& model_points,
+                                        const Image<Vec3f>& model_normals, const Pose& T_world_model,
+                                        const Pose& guess, const Image32f* live_texture, const Image32f* live_weight) {
+  require_device(device);
+  // A host live map goes where the pyramid starts: level 0 when ICP runs at the live size.
+  const float* live = on_device(depth_m, input_cameras.empty() ? depth[0] : live_upload, stream);
+  const Vec3f* points = on_device(model_points, uploaded_points, stream);
+  const Vec3f* point_normals = on_device(model_normals, uploaded_normals, stream);
+  const float* texture_in = live_texture != nullptr ? on_device(*live_texture, texture_upload, stream) : nullptr;
+  const float* weight_in = live_weight != nullptr ? on_device(*live_weight, weight_upload, stream) : nullptr;
+  return track_on_device(live, points, point_normals, T_world_model, guess, texture_in, weight_in);
+}
+
+void Tracker::Impl::set_reference_gpu(const Image32f& depth_m, const Image32f& reference_texture_in,
+                                      const Pose& T_world_camera) {
+  require_device(device);
+  const float* depth_in = on_device(depth_m, input_cameras.empty() ? depth[0] : live_upload, stream);
+  set_reference_on_device(depth_in, on_device(reference_texture_in, texture_upload, stream), T_world_camera);
 }
 
 void Tracker::Impl::depth_pyramid_device(const float* depth_device, const float* weight_in,
@@ -240,6 +231,20 @@ TrackingResult Tracker::Impl::track_on_device(const float* depth_device, const V
     s.keep_reference_device(level_depth, level_texture, live_mean, result.T_world_camera);
   }
   return result;
+}
+
+}  // namespace sls::fusion
+#else
+
+namespace sls::fusion {
+
+TrackingResult Tracker::Impl::track_gpu(const Image32f&, const Image<Vec3f>&, const Image<Vec3f>&, const Pose&,
+                                        const Pose&, const Image32f*, const Image32f*) {
+  throw_error(ErrorCode::kUnsupported, "tracking: CUDA asked of a build without CUDA");
+}
+
+void Tracker::Impl::set_reference_gpu(const Image32f&, const Image32f&, const Pose&) {
+  throw_error(ErrorCode::kUnsupported, "tracking: CUDA asked of a build without CUDA");
 }
 
 }  // namespace sls::fusion

@@ -222,6 +222,20 @@ struct Tracker::Impl {
   // depth pixels is live_mean: on when there is a reference, else off with the reason.
   std::optional<PhotometricSetup> photometric_setup(bool have_texture, double live_mean, const Pose& T_world_model,
                                                     std::string* skipped) const;
+  // A CUDA tracker's track() and set_reference_frame() (tracker_device.cpp): maps on the GPU
+  // read in place, host maps uploaded. kUnsupported in a build without CUDA.
+  TrackingResult track_gpu(const Image32f& depth_m, const Image<Vec3f>& model_points,
+                           const Image<Vec3f>& model_normals, const Pose& T_world_model, const Pose& guess,
+                           const Image32f* live_texture, const Image32f* live_weight);
+  void set_reference_gpu(const Image32f& depth_m, const Image32f& reference_texture_in, const Pose& T_world_camera);
+  // A CPU tracker reads host maps only.
+  template <typename T>
+  void check_on_host(const Image<T>& image, const char* what) const {
+    if (image.memory_type() == MemoryType::kDevice) {
+      throw_error(ErrorCode::kInvalidArgument, "tracking: the {} is on a GPU; a tracker for {} reads host maps",
+                  what, device.to_string());
+    }
+  }
   void check_size(const Image32f& image, const char* what) const {
     if (image.width() != live_camera.width || image.height() != live_camera.height) {
       throw_error(ErrorCode::kInvalidArgument, "tracking: the {} is {}x{}, the camera {}x{}", what, image.width(),

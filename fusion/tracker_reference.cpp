@@ -53,23 +53,11 @@ void Tracker::set_reference_frame(const Image32f& depth_m, const Image32f& textu
   s.check_size(texture, "reference texture");
   if (!s.photometric_on) return;
   if (s.device.is_cuda()) {
-#if defined(SLS_HAVE_CUDA)
-    require_device(s.device);
-    const float* depth = nullptr;
-    if (s.input_cameras.empty()) {
-      s.depth[0].upload(depth_m.data(), depth_m.pixel_count(), s.stream);
-      depth = s.depth[0].data();
-    } else {
-      s.live_upload.upload(depth_m.data(), depth_m.pixel_count(), s.stream);
-      depth = s.live_upload.data();
-    }
-    s.texture_upload.upload(texture.data(), texture.pixel_count(), s.stream);
-    s.set_reference_on_device(depth, s.texture_upload.data(), T_world_camera);
+    s.set_reference_gpu(depth_m, texture, T_world_camera);
     return;
-#else
-    throw_error(ErrorCode::kUnsupported, "tracking: CUDA asked of a build without CUDA");
-#endif
   }
+  s.check_on_host(depth_m, "reference depth map");
+  s.check_on_host(texture, "reference texture");
   const float* level_depth[8] = {};
   const float* level_weight[8] = {};
   const float* level_texture[8] = {};

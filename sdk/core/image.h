@@ -1,5 +1,5 @@
 // Images: owning buffers (Image<T>) and non-owning views (ImageView<T>) for 8/16-bit
-// integer and float pixels. Views are trivially copyable plain structs so kernels and
+// integer, float and Vec3f pixels. Views are trivially copyable plain structs so kernels and
 // *_shared.h code take them by value; rows are addressed through a byte stride so a view
 // can describe a pitched CUDA allocation or a sub-rectangle.
 #pragma once
@@ -50,7 +50,7 @@ struct ImageView {
 // data() and view(), or copied.
 template <typename T>
 class Image {
-  static_assert(std::is_arithmetic_v<T>, "pixels are integers or floats");
+  static_assert(std::is_trivially_copyable_v<T>, "pixels are plain values (integers, floats, Vec3f)");
 
  public:
   Image() = default;
@@ -76,6 +76,9 @@ class Image {
   bool empty() const { return pixels_.empty(); }
   std::size_t pixel_count() const { return pixels_.size(); }
   MemoryType memory_type() const { return pixels_.memory_type(); }
+  // Where resize() puts the pixels: what Image(MemoryType) asked for (an empty image's pixels
+  // are nowhere yet; a kPinned request may have got pageable memory).
+  MemoryType memory_requested() const { return memory_; }
   std::size_t size_bytes() const { return pixels_.size() * sizeof(T); }
   std::size_t stride_bytes() const { return static_cast<std::size_t>(width_) * sizeof(T); }
 
@@ -97,6 +100,18 @@ class Image {
     copy_memory(out.data(), data(), size_bytes(),
                 out.memory_type() == MemoryType::kDevice || memory_type() == MemoryType::kDevice);
     return out;
+  }
+
+  // `source`'s pixels into this image, in the memory it was made for (Image(MemoryType)),
+  // keeping its allocation when the size is unchanged (a ring of device frames reuses it): on
+  // `stream` (asynchronous where a GPU is involved) or, with none, before returning.
+  void copy_from(const Image& source, const GpuStream& stream = {}) {
+    if (&source == this) return;
+    pixels_.resize_uninitialized(source.pixel_count(), memory_);
+    width_ = source.width_;
+    height_ = source.height_;
+    copy_memory(data(), source.data(), size_bytes(),
+                memory_type() == MemoryType::kDevice || source.memory_type() == MemoryType::kDevice, stream);
   }
 
   bool operator==(const Image& other) const {

@@ -221,14 +221,12 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     report.times.decode_ms = ms_since(start);
     maps.depth = &s.decoded.depth_m;
     maps.confidence = &s.decoded.confidence;
-#if defined(SLS_HAVE_CUDA)
     maps.depth_on_device = s.decoder->depth_on_device();
     maps.confidence_on_device = s.decoder->confidence_on_device();
     if (on_gpu) {
       maps.confidence = nullptr;  // on the GPU only: nothing on the host reads it
       maps.fetch = [&s] { s.decoder->download_depth(&s.decoded.depth_m); };
     }
-#endif
   } else if (frame.depth_m) {
     if (frame.depth_m->width() != s.calibration.camera.width ||
         frame.depth_m->height() != s.calibration.camera.height) {
@@ -237,19 +235,14 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
                                 frame.depth_m->height(), s.calibration.camera.width, s.calibration.camera.height));
     }
     maps.depth = &*frame.depth_m;
-#if defined(SLS_HAVE_CUDA)
     if (on_gpu) {
       // Uploaded once, then integrated and tracked on the GPU (counted with decoding).
       const Clock::time_point start = Clock::now();
-      if (s.depth_upload.width() != camera.width || s.depth_upload.height() != camera.height) {
-        s.depth_upload.resize(camera.width, camera.height);
-      }
-      copy_memory(s.depth_upload.data(), frame.depth_m->data(), frame.depth_m->size_bytes(), true, s.streams.frame);
+      s.depth_upload.copy_from(*frame.depth_m, s.streams.frame);
       s.streams.frame.synchronize();
       maps.depth_on_device = &s.depth_upload;
       report.times.decode_ms = ms_since(start);
     }
-#endif
   } else {
     return finish(FrameStatus::kSkipped, "neither a pattern stack nor a depth map");
   }
@@ -270,7 +263,6 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   // The texture for the tracker's photometric term (with the depth map on the GPU, it is too).
   Image32f derived_texture;
   const Image32f* texture = nullptr;
-  [[maybe_unused]] const float* texture_device = nullptr;
   if (photometric) {
     const Clock::time_point start = Clock::now();  // part of preparing the frame
     if (frame.texture) {
@@ -280,14 +272,12 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
                              &derived_texture)) {
       texture = &derived_texture;
     }
-#if defined(SLS_HAVE_CUDA)
     if (texture != nullptr && maps.depth_on_device != nullptr) {
-      if (s.texture_upload.size() != texture->pixel_count()) s.texture_upload.allocate(texture->pixel_count());
-      s.texture_upload.upload(texture->data(), texture->pixel_count(), cuda_stream(s.streams.frame));
+      // Once for tracking and a reference frame alike; `texture` may be a local of this scope.
+      s.texture_on_device.copy_from(*texture, s.streams.frame);
       s.streams.frame.synchronize();
-      texture_device = s.texture_upload.data();
+      texture = &s.texture_on_device;
     }
-#endif
     report.times.decode_ms += ms_since(start);
   }
 
@@ -310,20 +300,8 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     }
     // The volume the model was raycast from (it moves only after tracking).
     const fusion::VolumeGeometry model_volume = s.moving->volume().geometry();
-#if defined(SLS_HAVE_CUDA)
-    if (s.options.device.is_cuda()) {
-      tracked = s.tracker.track_device(maps.depth_on_device->data(), s.raycaster, s.T_world_model, guess,
-                                       texture_device,
-                                       maps.confidence_on_device ? maps.confidence_on_device->data() : nullptr,
-                                       &prior, &model_volume);
-    } else {
-      tracked = s.tracker.track(*maps.depth, s.model, s.T_world_model, guess, texture, maps.confidence, &prior,
-                                &model_volume);
-    }
-#else
-    tracked = s.tracker.track(*maps.depth, s.model, s.T_world_model, guess, texture, maps.confidence, &prior,
-                              &model_volume);
-#endif
+    tracked = s.tracker.track(*maps.depth_where_it_lives(), s.model, s.T_world_model, guess, texture,
+                              maps.confidence_where_it_lives(), &prior, &model_volume);
     report.times.track_ms = ms_since(start);
     if (!tracked.lost && s.options.verify_with_turntable) {
       // A registration that converged may still be wrong: the turntable says how far it turned.
@@ -358,15 +336,7 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   // keeps a tracked one itself).
   if (texture != nullptr && (!report.tracking || report.unverified)) {
     const Clock::time_point start = Clock::now();  // the reference's pyramid: tracking work
-#if defined(SLS_HAVE_CUDA)
-    if (texture_device != nullptr) {
-      s.tracker.set_reference_frame_device(maps.depth_on_device->data(), texture_device, T_world_camera);
-    } else {
-      s.tracker.set_reference_frame(*maps.host_depth(), *texture, T_world_camera);
-    }
-#else
-    s.tracker.set_reference_frame(*maps.depth, *texture, T_world_camera);
-#endif
+    s.tracker.set_reference_frame(*maps.depth_where_it_lives(), *texture, T_world_camera);
     report.times.track_ms += ms_since(start);
   }
 
@@ -412,17 +382,8 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   if (!frame.known_T_world_camera) {
     start = Clock::now();
     // Guided by the depth just integrated from this pose: rays search only near it.
-#if defined(SLS_HAVE_CUDA)
-    if (s.options.device.is_cuda()) {
-      s.raycaster.raycast_device(volume, T_world_camera, maps.depth_on_device->data(), camera.width,
-                                 camera.height);
-      s.raycaster.synchronize();
-    } else {
-      s.model = s.raycaster.raycast(volume, T_world_camera, *maps.depth);
-    }
-#else
-    s.model = s.raycaster.raycast(volume, T_world_camera, *maps.depth);
-#endif
+    s.raycaster.raycast(volume, T_world_camera, s.model, maps.depth_where_it_lives());
+    s.raycaster.synchronize();  // for the stage's time; the next frame's tracking reads it in order
     report.times.raycast_ms = ms_since(start);
     s.T_world_model = T_world_camera;
     s.have_model = true;

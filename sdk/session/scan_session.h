@@ -249,6 +249,11 @@ struct FrameMaps {
     if (fetch) std::exchange(fetch, nullptr)();
     return depth;
   }
+  // Where the stages read them: the GPU's copies when there are, else the host's.
+  const Image32f* depth_where_it_lives() const { return depth_on_device != nullptr ? depth_on_device : depth; }
+  const Image32f* confidence_where_it_lives() const {
+    return confidence_on_device != nullptr ? confidence_on_device : confidence;
+  }
 };
 
 // Where ScanSession::final_surface() spent its time (ms, wall): the moving volume's part (the

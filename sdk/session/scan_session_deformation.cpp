@@ -12,9 +12,6 @@
 #include "sdk/session/scan_session.h"
 #include "sdk/session/scan_session_impl.h"
 
-#if defined(SLS_HAVE_CUDA)
-#include <cuda_runtime_api.h>
-#endif
 
 namespace sls::session {
 namespace {
@@ -38,18 +35,8 @@ void pose_difference(const Pose& a, const Pose& b, double* metres, double* degre
 void ScanSession::Impl::capture_reference(const fusion::Volume& volume) {
   if (reference_taken || !first) return;
   reference_volume = volume.geometry();
-#if defined(SLS_HAVE_CUDA)
-  if (options.device.is_cuda()) {
-    if (!reference_raycaster) {
-      reference_raycaster.emplace(options.device, tracker.model_camera(), raycast_options(options), streams.frame);
-    }
-    reference_raycaster->raycast_device(volume, first->T_world_camera);
-    reference_raycaster->synchronize();
-    reference_taken = true;
-    return;
-  }
-#endif
-  reference_model = raycaster.raycast(volume, first->T_world_camera);
+  raycaster.raycast(volume, first->T_world_camera, reference_model);
+  raycaster.synchronize();
   reference_taken = true;
 }
 
@@ -82,30 +69,18 @@ void ScanSession::Impl::keep_loop_frame(int frame, const Pose& T_world_camera, s
   slot.index = frame;
   slot.T_world_camera = T_world_camera;
   slot.angle_deg = angle_deg;
-#if defined(SLS_HAVE_CUDA)
-  if (maps.depth_on_device != nullptr) {
-    const std::size_t pixels =
-        static_cast<std::size_t>(calibration.camera.width) * static_cast<std::size_t>(calibration.camera.height);
-    const float* depth_device = maps.depth_on_device->data();
-    const float* confidence_device = maps.confidence_on_device ? maps.confidence_on_device->data() : nullptr;
-    if (slot.depth_device.size() != pixels) slot.depth_device.allocate(pixels);
-    SLS_CUDA_CHECK(cudaMemcpyAsync(slot.depth_device.data(), depth_device, pixels * sizeof(float),
-                                   cudaMemcpyDeviceToDevice, cuda_stream(streams.frame)));
-    slot.confidence_on_device = confidence_device != nullptr;
-    if (confidence_device != nullptr) {
-      if (slot.confidence_device.size() != pixels) slot.confidence_device.allocate(pixels);
-      SLS_CUDA_CHECK(cudaMemcpyAsync(slot.confidence_device.data(), confidence_device, pixels * sizeof(float),
-                                     cudaMemcpyDeviceToDevice, cuda_stream(streams.frame)));
-    }
-    streams.frame.synchronize();
-    slot.depth = Image32f();
-    slot.confidence.reset();
-    return;
+  // Copies where the maps are, into the slot's memory when it already lives there.
+  const auto keep = [this](const Image32f& source, Image32f& copy) {
+    if (copy.memory_requested() != source.memory_type()) copy = Image32f(source.memory_type());
+    copy.copy_from(source, streams.frame);
+  };
+  keep(*maps.depth_where_it_lives(), slot.depth);
+  if (const Image32f* confidence = maps.confidence_where_it_lives()) {
+    keep(*confidence, slot.confidence);
+  } else {
+    slot.confidence = Image32f();
   }
-#endif
-  slot.depth = *maps.host_depth();
-  slot.confidence.reset();
-  if (maps.confidence != nullptr) slot.confidence = *maps.confidence;
+  streams.frame.synchronize();
 }
 
 std::optional<fusion::deformation::RotationPrior> ScanSession::Impl::turntable_rotation_prior(
@@ -342,25 +317,10 @@ LoopClosureReport ScanSession::close_loop() {
         report.turntable_tilt_sigma_deg = s.calibration.turntable->tilt_sigma_deg;
       }
     }
-    fusion::TrackingResult registration;
-    Image32f depth = frame->depth;
-#if defined(SLS_HAVE_CUDA)
-    if (s.options.device.is_cuda()) {
-      registration = s.tracker.track_device(frame->depth_device.data(), *s.reference_raycaster, first.T_world_camera,
-                                            guess, nullptr,
-                                            frame->confidence_on_device ? frame->confidence_device.data() : nullptr,
-                                            &prior, &s.reference_volume);
-      depth = Image32f(s.calibration.camera.width, s.calibration.camera.height, 0.0f);
-      frame->depth_device.download(depth.data(), depth.pixel_count(), cuda_stream(s.streams.frame));
-      s.streams.frame.synchronize();
-    } else {
-      registration = s.tracker.track(frame->depth, s.reference_model, first.T_world_camera, guess, nullptr,
-                                     frame->confidence ? &*frame->confidence : nullptr, &prior, &s.reference_volume);
-    }
-#else
-    registration = s.tracker.track(frame->depth, s.reference_model, first.T_world_camera, guess, nullptr,
-                                   frame->confidence ? &*frame->confidence : nullptr, &prior, &s.reference_volume);
-#endif
+    const fusion::TrackingResult registration =
+        s.tracker.track(frame->depth, s.reference_model, first.T_world_camera, guess, nullptr,
+                        frame->confidence.empty() ? nullptr : &frame->confidence, &prior, &s.reference_volume);
+    Image32f depth = frame->depth.copy_to(MemoryType::kHost);
     if (registration.lost) {
       report.unregistered.push_back({frame->index, registration.reason});
       continue;

@@ -17,10 +17,6 @@
 #include "sdk/core/gpu_stream.h"
 #include "sdk/session/scan_session.h"
 
-#if defined(SLS_HAVE_CUDA)
-#include "sdk/core/cuda/cuda_stream.h"
-#include "sdk/core/cuda/device_buffer.h"
-#endif
 
 namespace sls::session {
 
@@ -53,7 +49,8 @@ struct ScanSession::Impl {
 
   bool have_model = false;                 // a fused frame exists (and the model was raycast)
   Pose T_world_model;                      // the pose the model was last raycast from
-  fusion::RaycastResult model;             // the CPU model (host path)
+  // The model maps raycast from T_world_model, where the tracker reads them (on a GPU there).
+  fusion::RaycastResult model;
   // The last two fused frames: the constant-velocity prior.
   struct Fused {
     int index = 0;
@@ -88,25 +85,20 @@ struct ScanSession::Impl {
   };
   std::vector<ShippedPart> parts;
   // The loop closure's reference: the model seen from the first pose, raycast before the
-  // volume first moves away from it (on the CPU a RaycastResult, on a GPU its own raycaster).
+  // volume first moves away from it (where the model maps live).
   bool reference_taken = false;
   fusion::RaycastResult reference_model;
   fusion::VolumeGeometry reference_volume;  // the volume it was raycast from
-  std::optional<fusion::Raycaster> reference_raycaster;
   // The last loop_frames fused frames (a ring, oldest overwritten): what close_loop()
-  // registers to the first frame's surface. Their depth and the decoder's confidence: on the
-  // GPU device copies (the decoder's buffers hold the next frame by then), else host copies.
+  // registers to the first frame's surface. Copies of their depth and the decoder's confidence
+  // where the maps were (the decoder's images hold the next frame by then): on a GPU there,
+  // reusing the slot's memory.
   struct LoopFrame {
     int index = -1;                    // -1: an empty slot
     Pose T_world_camera;
     std::optional<double> angle_deg;
     Image32f depth;
-    std::optional<Image32f> confidence;
-#if defined(SLS_HAVE_CUDA)
-    DeviceBuffer<float> depth_device;
-    DeviceBuffer<float> confidence_device;
-    bool confidence_on_device = false;
-#endif
+    Image32f confidence;               // empty: none
   };
   std::vector<LoopFrame> loop_frames;
   std::size_t loop_frames_next = 0;
@@ -117,9 +109,7 @@ struct ScanSession::Impl {
   ScanSession::FrameObserver frame_observer;  // set_frame_observer()
   StageTimes totals;
   Image32f depth_upload{MemoryType::kDevice};  // a depth-map frame on the GPU (decoded frames stay there)
-#if defined(SLS_HAVE_CUDA)
-  DeviceBuffer<float> texture_upload;  // the frame's texture (photometric term), kept on the GPU
-#endif
+  Image32f texture_on_device{MemoryType::kDevice};  // the frame's texture (photometric term), uploaded once
 
   Impl(const ScannerCalibration& calibration_in, const ScanSessionOptions& options_in)
       : calibration(calibration_in),
@@ -127,7 +117,14 @@ struct ScanSession::Impl {
         streams(options_in.device),
         integrator(options_in.device, options_in.integration, streams.frame),
         tracker(options_in.device, calibration_in.camera, options_in.tracking, streams.frame),
-        raycaster(options_in.device, tracker.model_camera(), raycast_options(options_in), streams.frame) {}
+        raycaster(options_in.device, tracker.model_camera(), raycast_options(options_in), streams.frame),
+        model(maps_memory(options_in.device)),
+        reference_model(maps_memory(options_in.device)) {}
+
+  // Where the stages' maps live: on the session's GPU, else the host.
+  static MemoryType maps_memory(const Device& device) {
+    return device.is_cuda() ? MemoryType::kDevice : MemoryType::kHost;
+  }
 
   static fusion::RaycastOptions raycast_options(const ScanSessionOptions& options) {
     fusion::RaycastOptions raycast;

@@ -179,17 +179,15 @@ void BM_Raycast(benchmark::State& state) {
       guided ? raycaster.raycast(volume, f.T_object_camera[1], guide) : raycaster.raycast(volume, f.T_object_camera[1]);
   std::size_t hits = 0;
   for (std::size_t i = 0; i < check.depth_m.pixel_count(); ++i) hits += check.depth_m.data()[i] > 0.0f ? 1u : 0u;
-  DeviceBuffer<float> guide_device(guide.pixel_count());
-  guide_device.upload(guide.data(), guide.pixel_count(), nullptr);
-  SLS_CUDA_CHECK(cudaDeviceSynchronize());
+  // The session's way: the guide and the maps on the GPU.
+  const Image32f guide_device = guide.copy_to(MemoryType::kDevice);
+  fusion::RaycastResult maps(MemoryType::kDevice);
+  raycaster.raycast(volume, f.T_object_camera[1], maps, guided ? &guide_device : nullptr);
+  raycaster.synchronize();
   Events events;
   for (auto _ : state) {
     events.start();
-    if (guided) {
-      raycaster.raycast_device(volume, f.T_object_camera[1], guide_device.data(), guide.width(), guide.height());
-    } else {
-      raycaster.raycast_device(volume, f.T_object_camera[1]);
-    }
+    raycaster.raycast(volume, f.T_object_camera[1], maps, guided ? &guide_device : nullptr);
     raycaster.synchronize();
     state.SetIterationTime(events.stop_s());
   }

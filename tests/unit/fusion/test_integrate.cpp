@@ -172,7 +172,7 @@ TEST(Raycast, FindsTheFusedPlane) {
       ++hits;
       worst = std::max(worst, std::fabs(static_cast<double>(result.depth_m(x, y)) - kPlaneZ));
       const std::size_t i = rays.index(x, y);
-      worst_normal = std::max(worst_normal, std::fabs(static_cast<double>(result.normals_camera[i].z) + 1.0));
+      worst_normal = std::max(worst_normal, std::fabs(static_cast<double>(result.normals_camera.data()[i].z) + 1.0));
     }
   }
   std::printf("[fusion] raycast plane: %zu of %zu pixels inside the volume hit, max depth error %.2e voxels\n", hits,

@@ -403,8 +403,8 @@ TEST_P(MovingVolumeTest, BrickFlagsAfterMovesLetRaycastsSeeTheSurface) {
       return std::fabs(sphere(second * Eigen::Vector3d(static_cast<double>(p.x), static_cast<double>(p.y),
                                                        static_cast<double>(p.z)))) / kVoxel;
     };
-    if (ha) error_moved.push_back(distance(a.points_camera[n]));
-    if (hb) error_fresh.push_back(distance(b.points_camera[n]));
+    if (ha) error_moved.push_back(distance(a.points_camera.data()[n]));
+    if (hb) error_fresh.push_back(distance(b.points_camera.data()[n]));
   }
   ASSERT_GT(error_moved.size(), 5000u);
   ASSERT_GT(error_fresh.size(), 5000u);

@@ -418,7 +418,7 @@ TEST(Tracker, BadInputIsAClearError) {
   test::expect_invalid([&] { tracker.track(Image32f(100, 80), m.raycast, m.T_world_model, m.T_world_model); },
                  "live depth map is 100x80");
   RaycastResult small = m.raycast;
-  small.points_camera.resize(10);
+  small.points_camera.resize(10, 1);
   test::expect_invalid([&] { tracker.track(m.raycast.depth_m, small, m.T_world_model, m.T_world_model); }, "model maps");
   test::expect_invalid([&] { Tracker(Device::cpu(), test::tracker_camera(40, 30)); }, "too small");
   auto invalid_option = [&](auto change, const std::string& fragment) {

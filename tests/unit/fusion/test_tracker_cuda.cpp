@@ -1,13 +1,14 @@
 // The CUDA tracker equals the CPU one (same per-pixel code of track_shared.h; the GPU sums
 // each block in float and the blocks in double, the CPU in double): poses within 1e-6 m and
 // 1e-5 rad, inliers within a few pixels, the same lost verdicts and degenerate directions.
-// track_device registers on the CUDA raycaster's maps with the live depth map on the GPU,
-// deterministically (two-stage reductions in a fixed order). The photometric term too
+// track() reads maps where they live: the CUDA raycaster's maps and the live depth map on the
+// GPU in place, deterministically (two-stage reductions in a fixed order). The photometric term too
 // (photometric_shared.h): the same poses with it on, textures and reference frames from the
 // host or on the GPU. Skipped without a GPU.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <functional>
 #include <string>
 
@@ -15,7 +16,6 @@
 
 #include "drivers/sim/scene.h"
 #include "fusion/tracker.h"
-#include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/error.h"
 #include "tests/support/test_support.h"
 #include "tests/unit/fusion/crease_test_scene.h"
@@ -200,53 +200,77 @@ TEST(TrackerCuda, LargeImageEqualsCpu) {
   EXPECT_LT(test::surface_error(live, m.camera, b.T_world_camera, truth).rms_m, kSurfaceBound);
 }
 
-// The whole frame on the GPU: the volume, its raycast (raycast_device) and the live depth map.
-TEST(TrackerCuda, TrackDeviceOnTheRaycastersMaps) {
+// Same bytes (Vec3f has no ==): device maps compared through host copies.
+template <typename T>
+bool same_pixels(const Image<T>& a, const Image<T>& b) {
+  const Image<T> x = a.copy_to(MemoryType::kHost), y = b.copy_to(MemoryType::kHost);
+  return x.width() == y.width() && x.height() == y.height() &&
+         std::memcmp(x.data(), y.data(), x.size_bytes()) == 0;
+}
+
+// The whole frame on the GPU: the volume, its raycast into device maps and the live depth map.
+TEST(TrackerCuda, MapsOnTheGpuAreReadInPlace) {
   SLS_REQUIRE_CUDA_DEVICE();
   const Model& m = bumpy_model();
   Volume volume(m.volume.geometry(), VoxelFormat::kFloat32, Device::cuda());
   volume.copy_from(m.volume);
   Raycaster raycaster(Device::cuda(), m.camera, Model::raycast_options());
-  raycaster.raycast_device(volume, m.T_world_model);
+  RaycastResult model(MemoryType::kDevice);
+  raycaster.raycast(volume, m.T_world_model, model);
   const Pose truth = m.T_world_model * test_motion();
   const Image32f live = test::exact_depth(m.scene, m.camera, truth);
-  DeviceBuffer<float> live_device(live.pixel_count());
-  live_device.upload(live.data(), live.pixel_count(), nullptr);
-  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+  const Image32f live_device = live.copy_to(MemoryType::kDevice);
+  raycaster.synchronize();  // another stream than the tracker's
+  ASSERT_EQ(model.points_camera.memory_type(), MemoryType::kDevice);
+  ASSERT_EQ(model.points_camera.width(), m.camera.width);
 
   Tracker gpu(Device::cuda(), m.camera), cpu(Device::cpu(), m.camera);
   const TrackingResult a = cpu.track(live, m.raycast, m.T_world_model, m.T_world_model);
-  const TrackingResult b = gpu.track_device(live_device.data(), raycaster, m.T_world_model, m.T_world_model);
-  print("track_device", a, b);
+  const TrackingResult b = gpu.track(live_device, model, m.T_world_model, m.T_world_model);
+  print("maps on the GPU", a, b);
   EXPECT_FALSE(b.lost) << b.reason;
   // The GPU raycast differs from the CPU one by float rounding (test_fusion_cuda: < 1e-3
   // voxel almost everywhere), far below what moves the pose by 1e-6 m.
   expect_equal(a, b, 1e-3, 0.1);
   const test::SurfaceError e = test::surface_error(live, m.camera, b.T_world_camera, truth);
-  std::printf("[tracker-cuda] track_device: surface error RMS %.3f um, max %.3f um\n", e.rms_m * 1e6, e.max_m * 1e6);
+  std::printf("[tracker-cuda] maps on the GPU: surface error RMS %.3f um, max %.3f um\n", e.rms_m * 1e6,
+              e.max_m * 1e6);
   EXPECT_LT(e.rms_m, kSurfaceBound);
-  // Deterministic: the same frame again gives the same bits; and the maps downloaded by
-  // raycast() give the same result through track().
+  // Deterministic: the same frame again gives the same bits; raycast again into the same maps
+  // keeps their memory (no allocation per frame).
+  const Vec3f* points = model.points_camera.data();
   for (int n = 0; n < 3; ++n) {
-    const TrackingResult again = gpu.track_device(live_device.data(), raycaster, m.T_world_model, m.T_world_model);
+    raycaster.raycast(volume, m.T_world_model, model);
+    raycaster.synchronize();
+    EXPECT_EQ(model.points_camera.data(), points);
+    const TrackingResult again = gpu.track(live_device, model, m.T_world_model, m.T_world_model);
     EXPECT_TRUE(test::same_pose(again.T_world_camera, b.T_world_camera)) << n;
     EXPECT_EQ(again.inliers, b.inliers);
     EXPECT_EQ(again.iterations, b.iterations);
     EXPECT_EQ(again.residual_rms_m, b.residual_rms_m);
   }
+  // The same maps raycast into host memory give the same bits, and the same result uploaded.
   const RaycastResult downloaded = raycaster.raycast(volume, m.T_world_model);
+  EXPECT_EQ(downloaded.memory_type(), MemoryType::kHost);
+  EXPECT_TRUE(same_pixels(downloaded.depth_m, model.depth_m));
+  EXPECT_TRUE(same_pixels(downloaded.points_camera, model.points_camera));
+  EXPECT_TRUE(same_pixels(downloaded.normals_camera, model.normals_camera));
+  EXPECT_TRUE(same_pixels(downloaded.shaded, model.shaded));
   const TrackingResult c = gpu.track(live, downloaded, m.T_world_model, m.T_world_model);
   EXPECT_TRUE(c.T_world_camera.is_approx(b.T_world_camera, 1e-12));
   EXPECT_EQ(c.inliers, b.inliers);
-  // The device pointers are the raycaster's own buffers.
-  EXPECT_NE(raycaster.depth_device(), nullptr);
-  EXPECT_NE(raycaster.points_device(), raycaster.normals_device());
+  // Guided by a map on the GPU or by the same map on the host: the same maps.
+  RaycastResult guided_by_device(MemoryType::kDevice);
+  raycaster.raycast(volume, m.T_world_model, guided_by_device, &live_device);
+  const RaycastResult guided_by_host = raycaster.raycast(volume, m.T_world_model, live);
+  EXPECT_TRUE(same_pixels(guided_by_host.depth_m, guided_by_device.depth_m));
+  EXPECT_TRUE(same_pixels(guided_by_host.points_camera, guided_by_device.points_camera));
 }
 
 // Confidence weights (TrackingOptions::weight_by_confidence): a biased band of low
 // confidence and varied confidence elsewhere, so every pyramid level's block means matter.
 // The same poses on the host path, with the live map halved on the device, and with the
-// depth and confidence maps on the GPU (track_device).
+// depth and confidence maps on the GPU.
 TEST(TrackerCuda, ConfidenceWeightsEqualCpu) {
   SLS_REQUIRE_CUDA_DEVICE();
   const Model& m = bumpy_model();
@@ -268,14 +292,14 @@ TEST(TrackerCuda, ConfidenceWeightsEqualCpu) {
     Volume volume(m.volume.geometry(), VoxelFormat::kFloat32, Device::cuda());
     volume.copy_from(m.volume);
     Raycaster raycaster(Device::cuda(), m.camera, Model::raycast_options());
-    raycaster.raycast_device(volume, m.T_world_model);
-    DeviceBuffer<float> live_device(band.live.pixel_count()), confidence_device(band.confidence.pixel_count());
-    live_device.upload(band.live.data(), band.live.pixel_count(), nullptr);
-    confidence_device.upload(band.confidence.data(), band.confidence.pixel_count(), nullptr);
-    ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
-    const TrackingResult c = gpu.track_device(live_device.data(), raycaster, m.T_world_model, m.T_world_model,
-                                              nullptr, confidence_device.data());
-    print("confidence, track_device", a, c);
+    RaycastResult model(MemoryType::kDevice);
+    raycaster.raycast(volume, m.T_world_model, model);
+    const Image32f live_device = band.live.copy_to(MemoryType::kDevice);
+    const Image32f confidence_device = band.confidence.copy_to(MemoryType::kDevice);
+    raycaster.synchronize();
+    const TrackingResult c =
+        gpu.track(live_device, model, m.T_world_model, m.T_world_model, nullptr, &confidence_device);
+    print("confidence, maps on the GPU", a, c);
     expect_equal(a, c, 1e-3, 0.1);
   }
   {
@@ -312,12 +336,12 @@ TEST(TrackerCuda, CreaseTestEqualsCpu) {
   options.truncation_voxels = IntegrationOptions::tsdf().truncation_voxels;
   options.min_depth_m = 1e-3;
   Raycaster raycaster(Device::cuda(), screw.camera, options);
-  raycaster.raycast_device(volume, screw.model_pose);
-  DeviceBuffer<float> live_device(screw.biased.pixel_count());
-  live_device.upload(screw.biased.data(), screw.biased.pixel_count(), nullptr);
-  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
-  const TrackingResult c = gpu.track_device(live_device.data(), raycaster, screw.model_pose, screw.model_pose);
-  print("grooved screw, track_device", a, c);
+  RaycastResult model(MemoryType::kDevice);
+  raycaster.raycast(volume, screw.model_pose, model);
+  const Image32f live_device = screw.biased.copy_to(MemoryType::kDevice);
+  raycaster.synchronize();
+  const TrackingResult c = gpu.track(live_device, model, screw.model_pose, screw.model_pose);
+  print("grooved screw, maps on the GPU", a, c);
   expect_equal(a, c, 1e-3, 0.1);  // the GPU's own raycast of the model
 }
 
@@ -327,22 +351,36 @@ TEST(TrackerCuda, BadInputIsAClearError) {
   Tracker gpu(Device::cuda(), m.camera);
   test::expect_invalid([&] { gpu.track(Image32f(100, 80), m.raycast, m.T_world_model, m.T_world_model); },
                  "live depth map is 100x80");
-  DeviceBuffer<float> live(m.raycast.depth_m.pixel_count());
-  Raycaster cpu_raycaster(Device::cpu(), m.camera, Model::raycast_options());
-  test::expect_invalid([&] { gpu.track_device(live.data(), cpu_raycaster, m.T_world_model, m.T_world_model); },
-                 "CUDA raycaster");
+  // Maps on the GPU are checked as host ones are.
+  const Image32f small_device = Image32f(100, 80).copy_to(MemoryType::kDevice);
+  test::expect_invalid([&] { gpu.track(small_device, m.raycast, m.T_world_model, m.T_world_model); },
+                       "live depth map is 100x80");
   Raycaster other(Device::cuda(), test::tracker_camera(160, 120), Model::raycast_options());
-  test::expect_invalid([&] { gpu.track_device(live.data(), other, m.T_world_model, m.T_world_model); },
-                 "raycaster's camera is 160x120");
-  Raycaster same(Device::cuda(), m.camera, Model::raycast_options());
-  test::expect_invalid([&] { gpu.track_device(nullptr, same, m.T_world_model, m.T_world_model); }, "null device pointer");
+  RaycastResult other_model(MemoryType::kDevice);
+  Volume volume(m.volume.geometry(), VoxelFormat::kFloat32, Device::cuda());
+  volume.copy_from(m.volume);
+  other.raycast(volume, m.T_world_model, other_model);
+  test::expect_invalid([&] { gpu.track(m.raycast.depth_m, other_model, m.T_world_model, m.T_world_model); },
+                       "model maps are 160x120");
+  // A CPU tracker and a CPU raycaster read and write host maps only, and say which map is not.
   Tracker cpu(Device::cpu(), m.camera);
-  test::expect_invalid([&] { cpu.track_device(live.data(), same, m.T_world_model, m.T_world_model); }, "make it for CUDA");
+  const Image32f live_device = m.raycast.depth_m.copy_to(MemoryType::kDevice);
+  test::expect_invalid([&] { cpu.track(live_device, m.raycast, m.T_world_model, m.T_world_model); },
+                       "live depth map is on a GPU");
+  RaycastResult device_model = m.raycast;
+  device_model.normals_camera = m.raycast.normals_camera.copy_to(MemoryType::kDevice);
+  test::expect_invalid([&] { cpu.track(m.raycast.depth_m, device_model, m.T_world_model, m.T_world_model); },
+                       "model's normal map is on a GPU");
+  Raycaster cpu_raycaster(Device::cpu(), m.camera, Model::raycast_options());
+  RaycastResult into_device(MemoryType::kDevice), into_host;
+  test::expect_invalid([&] { cpu_raycaster.raycast(m.volume, m.T_world_model, into_device); }, "maps on a GPU");
+  test::expect_invalid([&] { cpu_raycaster.raycast(m.volume, m.T_world_model, into_host, &live_device); },
+                       "a guide depth map on a GPU");
 }
 
 // The chessboard sliding in its plane (test_tracker.cpp's TexturedPlaneSlidingInItselfIsRecovered),
-// with the photometric term on both backends: host images through track(), and the whole
-// frame on the GPU through track_device and set_reference_frame_device; also with ICP on the
+// with the photometric term on both backends: host images, and the whole frame on the GPU
+// (track() and set_reference_frame() read it in place); also with ICP on the
 // live map halved (the texture pyramid's halvings on the device).
 TEST(TrackerCuda, PhotometricEqualsCpu) {
   SLS_REQUIRE_CUDA_DEVICE();
@@ -391,26 +429,23 @@ TEST(TrackerCuda, PhotometricEqualsCpu) {
   raycast_options.truncation_voxels = IntegrationOptions::tsdf().truncation_voxels;
   raycast_options.min_depth_m = 1e-3;
   Raycaster raycaster(Device::cuda(), camera, raycast_options);
-  raycaster.raycast_device(volume, model_pose);
-  auto upload = [](const Image32f& image) {
-    DeviceBuffer<float> buffer(image.pixel_count());
-    buffer.upload(image.data(), image.pixel_count(), nullptr);
-    return buffer;
-  };
-  const DeviceBuffer<float> ref_depth = upload(reference.depth_m), ref_texture = upload(reference.texture);
-  const DeviceBuffer<float> live_depth = upload(live.depth_m), live_texture = upload(live.texture);
-  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+  RaycastResult device_model(MemoryType::kDevice);
+  raycaster.raycast(volume, model_pose, device_model);
+  const Image32f ref_depth = reference.depth_m.copy_to(MemoryType::kDevice);
+  const Image32f ref_texture = reference.texture.copy_to(MemoryType::kDevice);
+  const Image32f live_depth = live.depth_m.copy_to(MemoryType::kDevice);
+  const Image32f live_texture = live.texture.copy_to(MemoryType::kDevice);
+  raycaster.synchronize();
   cpu.set_reference_frame(reference.depth_m, reference.texture, model_pose);
   const TrackingResult a = cpu.track(live.depth_m, model.raycast, model_pose, model_pose, &live.texture);
   TrackingResult first;
   for (int n = 0; n < 3; ++n) {
-    gpu.set_reference_frame_device(ref_depth.data(), ref_texture.data(), model_pose);
-    const TrackingResult b =
-        gpu.track_device(live_depth.data(), raycaster, model_pose, model_pose, live_texture.data());
+    gpu.set_reference_frame(ref_depth, ref_texture, model_pose);
+    const TrackingResult b = gpu.track(live_depth, device_model, model_pose, model_pose, &live_texture);
     if (n == 0) {
-      print("photometric, track_device", a, b);
+      print("photometric, maps on the GPU", a, b);
       EXPECT_TRUE(b.photometric) << b.photometric_skipped;
-      // The GPU raycast differs from the CPU one by float rounding (TrackDeviceOnTheRaycastersMaps).
+      // The GPU raycast differs from the CPU one by float rounding (MapsOnTheGpuAreReadInPlace).
       expect_equal(a, b, 1e-3, 0.1);
       first = b;
     } else {
@@ -421,7 +456,7 @@ TEST(TrackerCuda, PhotometricEqualsCpu) {
     }
   }
   // Without a texture the term is off, as on the CPU.
-  const TrackingResult c = gpu.track_device(live_depth.data(), raycaster, model_pose, model_pose);
+  const TrackingResult c = gpu.track(live_depth, device_model, model_pose, model_pose);
   EXPECT_FALSE(c.photometric);
   EXPECT_EQ(c.photometric_skipped, "no live texture");
 }
@@ -437,14 +472,15 @@ TEST(TrackerCuda, PhotometricBadInputIsAClearError) {
   test::expect_invalid([&] { gpu.track(live, m.raycast, m.T_world_model, m.T_world_model, &small); },
                        "live texture is 100x80");
   test::expect_invalid([&] { gpu.set_reference_frame(live, small, m.T_world_model); }, "reference texture");
-  DeviceBuffer<float> buffer(live.pixel_count());
-  test::expect_invalid([&] { gpu.set_reference_frame_device(buffer.data(), nullptr, m.T_world_model); },
-                       "no reference texture");
-  test::expect_invalid([&] { gpu.set_reference_frame_device(nullptr, buffer.data(), m.T_world_model); },
-                       "no reference depth map");
+  const Image32f small_device = small.copy_to(MemoryType::kDevice);
+  test::expect_invalid([&] { gpu.set_reference_frame(live, small_device, m.T_world_model); }, "reference texture");
+  // A CPU tracker reads host maps only.
   Tracker cpu(Device::cpu(), m.camera, options);
-  test::expect_invalid([&] { cpu.set_reference_frame_device(buffer.data(), buffer.data(), m.T_world_model); },
-                       "make it for CUDA");
+  const Image32f texture_device = Image32f(live.width(), live.height(), 1.0f).copy_to(MemoryType::kDevice);
+  test::expect_invalid([&] { cpu.set_reference_frame(live, texture_device, m.T_world_model); },
+                       "reference texture is on a GPU");
+  test::expect_invalid([&] { cpu.track(live, m.raycast, m.T_world_model, m.T_world_model, &texture_device); },
+                       "live texture is on a GPU");
 }
 
 }  // namespace

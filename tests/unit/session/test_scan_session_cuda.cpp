@@ -1,13 +1,11 @@
 // The scan session on a CUDA GPU equals the CPU session (poses, moves); skips with no GPU.
 #include <gtest/gtest.h>
 
-#include <cuda_runtime_api.h>
 
 #include "fusion/integrator.h"
 #include "fusion/moving_volume.h"
 #include "fusion/raycaster.h"
 #include "fusion/tracker.h"
-#include "sdk/core/cuda/device_buffer.h"
 #include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_session.h"
 #include "tests/support/test_support.h"
@@ -66,12 +64,11 @@ TEST_P(ScanSessionStagesCuda, EqualTheCpuOnes) {
   fusion::Tracker gpu_tracker(Device::cuda(), camera);
   const fusion::TrackingResult a = cpu_tracker.track(*second.depth_m, cpu_model, Pose(), Pose());
   const fusion::TrackingResult b = gpu_tracker.track(*second.depth_m, gpu_model, Pose(), Pose());
-  gpu_raycaster.raycast_device(gpu_volume.volume(), Pose());
+  fusion::RaycastResult device_model(MemoryType::kDevice);
+  gpu_raycaster.raycast(gpu_volume.volume(), Pose(), device_model);
+  const Image32f live = second.depth_m->copy_to(MemoryType::kDevice);
   gpu_raycaster.synchronize();
-  DeviceBuffer<float> live(second.depth_m->pixel_count());
-  live.upload(second.depth_m->data(), second.depth_m->pixel_count(), nullptr);
-  ASSERT_EQ(cudaStreamSynchronize(nullptr), cudaSuccess);
-  const fusion::TrackingResult c = gpu_tracker.track_device(live.data(), gpu_raycaster, Pose(), Pose());
+  const fusion::TrackingResult c = gpu_tracker.track(live, device_model, Pose(), Pose());
   for (const auto* r : {&a, &b, &c}) {
     std::printf("[ measured ] %s: lost %d (%s) inliers %zu rms %.2f um it %d\n",
                 r == &a ? "cpu" : (r == &b ? "cuda, host maps" : "cuda, device maps"), r->lost ? 1 : 0,
