@@ -127,6 +127,11 @@ struct VolumeView {
     }
   }
   SLS_HOST_DEVICE bool keeps_average() const { return a32 != nullptr || a16 != nullptr; }
+  // Bytes a voxel takes (U, W and A where kept): what reading or writing one moves.
+  SLS_HOST_DEVICE std::size_t bytes_per_voxel() const {
+    const std::size_t uw = format == VoxelFormat::kFloat32 ? 8 : 3;
+    return uw + (a32 != nullptr ? 4 : 0) + (a16 != nullptr ? 2 : 0);
+  }
   // A: the running average where the volume keeps it, else U (which then is A).
   SLS_HOST_DEVICE float average(std::size_t index) const {
     if (a32 != nullptr) return a32[index];

@@ -6,6 +6,7 @@
 
 #include "sdk/core/cuda/cuda_check.h"
 #include "sdk/core/device.h"
+#include "sdk/core/kernel_profile.h"
 #include "sdk/core/parallel_for.h"
 
 namespace sls::fusion::detail {
@@ -52,6 +53,13 @@ void launch_integrate_cuda(const VolumeView& volume, const IntegrationParams& pa
                            const int first[3], const int extent[3], ActiveVoxel* const active[2],
                            std::uint32_t* counters, std::uint32_t capacity, cudaStream_t stream) {
   if (extent[0] <= 0 || extent[1] <= 0 || extent[2] <= 0) return;
+  // An estimate: the map read, and each voxel of the frustum's box once (a voxel in front of
+  // the surface is read and written, one behind it neither; the split depends on the view).
+  const double box_voxels = static_cast<double>(extent[0]) * extent[1] * extent[2];
+  const KernelTimer timer("integrate",
+                          box_voxels * static_cast<double>(volume.bytes_per_voxel()) +
+                              4.0 * static_cast<double>(frame.width) * frame.height,
+                          stream);
   const dim3 block(64, 4, 1);  // x a multiple of 32: integrate_kernel's ballots take a warp as one row
   const dim3 grid((static_cast<unsigned>(extent[0]) + block.x - 1) / block.x,
                   (static_cast<unsigned>(extent[1]) + block.y - 1) / block.y, static_cast<unsigned>(extent[2]));
@@ -134,6 +142,9 @@ void launch_depth_summary_cuda(const float* depth, std::size_t pixels, std::size
 
 void launch_relax_cuda(const VolumeView& volume, const IntegrationParams& params, const ActiveVoxel* active,
                        std::uint32_t count, cudaStream_t stream) {
+  // Each active voxel's entry read, its voxel read and written (its neighbours are others').
+  const double voxel_bytes = static_cast<double>(volume.bytes_per_voxel());
+  const KernelTimer timer("gtsdf_sweep", static_cast<double>(count) * (8.0 + 2.0 * voxel_bytes), stream);
   parallel_for(
       count, SLS_LAMBDA(std::size_t n) { relax_active_voxel(volume, params, active, n); }, stream);
 }

@@ -8,6 +8,7 @@
 #include <cub/device/device_radix_sort.cuh>
 
 #include "sdk/core/cuda/cuda_check.h"
+#include "sdk/core/kernel_profile.h"
 #include "sdk/core/parallel_for.h"
 
 namespace sls::fusion::detail {
@@ -116,6 +117,11 @@ dim3 voxel_grid(int nx, int ny, int nz, const dim3& block) {
 
 void launch_resample_cuda(const VolumeView& from, const VolumeView& to, const Rigid3f& grid_from_to,
                           cudaStream_t stream) {
+  // Each voxel of the new volume written, one of the old one's read for it.
+  const KernelTimer timer("resample",
+                          static_cast<double>(to.voxel_count()) *
+                              static_cast<double>(to.bytes_per_voxel() + from.bytes_per_voxel()),
+                          stream);
   if (to.surface_bricks != nullptr) SLS_CUDA_CHECK(cudaMemsetAsync(to.surface_bricks, 0, to.brick_count(), stream));
   const dim3 block(64, 4, 1);
   resample_kernel<<<voxel_grid(to.nx, to.ny, to.nz, block), block, 0, stream>>>(from, to, grid_from_to);

@@ -6,6 +6,7 @@
 #include "fusion/cuda/track_cuda.h"
 
 #include "sdk/core/cuda/cuda_check.h"
+#include "sdk/core/kernel_profile.h"
 
 namespace sls::fusion::detail {
 namespace {
@@ -205,6 +206,10 @@ void launch_frame_statistics_cuda(const Vec3f* model_points, const float* live_d
 
 void launch_track_cuda(const TrackLiveView& live, const TrackModelView& model, const TrackParams& params,
                        double* partials, double* out, cudaStream_t stream) {
+  // Per live pixel its depth, ray, normal (and weight) read, and the model's point and normal
+  // it projects to.
+  const double pixel_bytes = 4.0 + 12.0 + 12.0 + (live.weights != nullptr ? 4.0 : 0.0) + 24.0;
+  const KernelTimer timer("icp_reduction", pixel_bytes * static_cast<double>(live.width) * live.height, stream);
   const int blocks = reduction_blocks(live.width * live.height);
   track_kernel<<<blocks, kTrackThreads, 0, stream>>>(live, model, params, partials);
   SLS_CUDA_CHECK_LAUNCH();

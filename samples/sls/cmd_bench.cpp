@@ -5,7 +5,9 @@
 // share), the loop closure and the final (deformed) model extracted into host memory, timed.
 // It prints the end-to-end seconds of the revolution with the per-stage medians and totals
 // beside them, the slowest frames, and on a GPU its memory in use and the device-to-device copy
-// bandwidth measured in the same run (the ceiling a memory-bound kernel is judged against).
+// bandwidth measured in the same run (the ceiling a memory-bound kernel is judged against) with
+// each hot kernel's GPU time and achieved bandwidth as a fraction of it (sdk/core/kernel_profile.h:
+// CUDA events around the launches, bytes by each launcher's traffic model).
 // After the timed part, the model's accuracy against the simulator's exact truth (sls eval's
 // C2C, edge C2C, ATE and loop-closure error), so a run under a GPU memory budget can be
 // compared with one without on accuracy as well as speed.
@@ -28,6 +30,7 @@
 #include "sdk/eval/evaluate.h"
 #include "sdk/core/device.h"
 #include "sdk/core/error.h"
+#include "sdk/core/kernel_profile.h"
 #include "sdk/core/memory_type.h"
 #include "sdk/core/serial_worker.h"
 #include "sdk/core/stopwatch.h"
@@ -205,6 +208,8 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
   // from here to the final model.
   const GpuAllocations before_scan = gpu_allocations();
   reset_gpu_allocation_peak();
+  // Each hot kernel's GPU time and traffic, from the first frame to the final model.
+  if (device.is_cuda()) set_kernel_profiling(true);
   SerialWorker uploader;  // the uploads ahead on one thread, as run_pipeline's
   for (int k = 0; k < frames; ++k) {
     report_progress(progress, {"bench", static_cast<std::size_t>(k), static_cast<std::size_t>(frames), ""});
@@ -261,6 +266,8 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
   const fusion::ExtractedSurface model = session.final_surface(&model_times);
   const double extract_s = ms_since(start) * 1e-3;
   const GpuAllocations scan_allocations = gpu_allocations();
+  const std::vector<KernelFigures> kernels = kernel_profile();
+  set_kernel_profiling(false);
 
   const auto stage = [](const std::vector<double>& ms) {
     return nlohmann::json{{"median_ms", quantile(ms, 0.5)}, {"total_s", sum(ms) * 1e-3}};
@@ -323,6 +330,19 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
                      {"allocated_before_scan_bytes", before_scan.in_use_bytes},
                      {"allocated_peak_bytes", scan_allocations.peak_bytes},
                      {"copy_bandwidth_gb_s", copy_bandwidth_gbps(device)}};
+    // Each hot kernel's achieved (effective) bandwidth against the copy's (kernel_profile.h).
+    const double copy_gb_s = result["gpu"]["copy_bandwidth_gb_s"].get<double>();
+    nlohmann::json kernel_rows = nlohmann::json::array();
+    for (const KernelFigures& k : kernels) {
+      kernel_rows.push_back({{"name", k.name},
+                             {"launches", k.launches},
+                             {"gpu_s", k.gpu_ms * 1e-3},
+                             {"mean_ms", k.gpu_ms / static_cast<double>(k.launches)},
+                             {"model_bytes", k.bytes},
+                             {"achieved_gb_s", k.achieved_gb_s()},
+                             {"fraction_of_copy", copy_gb_s > 0.0 ? k.achieved_gb_s() / copy_gb_s : 0.0}});
+    }
+    result["gpu"]["kernels"] = kernel_rows;
   }
   // Not timed, not in end_to_end_s: on the host, after every GPU figure above.
   start = SteadyClock::now();
@@ -382,6 +402,12 @@ void print_bench(const nlohmann::json& r) {
                              r["gpu"]["budget_bytes"].get<double>() > 0.0
                                  ? fmt::format(", budget {:.2f} GB", r["gpu"]["budget_bytes"].get<double>() * 1e-9)
                                  : std::string());
+    std::cout << "kernel          launches   GPU s   mean ms   GB/s   of the copy's\n";
+    for (const nlohmann::json& k : r["gpu"]["kernels"]) {
+      std::cout << fmt::format("{:<15} {:8} {:7.2f} {:9.3f} {:6.0f} {:8.0f} %\n", k["name"].get<std::string>(),
+                               k["launches"].get<std::size_t>(), k["gpu_s"].get<double>(), k["mean_ms"].get<double>(),
+                               k["achieved_gb_s"].get<double>(), 100.0 * k["fraction_of_copy"].get<double>());
+    }
   }
 }
 

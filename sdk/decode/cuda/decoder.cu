@@ -14,6 +14,7 @@
 #include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/host_memory.h"
+#include "sdk/core/kernel_profile.h"
 #include "sdk/core/pinned_memory.h"
 
 namespace sls::detail {
@@ -71,6 +72,13 @@ void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& t
                         const std::uint16_t* stack, std::size_t plane_stride, const Vec3f* rays,
                         const std::uint8_t* ray_valid, const DecodeOutputsDevice& outputs, cudaStream_t stream) {
   if (width <= 0 || height <= 0) return;
+  // Per pixel each image of the stack read (16 bits), its ray (and validity) read, each output
+  // asked for written.
+  const int images = std::max({decode.layout.pattern_count, decode.layout.white_index + 1, decode.layout.black_index + 1});
+  const double output_bytes = 4.0 * ((outputs.u != nullptr) + (outputs.v != nullptr) +
+                                     (outputs.confidence != nullptr) + (outputs.depth != nullptr)) +
+                              (outputs.mask != nullptr ? 1.0 : 0.0);
+  const KernelTimer timer("decode", (2.0 * images + 13.0 + output_bytes) * static_cast<double>(width) * height, stream);
   const dim3 block(32, kDecodeBlockThreads / 32);
   const dim3 grid((static_cast<unsigned>(width) + block.x - 1) / block.x,
                   (static_cast<unsigned>(height) + block.y - 1) / block.y);

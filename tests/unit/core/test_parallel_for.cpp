@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "sdk/core/error.h"
+#include "sdk/core/kernel_profile.h"
 #include "sdk/core/parallel_for.h"
 
 namespace sls {
@@ -24,6 +25,12 @@ TEST(ParallelFor, NoElementsRunsNothing) {
   bool ran = false;
   parallel_for(Device::cpu(), 0, [&ran](std::size_t) { ran = true; });
   EXPECT_FALSE(ran);
+}
+
+TEST(KernelProfile, OffByDefaultAndATimerRecordsNothingThen) {
+  EXPECT_FALSE(kernel_profiling());
+  { const KernelTimer timer("nothing", 1.0, nullptr); }
+  EXPECT_TRUE(kernel_profile().empty());
 }
 
 TEST(ParallelFor, CudaLoopInCpuCodeIsUnsupported) {

@@ -1,6 +1,6 @@
 // parallel_for on a CUDA GPU: the same body as on the CPU gives the same values, loops queued
 // on one GpuStream run in order, and a count beyond one block's threads reaches every element.
-// Skips with no GPU.
+// The kernel profile (kernel_profile.h) times loops while it is on. Skips with no GPU.
 #include <cmath>
 #include <cstddef>
 #include <vector>
@@ -11,6 +11,7 @@
 
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/gpu_stream.h"
+#include "sdk/core/kernel_profile.h"
 #include "sdk/core/parallel_for.h"
 #include "tests/support/test_support.h"
 
@@ -54,6 +55,36 @@ TEST(ParallelForCuda, StreamsAreSharedAndOwned) {
   EXPECT_NE(GpuStream::or_create(GpuStream{}, Device::cuda(0)), stream);
   EXPECT_FALSE(GpuStream::create(Device::cpu()).valid());
   GpuStream{}.synchronize();  // none: nothing to wait for
+}
+
+// A launcher's timer around a loop, as the fusion and decode launchers time theirs.
+void timed_fill(float* out, std::size_t count, const GpuStream& stream) {
+  const KernelTimer timer("fill", 4.0 * static_cast<double>(count), stream.native());
+  fill(Device::cuda(0), out, count, stream);
+}
+
+TEST(KernelProfileCuda, TimesEachLaunchWhileOnAndSumsByName) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const std::size_t count = std::size_t{1} << 24;
+  const GpuStream stream = GpuStream::create(Device::cuda(0));
+  DeviceBuffer<float> values(count);
+  set_kernel_profiling(false);
+  timed_fill(values.data(), count, stream);  // off: not recorded
+  set_kernel_profiling(true);
+  EXPECT_TRUE(kernel_profiling());
+  for (int n = 0; n < 3; ++n) timed_fill(values.data(), count, stream);
+  const std::vector<KernelFigures> figures = kernel_profile();
+  set_kernel_profiling(false);
+  ASSERT_EQ(figures.size(), 1u);
+  EXPECT_EQ(figures[0].name, "fill");
+  EXPECT_EQ(figures[0].launches, 3u);
+  EXPECT_EQ(figures[0].bytes, 3.0 * 4.0 * static_cast<double>(count));
+  EXPECT_GT(figures[0].gpu_ms, 0.0);
+  EXPECT_GT(figures[0].achieved_gb_s(), 0.0);
+  // Turned on again: what was recorded before is gone.
+  set_kernel_profiling(true);
+  EXPECT_TRUE(kernel_profile().empty());
+  set_kernel_profiling(false);
 }
 
 }  // namespace
