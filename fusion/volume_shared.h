@@ -204,9 +204,15 @@ SLS_HOST_DEVICE inline bool sample_u(const VolumeView& v, Vec3f point_volume, fl
   const int i = static_cast<int>(fx), j = static_cast<int>(fy), k = static_cast<int>(fz);
   if (i < 0 || j < 0 || k < 0 || i + 1 >= v.nx || j + 1 >= v.ny || k + 1 >= v.nz) return false;
   const float tx = gx - fx, ty = gy - fy, tz = gz - fz;
+  // The corners from one index and the strides: the same voxels as index() for each, without
+  // eight 64-bit multiplications (integer work was the raycast's busiest pipe, ncu).
+  const std::size_t row = static_cast<std::size_t>(v.nx);
+  const std::size_t slice = row * static_cast<std::size_t>(v.ny);
+  const std::size_t base = v.index(i, j, k);
+  const std::size_t offsets[8] = {0, 1, row, row + 1, slice, slice + 1, slice + row, slice + row + 1};
   float corner[8];
   for (int c = 0; c < 8; ++c) {
-    const std::size_t index = v.index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+    const std::size_t index = base + offsets[c];
     if (!(v.w(index) > 0.0f)) return false;
     corner[c] = v.u(index);
   }
