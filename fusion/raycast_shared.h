@@ -146,15 +146,16 @@ SLS_HOST_DEVICE inline RaycastHit raycast_pixel(const VolumeView& v, const Rayca
   float t0 = p.min_depth_m, t1 = p.max_depth_m;
   if (!clip_to_volume(v, origin, direction, &t0, &t1)) return hit;
   const float min_step = v.voxel_size_m / ray_length;  // one voxel of path
+  const float to_grid = 1.0f / v.voxel_size_m;         // sample_u's: one reciprocal, no division a step
   float t = t0;
   float previous = 0.0f, previous_t = 0.0f;
   bool have_previous = false;
   while (t <= t1) {
     const Vec3f point = origin + t * direction;
     // Empty-space skipping: a brick no surface voxel has touched is crossed in one jump.
-    const int vi = static_cast<int>(point.x / v.voxel_size_m);
-    const int vj = static_cast<int>(point.y / v.voxel_size_m);
-    const int vk = static_cast<int>(point.z / v.voxel_size_m);
+    const int vi = static_cast<int>(point.x * to_grid);
+    const int vj = static_cast<int>(point.y * to_grid);
+    const int vk = static_cast<int>(point.z * to_grid);
     if (v.contains(vi, vj, vk) && !v.may_hold_surface(vi, vj, vk)) {
       t = brick_exit(v, origin, direction, vi, vj, vk, t) + 1e-3f * min_step;
       have_previous = false;

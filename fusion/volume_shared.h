@@ -197,9 +197,12 @@ struct VolumeView {
 // Trilinear U at a volume-frame point; false when a corner lies outside the volume or has
 // never been observed (W = 0). The surface is where it crosses 0.
 SLS_HOST_DEVICE inline bool sample_u(const VolumeView& v, Vec3f point_volume, float* value) {
-  const float gx = point_volume.x / v.voxel_size_m - 0.5f;
-  const float gy = point_volume.y / v.voxel_size_m - 0.5f;
-  const float gz = point_volume.z / v.voxel_size_m - 0.5f;
+  // One reciprocal (hoisted out of a caller's loop) rather than three divisions a sample: an
+  // IEEE division is a dozen instructions on a GPU, and a raycast samples ~10 times a ray.
+  const float to_grid = 1.0f / v.voxel_size_m;
+  const float gx = point_volume.x * to_grid - 0.5f;
+  const float gy = point_volume.y * to_grid - 0.5f;
+  const float gz = point_volume.z * to_grid - 0.5f;
   const float fx = std::floor(gx), fy = std::floor(gy), fz = std::floor(gz);
   const int i = static_cast<int>(fx), j = static_cast<int>(fy), k = static_cast<int>(fz);
   if (i < 0 || j < 0 || k < 0 || i + 1 >= v.nx || j + 1 >= v.ny || k + 1 >= v.nz) return false;
