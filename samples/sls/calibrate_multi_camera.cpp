@@ -77,10 +77,13 @@ nlohmann::json multi_camera_calibration_json(const calib::MultiCameraCalibrateRe
                         {"projector_principal_point_err_px", e.projector_principal_point_err_px},
                         {"projector_baseline_rel_err", e.baseline_rel_err},
                         {"projector_rotation_err_deg", e.rotation_err_deg}};
-      if (k > 0 && k - 1 < result.pair_errors.size()) {
-        entry["truth"]["camera_camera"] = pose_errors_json(result.pair_errors[k - 1]);
-        entry["truth"]["camera_camera"]["via_projector"] = pose_errors_json(result.pair_errors_via_projector[k - 1]);
-      }
+    }
+    // The head's exact calibration (groundtruth/calibration.yml) gives the camera–camera truth
+    // also where the cameras' recordings have none of their own (a head captured through
+    // devices, its truth put beside it).
+    if (k > 0 && k - 1 < result.pair_errors.size()) {
+      entry["truth"]["camera_camera"] = pose_errors_json(result.pair_errors[k - 1]);
+      entry["truth"]["camera_camera"]["via_projector"] = pose_errors_json(result.pair_errors_via_projector[k - 1]);
     }
     cameras.push_back(entry);
   }
@@ -93,9 +96,10 @@ nlohmann::json multi_camera_calibration_json(const calib::MultiCameraCalibrateRe
 
 int run_multi_camera_calibrate(const Context& context, const calib::CalibrateCaptureOptions& options,
                                const MultiCameraOutput& output) {
-  const calib::MultiCameraCalibrateResult result =
-      calib::calibrate_multi_camera_capture(options, context.progress_callback("calibrate"));
+  const calib::MultiCameraCalibrateResult result = calib::calibrate_multi_camera_capture(
+      options, output.progress ? output.progress : context.progress_callback("calibrate"));
   nlohmann::json json = multi_camera_calibration_json(result);
+  if (!output.capture.is_null()) json["capture"] = output.capture;
   std::string too_high;
   for (const auto& [what, rms] : judged_rms(result)) {
     if (!(rms <= output.max_rms_px)) too_high += fmt::format("{}{} {:.3f} px", too_high.empty() ? "" : ", ", what, rms);
