@@ -85,7 +85,8 @@ std::vector<RecordingWriter> continue_head(const std::string& folder, const std:
     throw_error(ErrorCode::kInvalidArgument, "resume: {} holds {}: a head of more than the {} cameras given", folder,
                 extra, cameras.size());
   }
-  std::vector<RecordingWriter> writers;
+  // The layout first: a head of another camera count is named as such, not by the first
+  // difference one camera's recording shows.
   for (std::size_t k = 0; k < cameras.size(); ++k) {
     const std::string camera_folder = head_camera_folder(folder, k);
     if (!std::filesystem::exists(std::filesystem::path(camera_folder) / "manifest.json", error)) {
@@ -93,6 +94,10 @@ std::vector<RecordingWriter> continue_head(const std::string& folder, const std:
                   "resume: {} holds no recording for camera {} ({}): not a head of {} cameras to continue", folder, k,
                   camera_folder, cameras.size());
     }
+  }
+  std::vector<RecordingWriter> writers;
+  for (std::size_t k = 0; k < cameras.size(); ++k) {
+    const std::string camera_folder = head_camera_folder(folder, k);
     try {
       writers.push_back(append_to_recording_of(camera_folder, projector, *cameras[k], patterns));
     } catch (const Error& failure) {

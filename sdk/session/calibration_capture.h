@@ -117,7 +117,7 @@ struct CalibrationDevices {
   drivers::Turntable* turntable = nullptr;  // null: no turntable poses
   std::string turntable_name = "turntable";  // in messages, e.g. its URI
   // A head of several cameras: cameras 1 .. K−1 (`camera` is camera 0); empty for one camera.
-  std::vector<drivers::Camera*> more_cameras;
+  std::vector<drivers::Camera*> more_cameras = {};
 
   // Every camera, camera 0 first.
   std::vector<drivers::Camera*> cameras() const;
