@@ -141,12 +141,16 @@ int run_multi_camera_calibrate(const Context& context, const calib::CalibrateCap
                                  pair.views, 1e3 * pair.T_camera0_camera.translation().norm(), pair.rms_px);
       }
       std::cout << "\n";
-      if (camera.errors) {
-        std::cout << fmt::format("    against the exact calibration: focal {:.4f} %, principal point {:.3f} px",
-                                 100.0 * camera.errors->camera_focal_rel_err,
-                                 camera.errors->camera_principal_point_err_px);
-        if (k > 0 && k - 1 < result.pair_errors.size()) {
-          std::cout << fmt::format(", camera-camera baseline {:.4f} %, rotation {:.4f}°",
+      const bool pair_truth = k > 0 && k - 1 < result.pair_errors.size();
+      if (camera.errors || pair_truth) {
+        std::cout << "    against the exact calibration:";
+        if (camera.errors) {
+          std::cout << fmt::format(" focal {:.4f} %, principal point {:.3f} px",
+                                   100.0 * camera.errors->camera_focal_rel_err,
+                                   camera.errors->camera_principal_point_err_px);
+        }
+        if (pair_truth) {
+          std::cout << fmt::format("{} camera-camera baseline {:.4f} %, rotation {:.4f}°", camera.errors ? "," : "",
                                    100.0 * result.pair_errors[k - 1].baseline_rel_err,
                                    result.pair_errors[k - 1].rotation_err_deg);
         }
