@@ -104,8 +104,10 @@ class SlsCalibrateHead(unittest.TestCase):
         self.assertEqual(recalibrated["camera_camera_rms_px"], figures["camera_camera_rms_px"])
         truth = recalibrated["cameras"][1]["truth"]["camera_camera"]
         print(f"\ncaptured head against sls sim's truth: {json.dumps(truth)}")
-        self.assertLess(truth["baseline_rel_err"], 0.05)
-        self.assertLess(truth["rotation_err_deg"], 2.0)
+        # ci's 400 x 300 pixels and 7 views: 4.7 % and 1.0° measured (docs/benchmarks.md); a
+        # camera of another place or another pose would be off by tens of percent and degrees.
+        self.assertLess(truth["baseline_rel_err"], 0.1)
+        self.assertLess(truth["rotation_err_deg"], 3.0)
 
     def test_resume_continues_every_camera_and_refuses_disagreeing_recordings(self):
         head = self.dir / "head"
