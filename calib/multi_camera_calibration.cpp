@@ -25,9 +25,7 @@ bool inlier(const std::vector<std::uint8_t>& mask, std::size_t corner) {
   return corner < mask.size() && mask[corner] != 0;
 }
 
-std::string camera_folder(const std::string& folder, std::size_t camera) {
-  return (fs::path(folder) / fmt::format("camera{}", camera)).string();
-}
+std::string camera_folder(const std::string& folder, std::size_t camera) { return head_camera_folder(folder, camera); }
 
 // The board poses a camera's capture holds, before anything is read: a recording's frames,
 // or a folder's pose subfolders.

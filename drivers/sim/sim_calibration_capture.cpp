@@ -60,6 +60,18 @@ constexpr double kEdgeMarginFraction = 0.01;
 constexpr double kMaxIncidenceDeg = 80.0;
 constexpr double kDepthOfFieldM = 5e-3;
 
+// The lenses of cameras 1, 2, 3 of a head (camera 0 has the rig's: k1 −0.3, p1 2e-4, p2
+// −1e-4): barrel distortion and decentring of the same order, each its own, so that a
+// calibration that mixed the cameras up would show in their truth figures.
+struct SimCameraLens {
+  double k1, p1, p2;
+};
+constexpr SimCameraLens kSimHeadLenses[kMaxSimCalibrationCameras - 1] = {
+    {-0.25, -1e-4, 1.5e-4},
+    {-0.2, 1e-4, 2e-4},
+    {-0.35, -2e-4, -5e-5},
+};
+
 Eigen::Matrix3d rotation(double angle_rad, const Eigen::Vector3d& axis) {
   return Eigen::AngleAxisd(angle_rad, axis.normalized()).toRotationMatrix();
 }
@@ -324,8 +336,8 @@ std::vector<SimRig> make_calibration_rigs(const SimCalibrationOptions& options) 
   }
   if (options.cameras < 1 || options.cameras > kMaxSimCalibrationCameras) {
     throw_error(ErrorCode::kInvalidArgument,
-                "{} cameras: the simulated head has places for 1 or {} (the second mirrors the first across the "
-                "projector)",
+                "{} cameras: the simulated head has places for 1 to {} (round the projector: left, right, above, "
+                "below)",
                 options.cameras, kMaxSimCalibrationCameras);
   }
   RigOptions rig_options = options.rig;
@@ -348,26 +360,38 @@ std::vector<SimRig> make_calibration_rigs(const SimCalibrationOptions& options) 
 
   const Eigen::Vector3d focus = rig.T_world_camera * Eigen::Vector3d(0.0, 0.0, rig.optics.working_distance_m);
   std::vector<SimRig> rigs = {rig};
-  // A second camera mirrors the first across the projector: turned twice the triangulation
-  // angle about the vertical through the focus, the projector between them, with a lens of
-  // its own (another distortion). The boards then face the projector, halfway between them.
+  // More cameras stand round the projector, each at the triangulation angle from it (the
+  // head's layout, docs/simulator.md): camera 1 mirrors camera 0 across it (twice the angle
+  // round the vertical through the focus), cameras 2 and 3 stand above and below it (at the
+  // projector's azimuth, the angle up or down about the horizontal through the focus), so a
+  // head of four is a cross round the projector. Each has a lens (another distortion) and a
+  // sensor of its own. The boards then face the projector, the middle of them.
   double facing_rad = 0.0;
-  if (options.cameras == 2) {
-    const double turn = 2.0 * rig.optics.triangulation_angle_rad;
-    const Pose about_focus(rotation(turn, Eigen::Vector3d::UnitZ()),
-                           focus - rotation(turn, Eigen::Vector3d::UnitZ()) * focus);
-    SimRig second = rig;
-    second.T_world_camera = about_focus * rig.T_world_camera;
-    second.T_camera_projector = second.T_world_camera.inverse() * rig.T_world_camera * rig.T_camera_projector;
-    second.camera.k1 = -0.25;
-    second.camera.p1 = -1e-4;
-    second.camera.p2 = 1.5e-4;
-    // A sensor of its own: noise keyed by (seed, frame, pattern, pixel) would otherwise repeat
-    // the first camera's, pixel for pixel. The table's jitter (turntable.seed) is the same
-    // motion for both.
-    second.noise_seed = rig.noise_seed ^ 0x9e3779b97f4a7c15ULL;
-    rigs.push_back(second);
-    facing_rad = 0.5 * turn;
+  if (options.cameras >= 2) {
+    const double angle = rig.optics.triangulation_angle_rad;
+    facing_rad = angle;
+    const auto about_focus = [&focus](const Eigen::Matrix3d& turn) { return Pose(turn, focus - turn * focus); };
+    const Eigen::Matrix3d to_projector = rotation(angle, Eigen::Vector3d::UnitZ());
+    // The horizontal through the focus, square to the projector's line of sight.
+    const Eigen::Vector3d across = Eigen::Vector3d::UnitZ().cross(to_projector * Eigen::Vector3d::UnitX());
+    const Eigen::Matrix3d turns[kMaxSimCalibrationCameras - 1] = {
+        rotation(2.0 * angle, Eigen::Vector3d::UnitZ()),
+        rotation(-angle, across) * to_projector,  // above: camera 0's centre is on +x
+        rotation(angle, across) * to_projector,   // below
+    };
+    for (int k = 1; k < options.cameras; ++k) {
+      const SimCameraLens& lens = kSimHeadLenses[k - 1];
+      SimRig camera = rig;
+      camera.T_world_camera = about_focus(turns[k - 1]) * rig.T_world_camera;
+      camera.T_camera_projector = camera.T_world_camera.inverse() * rig.T_world_camera * rig.T_camera_projector;
+      camera.camera.k1 = lens.k1;
+      camera.camera.p1 = lens.p1;
+      camera.camera.p2 = lens.p2;
+      // A sensor of its own: noise keyed by (seed, frame, pattern, pixel) would otherwise repeat
+      // camera 0's, pixel for pixel. The table's jitter (turntable.seed) is one motion for all.
+      camera.noise_seed = rig.noise_seed ^ (std::uint64_t{0x9e3779b97f4a7c15} * static_cast<std::uint64_t>(k));
+      rigs.push_back(camera);
+    }
   }
 
   const ChessboardParameters& board = options.board;
@@ -436,8 +460,6 @@ ScannerCalibration head_calibration(const std::vector<SimRig>& rigs) {
 }
 
 namespace {
-
-std::string camera_folder_name(int camera) { return fmt::format("camera{}", camera); }
 
 // One camera's capture: its recording in `folder`, its truth (that camera with the projector)
 // in the recording's groundtruth/. Progress counts frames from `frames_before` of `frames_all`.
@@ -532,7 +554,7 @@ SimRecordingSummary write_sim_calibration_recording(const std::string& folder, c
   SimRecordingSummary summary;
   for (std::size_t k = 0; k < rigs.size(); ++k) {
     const SimRecordingSummary camera =
-        write_camera_capture(folder + "/" + camera_folder_name(static_cast<int>(k)), rigs[k], options, device, progress,
+        write_camera_capture(head_camera_folder(folder, k), rigs[k], options, device, progress,
                              static_cast<int>(k) * frames, static_cast<int>(rigs.size()) * frames);
     if (k == 0) summary = camera;
   }

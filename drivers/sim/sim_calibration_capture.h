@@ -41,8 +41,10 @@ ChessboardParameters calibration_board();
 // microstepping, as the head controller's); commanded angles are whole steps.
 constexpr int kCalibrationTurntableSteps = 6400;
 
-// A simulated head has one camera, or two: the second mirrors the first across the projector.
-constexpr int kMaxSimCalibrationCameras = 2;
+// A simulated head has one to four cameras round the projector, each at the triangulation
+// angle from it: camera 0 to its left (the scan's camera), 1 to its right (mirroring 0 across
+// it), 2 above it and 3 below it.
+constexpr int kMaxSimCalibrationCameras = 4;
 
 struct SimCalibrationOptions {
   // Preset, camera width, projector, bit depth, gamma, turntable jitter, seed, noise. The
@@ -57,9 +59,11 @@ struct SimCalibrationOptions {
   std::string head_object = "knurled-screw";
   ChessboardParameters board = calibration_board();
   // Cameras of the head (1 .. kMaxSimCalibrationCameras). With 2 the second camera stands
-  // twice the triangulation angle round from the first (the projector halfway between them),
-  // every board faces the projector and stays in view of both, and the capture is one
-  // recording per camera (the layout below).
+  // twice the triangulation angle round from the first (the projector halfway between them);
+  // a third and a fourth stand above and below the projector, the triangulation angle up and
+  // down from it. Every board then faces the projector and stays in view of every camera (the
+  // hand poses depend on the count), and the capture is one recording per camera (the layout
+  // below). One and two cameras give what they gave before the others existed, bit for bit.
   int cameras = 1;
 };
 

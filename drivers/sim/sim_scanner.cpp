@@ -1,7 +1,9 @@
 #include "drivers/sim/sim_scanner.h"
 
 #include <cmath>
+#include <map>
 #include <set>
+#include <string>
 
 #include "drivers/sim/sim_calibration_capture.h"
 #include "sdk/core/error.h"
@@ -17,24 +19,34 @@ class SimCamera final : public drivers::Camera {
 
   drivers::CameraInfo info() const override {
     const SimRig& rig = scanner_->rig();
-    return {scanner_->uri(), "slscan simulated camera", "SIM-CAM-0", rig.camera.width, rig.camera.height,
-            rig.optics.camera_sensor.bit_depth};
+    return {scanner_->uri(), "slscan simulated camera", "SIM-CAM-" + std::to_string(scanner_->camera_index_),
+            rig.camera.width, rig.camera.height, rig.optics.camera_sensor.bit_depth};
   }
   void set_exposure_us(double exposure_us) override {
     if (!(exposure_us > 0.0)) throw_error(ErrorCode::kInvalidArgument, "exposure {} us must be positive", exposure_us);
     exposure_us_ = exposure_us;
     // The rig's optics (white_electrons, ambient) are for the nominal exposure; others scale
     // the light collected (HDR capture).
-    std::lock_guard<std::mutex> lock(scanner_->mutex_);
+    std::lock_guard<std::mutex> lock(scanner_->head_->mutex);
     scanner_->exposure_scale_ = exposure_us / kSimNominalExposureUs;
   }
   double exposure_us() const override { return exposure_us_; }
   void set_trigger_source(drivers::TriggerSource source) override { source_ = source; }
+  ~SimCamera() override { stop(); }
   void start() override {
-    scanner_->start_acquisition();
+    {
+      std::lock_guard<std::mutex> lock(scanner_->head_->mutex);
+      const bool others_acquiring = scanner_->head_->started_cameras > (started_ ? 1 : 0);
+      scanner_->start_acquisition(others_acquiring);
+      if (!started_) ++scanner_->head_->started_cameras;
+    }
     started_ = true;
   }
   void stop() override {
+    if (started_) {
+      std::lock_guard<std::mutex> lock(scanner_->head_->mutex);
+      --scanner_->head_->started_cameras;
+    }
     started_ = false;
     pending_ = 0;
   }
@@ -88,16 +100,16 @@ class SimProjector final : public drivers::Projector {
       throw_error(ErrorCode::kInvalidArgument, "{}: pattern {} of a set of {}", scanner_->uri(), index,
                   patterns_.size());
     }
-    std::lock_guard<std::mutex> lock(scanner_->mutex_);
-    scanner_->pattern_ = index;
+    std::lock_guard<std::mutex> lock(scanner_->head_->mutex);
+    scanner_->head_->pattern = index;
   }
   int current_pattern() const override {
-    std::lock_guard<std::mutex> lock(scanner_->mutex_);
-    return scanner_->pattern_;
+    std::lock_guard<std::mutex> lock(scanner_->head_->mutex);
+    return scanner_->head_->pattern;
   }
   void go_dark() override {
-    std::lock_guard<std::mutex> lock(scanner_->mutex_);
-    scanner_->pattern_ = -1;
+    std::lock_guard<std::mutex> lock(scanner_->head_->mutex);
+    scanner_->head_->pattern = -1;
   }
 
  private:
@@ -110,8 +122,8 @@ class SimTurntable final : public drivers::Turntable {
   explicit SimTurntable(std::shared_ptr<SimScanner> scanner) : scanner_(std::move(scanner)) {}
 
   void home(std::chrono::milliseconds) override {
-    std::lock_guard<std::mutex> lock(scanner_->mutex_);
-    scanner_->homed_ = true;
+    std::lock_guard<std::mutex> lock(scanner_->head_->mutex);
+    scanner_->head_->homed = true;
     move_locked(0);
   }
   // The simulated stepper moves in whole steps of 360° / steps_per_revolution; angles beyond
@@ -121,22 +133,22 @@ class SimTurntable final : public drivers::Turntable {
       throw_error(ErrorCode::kInvalidArgument, "{}: turntable angle {} must be finite and >= 0", scanner_->uri(),
                   angle_deg);
     }
-    std::lock_guard<std::mutex> lock(scanner_->mutex_);
-    if (!scanner_->homed_) throw_error(ErrorCode::kInvalidArgument, "{}: turntable not homed", scanner_->uri());
+    std::lock_guard<std::mutex> lock(scanner_->head_->mutex);
+    if (!scanner_->head_->homed) throw_error(ErrorCode::kInvalidArgument, "{}: turntable not homed", scanner_->uri());
     const double steps = angle_deg / 360.0 * steps_per_revolution();
     move_locked(static_cast<int>(std::lround(steps)));
   }
   double position_deg() const override {
-    std::lock_guard<std::mutex> lock(scanner_->mutex_);
-    return scanner_->rig().step_angle_deg(scanner_->step_);
+    std::lock_guard<std::mutex> lock(scanner_->head_->mutex);
+    return scanner_->rig().step_angle_deg(scanner_->head_->step);
   }
   int steps_per_revolution() const override { return scanner_->rig().turntable.steps_per_revolution; }
 
  private:
   void move_locked(int step) {
-    if (step != scanner_->step_) {
-      scanner_->step_ = step;
-      scanner_->captures_in_frame_ = 0;
+    if (step != scanner_->head_->step) {
+      scanner_->head_->step = step;
+      scanner_->scene_changed_locked();
     }
   }
   std::shared_ptr<SimScanner> scanner_;
@@ -169,15 +181,15 @@ std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
   if (uri.scheme != "sim") throw_error(ErrorCode::kInvalidArgument, "'{}' is not a sim:// URI", text);
   static const std::set<std::string> kKeys = {"preset", "frames",  "seed",   "noise", "device", "width",
                                               "projector", "bits", "gamma", "jitter", "tilt",  "offset_um",
-                                              "calibration", "hand_poses", "head", "material"};
+                                              "calibration", "hand_poses", "head", "material", "cameras", "camera"};
   for (const auto& [key, value] : uri.query) {
     if (kKeys.count(key) == 0) {
-      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector, bits, gamma, jitter, tilt, offset_um, calibration, hand_poses, head, material)",
+      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector, bits, gamma, jitter, tilt, offset_um, calibration, hand_poses, head, cameras, camera, material)",
                   text, key);
     }
   }
   const bool calibration = uri.get_int("calibration", 0) != 0;
-  for (const char* key : {"hand_poses", "head"}) {
+  for (const char* key : {"hand_poses", "head", "cameras", "camera"}) {
     if (!calibration && uri.query.count(key) != 0) {
       throw_error(ErrorCode::kInvalidArgument, "{}: '{}' is an option of a calibration target (calibration=1)", text, key);
     }
@@ -216,11 +228,42 @@ std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
   if (calibration_options.hand_poses < 1 || calibration_options.hand_poses > 1000) {
     throw_error(ErrorCode::kInvalidArgument, "{}: hand_poses={} (1 .. 1000)", text, calibration_options.hand_poses);
   }
+  calibration_options.cameras = uri.get_int("cameras", 1);
+  if (calibration_options.cameras < 1 || calibration_options.cameras > kMaxSimCalibrationCameras) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: cameras={} (the simulated head has 1 .. {})", text,
+                calibration_options.cameras, kMaxSimCalibrationCameras);
+  }
+  const int camera = uri.get_int("camera", 0);
+  if (camera < 0 || camera >= calibration_options.cameras) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: camera={} is not a camera of a head of {} (0 .. {}{})", text, camera,
+                calibration_options.cameras, calibration_options.cameras - 1,
+                uri.query.count("cameras") == 0 ? "; cameras=N says how many the head has" : "");
+  }
   Scene board = make_chessboard_scene(calibration_options.board);
-  SimRig rig = make_calibration_rig(calibration_options, board);
-  std::shared_ptr<SimScanner> scanner = create(std::move(rig), std::move(board), parse_device(device_text), text);
-  scanner->hand_placements_ = calibration_options.hand_poses;
+  // The head's geometry and poses depend on its camera count (every pose in view of all).
+  SimRig rig = make_calibration_rigs(calibration_options)[static_cast<std::size_t>(camera)];
+  drivers::DeviceUri head_uri = uri;
+  head_uri.query.erase("camera");
+  std::shared_ptr<Head> head = shared_head(head_uri.to_string());
+  Renderer renderer(std::move(rig), std::move(board), parse_device(device_text));
+  std::shared_ptr<SimScanner> scanner(new SimScanner(text, std::move(renderer), head));
+  scanner->camera_index_ = camera;
+  std::lock_guard<std::mutex> lock(head->mutex);
+  head->hand_placements = calibration_options.hand_poses;
   return scanner;
+}
+
+std::shared_ptr<SimScanner::Head> SimScanner::shared_head(const std::string& key) {
+  static std::mutex mutex;
+  static std::map<std::string, std::weak_ptr<Head>> heads;
+  std::lock_guard<std::mutex> lock(mutex);
+  for (auto it = heads.begin(); it != heads.end();) {  // forget heads nobody holds
+    it = it->second.expired() ? heads.erase(it) : std::next(it);
+  }
+  if (std::shared_ptr<Head> head = heads[key].lock()) return head;
+  auto head = std::make_shared<Head>();
+  heads[key] = head;
+  return head;
 }
 
 std::unique_ptr<drivers::Camera> SimScanner::camera() { return std::make_unique<SimCamera>(shared_from_this()); }
@@ -232,54 +275,60 @@ std::unique_ptr<drivers::Turntable> SimScanner::turntable() {
 }
 
 void SimScanner::place_object(int frame) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(head_->mutex);
   if (rig().placements.empty()) {
     throw_error(ErrorCode::kInvalidArgument, "{}: a scan's object stays on the turntable (no placements)", uri_);
   }
   if (frame < 0 || static_cast<std::size_t>(frame) >= rig().placements.size()) {
     throw_error(ErrorCode::kInvalidArgument, "{}: placement {} of {}", uri_, frame, rig().placements.size());
   }
-  if (frame != placement_) {
-    placement_ = frame;
-    captures_in_frame_ = 0;
+  if (frame != head_->placement) {
+    head_->placement = frame;
+    scene_changed_locked();
   }
 }
 
-void SimScanner::start_acquisition() {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (hand_placements_ == 0 || homed_) return;  // no operator, or the board is on the table
-  if (next_hand_ >= hand_placements_) {
+void SimScanner::start_acquisition(bool others_acquiring) {
+  Head& head = *head_;
+  // No operator, or the board is on the table, or the head's acquisition has begun (this
+  // camera is one more of a pose's cameras).
+  if (head.hand_placements == 0 || head.homed || others_acquiring) return;
+  if (head.next_hand >= head.hand_placements) {
     throw_error(ErrorCode::kInvalidArgument,
                 "{}: the simulated operator has placed the board at all of its {} poses by hand (hand_poses={})", uri_,
-                hand_placements_, hand_placements_);
+                head.hand_placements, head.hand_placements);
   }
-  placement_ = next_hand_++;
-  captures_in_frame_ = 0;
+  head.placement = head.next_hand++;
+  scene_changed_locked();
 }
 
 int SimScanner::table_placement_locked() {
   const std::vector<ObjectPlacement>& placements = rig().placements;
   const double steps = rig().turntable.steps_per_revolution;
-  for (std::size_t i = static_cast<std::size_t>(hand_placements_); i < placements.size(); ++i) {
-    if (std::lround(*placements[i].commanded_angle_deg / 360.0 * steps) == step_) return static_cast<int>(i);
+  for (std::size_t i = static_cast<std::size_t>(head_->hand_placements); i < placements.size(); ++i) {
+    if (std::lround(*placements[i].commanded_angle_deg / 360.0 * steps) == head_->step) return static_cast<int>(i);
   }
-  return renderer_.add_placement({rig().step_angle_deg(step_), rig().T_table_object});
+  return renderer_.add_placement({rig().step_angle_deg(head_->step), rig().T_table_object});
 }
 
 int SimScanner::ensure_frame_traced() {
-  int frame = step_;
-  if (hand_placements_ > 0 && homed_) {
+  if (scene_changes_seen_ != head_->scene_changes) {  // the table moved or the board did
+    scene_changes_seen_ = head_->scene_changes;
+    captures_in_frame_ = 0;
+  }
+  int frame = head_->step;
+  if (head_->hand_placements > 0 && head_->homed) {
     frame = table_placement_locked();
     if (frame != renderer_.frame()) captures_in_frame_ = 0;  // the board just went onto the table
   } else if (!rig().placements.empty()) {
-    if (placement_ < 0) throw_error(ErrorCode::kInvalidArgument, "{}: capture before place_object()", uri_);
-    frame = placement_;
+    if (head_->placement < 0) throw_error(ErrorCode::kInvalidArgument, "{}: capture before place_object()", uri_);
+    frame = head_->placement;
     const std::optional<double>& angle = rig().placements[static_cast<std::size_t>(frame)].commanded_angle_deg;
     // The table carries the board only where it was commanded to: compare whole steps.
     const double steps = rig().turntable.steps_per_revolution;
-    if (angle && std::lround(*angle / 360.0 * steps) != step_) {
+    if (angle && std::lround(*angle / 360.0 * steps) != head_->step) {
       throw_error(ErrorCode::kInvalidArgument, "{}: turntable at {}°, placement {} needs it at {}°", uri_,
-                  rig().step_angle_deg(step_), frame, *angle);
+                  rig().step_angle_deg(head_->step), frame, *angle);
     }
   }
   if (renderer_.frame() != frame) renderer_.set_frame(frame);
@@ -287,17 +336,18 @@ int SimScanner::ensure_frame_traced() {
 }
 
 void SimScanner::set_image_memory(MemoryType memory) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(head_->mutex);
   renderer_.set_image_memory(memory);
 }
 
 drivers::CapturedImage SimScanner::capture() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(head_->mutex);
   const int frame = ensure_frame_traced();
   drivers::CapturedImage captured;
   PatternDesc dark;
   dark.kind = PatternKind::kBlack;
-  const PatternDesc& shown = pattern_ >= 0 ? rig().patterns.patterns[static_cast<std::size_t>(pattern_)] : dark;
+  const PatternDesc& shown =
+      head_->pattern >= 0 ? rig().patterns.patterns[static_cast<std::size_t>(head_->pattern)] : dark;
   captured.image = renderer_.render(shown, captures_in_frame_, exposure_scale_);
   const std::uint32_t images = static_cast<std::uint32_t>(rig().patterns.size());
   captured.timestamp_ns = frame * kStackPeriodNs +
@@ -308,13 +358,13 @@ drivers::CapturedImage SimScanner::capture() {
 }
 
 GroundTruthFrame SimScanner::ground_truth() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(head_->mutex);
   ensure_frame_traced();
   return renderer_.ground_truth();
 }
 
 Image32f SimScanner::depth_map() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::mutex> lock(head_->mutex);
   ensure_frame_traced();
   return renderer_.render_depth();
 }

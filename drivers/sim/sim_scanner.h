@@ -14,6 +14,15 @@
 // turntable is homed; from then on the board sits on the turntable's mount, and every capture
 // sees it at the angle the table is at (any angle: in view or not, as on a real table).
 // `frames`, `tilt` and `offset_um` (a scan's) are refused with calibration=1.
+//
+// A head of several cameras (`sls sim --calibration --cameras N`'s, sim_calibration_capture.h):
+//   sim://chessboard?calibration=1&preset=ci&hand_poses=12&cameras=2&camera=1
+// is camera 1 of that head (camera: 0 .. cameras − 1, default 0), seeing the board poses and
+// having the lens, sensor and place of `sls sim --calibration --cameras 2`'s camera1. The
+// devices of one head — the URIs that differ only in `camera` — share the projector, the
+// turntable and the operator: what the projector shows every camera sees, and the operator
+// moves the board when an acquisition of the head starts (the first of its cameras started
+// while none is), so cameras started together for one pose all see the same pose.
 #pragma once
 
 #include <memory>
@@ -56,7 +65,7 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   // captured only with the turntable moved to its commanded angle.
   void place_object(int frame);
   // Whether the scanner's simulated operator places the board itself (calibration=1 above).
-  bool simulated_operator() const { return hand_placements_ > 0; }
+  bool simulated_operator() const { return head_->hand_placements > 0; }
 
   // Where the camera's images go (drivers::Camera::set_image_memory).
   void set_image_memory(MemoryType memory);
@@ -70,7 +79,27 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   friend class SimCamera;
   friend class SimProjector;
   friend class SimTurntable;
-  SimScanner(std::string uri, Renderer renderer) : uri_(std::move(uri)), renderer_(std::move(renderer)) {}
+  // What the devices of one head share (the header): the projector's DMD, the turntable, the
+  // operator, and the lock that guards them and every camera's renderer.
+  struct Head {
+    std::mutex mutex;
+    int pattern = -1;         // on the DMD; −1 = dark
+    int step = 0;             // turntable position in steps
+    int placement = -1;       // calibration captures: the placement; −1 = none yet
+    int hand_placements = 0;  // the simulated operator's poses by hand (placements 0 ..); 0 = none
+    int next_hand = 0;        // the next of them
+    bool homed = false;
+    int started_cameras = 0;  // cameras acquiring now
+    // Counts changes of what the cameras see (the table's step, the placement): a camera whose
+    // count differs starts its frame's captures (and their noise) afresh.
+    std::uint64_t scene_changes = 0;
+  };
+
+  SimScanner(std::string uri, Renderer renderer, std::shared_ptr<Head> head = std::make_shared<Head>())
+      : uri_(std::move(uri)), head_(std::move(head)), renderer_(std::move(renderer)) {}
+  // The head state shared by the scanners whose URIs differ only in `camera` (a new one
+  // when none of them is open).
+  static std::shared_ptr<Head> shared_head(const std::string& key);
 
   // Renders the image a trigger produces now (under the lock).
   drivers::CapturedImage capture();
@@ -79,18 +108,16 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   int ensure_frame_traced();
   // The simulated operator (under the lock): a camera's start() is a new pose; the board on
   // the table is the placement at the table's step (added when the step is new).
-  void start_acquisition();
+  // `others_acquiring`: whether another camera of the head is started (then the board stays).
+  void start_acquisition(bool others_acquiring);
   int table_placement_locked();
+  void scene_changed_locked() { ++head_->scene_changes; }
 
   std::string uri_;
-  std::mutex mutex_;
+  std::shared_ptr<Head> head_;
   Renderer renderer_;
-  int pattern_ = -1;          // on the DMD; −1 = dark
-  int step_ = 0;              // turntable position in steps
-  int placement_ = -1;        // calibration captures: the placement; −1 = none yet
-  int hand_placements_ = 0;   // the simulated operator's poses by hand (placements 0 ..); 0 = none
-  int next_hand_ = 0;         // the next of them
-  bool homed_ = false;
+  int camera_index_ = 0;      // in its head
+  std::uint64_t scene_changes_seen_ = 0;
   std::uint32_t captures_in_frame_ = 0;
   double exposure_scale_ = 1.0;  // the camera's exposure / kSimNominalExposureUs
   std::uint64_t frame_id_ = 0;

@@ -282,6 +282,8 @@ class CalibrationCaptureResult:
     """The whole call, the callbacks' time included."""
     capture_seconds: float
     """Capturing only."""
+    cameras: int
+    """The cameras that captured each pose: 1, or the head's (1 + len(more_cameras))."""
 
 
 def _pose_trampoline(confirm: Optional[Callable[[CalibrationPose], Any]], raised: List[BaseException]):
@@ -317,7 +319,8 @@ def capture_calibration(camera: Camera, projector: Projector, folder: PathLike, 
                         progress: Optional[Callable[[CalibrationProgress], Any]] = None, resume: bool = False,
                         home_turntable: bool = True, pattern_set: Optional[str] = None, exposure_us: float = 0.0,
                         image_timeout_ms: Optional[int] = None, turntable_timeout_ms: Optional[int] = None,
-                        max_retries: Optional[int] = None) -> CalibrationCaptureResult:
+                        max_retries: Optional[int] = None, more_cameras: Sequence[Camera] = ()
+                        ) -> CalibrationCaptureResult:
     """Captures the chessboard views of a calibration through open devices into a recording at
     `folder` (sls_calibration_capture): the hand poses, each confirmed first, then the board on
     the turntable at each angle. Calibrate the recording with :func:`calibrate`. Blocks.
@@ -339,6 +342,10 @@ def capture_calibration(camera: Camera, projector: Projector, folder: PathLike, 
         home_turntable, pattern_set (e.g. ``"gray-phase:912x1140"``; None: the projector's
             calibration set), exposure_us (0: left), image_timeout_ms, turntable_timeout_ms,
             max_retries (None: the library's): sls_calibration_capture_config's fields.
+        more_cameras: a head of several cameras (API 0.9): cameras 1, 2, ... (`camera` is camera
+            0), each a different open camera. Every pose is captured by all of them together
+            (one projection per pattern) into `folder`/camera0, camera1, ..., one recording per
+            camera, which :func:`calibrate` on `folder` calibrates as a head.
     A cancel, a device error or Ctrl-C ends the capture after the last whole pose; the recording
     stays valid and ``resume=True`` continues it."""
     config = _lib.init(CalibrationCaptureConfigC, "sls_calibration_capture_config_init")
@@ -350,6 +357,9 @@ def capture_calibration(camera: Camera, projector: Projector, folder: PathLike, 
     encoded_patterns = _lib.encode(pattern_set)  # kept referenced during the call
     config.pattern_set = encoded_patterns
     config.exposure_us = float(exposure_us)
+    heads = (ctypes.c_void_p * len(more_cameras))(*(c._checked() for c in more_cameras))
+    config.more_cameras = ctypes.cast(heads, ctypes.POINTER(ctypes.c_void_p))
+    config.more_camera_count = len(heads)
     for key, value in (("hand_poses", hand_poses), ("image_timeout_ms", image_timeout_ms),
                        ("turntable_timeout_ms", turntable_timeout_ms), ("max_retries", max_retries)):
         if value is not None:
@@ -368,7 +378,7 @@ def capture_calibration(camera: Camera, projector: Projector, folder: PathLike, 
             raise raised[0] from None
         raise
     finally:
-        del c_progress, c_confirm, angles, encoded_patterns
+        del c_progress, c_confirm, angles, encoded_patterns, heads
     if raised:
         raise raised[0]
     return _lib.dataclass_from_c(CalibrationCaptureResult, result)

@@ -1,4 +1,4 @@
-"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.8.0).
+"""ctypes mirrors of the C API's structs and enums (sdk/include/sls/*.h, API version 0.9.0).
 
 Each versioned struct (its first field `struct_size`) is mirrored field for field, in the
 order of the header. Fill one with :func:`init_struct`, which calls the library's own
@@ -310,7 +310,9 @@ class CalibrationCaptureConfigC(Structure):
     _fields_ = [("struct_size", c_size_t), ("hand_poses", c_int), ("turntable_angles_deg", POINTER(c_double)),
                 ("turntable_angle_count", c_size_t), ("home_turntable", c_int), ("resume", c_int),
                 ("pattern_set", c_char_p), ("exposure_us", c_double), ("image_timeout_ms", c_int),
-                ("turntable_timeout_ms", c_int), ("max_retries", c_int)]
+                ("turntable_timeout_ms", c_int), ("max_retries", c_int),
+                # 0.9: a head of several cameras
+                ("more_cameras", POINTER(c_void_p)), ("more_camera_count", c_size_t)]
 
 
 class CalibrationPoseC(Structure):
@@ -322,7 +324,8 @@ class CalibrationCaptureResultC(Structure):
     _fields_ = [("struct_size", c_size_t), ("poses_captured", c_size_t), ("poses_skipped", c_size_t),
                 ("stopped", c_int), ("frames", c_size_t), ("hand_frames", c_size_t), ("turntable_frames", c_size_t),
                 ("resumed_from", c_size_t), ("images_per_frame", c_size_t), ("incomplete_frames", c_size_t),
-                ("retries", c_size_t), ("seconds", c_double), ("capture_seconds", c_double)]
+                ("retries", c_size_t), ("seconds", c_double), ("capture_seconds", c_double),
+                ("cameras", c_size_t)]  # 0.9
 
 
 VERSIONED_STRUCTS: dict[str, tuple[Type[Structure], str]] = {

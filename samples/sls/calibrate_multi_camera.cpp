@@ -77,10 +77,13 @@ nlohmann::json multi_camera_calibration_json(const calib::MultiCameraCalibrateRe
                         {"projector_principal_point_err_px", e.projector_principal_point_err_px},
                         {"projector_baseline_rel_err", e.baseline_rel_err},
                         {"projector_rotation_err_deg", e.rotation_err_deg}};
-      if (k > 0 && k - 1 < result.pair_errors.size()) {
-        entry["truth"]["camera_camera"] = pose_errors_json(result.pair_errors[k - 1]);
-        entry["truth"]["camera_camera"]["via_projector"] = pose_errors_json(result.pair_errors_via_projector[k - 1]);
-      }
+    }
+    // The head's exact calibration (groundtruth/calibration.yml) gives the camera–camera truth
+    // also where the cameras' recordings have none of their own (a head captured through
+    // devices, its truth put beside it).
+    if (k > 0 && k - 1 < result.pair_errors.size()) {
+      entry["truth"]["camera_camera"] = pose_errors_json(result.pair_errors[k - 1]);
+      entry["truth"]["camera_camera"]["via_projector"] = pose_errors_json(result.pair_errors_via_projector[k - 1]);
     }
     cameras.push_back(entry);
   }
@@ -93,9 +96,10 @@ nlohmann::json multi_camera_calibration_json(const calib::MultiCameraCalibrateRe
 
 int run_multi_camera_calibrate(const Context& context, const calib::CalibrateCaptureOptions& options,
                                const MultiCameraOutput& output) {
-  const calib::MultiCameraCalibrateResult result =
-      calib::calibrate_multi_camera_capture(options, context.progress_callback("calibrate"));
+  const calib::MultiCameraCalibrateResult result = calib::calibrate_multi_camera_capture(
+      options, output.progress ? output.progress : context.progress_callback("calibrate"));
   nlohmann::json json = multi_camera_calibration_json(result);
+  if (!output.capture.is_null()) json["capture"] = output.capture;
   std::string too_high;
   for (const auto& [what, rms] : judged_rms(result)) {
     if (!(rms <= output.max_rms_px)) too_high += fmt::format("{}{} {:.3f} px", too_high.empty() ? "" : ", ", what, rms);
@@ -137,12 +141,16 @@ int run_multi_camera_calibrate(const Context& context, const calib::CalibrateCap
                                  pair.views, 1e3 * pair.T_camera0_camera.translation().norm(), pair.rms_px);
       }
       std::cout << "\n";
-      if (camera.errors) {
-        std::cout << fmt::format("    against the exact calibration: focal {:.4f} %, principal point {:.3f} px",
-                                 100.0 * camera.errors->camera_focal_rel_err,
-                                 camera.errors->camera_principal_point_err_px);
-        if (k > 0 && k - 1 < result.pair_errors.size()) {
-          std::cout << fmt::format(", camera-camera baseline {:.4f} %, rotation {:.4f}°",
+      const bool pair_truth = k > 0 && k - 1 < result.pair_errors.size();
+      if (camera.errors || pair_truth) {
+        std::cout << "    against the exact calibration:";
+        if (camera.errors) {
+          std::cout << fmt::format(" focal {:.4f} %, principal point {:.3f} px",
+                                   100.0 * camera.errors->camera_focal_rel_err,
+                                   camera.errors->camera_principal_point_err_px);
+        }
+        if (pair_truth) {
+          std::cout << fmt::format("{} camera-camera baseline {:.4f} %, rotation {:.4f}°", camera.errors ? "," : "",
                                    100.0 * result.pair_errors[k - 1].baseline_rel_err,
                                    result.pair_errors[k - 1].rotation_err_deg);
         }

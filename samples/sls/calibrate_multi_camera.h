@@ -10,6 +10,7 @@
 #include "calib/calibrate_capture.h"
 #include "calib/multi_camera_calibration.h"
 #include "samples/sls/cli.h"
+#include "sdk/core/progress.h"
 
 namespace sls::cli {
 
@@ -26,6 +27,9 @@ struct MultiCameraOutput {
   std::string report;  // folder, or empty
   double max_rms_px = 1.0;
   bool force = false;
+  ProgressCallback progress;  // the calibration's; none: the context's "calibrate" display
+  nlohmann::json capture;     // a head captured just before (`sls calibrate --camera ...`): its
+                              // capture figures, the JSON's "capture"; null: none
 };
 
 // Calibrates options.input (a multi-camera capture), writes the calibration (unless an RMS,

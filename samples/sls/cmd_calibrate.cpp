@@ -49,8 +49,9 @@ struct CalibrateOptions {
   double max_rms_px = 1.0;
   bool force = false;
   bool estimate_k3 = false;
-  // Capture mode (--camera): the devices, the recording, the poses.
-  std::string camera_uri;
+  // Capture mode (--camera): the devices, the recording, the poses. Several cameras: a head,
+  // captured together into record/camera0, camera1, ... and calibrated as a head.
+  std::vector<std::string> camera_uris;
   std::string projector_uri;
   std::string turntable_uri;
   std::string record;
@@ -133,7 +134,9 @@ session::PoseConfirmation terminal_confirmation(const CalibrateOptions& options,
 
 // The command that continues an interrupted capture.
 std::string resume_command(const CalibrateOptions& options) {
-  std::string command = "sls calibrate --camera " + options.camera_uri + " --projector " + options.projector_uri;
+  std::string command = "sls calibrate";
+  for (const std::string& camera : options.camera_uris) command += " --camera " + camera;
+  command += " --projector " + options.projector_uri;
   if (!options.turntable_uri.empty()) command += " --turntable " + options.turntable_uri;
   command += fmt::format(" --record {} --hand-poses {}", options.record, options.hand_poses);
   if (!options.turntable_angles.empty()) {
@@ -159,7 +162,14 @@ nlohmann::json calibration_capture_json(const session::CalibrationCapture& captu
                      {"seconds", pose.seconds}});
   }
   const int captured_poses = captured.captured_poses();
+  nlohmann::json recordings = nlohmann::json::array();
+  for (int k = 0; k < captured.cameras; ++k) {
+    recordings.push_back(captured.cameras > 1 ? head_camera_folder(captured.folder, static_cast<std::size_t>(k))
+                                              : captured.folder);
+  }
   return {{"recording", captured.folder},
+          {"cameras", captured.cameras},
+          {"recordings", recordings},
           {"frames", captured.frames},
           {"hand_frames", captured.hand_frames},
           {"turntable_frames", captured.turntable_frames},
@@ -182,17 +192,21 @@ nlohmann::json calibration_capture_json(const session::CalibrationCapture& captu
 std::optional<session::CalibrationCapture> capture_views(const Context& context, const CalibrateOptions& options,
                                                          const StopOnSignal& stop) {
   std::error_code error;
-  const bool holds_recording = fs::exists(fs::path(options.record) / "manifest.json", error);
+  // A head's capture is one recording per camera (camera0 says what was done).
+  const bool head = options.camera_uris.size() > 1;
+  const std::string first_recording = head ? head_camera_folder(options.record, 0) : options.record;
+  const bool holds_recording = fs::exists(fs::path(first_recording) / "manifest.json", error);
   if (options.resume && !holds_recording) {
-    throw_error(ErrorCode::kInvalidArgument, "--resume: {} holds no recording to continue (no manifest.json)",
-                options.record);
+    throw_error(ErrorCode::kInvalidArgument, "--resume: {} holds no recording to continue (no {}manifest.json)",
+                options.record, head ? "camera0/" : "");
   }
   if (!options.resume && fs::exists(options.record, error) && !fs::is_empty(options.record, error)) {
     throw_error(ErrorCode::kInvalidArgument, "--record {} is not empty{}; add --resume to continue it, or choose another",
                 options.record, holds_recording ? " (it holds a recording, maybe one cut off)" : "");
   }
   session::CalibrationDeviceRequest request;
-  request.camera_uri = options.camera_uri;
+  request.camera_uri = options.camera_uris.front();
+  request.more_camera_uris.assign(options.camera_uris.begin() + 1, options.camera_uris.end());
   request.projector_uri = options.projector_uri;
   request.turntable_uri = options.turntable_uri;
   if (!options.patterns.empty()) request.patterns = pattern_set_from_name(options.patterns);
@@ -202,9 +216,9 @@ std::optional<session::CalibrationCapture> capture_views(const Context& context,
   capture.turntable_angles_deg = options.turntable_angles;
   capture.exposure_us = options.exposure_us;
   capture.resume = options.resume;
-  const auto frames_in_record = [&options] {
+  const auto frames_in_record = [&first_recording] {
     try {
-      return RecordingReader::open(options.record).frame_count();
+      return RecordingReader::open(first_recording).frame_count();
     } catch (const Error&) {
       return std::size_t{0};
     }
@@ -228,17 +242,41 @@ std::optional<session::CalibrationCapture> capture_views(const Context& context,
                                  {"stage", "capture"},
                                  {"signal", stop.signal_name()},
                                  {"recording", options.record},
+                                 {"cameras", options.camera_uris.size()},
                                  {"frames_captured", frames},
                                  {"resume", resume_command(options)}})
                      .dump(2)
               << "\n";
   }
-  std::cerr << fmt::format("\ninterrupted by {} during the calibration capture: {} pose(s) captured into {} (a valid "
-                           "recording, not calibrated).\nContinue the capture: {}\nor calibrate what it holds: sls "
+  std::cerr << fmt::format("\ninterrupted by {} during the calibration capture: {} pose(s) captured into {} ({}, not "
+                           "calibrated).\nContinue the capture: {}\nor calibrate what it holds: sls "
                            "calibrate --input {} --board {} --square {:g} --out {}\n",
-                           stop.signal_name(), frames, options.record, resume_command(options), options.record,
-                           options.board, options.square_m, options.out);
+                           stop.signal_name(), frames, options.record,
+                           head ? fmt::format("a valid recording per camera of the {}", options.camera_uris.size())
+                                : "a valid recording",
+                           resume_command(options), options.record, options.board, options.square_m, options.out);
   return std::nullopt;
+}
+
+// A signal stopped the calibration of a capture just made: said on stderr (and stdout with
+// --json); exit status 4.
+int report_calibration_interrupted(const Context& context, const CalibrateOptions& options, const StopOnSignal& stop,
+                                   const session::CalibrationCapture& captured) {
+  if (context.options.json) {
+    std::cout << nlohmann::json({{"ok", false},
+                                 {"interrupted", true},
+                                 {"stage", "calibrate"},
+                                 {"signal", stop.signal_name()},
+                                 {"recording", options.record},
+                                 {"capture", calibration_capture_json(captured)}})
+                     .dump(2)
+              << "\n";
+  }
+  std::cerr << fmt::format("\ninterrupted by {} during the calibration: the capture in {} is complete; calibrate it "
+                           "with sls calibrate --input {} --board {} --square {:g} --out {}\n",
+                           stop.signal_name(), options.record, options.record, options.board, options.square_m,
+                           options.out);
+  return kExitInterrupted;
 }
 
 int run_calibrate(const Context& context, const CalibrateOptions& options) {
@@ -264,7 +302,7 @@ int run_calibrate(const Context& context, const CalibrateOptions& options) {
   // or the calibration after it.
   std::optional<StopOnSignal> stop;
   std::optional<session::CalibrationCapture> captured;
-  if (!options.camera_uri.empty()) {
+  if (!options.camera_uris.empty()) {
     calibrate.board.validate();
     stop.emplace();
     captured = capture_views(context, options, *stop);
@@ -274,12 +312,13 @@ int run_calibrate(const Context& context, const CalibrateOptions& options) {
     }
     if (!context.options.json) {
       std::cerr << fmt::format("captured {} frame(s) ({} by hand, {} on the turntable; {} pose(s) skipped{}{}) x {} "
-                               "images into {} in {:.1f} s ({:.2f} s per pose)\n",
+                               "images{} into {} in {:.1f} s ({:.2f} s per pose)\n",
                                captured->frames, captured->hand_frames, captured->turntable_frames,
                                captured->skipped_poses(),
                                captured->resumed_from > 0 ? fmt::format(", resumed at frame {}", captured->resumed_from)
                                                           : "",
                                captured->stopped ? ", stopped by the operator" : "", captured->images_per_frame,
+                               captured->cameras > 1 ? fmt::format(" x {} cameras", captured->cameras) : "",
                                options.record, captured->seconds,
                                captured->captured_poses() > 0 ? captured->capture_seconds / captured->captured_poses()
                                                               : 0.0);
@@ -287,33 +326,32 @@ int run_calibrate(const Context& context, const CalibrateOptions& options) {
     calibrate.input = options.record;
     calibrate.patterns.clear();  // the recording's own
   }
-  // A head of several cameras (camera0/, camera1/, ...): each against the projector, then
-  // camera to camera.
-  if (!captured && calib::is_multi_camera_capture(calibrate.input)) {
-    return run_multi_camera_calibrate(context, calibrate,
-                                      {options.out, options.report, options.max_rms_px, options.force});
-  }
   const ProgressCallback progress = context.progress_callback("calibrate");
+  // A head of several cameras (camera0/, camera1/, ...): each against the projector, then
+  // camera to camera. A head just captured is one (captured->cameras > 1); a one-camera
+  // capture is never taken for a head, whatever its recording's folder holds.
+  const bool head = captured ? captured->cameras > 1 : calib::is_multi_camera_capture(calibrate.input);
+  try {
+    if (head) {
+      MultiCameraOutput output;
+      output.out = options.out;
+      output.report = options.report;
+      output.max_rms_px = options.max_rms_px;
+      output.force = options.force;
+      output.progress = stop ? stop->wrap(progress) : progress;
+      if (captured) output.capture = calibration_capture_json(*captured);
+      return run_multi_camera_calibrate(context, calibrate, output);
+    }
+  } catch (const Error& error) {
+    if (!stop || !stop->requested() || error.code() != ErrorCode::kCancelled) throw;
+    return report_calibration_interrupted(context, options, *stop, *captured);
+  }
   calib::CalibrateCaptureResult result;
   try {
     result = calib::calibrate_capture(calibrate, stop ? stop->wrap(progress) : progress);
   } catch (const Error& error) {
     if (!stop || !stop->requested() || error.code() != ErrorCode::kCancelled) throw;
-    if (context.options.json) {
-      std::cout << nlohmann::json({{"ok", false},
-                                   {"interrupted", true},
-                                   {"stage", "calibrate"},
-                                   {"signal", stop->signal_name()},
-                                   {"recording", options.record},
-                                   {"capture", calibration_capture_json(*captured)}})
-                       .dump(2)
-                << "\n";
-    }
-    std::cerr << fmt::format("\ninterrupted by {} during the calibration: the capture in {} is complete; calibrate it "
-                             "with sls calibrate --input {} --board {} --square {:g} --out {}\n",
-                             stop->signal_name(), options.record, options.record, options.board, options.square_m,
-                             options.out);
-    return kExitInterrupted;
+    return report_calibration_interrupted(context, options, *stop, *captured);
   }
   nlohmann::json json = calibration_json(result);
   if (captured) json["capture"] = calibration_capture_json(*captured);
@@ -391,22 +429,29 @@ void add_calibrate_command(CLI::App& app, Context& context, int* exit_code) {
       "black) through the capture sequencer, appended to DIR (an ordinary recording, uncalibrated); then DIR is "
       "calibrated as --input DIR. SIGINT/SIGTERM stops the capture after the current pose (or the calibration): DIR is "
       "kept (valid), exit status 4, and --resume continues it. sim://chessboard?calibration=1&preset=ci&hand_poses=N "
-      "is a simulated board whose operator places it at each pose.");
+      "is a simulated board whose operator places it at each pose. A head of several cameras: --camera once per "
+      "camera, camera 0 first (e.g. sim://chessboard?calibration=1&preset=ci&hand_poses=N&cameras=2&camera=K for "
+      "camera K of `sls sim --calibration --cameras 2`'s head); each pose is captured by every camera together into "
+      "DIR/camera0, DIR/camera1, ..., then DIR is calibrated as a head (each camera against the projector, then "
+      "camera to camera); --resume continues every camera's recording and refuses a head whose recordings disagree.");
   auto options = std::make_shared<CalibrateOptions>();
   auto* input = command->add_option("--input", options->input,
                                     "Recording, or folder of captures (one subfolder per board pose), or a head of "
                                     "several cameras: a folder with one such capture per camera in camera0, camera1, "
                                     "... (the same board poses in the same order)");
-  auto* camera = command->add_option("--camera", options->camera_uri,
+  auto* camera = command->add_option("--camera", options->camera_uris,
                                      "Capture the views first with devices by URI (see `sls devices`): the camera, e.g. "
-                                     "gige://192.168.1.20");
+                                     "gige://192.168.1.20; repeat it for a head of several cameras (camera 0 first): "
+                                     "every pose is captured by all of them together, one projection per pattern, "
+                                     "into --record's camera0, camera1, ..., then calibrated as a head");
   auto* projector = command->add_option("--projector", options->projector_uri,
                                         "With --camera: the projector, e.g. dlpc350://");
   auto* turntable = command->add_option("--turntable", options->turntable_uri,
                                         "With --camera: the turntable, e.g. headctl:// (for --turntable-angles)");
   auto* record = command->add_option("--record", options->record,
                                      "With --camera: folder for the capture's recording (new or empty; with --resume "
-                                     "the one to continue)");
+                                     "the one to continue); with several --camera, the head's folder, one recording "
+                                     "per camera in camera0, camera1, ...");
   auto* hand_poses = command->add_option("--hand-poses", options->hand_poses,
                                          "With --camera: board poses by hand, each confirmed on the terminal")
                          ->check(CLI::Range(0, 1000))
@@ -462,7 +507,7 @@ void add_calibrate_command(CLI::App& app, Context& context, int* exit_code) {
   command->add_option("--device", options->device,
                       "Decode (and with --camera render sim:// devices) on cpu, cuda or cuda:N (default: cpu)");
   command->callback([&context, exit_code, options] {
-    if (options->input.empty() && options->camera_uri.empty()) {
+    if (options->input.empty() && options->camera_uris.empty()) {
       throw CLI::RequiredError("--input (a recording or folder) or --camera (with --projector, --record)");
     }
     run_command(context, "calibrate",

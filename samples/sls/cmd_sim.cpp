@@ -83,7 +83,7 @@ int run_sim(const Context& context, const SimOptions& options) {
     // A head of several cameras: the recording being written when the signal came.
     std::string cut = options.out;
     for (int k = options.cameras - 1; k >= 0 && options.cameras > 1; --k) {
-      cut = fmt::format("{}/camera{}", options.out, k);
+      cut = head_camera_folder(options.out, static_cast<std::size_t>(k));
       if (std::filesystem::exists(cut + "/manifest.json")) break;
     }
     const std::size_t frames = RecordingReader::open(cut).frame_count();
@@ -124,7 +124,7 @@ int run_sim(const Context& context, const SimOptions& options) {
     result["cameras"] = options.cameras;
     if (options.cameras > 1) {
       nlohmann::json recordings = nlohmann::json::array();
-      for (int k = 0; k < options.cameras; ++k) recordings.push_back(fmt::format("{}/camera{}", options.out, k));
+      for (int k = 0; k < options.cameras; ++k) recordings.push_back(head_camera_folder(options.out, static_cast<std::size_t>(k)));
       result["camera_recordings"] = recordings;
       result["groundtruth"] = summary.groundtruth_folder;
     }
@@ -248,8 +248,9 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       ->capture_default_str();
   command
       ->add_option("--cameras", options->cameras,
-                    "With --calibration: cameras of the head, 1 or 2; the second mirrors the first across the projector "
-                    "and each camera's capture is a recording of its own, OUT/camera0, OUT/camera1, the head's exact "
+                    "With --calibration: cameras of the head, 1 to 4, round the projector at the triangulation angle "
+                    "from it: the second mirrors the first across it, the third stands above it and the fourth below; "
+                    "each camera's capture is a recording of its own, OUT/camera0, OUT/camera1, ..., the head's exact "
                     "calibration in OUT/groundtruth (`sls calibrate --input OUT` calibrates them all)")
       ->check(CLI::Range(1, sim::kMaxSimCalibrationCameras))
       ->needs(calibration)

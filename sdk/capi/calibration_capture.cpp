@@ -1,6 +1,7 @@
 // sls_calibration_capture: session::capture_calibration (sdk/session/calibration_capture.h,
 // what `sls calibrate --camera` runs) behind the C API, on the caller's open device handles.
 // Built in every configuration: the capture needs no OpenCV.
+#include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include "sdk/capi/device_handles.h"
 #include "sdk/capi/progress_callback.h"
 #include "sdk/capi/versioned_struct.h"
+#include "sdk/core/calibration.h"
 #include "sdk/core/error.h"
 #include "sdk/core/recording.h"
 #include "sdk/decode/pattern_set.h"
@@ -29,6 +31,14 @@ using sls::session::PoseDecision;
 constexpr std::size_t kConfigFirstVersionSize = offsetof(sls_calibration_capture_config, max_retries) + sizeof(int);
 constexpr std::size_t kResultFirstVersionSize =
     offsetof(sls_calibration_capture_result, capture_seconds) + sizeof(double);
+
+// The fields appended in 0.9 start past the 0.7 structs, padding included (versioned_struct.h).
+static_assert(offsetof(sls_calibration_capture_config, more_cameras) >=
+                  sls::capi::size_ending_at<sls_calibration_capture_config>(kConfigFirstVersionSize),
+              "more_cameras lies in the padding of the 0.7 config");
+static_assert(offsetof(sls_calibration_capture_result, cameras) >=
+                  sls::capi::size_ending_at<sls_calibration_capture_result>(kResultFirstVersionSize),
+              "cameras lies in the padding of the 0.7 result");
 
 sls_calibration_capture_config capture_config_defaults() {
   sls_calibration_capture_config config = sls::capi::zeroed<sls_calibration_capture_config>();
@@ -64,14 +74,45 @@ sls::session::CalibrationCaptureOptions capture_options(const sls_calibration_ca
   return options;
 }
 
+// The head's other cameras (config.more_cameras, API 0.9), checked: none NULL, none `camera`
+// or another of them again (one device cannot be two cameras of a head).
+std::vector<sls::drivers::Camera*> more_cameras(const sls_calibration_capture_config& config, const sls_camera* camera) {
+  if (config.more_camera_count == 0) return {};
+  if (config.more_cameras == nullptr) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.more_cameras is NULL but config.more_camera_count is {}",
+                     config.more_camera_count);
+  }
+  if (config.more_camera_count >= static_cast<std::size_t>(sls::ScannerCalibration::kMaxCameras)) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.more_camera_count is {} (a head has at most {} cameras)",
+                     config.more_camera_count, sls::ScannerCalibration::kMaxCameras);
+  }
+  std::vector<sls::drivers::Camera*> cameras;
+  std::vector<const sls_camera*> seen = {camera};
+  for (std::size_t k = 0; k < config.more_camera_count; ++k) {
+    const sls_camera* more = config.more_cameras[k];
+    if (more == nullptr) sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.more_cameras[{}] is NULL", k);
+    const auto again = std::find(seen.begin(), seen.end(), more);
+    if (again != seen.end()) {
+      sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.more_cameras[{}] ({}) is camera {} of the head again",
+                       k, more->info.uri, again - seen.begin());
+    }
+    seen.push_back(more);
+    cameras.push_back(more->camera.get());
+  }
+  return cameras;
+}
+
 // What the folder must be for the capture, said in the C API's terms before any device moves
-// (RecordingWriter refuses the same, without the way out).
-void check_folder(const std::string& folder, bool resume) {
+// (RecordingWriter refuses the same, without the way out). A head's recordings are in
+// folder/camera0, ...
+void check_folder(const std::string& folder, bool resume, bool head) {
   std::error_code error;
-  const bool holds_recording = fs::exists(fs::path(folder) / "manifest.json", error);
+  const fs::path first = head ? fs::path(sls::head_camera_folder(folder, 0)) : fs::path(folder);
+  const bool holds_recording = fs::exists(first / "manifest.json", error);
   if (resume && !holds_recording) {
     sls::throw_error(sls::ErrorCode::kInvalidArgument,
-                     "config.resume: {} holds no recording to continue (no manifest.json)", folder);
+                     "config.resume: {} holds no recording to continue (no {}manifest.json)", folder,
+                     head ? "camera0/" : "");
   }
   if (!resume && fs::exists(folder, error) && (!fs::is_directory(folder, error) || !fs::is_empty(folder, error))) {
     sls::throw_error(sls::ErrorCode::kInvalidArgument,
@@ -122,6 +163,7 @@ sls_calibration_capture_result to_c(const sls::session::CalibrationCapture& capt
   result.retries = static_cast<std::size_t>(captured.statistics.retries);
   result.seconds = captured.seconds;
   result.capture_seconds = captured.capture_seconds;
+  result.cameras = static_cast<std::size_t>(captured.cameras);
   return result;
 }
 
@@ -159,6 +201,7 @@ SLS_API sls_status sls_calibration_capture(sls_camera* camera, sls_projector* pr
   });
   if (result_checked != SLS_OK) return result_checked;
   const std::string folder = recording_folder;
+  std::string first_recording = folder;  // a head's: camera 0's, in folder/camera0
   const sls_status status = sls::capi::guarded(__func__, error, [&] {
     sls_calibration_capture_config defaults;
     sls_calibration_capture_config_init(&defaults);
@@ -170,10 +213,13 @@ SLS_API sls_status sls_calibration_capture(sls_camera* camera, sls_projector* pr
     const sls::PatternSet patterns = resolved.pattern_set != nullptr && resolved.pattern_set[0] != '\0'
                                          ? sls::pattern_set_from_name(resolved.pattern_set)
                                          : sls::session::calibration_pattern_set(*projector->projector);
-    check_folder(folder, options.resume);
-    // The sequencer starts the camera itself: a stream a grab left running would refuse that.
-    camera->stop_acquisition();
     sls::session::CalibrationDevices devices;
+    devices.more_cameras = more_cameras(resolved, camera);
+    if (!devices.more_cameras.empty()) first_recording = sls::head_camera_folder(folder, 0);
+    check_folder(folder, options.resume, !devices.more_cameras.empty());
+    // The sequencer starts the cameras itself: a stream a grab left running would refuse that.
+    camera->stop_acquisition();
+    for (std::size_t k = 0; k < devices.more_cameras.size(); ++k) resolved.more_cameras[k]->stop_acquisition();
     devices.camera = camera->camera.get();
     devices.projector = projector->projector.get();
     if (turntable != nullptr) {
@@ -192,7 +238,7 @@ SLS_API sls_status sls_calibration_capture(sls_camera* camera, sls_projector* pr
     sls::capi::guarded(__func__, nullptr, [&] {
       sls_calibration_capture_result kept;
       sls_calibration_capture_result_init(&kept);
-      kept.frames = frames_in(folder);
+      kept.frames = frames_in(first_recording);
       sls::capi::write_versioned(kept, result, kResultFirstVersionSize, "sls_calibration_capture_result");
     });
   }

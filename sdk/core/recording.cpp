@@ -631,6 +631,10 @@ void RecordingReader::verify(bool decode_pixels) const {
   }
 }
 
+std::string head_camera_folder(const std::string& head, std::size_t camera) {
+  return (std::filesystem::path(head) / fmt::format("camera{}", camera)).string();
+}
+
 Image32f recorded_depth_m(const Image32f& depth_m, const RecordingInfo& info) {
   std::size_t out_of_range = 0;
   return steps_to_depth(depth_to_steps(depth_m, info.depth_unit_m, info.depth_offset_m, &out_of_range),

@@ -140,6 +140,11 @@ struct RecordingWriterOptions {
   int encode_threads = 0;         // threads encoding one frame's PNGs; 0 = one per hardware thread
 };
 
+// A head of several cameras on disk (issue 17): one recording (or folder of captures) per
+// camera, `head`/camera0, `head`/camera1, ... — what `sls sim --calibration --cameras N` and a
+// head's calibration capture write, and `sls calibrate --input head` reads.
+std::string head_camera_folder(const std::string& head, std::size_t camera);
+
 // A depth map as a recording of `info` stores it and reads it back (quantised to depth_unit_m
 // from depth_offset_m; out of range: 0): what a scan fused while capturing takes, so that it
 // equals a replay of the recording.

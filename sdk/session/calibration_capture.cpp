@@ -2,12 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <filesystem>
 #include <memory>
 #include <utility>
 
 #include <fmt/format.h>
 
 #include "drivers/device_registry.h"
+#include "sdk/core/calibration.h"
 #include "sdk/core/error.h"
 #include "sdk/core/recording.h"
 #include "sdk/session/scan_setup.h"
@@ -63,11 +66,93 @@ bool same_angle(double reported_deg, double commanded_deg, int steps_per_revolut
   return std::fabs(std::remainder(reported_deg - commanded_deg, 360.0)) <= half_step;
 }
 
-std::string frames_kept(const RecordingWriter& writer) {
-  return fmt::format("{} frame(s) are in {}", writer.frame_count(), writer.folder());
+// What a failed capture kept, for its message: every camera's recording holds the same frames.
+std::string frames_kept(const std::vector<RecordingWriter>& writers, const std::string& folder) {
+  if (writers.size() == 1) return fmt::format("{} frame(s) are in {}", writers.front().frame_count(), folder);
+  return fmt::format("{} frame(s) are in each of the {} cameras' recordings in {}", writers.front().frame_count(),
+                     writers.size(), folder);
+}
+
+// The recordings of a head to continue (`folder`/camera0 .. camera{K−1}): each camera's own,
+// checked as one camera's is, and all of them the same poses so far — a kill between two
+// cameras' writes of one stack leaves them disagreeing, and calibrating such a head would pair
+// the wrong views. Refused naming the folder that disagrees.
+std::vector<RecordingWriter> continue_head(const std::string& folder, const std::vector<drivers::Camera*>& cameras,
+                                           const drivers::Projector& projector, const PatternSet& patterns) {
+  std::error_code error;
+  const std::string extra = head_camera_folder(folder, cameras.size());
+  if (std::filesystem::exists(extra, error)) {
+    throw_error(ErrorCode::kInvalidArgument, "resume: {} holds {}: a head of more than the {} cameras given", folder,
+                extra, cameras.size());
+  }
+  // The layout first: a head of another camera count is named as such, not by the first
+  // difference one camera's recording shows.
+  for (std::size_t k = 0; k < cameras.size(); ++k) {
+    const std::string camera_folder = head_camera_folder(folder, k);
+    if (!std::filesystem::exists(std::filesystem::path(camera_folder) / "manifest.json", error)) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "resume: {} holds no recording for camera {} ({}): not a head of {} cameras to continue", folder, k,
+                  camera_folder, cameras.size());
+    }
+  }
+  std::vector<RecordingWriter> writers;
+  for (std::size_t k = 0; k < cameras.size(); ++k) {
+    const std::string camera_folder = head_camera_folder(folder, k);
+    try {
+      writers.push_back(append_to_recording_of(camera_folder, projector, *cameras[k], patterns));
+    } catch (const Error& failure) {
+      throw Error(failure.code(), fmt::format("camera {} ({}): {}", k, cameras[k]->info().uri, failure.what()));
+    }
+  }
+  const RecordingWriter& first = writers.front();
+  for (std::size_t k = 1; k < writers.size(); ++k) {
+    const RecordingWriter& writer = writers[k];
+    if (writer.frame_count() != first.frame_count()) {
+      throw_error(ErrorCode::kInvalidArgument,
+                  "resume: {} holds {} pose(s), {} holds {}: the head's recordings disagree (one was cut off between "
+                  "two cameras' writes); calibrate the poses all hold, or capture the head again",
+                  writer.folder(), writer.frame_count(), first.folder(), first.frame_count());
+    }
+    for (std::size_t i = 0; i < writer.frame_count(); ++i) {
+      if (writer.frame(i).turntable_angle_deg.has_value() != first.frame(i).turntable_angle_deg.has_value()) {
+        throw_error(ErrorCode::kInvalidArgument,
+                    "resume: frame {} of {} is a {} pose, of {} a {} pose: the head's recordings disagree", i,
+                    writer.folder(), writer.frame(i).turntable_angle_deg ? "turntable" : "hand", first.folder(),
+                    first.frame(i).turntable_angle_deg ? "turntable" : "hand");
+      }
+    }
+  }
+  return writers;
+}
+
+// New recordings for the capture: the one at `folder`, or one per camera of a head in it.
+std::vector<RecordingWriter> create_recordings(const std::string& folder, const std::vector<drivers::Camera*>& cameras,
+                                               const drivers::Projector& projector, const PatternSet& patterns) {
+  std::vector<RecordingWriter> writers;
+  if (cameras.size() == 1) {
+    writers.push_back(RecordingWriter::create(folder, make_recording_info(projector, *cameras.front(), patterns),
+                                              std::nullopt));  // made uncalibrated
+    return writers;
+  }
+  std::error_code error;
+  if (std::filesystem::exists(folder, error) && !std::filesystem::is_empty(folder, error)) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: the folder exists and is not empty; refusing to capture a head into it",
+                folder);
+  }
+  for (std::size_t k = 0; k < cameras.size(); ++k) {
+    writers.push_back(RecordingWriter::create(head_camera_folder(folder, k),
+                                              make_recording_info(projector, *cameras[k], patterns), std::nullopt));
+  }
+  return writers;
 }
 
 }  // namespace
+
+std::vector<drivers::Camera*> CalibrationDevices::cameras() const {
+  std::vector<drivers::Camera*> all = {camera};
+  all.insert(all.end(), more_cameras.begin(), more_cameras.end());
+  return all;
+}
 
 const char* calibration_pose_kind_name(CalibrationPoseKind kind) {
   return kind == CalibrationPoseKind::kHand ? "hand" : "turntable";
@@ -131,18 +216,40 @@ CalibrationCapture capture_calibration(const std::string& folder, const Calibrat
     throw_error(ErrorCode::kInvalidArgument, "calibration capture: no {}",
                 devices.projector == nullptr ? "projector" : "camera");
   }
+  const std::vector<drivers::Camera*> cameras = devices.cameras();
+  for (std::size_t k = 1; k < cameras.size(); ++k) {
+    if (cameras[k] == nullptr) throw_error(ErrorCode::kInvalidArgument, "calibration capture: camera {} is null", k);
+    if (std::find(cameras.begin(), cameras.begin() + static_cast<std::ptrdiff_t>(k), cameras[k]) !=
+        cameras.begin() + static_cast<std::ptrdiff_t>(k)) {
+      throw_error(ErrorCode::kInvalidArgument, "calibration capture: camera {} is an earlier camera of the head again",
+                  k);
+    }
+  }
+  if (cameras.size() > static_cast<std::size_t>(ScannerCalibration::kMaxCameras)) {
+    throw_error(ErrorCode::kInvalidArgument, "calibration capture: {} cameras (a head has at most {})", cameras.size(),
+                ScannerCalibration::kMaxCameras);
+  }
   if (!options.turntable_angles_deg.empty() && devices.turntable == nullptr) {
     throw_error(ErrorCode::kInvalidArgument, "calibration capture: {} turntable angle(s) but no turntable",
                 options.turntable_angles_deg.size());
   }
   validate_pattern_set(patterns);
-  RecordingWriter writer =
-      options.resume ? append_to_recording_of(folder, *devices.projector, *devices.camera, patterns)
-                     : RecordingWriter::create(folder, make_recording_info(*devices.projector, *devices.camera, patterns),
-                                               std::nullopt);  // made uncalibrated
+  std::vector<RecordingWriter> writers;
+  if (!options.resume) {
+    writers = create_recordings(folder, cameras, *devices.projector, patterns);
+  } else if (cameras.size() == 1) {
+    writers.push_back(append_to_recording_of(folder, *devices.projector, *devices.camera, patterns));
+  } else {
+    writers = continue_head(folder, cameras, *devices.projector, patterns);
+  }
+  // Camera 0's recording says what was done (the others hold the same poses: continue_head).
+  RecordingWriter& writer = writers.front();
+  std::vector<RecordingWriter*> recordings;
+  for (RecordingWriter& each : writers) recordings.push_back(&each);
 
   CalibrationCapture result;
   result.folder = folder;
+  result.cameras = static_cast<int>(cameras.size());
   result.images_per_frame = patterns.size();
   result.resumed_from = static_cast<int>(writer.frame_count());
   std::vector<double> angles_done;
@@ -174,7 +281,7 @@ CalibrationCapture capture_calibration(const std::string& folder, const Calibrat
     try {
       if (confirm) decision = confirm(pose);
     } catch (const Error& error) {
-      throw Error(error.code(), fmt::format("{}; {}", error.what(), frames_kept(writer)));
+      throw Error(error.code(), fmt::format("{}; {}", error.what(), frames_kept(writers, folder)));
     }
     if (decision == PoseDecision::kStop) {
       result.stopped = true;
@@ -190,7 +297,7 @@ CalibrationCapture capture_calibration(const std::string& folder, const Calibrat
         report_progress(progress, update);
       } catch (const Error& error) {
         throw Error(error.code(), fmt::format("calibration capture cancelled after {}; {}", pose.describe(),
-                                              frames_kept(writer)));
+                                              frames_kept(writers, folder)));
       }
       continue;
     }
@@ -207,7 +314,7 @@ CalibrationCapture capture_calibration(const std::string& folder, const Calibrat
       } catch (const Error& error) {
         throw Error(error.code(), fmt::format("calibration {}: {}, {} to {:.3f} deg: {}; {}", pose.describe(),
                                               devices.turntable_name, doing, *pose.turntable_angle_deg, error.what(),
-                                              frames_kept(writer)));
+                                              frames_kept(writers, folder)));
       }
       placed = std::make_unique<PlacedTurntable>(*devices.turntable);
     }
@@ -221,7 +328,7 @@ CalibrationCapture capture_calibration(const std::string& folder, const Calibrat
     capture.image_timeout = options.image_timeout;
     capture.turntable_timeout = options.turntable_timeout;
     capture.max_retries = options.max_retries;
-    CaptureSequencer sequencer(*devices.projector, {devices.camera}, placed.get(), patterns, capture);
+    CaptureSequencer sequencer(*devices.projector, cameras, placed.get(), patterns, capture);
     const FrameCallback on_frame = [&record](const CapturedFrame& frame) {
       record.captured = true;
       record.frame = frame.recording_indices.empty() ? -1 : frame.recording_indices.front();
@@ -236,16 +343,17 @@ CalibrationCapture capture_calibration(const std::string& folder, const Calibrat
       return !progress || progress(update);
     };
     try {
-      add_statistics(result.statistics, sequencer.run({&writer}, on_frame, pose_progress));
+      add_statistics(result.statistics, sequencer.run(recordings, on_frame, pose_progress));
     } catch (const Error& error) {
       if (error.code() == ErrorCode::kCancelled) {
         throw Error(error.code(), fmt::format("calibration capture cancelled after {}; {}", pose.describe(),
-                                              frames_kept(writer)));
+                                              frames_kept(writers, folder)));
       }
-      throw Error(error.code(), fmt::format("calibration {}: {}; {}", pose.describe(), error.what(), frames_kept(writer)));
+      throw Error(error.code(),
+                  fmt::format("calibration {}: {}; {}", pose.describe(), error.what(), frames_kept(writers, folder)));
     }
   }
-  writer.close();
+  for (RecordingWriter& each : writers) each.close();
 
   result.frames = static_cast<int>(writer.frame_count());
   for (std::size_t i = 0; i < writer.frame_count(); ++i) {
@@ -268,14 +376,34 @@ CalibrationCapture capture_calibration_from_devices(const std::string& folder, c
     throw_error(ErrorCode::kInvalidArgument, "calibration capture: {} turntable angle(s) but no turntable URI",
                 options.turntable_angles_deg.size());
   }
+  for (std::size_t k = 0; k < request.more_camera_uris.size(); ++k) {
+    const std::string& uri = request.more_camera_uris[k];
+    if (uri.empty()) throw_error(ErrorCode::kInvalidArgument, "calibration capture: camera {}'s URI is empty", k + 1);
+    const auto earlier = std::find(request.more_camera_uris.begin(),
+                                   request.more_camera_uris.begin() + static_cast<std::ptrdiff_t>(k), uri);
+    if (uri == request.camera_uri || earlier != request.more_camera_uris.begin() + static_cast<std::ptrdiff_t>(k)) {
+      throw_error(ErrorCode::kInvalidArgument, "calibration capture: camera {} ({}) is camera {} again", k + 1, uri,
+                  uri == request.camera_uri ? 0 : earlier - request.more_camera_uris.begin() + 1);
+    }
+  }
   options.validate();  // before any device is opened
   drivers::OpenOptions open_options;
   open_options.sim_device = request.sim_device;
   const drivers::ScannerDevices opened =
       drivers::open_scanner_devices(request.projector_uri, request.camera_uri, request.turntable_uri, open_options);
+  // The head's other cameras, closed before the projector (opened's) as open_scanner_devices does.
+  std::vector<std::unique_ptr<drivers::Camera>> more_cameras;
+  for (std::size_t k = 0; k < request.more_camera_uris.size(); ++k) {
+    try {
+      more_cameras.push_back(drivers::open_camera(request.more_camera_uris[k], open_options));
+    } catch (const Error& error) {
+      throw Error(error.code(), fmt::format("camera {}: {}", k + 1, error.what()));
+    }
+  }
   CalibrationDevices devices;
   devices.projector = opened.projector.get();
   devices.camera = opened.camera.get();
+  for (const std::unique_ptr<drivers::Camera>& camera : more_cameras) devices.more_cameras.push_back(camera.get());
   devices.turntable = opened.turntable.get();
   devices.turntable_name = "turntable " + request.turntable_uri;
   const PatternSet patterns = request.patterns ? *request.patterns : calibration_pattern_set(*opened.projector);

@@ -19,6 +19,19 @@
 // Every stack is appended to the recording as it arrives (RecordingWriter: flushed per frame),
 // with the capture sequencer's checks, re-captures and per-frame counters.
 //
+// A head of several cameras (devices.more_cameras): each pose is one pattern stack that every
+// camera takes together — the projector shows each pattern once and the cameras are
+// triggered on it together (the software trigger of each in turn, or the projector's trigger
+// line wired to all of them), as a real head does: one projection per pattern for all
+// cameras, and every camera sees the board at the same instant, which a board held by hand
+// needs (the pose a camera-camera calibration relates must be one pose). The capture is then
+// the head layout (head_camera_folder, sdk/core/recording.h): `folder`/camera0, camera1, ...,
+// one recording per camera, frame k of each the same pose — what `sls calibrate --input
+// folder` calibrates as a head. A resume continues every camera's recording; their frames must
+// agree (the same count, the same hand or turntable kind per frame), else it is refused
+// naming the folder that disagrees. Errors name the camera by index and URI ("camera 1
+// (sim://...)").
+//
 // Progress (sdk/core/progress.h): stage "calibration capture", one unit per pose (captured or
 // skipped), the pose as detail ("hand pose 3 of 12", "turntable at 40.000 deg"), reported
 // after each pose. The callback returning false ends the capture with kCancelled after the
@@ -103,6 +116,11 @@ struct CalibrationDevices {
   drivers::Camera* camera = nullptr;
   drivers::Turntable* turntable = nullptr;  // null: no turntable poses
   std::string turntable_name = "turntable";  // in messages, e.g. its URI
+  // A head of several cameras: cameras 1 .. K−1 (`camera` is camera 0); empty for one camera.
+  std::vector<drivers::Camera*> more_cameras = {};
+
+  // Every camera, camera 0 first.
+  std::vector<drivers::Camera*> cameras() const;
 };
 
 // What happened to one pose that was asked for.
@@ -119,6 +137,7 @@ struct CalibrationPoseResult {
 
 struct CalibrationCapture {
   std::string folder;
+  int cameras = 1;  // the head's: 1, or K recordings in folder/camera0 .. camera{K−1}
   std::size_t images_per_frame = 0;
   std::vector<CalibrationPoseResult> poses;  // every pose asked for, in order (skipped too)
   int frames = 0;             // in the recording now
@@ -152,6 +171,7 @@ CalibrationCapture capture_calibration(const std::string& folder, const Calibrat
 // Devices by URI (drivers/device_registry.h: hardware or sim://).
 struct CalibrationDeviceRequest {
   std::string camera_uri;
+  std::vector<std::string> more_camera_uris;  // a head: cameras 1 .. K−1 (each URI once)
   std::string projector_uri;
   std::string turntable_uri;              // empty: none (then no turntable angles)
   std::optional<PatternSet> patterns;     // none: calibration_pattern_set(projector)
@@ -159,8 +179,9 @@ struct CalibrationDeviceRequest {
 };
 
 // Opens the devices by URI and runs capture_calibration. Throws the device registry's errors
-// for a URI that opens nothing (naming it), kInvalidArgument without a camera or projector URI
-// or with turntable angles but no turntable, then capture_calibration's.
+// for a URI that opens nothing (naming it, and the camera's index in a head), kInvalidArgument
+// without a camera or projector URI, with a camera URI given twice, or with turntable angles
+// but no turntable, then capture_calibration's.
 CalibrationCapture capture_calibration_from_devices(const std::string& folder, const CalibrationDeviceRequest& request,
                                                     const CalibrationCaptureOptions& options,
                                                     const PoseConfirmation& confirm,

@@ -440,6 +440,8 @@ TEST(CCalibrationCapture, ConfigDefaultsAreTheLibrarys) {
   EXPECT_EQ(config.image_timeout_ms, library.image_timeout.count());
   EXPECT_EQ(config.turntable_timeout_ms, library.turntable_timeout.count());
   EXPECT_EQ(config.max_retries, library.max_retries);
+  EXPECT_EQ(config.more_cameras, nullptr);  // 0.9: one camera unless a head's others are given
+  EXPECT_EQ(config.more_camera_count, 0u);
 }
 
 }  // namespace

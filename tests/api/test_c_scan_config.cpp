@@ -120,9 +120,21 @@ TEST(CStructVersions, InitWritesNothingPastTheCallersStruct) {
   SLS_CHECK_INIT(sls_eval_config);
   SLS_CHECK_INIT(sls_evaluation_summary);
   SLS_CHECK_INIT(sls_report_config);
-  // New in 0.7.
-  SLS_CHECK_INIT(sls_calibration_capture_config);
-  SLS_CHECK_INIT(sls_calibration_capture_result);
+  // New in 0.7, grown in 0.9 (a head's other cameras; the cameras of the result): the plain
+  // exported _init writes the 0.7 struct, which a 0.7 program without the macro has.
+  check_init_sized<sls_calibration_capture_config>(sls_calibration_capture_config_init_sized,
+                                                   "sls_calibration_capture_config");
+  check_init_0_4<sls_calibration_capture_config>(
+      sls_calibration_capture_config_init,
+      size_0_4<sls_calibration_capture_config>(offsetof(sls_calibration_capture_config, max_retries) + sizeof(int)),
+      "sls_calibration_capture_config");
+  check_init_sized<sls_calibration_capture_result>(sls_calibration_capture_result_init_sized,
+                                                   "sls_calibration_capture_result");
+  check_init_0_4<sls_calibration_capture_result>(
+      sls_calibration_capture_result_init,
+      size_0_4<sls_calibration_capture_result>(offsetof(sls_calibration_capture_result, capture_seconds) +
+                                               sizeof(double)),
+      "sls_calibration_capture_result");
   // New in 0.8.
   SLS_CHECK_INIT(sls_calibration_camera);
   // sls_scan_config grew in 0.5: a 0.4 program's struct ended with online_deformation, and the

@@ -756,8 +756,8 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(alone.returncode, 1)
         self.assertIn("only camera0", alone.stderr)
         self.assertFalse((self.dir / "bad.yml").exists())
-        # --cameras belongs to --calibration, and the simulated head has places for 1 or 2.
-        for args in (("--cameras", "2"), ("--calibration", "--cameras", "3"), ("--calibration", "--cameras", "0")):
+        # --cameras belongs to --calibration, and the simulated head has places for 1 to 4.
+        for args in (("--cameras", "2"), ("--calibration", "--cameras", "5"), ("--calibration", "--cameras", "0")):
             bad = run("sim", *args, "--out", str(self.dir / "bad"))
             self.assertEqual(bad.returncode, 2, args)
             self.assertIn("--cameras", bad.stderr)

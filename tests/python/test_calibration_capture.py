@@ -54,6 +54,7 @@ def test_poses_confirmed_skipped_and_stopped(head: Head, tmp_path: pathlib.Path)
     assert asked[3].kind == slscan.CalibrationPoseKind.TURNTABLE and asked[3].turntable_angle_deg == 350.0
     assert (result.poses_captured, result.poses_skipped, result.stopped) == (3, 1, True)
     assert (result.frames, result.hand_frames, result.turntable_frames, result.images_per_frame) == (3, 2, 1, 42)
+    assert result.cameras == 1
     assert result.seconds >= result.capture_seconds > 0
     assert [(p.stage, p.done, p.total) for p in seen] == [("calibration capture", n, 5) for n in range(1, 5)]
     assert seen[1].detail == "hand pose 2 of 3 skipped"
@@ -119,3 +120,26 @@ def test_mistakes(head: Head, tmp_path: pathlib.Path):
     turntable.close()
     with pytest.raises(slscan.InvalidArgumentError, match="closed"):
         slscan.capture_calibration(camera, projector, tmp_path / "a", turntable=turntable)
+
+
+def test_a_head_of_two_cameras_is_captured_together_and_resumed(context: slscan.Context, tmp_path: pathlib.Path):
+    # Cameras 0 and 1 of one simulated head (cameras=2&camera=K): every pose taken by both, one
+    # recording each in folder/camera0 and camera1; a cancel and a resume continue both.
+    uri = f"{head_uri(3)}&cameras=2"
+    folder = tmp_path / "head"
+    with slscan.Projector(uri, context) as projector, slscan.Camera(f"{uri}&camera=0", context) as first, \
+            slscan.Camera(f"{uri}&camera=1", context) as second:
+        with pytest.raises(slscan.CancelledError, match="cancelled after hand pose 2 of 3"):
+            slscan.capture_calibration(first, projector, folder, hand_poses=3, more_cameras=[second],
+                                       progress=lambda p: p.done < 2)
+        assert [len(frames(folder / f"camera{k}")) for k in range(2)] == [2, 2]
+        result = slscan.capture_calibration(first, projector, folder, hand_poses=3, more_cameras=[second],
+                                            resume=True)
+        assert (result.cameras, result.resumed_from, result.poses_captured, result.frames) == (2, 2, 1, 3)
+        assert [len(frames(folder / f"camera{k}")) for k in range(2)] == [3, 3]
+        infos = [json.loads((folder / f"camera{k}" / "manifest.json").read_text())["device"] for k in range(2)]
+        # Each recording names the head's projector, and its own camera by serial.
+        assert infos[0]["uri"] == infos[1]["uri"] == projector.info.uri
+        assert [info["serial"] for info in infos] == ["SIM-CAM-0", "SIM-CAM-1"]
+        with pytest.raises(slscan.InvalidArgumentError, match="is camera 0 of the head again"):
+            slscan.capture_calibration(first, projector, tmp_path / "x", hand_poses=1, more_cameras=[first])

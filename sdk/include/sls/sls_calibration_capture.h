@@ -1,4 +1,4 @@
-/* Calibration capture through the devices (API 0.7): the chessboard views that
+/* Calibration capture through the devices (API 0.7; heads of several cameras 0.9): the chessboard views that
  * sls_calibration_run() calibrates from, captured pose by pose through an open camera,
  * projector and (optionally) turntable into an ordinary recording, as `sls calibrate --camera
  * ... --record DIR` captures them.
@@ -23,6 +23,18 @@
  * turntable frame, the hand poses go on at pose h + 1 (h = its hand frames; a pose skipped
  * before the cut is asked again), else they are over; the turntable angles it holds (to half a
  * table step) are not captured again. Without resume the folder must not exist or be empty.
+ *
+ * A head (API 0.9: config->more_cameras): a projector and several cameras, calibrated as one
+ * (sls_calibration_run on the folder, then sls_calibration_camera_count/_get_camera). Every pose
+ * is one pattern stack that all cameras take together: the projector shows each pattern once and
+ * every camera is triggered on it, as a real head triggers its cameras from the projector, so all
+ * of them see the board at the same instant (a board held by hand does not wait for a second
+ * projection). recording_folder is then the head's folder: one recording per camera in
+ * recording_folder/camera0 (the `camera` argument), camera1, ... (frame k of each the same
+ * pose), the layout sls_calibration_run() and `sls calibrate --input` read as a head. A resume
+ * continues every camera's recording; recordings that disagree (another pose count, as a kill
+ * between two cameras' writes leaves them) or a head of another camera count are refused,
+ * naming the folder. Errors name the camera by index and URI: "camera 1 (gige://...)".
  *
  * Errors name the pose and the device, and the frames kept, e.g. "calibration hand pose 3 of
  * 12: capture frame 2 of 3, pattern 5 of 42: camera gige://...: no image within 2000 ms; 2
@@ -106,6 +118,11 @@ typedef struct sls_calibration_capture_config {
   int turntable_timeout_ms;           /* per home or move; default 10000 */
   int max_retries;                    /* a spoiled stack is captured again up to this many times,
                                        * then written incomplete; default 2 */
+  /* API 0.9: a head of several cameras (see "A head" above). */
+  sls_camera* const* more_cameras;    /* cameras 1 .. K-1 of the head (the `camera` argument is
+                                       * camera 0), open and each a different camera; the caller's
+                                       * array, read during the call; default NULL: one camera */
+  size_t more_camera_count;           /* of them, at most 15; default 0 */
 } sls_calibration_capture_config;
 
 /* Fills *config with the defaults. */
@@ -162,6 +179,7 @@ typedef struct sls_calibration_capture_result {
   size_t retries;           /* stacks captured again */
   double seconds;           /* the whole call, the callbacks' time included */
   double capture_seconds;   /* capturing only: table moves, stacks and recording */
+  size_t cameras;           /* API 0.9: the cameras that captured each pose (1 + more_camera_count) */
 } sls_calibration_capture_result;
 
 /* Sets struct_size and clears the other fields. */
@@ -187,9 +205,11 @@ SLS_API void sls_calibration_capture_result_init_sized(sls_calibration_capture_r
  *                      there: SLS_ERROR_CANCELLED, the recording kept.
  *   result:            NULL, or a struct from sls_calibration_capture_result_init(), filled on
  *                      SLS_OK; on a failure only `frames` is set (what the recording at the
- *                      folder holds: what a resume starts from; 0 without one), the rest 0.
+ *                      folder holds, a head's per camera: what a resume starts from; 0
+ *                      without one), the rest 0.
  * Fails, with nothing captured, with SLS_ERROR_INVALID_ARGUMENT for a NULL camera, projector or
- * folder, a struct_size not from its _init(), a bad config field (named), turntable angles
+ * folder, a struct_size not from its _init(), a bad config field (named: a NULL more_cameras
+ * with a count, a NULL or repeated camera in it, more than 15), turntable angles
  * without a turntable or with a NULL array, a folder that is not empty without config->resume
  * or that holds no recording with it, or a recording that another pattern set or camera made;
  * SLS_ERROR_FORMAT for a corrupt recording to resume. Then, the poses before kept in the

@@ -120,7 +120,7 @@ TEST(SimCalibrationCapture, EveryPoseKeepsTheWholeBoardInViewAndLitAtEveryPreset
 // A head of two cameras: the second mirrors the first across the projector (twice the 25°
 // triangulation angle round the focus), the same placements for both, every pose in view and
 // lit for both (make_calibration_rigs checks each camera), the exact head calibration with
-// both; one camera is the one-camera capture unchanged; three cameras are refused.
+// both; one camera is the one-camera capture unchanged; five cameras are refused.
 TEST(SimCalibrationCapture, ASecondCameraMirrorsTheFirstAcrossTheProjector) {
   for (const char* preset : {"ci", "demo", "paper"}) {
     SimCalibrationOptions options;
@@ -156,9 +156,70 @@ TEST(SimCalibrationCapture, ASecondCameraMirrorsTheFirstAcrossTheProjector) {
   for (std::size_t i = 0; i < alone.placements.size(); ++i) {
     EXPECT_EQ(alone.placements[i].mount.matrix(), head_of_one[0].placements[i].mount.matrix());
   }
-  SimCalibrationOptions three = one;
-  three.cameras = 3;
-  EXPECT_THROW(make_calibration_rigs(three), Error);
+  SimCalibrationOptions five = one;
+  five.cameras = 5;
+  EXPECT_THROW(make_calibration_rigs(five), Error);
+}
+
+// Heads of three and four cameras: cameras 0 and 1 are the two-camera head's (place, lens,
+// sensor), camera 2 stands above the projector and camera 3 below it, each the 25°
+// triangulation angle from it (their axes acos(cos² 25°) = 34.8° from camera 0's), each with a lens and
+// a sensor of its own, the table one motion for all; every pose in view of every camera (the
+// rigs are refused otherwise) at every preset.
+TEST(SimCalibrationCapture, ThirdAndFourthCamerasStandAboveAndBelowTheProjector) {
+  for (const char* preset : {"ci", "demo", "paper"}) {
+    SimCalibrationOptions two;
+    two.rig.preset = preset;
+    two.cameras = 2;
+    const std::vector<SimRig> pair = make_calibration_rigs(two);
+    for (const int count : {3, 4}) {
+      SimCalibrationOptions options = two;
+      options.cameras = count;
+      const std::vector<SimRig> rigs = make_calibration_rigs(options);
+      ASSERT_EQ(rigs.size(), static_cast<std::size_t>(count));
+      const std::string what = fmt::format("{} {} cameras", preset, count);
+      for (std::size_t k = 0; k < 2; ++k) {
+        EXPECT_EQ(rigs[k].T_world_camera.matrix(), pair[k].T_world_camera.matrix()) << what;
+        EXPECT_EQ(rigs[k].camera.k1, pair[k].camera.k1) << what;
+        EXPECT_EQ(rigs[k].noise_seed, pair[k].noise_seed) << what;
+      }
+      const Eigen::Vector3d focus =
+          rigs[0].T_world_camera * Eigen::Vector3d(0.0, 0.0, rigs[0].optics.working_distance_m);
+      const ScannerCalibration head = head_calibration(rigs);
+      EXPECT_EQ(head.camera_count(), count);
+      EXPECT_NO_THROW(head.validate());
+      for (std::size_t k = 2; k < rigs.size(); ++k) {
+        EXPECT_NEAR(rigs[k].T_camera_projector.angle_rad() / kDegree, 25.0, 1e-9) << what;
+        // Its optical axis acos(cos² 25°) from camera 0's (25° round, then 25° up or down);
+        // the rotation between them turns by acos((2 cos 25° + cos² 25° − 1) / 2) = 35.2°, its
+        // image upright (no roll about its own axis: image x stays horizontal).
+        const Eigen::Matrix3d R = head.additional_cameras[k - 1].T_camera0_camera.rotation();
+        EXPECT_NEAR(R.col(2).z(), std::pow(std::cos(25.0 * kDegree), 2), 1e-12) << what;
+        const double c = std::cos(25.0 * kDegree);
+        EXPECT_NEAR(head.additional_cameras[k - 1].T_camera0_camera.angle_rad(),
+                    std::acos((2.0 * c + c * c - 1.0) / 2.0), 1e-9)
+            << what;
+        EXPECT_NEAR((rigs[k].T_world_camera.rotation() * Eigen::Vector3d::UnitX()).z(), 0.0, 1e-12) << what;
+        // At the working distance from the focus, above (camera 2) or below (camera 3) it.
+        const Eigen::Vector3d centre = rigs[k].T_world_camera.translation();
+        EXPECT_NEAR((centre - focus).norm(), rigs[0].optics.working_distance_m, 1e-12) << what;
+        EXPECT_NEAR(centre.z() - focus.z(), (k == 2 ? 1.0 : -1.0) * rigs[0].optics.working_distance_m *
+                                                std::sin(25.0 * kDegree),
+                    1e-12)
+            << what;
+        EXPECT_EQ(rigs[k].turntable.seed, rigs[0].turntable.seed);
+      }
+      for (std::size_t a = 0; a < rigs.size(); ++a) {
+        for (std::size_t b = a + 1; b < rigs.size(); ++b) {
+          EXPECT_NE(rigs[a].camera.k1, rigs[b].camera.k1) << what << " lenses " << a << " " << b;
+          EXPECT_NE(rigs[a].noise_seed, rigs[b].noise_seed) << what << " sensors " << a << " " << b;
+        }
+        for (std::size_t i = 0; i < rigs[0].placements.size(); ++i) {
+          EXPECT_EQ(rigs[a].placements[i].mount.matrix(), rigs[0].placements[i].mount.matrix()) << what;
+        }
+      }
+    }
+  }
 }
 
 // Over the default 12 hand poses the corners reach out over the whole image, as calibration
@@ -484,6 +545,80 @@ TEST(SimCalibrationCapture, ACalibrationTargetByUriHasAnOperatorWhoPlacesTheBoar
                           "sim://knurled-screw?calibration=1", "sim://chessboard?calibration=1&frames=4",
                           "sim://chessboard?calibration=1&hand_poses=0", "sim://chessboard?calibration=1&head=teapot"}) {
     EXPECT_THROW(SimScanner::open(bad), Error) << bad;
+  }
+}
+
+// The devices of one head by URI (cameras=2&camera=K): camera K is rigs[K] of that head; what
+// the projector opened from any of its URIs shows, every camera sees; the operator places the
+// board once per acquisition of the head (both cameras started for one pose), not per camera.
+TEST(SimCalibrationCapture, TheCamerasOfAHeadShareItsProjectorAndItsOperator) {
+  const std::string uri = "sim://chessboard?calibration=1&preset=ci&width=64&hand_poses=2&head=chessboard&device=cpu"
+                          "&cameras=2";
+  const std::shared_ptr<SimScanner> first = SimScanner::open(uri + "&camera=0");
+  const std::shared_ptr<SimScanner> second = SimScanner::open(uri + "&camera=1");
+  SimCalibrationOptions options;
+  options.rig.preset = "ci";
+  options.rig.camera_width = 64;
+  options.hand_poses = 2;
+  options.turntable_poses = 0;
+  options.head_object = "chessboard";
+  options.cameras = 2;
+  const std::vector<SimRig> rigs = make_calibration_rigs(options);
+  EXPECT_EQ(first->rig().T_world_camera.matrix(), rigs[0].T_world_camera.matrix());
+  EXPECT_EQ(second->rig().T_world_camera.matrix(), rigs[1].T_world_camera.matrix());
+  EXPECT_EQ(second->rig().camera.k1, rigs[1].camera.k1);
+  EXPECT_EQ(second->rig().noise_seed, rigs[1].noise_seed);
+  const std::unique_ptr<drivers::Projector> projector = second->projector();  // any of the head's
+  const std::unique_ptr<drivers::Camera> camera0 = first->camera();
+  const std::unique_ptr<drivers::Camera> camera1 = second->camera();
+  EXPECT_EQ(camera0->info().serial, "SIM-CAM-0");
+  EXPECT_EQ(camera1->info().serial, "SIM-CAM-1");
+  projector->load_patterns(first->rig().patterns);
+  const auto mean = [](const Image16u& image) {
+    double sum = 0.0;
+    for (int y = 0; y < image.height(); ++y) {
+      for (int x = 0; x < image.width(); ++x) sum += image(x, y);
+    }
+    return sum / (static_cast<double>(image.width()) * image.height());
+  };
+  // One acquisition of the head: both cameras started, the pattern shown once, both triggered.
+  const auto acquire = [&](int pattern) {
+    camera0->start();
+    camera1->start();
+    if (pattern < 0) {
+      projector->go_dark();
+    } else {
+      projector->show_pattern(pattern);
+    }
+    camera0->software_trigger();
+    camera1->software_trigger();
+    std::pair<Image16u, Image16u> images{camera0->wait_image(kSimDeviceTimeout).image,
+                                         camera1->wait_image(kSimDeviceTimeout).image};
+    camera1->stop();
+    camera0->stop();
+    return images;
+  };
+  const auto [white0, white1] = acquire(0);
+  EXPECT_EQ(first->ground_truth().frame, 0);
+  EXPECT_EQ(second->ground_truth().frame, 0);
+  const auto [dark0, dark1] = acquire(-1);
+  EXPECT_EQ(first->ground_truth().frame, 1);  // one pose further for both, not two
+  EXPECT_EQ(second->ground_truth().frame, 1);
+  EXPECT_GT(mean(white1), 2.0 * mean(dark1));  // camera 1 sees the head's projector
+  EXPECT_GT(mean(white0), 2.0 * mean(dark0));
+  EXPECT_TRUE(white0 != white1);
+  EXPECT_THROW(camera0->start(), Error);  // both poses by hand placed
+
+  for (const std::string& bad : std::vector<std::string>{uri + "&camera=2", "sim://chessboard?calibration=1&camera=1",
+                                "sim://chessboard?calibration=1&cameras=5", "sim://chessboard?cameras=2",
+                                "sim://chessboard?calibration=1&cameras=2&camera=-1"}) {
+    EXPECT_THROW(SimScanner::open(bad), Error) << bad;
+  }
+  try {
+    SimScanner::open(uri + "&camera=2");
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("camera=2 is not a camera of a head of 2 (0 .. 1)"), std::string::npos)
+        << error.what();
   }
 }
 
