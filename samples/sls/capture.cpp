@@ -1,5 +1,6 @@
 #include "samples/sls/capture.h"
 
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <filesystem>
@@ -134,9 +135,11 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
   options.write_statistics = &outcome.writes;
   options.image_memory = session::capture_memory_for(device);  // where the scan reads them
   int delivered = 0;  // frames captured this run (what a capture that records nothing has)
+  std::size_t images_seen = 0;  // and their images each
   if (on_recorded) {
-    options.on_recorded = [&on_recorded, &delivered](int frame, const std::shared_ptr<const std::vector<Image16u>>& images,
-                                                     const FrameMetadata& metadata, Image32f* depth_m) {
+    options.on_recorded = [&on_recorded, &delivered, &images_seen](
+                              int frame, const std::shared_ptr<const std::vector<Image16u>>& images,
+                              const FrameMetadata& metadata, Image32f* depth_m) {
       session::ScanFrame scan_frame;
       scan_frame.index = frame;
       scan_frame.timestamp_ns = metadata.timestamp_ns;
@@ -147,6 +150,7 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
         scan_frame.shared_images = images;  // being written: shared with the writer, not copied
       }
       ++delivered;
+      images_seen = std::max(images_seen, scan_frame.pattern_images().size());
       on_recorded(std::move(scan_frame));
     };
   }
@@ -174,6 +178,7 @@ CaptureOutcome capture_sim(const std::string& folder, const SimCaptureRequest& r
   if (!live.record) {
     outcome.frames = delivered;
     outcome.planned = planned > 0 ? static_cast<int>(planned) : delivered;
+    outcome.images_per_frame = static_cast<int>(images_seen);
     return outcome;
   }
   const RecordingReader recorded = RecordingReader::open(folder);
@@ -194,9 +199,11 @@ CaptureOutcome capture_devices(const std::string& folder, const session::DeviceC
   outcome.recording = live.record ? folder : std::string();
   outcome.source = request.camera_uri;
   const ProgressCallback progress = stop.wrap(display);
-  int delivered = 0;  // frames captured this run (what a capture that records nothing has)
-  const session::RecordedFrame counted = [&on_recorded, &delivered](session::ScanFrame&& frame) {
+  int delivered = 0;             // frames captured this run (what a capture that records nothing has)
+  std::size_t images_seen = 0;  // and their images each
+  const session::RecordedFrame counted = [&on_recorded, &delivered, &images_seen](session::ScanFrame&& frame) {
     ++delivered;
+    images_seen = std::max(images_seen, frame.pattern_images().size());
     on_recorded(std::move(frame));
   };
   try {
@@ -220,6 +227,7 @@ CaptureOutcome capture_devices(const std::string& folder, const session::DeviceC
   outcome.planned = request.frames > 0 ? request.frames : (request.turntable_uri.empty() ? 1 : 36);
   if (!live.record) {
     outcome.frames = delivered;
+    outcome.images_per_frame = static_cast<int>(images_seen);
     return outcome;
   }
   const RecordingReader recorded = RecordingReader::open(folder);

@@ -6,6 +6,7 @@ closure, each switched off), `eval` (the model as tracked side by side). Usage: 
 import json
 import os
 import pathlib
+import re
 import shutil
 import signal
 import struct
@@ -585,8 +586,15 @@ class SlsCli(unittest.TestCase):
         recorded, unrecorded = self.dir / "recorded", self.dir / "unrecorded"
         result = run("scan", *common, "--out", str(recorded))
         self.assertEqual(result.returncode, 0, result.stderr)
+        images_recorded = re.search(r"captured 3 frame\(s\).* x (\d+) images", result.stderr)
         result = run("scan", *common, "--no-record", "--out", str(unrecorded))
         self.assertEqual(result.returncode, 0, result.stderr)
+        # The summary counts the images it captured, recorded or not.
+        images_unrecorded = re.search(r"captured 3 frame\(s\).* x (\d+) images", result.stderr)
+        self.assertIsNotNone(images_recorded, result.stderr)
+        self.assertIsNotNone(images_unrecorded, result.stderr)
+        self.assertGreater(int(images_recorded.group(1)), 0)
+        self.assertEqual(images_unrecorded.group(1), images_recorded.group(1))
         # Nothing of the capture on disk, the same model.
         self.assertFalse((unrecorded / "recording").exists())
         self.assertEqual((recorded / "cloud.ply").read_bytes(), (unrecorded / "cloud.ply").read_bytes())
