@@ -9,6 +9,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
+#include "calib/opencv_conversions.h"
 #include "sdk/core/error.h"
 
 namespace sls::calib {
@@ -119,38 +120,25 @@ CameraIntrinsics intrinsics(const std::string& path, const cv::Mat& k, const cv:
   if (k.rows != 3 || k.cols != 3) {
     throw_error(ErrorCode::kFormat, "{}: \"{}\" is {}x{}, a camera matrix is 3x3", path, k_key, k.rows, k.cols);
   }
-  CameraIntrinsics c;
-  c.width = width;
-  c.height = height;
-  c.fx = k.at<double>(0, 0);
-  c.fy = k.at<double>(1, 1);
-  c.cx = k.at<double>(0, 2);
-  c.cy = k.at<double>(1, 2);
-  if (std::fabs(k.at<double>(0, 1)) > 1e-9 * std::fabs(c.fx)) {
+  if (std::fabs(k.at<double>(0, 1)) > 1e-9 * std::fabs(k.at<double>(0, 0))) {
     throw_error(ErrorCode::kFormat, "{}: \"{}\" has a skew of {}: not supported by slscan's camera model", path,
                 k_key, k.at<double>(0, 1));
   }
-  if (!d.empty()) {
-    const cv::Mat flat = d.reshape(1, 1);
-    if (flat.cols < 4) {
-      throw_error(ErrorCode::kFormat, "{}: \"{}\" holds {} coefficients (OpenCV's order k1 k2 p1 p2 [k3 ...])",
-                  path, d_key, flat.cols);
-    }
-    c.k1 = flat.at<double>(0);
-    c.k2 = flat.at<double>(1);
-    c.p1 = flat.at<double>(2);
-    c.p2 = flat.at<double>(3);
-    if (flat.cols > 4) c.k3 = flat.at<double>(4);
-    for (int i = 5; i < flat.cols; ++i) {
-      if (flat.at<double>(i) != 0.0) {
-        throw_error(ErrorCode::kFormat,
-                    "{}: \"{}\" coefficient {} is {}: the rational / thin-prism / tilted models are not supported "
-                    "(slscan's model is k1 k2 p1 p2 k3)",
-                    path, d_key, i, flat.at<double>(i));
-      }
+  if (d.empty()) return intrinsics_from(k, cv::Mat::zeros(1, 5, CV_64F), width, height);
+  const cv::Mat flat = d.reshape(1, 1);
+  if (flat.cols < 4) {
+    throw_error(ErrorCode::kFormat, "{}: \"{}\" holds {} coefficients (OpenCV's order k1 k2 p1 p2 [k3 ...])", path,
+                d_key, flat.cols);
+  }
+  for (int i = 5; i < flat.cols; ++i) {
+    if (flat.at<double>(i) != 0.0) {
+      throw_error(ErrorCode::kFormat,
+                  "{}: \"{}\" coefficient {} is {}: the rational / thin-prism / tilted models are not supported "
+                  "(slscan's model is k1 k2 p1 p2 k3)",
+                  path, d_key, i, flat.at<double>(i));
     }
   }
-  return c;
+  return intrinsics_from(k, flat, width, height);
 }
 
 }  // namespace
