@@ -53,9 +53,7 @@ void VolumeGeometry::validate() const {
 }
 
 std::size_t bytes_per_voxel(VoxelFormat format, AverageStorage average) {
-  const std::size_t u_bytes = format == VoxelFormat::kFloat32 ? 4u : 2u;
-  const std::size_t w_bytes = format == VoxelFormat::kFloat32 ? 4u : 1u;
-  return u_bytes + w_bytes + (average == AverageStorage::kSeparate ? u_bytes : 0u);
+  return voxel_bytes(format, average == AverageStorage::kSeparate);
 }
 
 const char* voxel_format_name(VoxelFormat format) {

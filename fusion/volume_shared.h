@@ -82,6 +82,13 @@ SLS_HOST_DEVICE inline float half_to_float(std::uint16_t half) {
   return bits_float(sign | ((exponent - 15u + 127u) << 23) | (mantissa << 13));
 }
 
+// Bytes a voxel takes: U and W, and GTSDF's running average A where the volume keeps it apart.
+SLS_HOST_DEVICE inline std::size_t voxel_bytes(VoxelFormat format, bool separate_average) {
+  const std::size_t u_bytes = format == VoxelFormat::kFloat32 ? 4u : 2u;
+  const std::size_t w_bytes = format == VoxelFormat::kFloat32 ? 4u : 1u;
+  return u_bytes + w_bytes + (separate_average ? u_bytes : 0u);
+}
+
 // The volume as kernels see it. Voxel (i, j, k) has its centre at ((i, j, k) + 0.5) *
 // voxel_size_m in the volume frame; T_world_volume places the volume (rotation included).
 struct VolumeView {
@@ -128,10 +135,7 @@ struct VolumeView {
   }
   SLS_HOST_DEVICE bool keeps_average() const { return a32 != nullptr || a16 != nullptr; }
   // Bytes a voxel takes (U, W and A where kept): what reading or writing one moves.
-  SLS_HOST_DEVICE std::size_t bytes_per_voxel() const {
-    const std::size_t uw = format == VoxelFormat::kFloat32 ? 8 : 3;
-    return uw + (a32 != nullptr ? 4 : 0) + (a16 != nullptr ? 2 : 0);
-  }
+  SLS_HOST_DEVICE std::size_t bytes_per_voxel() const { return voxel_bytes(format, keeps_average()); }
   // A: the running average where the volume keeps it, else U (which then is A).
   SLS_HOST_DEVICE float average(std::size_t index) const {
     if (a32 != nullptr) return a32[index];
