@@ -20,10 +20,6 @@
 #include <omp.h>
 #endif
 
-#if defined(SLS_HAVE_CUDA)
-#include "fusion/cuda/track_cuda.h"
-#endif
-
 namespace sls::fusion {
 
 using namespace tracking_detail;
@@ -424,59 +420,7 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, cons
   }
   s.gpu_stream = GpuStream::or_create(stream, device);
   if (device.is_cuda()) {
-#if defined(SLS_HAVE_CUDA)
-    s.stream = cuda_stream(s.gpu_stream);
-    s.depth.resize(s.levels.size());
-    s.normals.resize(s.levels.size());
-    for (std::size_t l = 0; l < s.levels.size(); ++l) {
-      const std::size_t pixels = s.levels[l].pixels();
-      s.depth[l].allocate(pixels);
-      s.normals[l].allocate(pixels);
-    }
-    if (!s.input_cameras.empty()) {
-      s.live_upload.allocate(static_cast<std::size_t>(live_camera.width) * static_cast<std::size_t>(live_camera.height));
-      for (std::size_t k = 1; k < s.input_cameras.size(); ++k) {
-        s.input_device.emplace_back(static_cast<std::size_t>(s.input_cameras[k].width) *
-                                    static_cast<std::size_t>(s.input_cameras[k].height));
-      }
-    }
-    if (options.weight_by_confidence) {
-      for (std::size_t l = 0; l < s.levels.size(); ++l) s.weight_device.emplace_back(s.levels[l].pixels());
-      s.weight_upload.allocate(static_cast<std::size_t>(live_camera.width) *
-                               static_cast<std::size_t>(live_camera.height));
-      for (std::size_t k = 1; k < s.input_cameras.size(); ++k) {
-        s.input_weight_device.emplace_back(static_cast<std::size_t>(s.input_cameras[k].width) *
-                                           static_cast<std::size_t>(s.input_cameras[k].height));
-      }
-    }
-    if (s.crease_test()) {
-      s.crease_normals_device.allocate(s.levels[0].pixels());
-      s.crease_mask_device.allocate(s.levels[0].pixels());
-    }
-    s.uploaded_points.allocate(s.levels[0].pixels());
-    s.uploaded_normals.allocate(s.levels[0].pixels());
-    s.partials.allocate(static_cast<std::size_t>(detail::kTrackPartials));
-    s.device_sums.allocate(kTrackSums);
-    SLS_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&s.host_sums), kTrackSums * sizeof(double)));
-    if (s.photometric_on) {
-      for (std::size_t l = 0; l < s.levels.size(); ++l) {
-        s.texture_device.emplace_back(s.levels[l].pixels());
-        s.reference_depth.emplace_back(s.levels[l].pixels());
-        s.reference_texture.emplace_back(s.levels[l].pixels());
-      }
-      s.texture_upload.allocate(static_cast<std::size_t>(live_camera.width) *
-                                static_cast<std::size_t>(live_camera.height));
-      for (std::size_t k = 1; k < s.input_cameras.size(); ++k) {
-        s.input_texture_device.emplace_back(static_cast<std::size_t>(s.input_cameras[k].width) *
-                                            static_cast<std::size_t>(s.input_cameras[k].height));
-      }
-      s.photometric_partials.allocate(static_cast<std::size_t>(detail::kTrackMaxBlocks) * kPhotometricSums);
-      s.photometric_sums.allocate(kPhotometricSums);
-      SLS_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&s.photometric_host_sums),
-                                    kPhotometricSums * sizeof(double)));
-    }
-    SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
-#endif
+    s.allocate_on_device();
   } else {
     if (s.crease_test()) {
       s.crease_normals.assign(s.levels[0].pixels(), Vec3f{0.0f, 0.0f, 0.0f});

@@ -26,6 +26,63 @@ const T* on_device(const Image<T>& image, DeviceBuffer<T>& upload, cudaStream_t 
 
 }  // namespace
 
+// The device buffers, made once (no allocation per frame).
+void Tracker::Impl::allocate_on_device() {
+  Impl& s = *this;
+  const CameraIntrinsics& live = s.live_camera;
+  s.stream = cuda_stream(s.gpu_stream);
+  s.depth.resize(s.levels.size());
+  s.normals.resize(s.levels.size());
+  for (std::size_t l = 0; l < s.levels.size(); ++l) {
+    const std::size_t pixels = s.levels[l].pixels();
+    s.depth[l].allocate(pixels);
+    s.normals[l].allocate(pixels);
+  }
+  if (!s.input_cameras.empty()) {
+    s.live_upload.allocate(static_cast<std::size_t>(live.width) * static_cast<std::size_t>(live.height));
+    for (std::size_t k = 1; k < s.input_cameras.size(); ++k) {
+      s.input_device.emplace_back(static_cast<std::size_t>(s.input_cameras[k].width) *
+                                  static_cast<std::size_t>(s.input_cameras[k].height));
+    }
+  }
+  if (s.options.weight_by_confidence) {
+    for (std::size_t l = 0; l < s.levels.size(); ++l) s.weight_device.emplace_back(s.levels[l].pixels());
+    s.weight_upload.allocate(static_cast<std::size_t>(live.width) *
+                             static_cast<std::size_t>(live.height));
+    for (std::size_t k = 1; k < s.input_cameras.size(); ++k) {
+      s.input_weight_device.emplace_back(static_cast<std::size_t>(s.input_cameras[k].width) *
+                                         static_cast<std::size_t>(s.input_cameras[k].height));
+    }
+  }
+  if (s.crease_test()) {
+    s.crease_normals_device.allocate(s.levels[0].pixels());
+    s.crease_mask_device.allocate(s.levels[0].pixels());
+  }
+  s.uploaded_points.allocate(s.levels[0].pixels());
+  s.uploaded_normals.allocate(s.levels[0].pixels());
+  s.partials.allocate(static_cast<std::size_t>(detail::kTrackPartials));
+  s.device_sums.allocate(kTrackSums);
+  SLS_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&s.host_sums), kTrackSums * sizeof(double)));
+  if (s.photometric_on) {
+    for (std::size_t l = 0; l < s.levels.size(); ++l) {
+      s.texture_device.emplace_back(s.levels[l].pixels());
+      s.reference_depth.emplace_back(s.levels[l].pixels());
+      s.reference_texture.emplace_back(s.levels[l].pixels());
+    }
+    s.texture_upload.allocate(static_cast<std::size_t>(live.width) *
+                              static_cast<std::size_t>(live.height));
+    for (std::size_t k = 1; k < s.input_cameras.size(); ++k) {
+      s.input_texture_device.emplace_back(static_cast<std::size_t>(s.input_cameras[k].width) *
+                                          static_cast<std::size_t>(s.input_cameras[k].height));
+    }
+    s.photometric_partials.allocate(static_cast<std::size_t>(detail::kTrackMaxBlocks) * kPhotometricSums);
+    s.photometric_sums.allocate(kPhotometricSums);
+    SLS_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&s.photometric_host_sums),
+                                  kPhotometricSums * sizeof(double)));
+  }
+  SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
+}
+
 TrackingResult Tracker::Impl::track_gpu(const Image32f& depth_m, const Image<Vec3f>& model_points,
                                         const Image<Vec3f>& model_normals, const Pose& T_world_model,
                                         const Pose& guess, const Image32f* live_texture, const Image32f* live_weight) {
@@ -246,6 +303,8 @@ TrackingResult Tracker::Impl::track_gpu(const Image32f&, const Image<Vec3f>&, co
 void Tracker::Impl::set_reference_gpu(const Image32f&, const Image32f&, const Pose&) {
   throw_error(ErrorCode::kUnsupported, "tracking: CUDA asked of a build without CUDA");
 }
+
+void Tracker::Impl::allocate_on_device() {}  // track() says what is missing
 
 }  // namespace sls::fusion
 #endif

@@ -228,6 +228,8 @@ struct Tracker::Impl {
                            const Image<Vec3f>& model_normals, const Pose& T_world_model, const Pose& guess,
                            const Image32f* live_texture, const Image32f* live_weight);
   void set_reference_gpu(const Image32f& depth_m, const Image32f& reference_texture_in, const Pose& T_world_camera);
+  // The CUDA path's buffers, at construction (nothing in a build without CUDA).
+  void allocate_on_device();
   // A CPU tracker reads host maps only.
   template <typename T>
   void check_on_host(const Image<T>& image, const char* what) const {
