@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "fusion/depth_shared.h"
 #include "fusion/volume_shared.h"
 #include "sdk/core/camera_model_shared.h"
 
@@ -31,11 +32,12 @@ enum class Penalty : std::int32_t {
 };
 
 struct IntegrationParams {
-  float truncation_m = 0.0f;  // δ
-  float eta_m = 0.0f;         // η > δ: voxels farther than η behind the surface are not updated
-  float weight_max = 255.0f;  // W cap (255 for the compact format's uint8 weights)
-  float alpha = 0.0f;         // λβ; 0 = standard TSDF
-  float kappa = 0.03f;        // κ, in units of U
+  float truncation_m = 0.0f;          // δ
+  float inverse_truncation_m = 0.0f;  // 1/δ: the per-voxel f = d/δ as a product, not a division
+  float eta_m = 0.0f;                 // η > δ: voxels farther than η behind the surface are not updated
+  float weight_max = 255.0f;          // W cap (255 for the compact format's uint8 weights)
+  float alpha = 0.0f;                 // λβ; 0 = standard TSDF
+  float kappa = 0.03f;                // κ, in units of U
   Penalty penalty = Penalty::kPeronaMalik;
 };
 
@@ -69,10 +71,10 @@ SLS_HOST_DEVICE inline bool integrate_voxel(const VolumeView& v, const Integrati
   }
   const float measured =
       frame.depth_m[static_cast<std::size_t>(py) * static_cast<std::size_t>(frame.width) + static_cast<std::size_t>(px)];
-  if (!(measured > 0.0f)) return false;
+  if (!is_measured_depth(measured)) return false;
   const float d = measured - point_camera.z;
   if (d < -p.eta_m) return false;  // hidden behind the surface: no information
-  const float f = std::fmax(-1.0f, std::fmin(1.0f, d / p.truncation_m));
+  const float f = std::fmax(-1.0f, std::fmin(1.0f, d * p.inverse_truncation_m));
   const std::size_t index = v.index(i, j, k);
   const float weight = v.w(index);
   const float previous = weight > 0.0f ? v.average(index) : 0.0f;

@@ -74,6 +74,7 @@ void IntegrationOptions::validate(VoxelFormat format) const {
 IntegrationParams IntegrationOptions::params(double voxel_size_m) const {
   IntegrationParams p;
   p.truncation_m = static_cast<float>(truncation_voxels * voxel_size_m);
+  p.inverse_truncation_m = 1.0f / p.truncation_m;
   p.eta_m = static_cast<float>(eta_voxels * voxel_size_m);
   p.weight_max = static_cast<float>(weight_max);
   p.alpha = is_gtsdf() ? static_cast<float>(lambda * beta) : 0.0f;

@@ -64,7 +64,7 @@ SLS_HOST_DEVICE inline float downsample_texture(const float* fine, int fine_widt
 
 template <typename T>
 SLS_HOST_DEVICE inline void accumulate_texture_statistics(float texture, float depth, T sums[kTextureSums]) {
-  if (!valid_depth(depth)) return;
+  if (!is_measured_depth(depth)) return;
   sums[0] += static_cast<T>(texture);
   sums[1] += T(1);
 }
@@ -117,7 +117,7 @@ SLS_HOST_DEVICE inline int photometric_pixel(const PhotometricLevelView& ref, co
   if (x < 1 || y < 1 || x + 1 >= ref.width || y + 1 >= ref.height) return kPhotometricNone;
   const long long i = static_cast<long long>(y) * ref.width + x;
   const float z = ref.depth[i];
-  if (!valid_depth(z)) return kPhotometricNone;
+  if (!is_measured_depth(z)) return kPhotometricNone;
   const Vec3f ray = ref.rays[i];
   if (!(ray.z > 0.0f)) return kPhotometricNone;
   const Vec3f point_ref = z * ray;
@@ -132,7 +132,9 @@ SLS_HOST_DEVICE inline int photometric_pixel(const PhotometricLevelView& ref, co
   const int nearest_x = static_cast<int>(std::floor(pixel.x + 0.5f));
   const int nearest_y = static_cast<int>(std::floor(pixel.y + 0.5f));
   const float live_z = live.depth[static_cast<long long>(nearest_y) * live.width + nearest_x];
-  if (!valid_depth(live_z) || !(std::fabs(live_z - point.z) <= p.max_depth_difference_m)) return kPhotometricNone;
+  if (!is_measured_depth(live_z) || !(std::fabs(live_z - point.z) <= p.max_depth_difference_m)) {
+    return kPhotometricNone;
+  }
   const float i_live = sample_bilinear(live.texture, live.width, pixel.x, pixel.y);
   const float i_ref = ref.texture[i];
   *live_value = i_live;

@@ -7,6 +7,7 @@
 
 #include <cmath>
 
+#include "fusion/depth_shared.h"
 #include "fusion/volume_shared.h"
 
 namespace sls::fusion {
@@ -102,8 +103,6 @@ SLS_HOST_DEVICE inline void guide_span(int first, int count, int size, int guide
   if (*end > guide_size) *end = guide_size;
 }
 
-SLS_HOST_DEVICE inline bool is_measured_depth(float depth_m) { return depth_m > 0.0f && depth_m < 3.0e38f; }
-
 // Narrows p's depth range for pixel (x, y) as described above; unchanged without a guide.
 SLS_HOST_DEVICE inline void guided_depth_range(const RaycastGuideView& g, int x, int y, RaycastParams* p) {
   if (g.depth_m == nullptr) return;
@@ -147,6 +146,7 @@ SLS_HOST_DEVICE inline RaycastHit raycast_pixel(const VolumeView& v, const Rayca
   if (!clip_to_volume(v, origin, direction, &t0, &t1)) return hit;
   const float min_step = v.voxel_size_m / ray_length;  // one voxel of path
   const float to_grid = 1.0f / v.voxel_size_m;         // sample_u's: one reciprocal, no division a step
+  const float skip_per_u = 0.8f * p.truncation_m / ray_length;  // the skip below, per unit of U
   float t = t0;
   float previous = 0.0f, previous_t = 0.0f;
   bool have_previous = false;
@@ -201,7 +201,7 @@ SLS_HOST_DEVICE inline RaycastHit raycast_pixel(const VolumeView& v, const Rayca
     previous_t = t;
     have_previous = true;
     // Far from the surface U says how far it is at least (in δ): skip most of it.
-    const float skip = value > 0.0f ? 0.8f * value * p.truncation_m / ray_length : 0.0f;
+    const float skip = value > 0.0f ? value * skip_per_u : 0.0f;
     t += std::fmax(min_step, skip);
   }
   return hit;

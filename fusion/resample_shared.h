@@ -80,10 +80,11 @@ SLS_HOST_DEVICE inline void resample_voxel(const VolumeView& from, const VolumeV
     to.set_w(out, 0.0f);
     return;
   }
-  const float u = std::fmax(-1.0f, std::fmin(1.0f, sum_u / support));
-  const float w = std::fmax(1.0f, std::floor(sum_w / support + 0.5f));
+  const float inverse_support = 1.0f / support;  // one division for the three averages
+  const float u = std::fmax(-1.0f, std::fmin(1.0f, sum_u * inverse_support));
+  const float w = std::fmax(1.0f, std::floor(sum_w * inverse_support + 0.5f));
   to.set_u(out, u);
-  to.set_average(out, std::fmax(-1.0f, std::fmin(1.0f, sum_a / support)));
+  to.set_average(out, std::fmax(-1.0f, std::fmin(1.0f, sum_a * inverse_support)));
   to.set_w(out, w);
   if (std::fabs(u) < 1.0f) to.mark_surface(i, j, k);
 }

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "fusion/depth_shared.h"
 #include "sdk/core/camera_model_shared.h"
 #include "sdk/core/host_device.h"
 #include "sdk/core/math_shared.h"
@@ -44,8 +45,6 @@ constexpr int kFrameLiveOutside = 6;
 // to the view.
 constexpr float kDiscontinuityFootprints = 8.0f;
 
-SLS_HOST_DEVICE inline bool valid_depth(float z) { return z > 0.0f && z < 3.0e38f; }
-
 // One pixel of pyramid level l + 1 from the 2x2 block (2x, 2y) .. (2x+1, 2y+1) of level l
 // (fine_width x fine_height, focal length fine_fx): the average of the block's valid depths
 // within kDiscontinuityFootprints footprints of the nearest; 0 when none is valid. The coarse
@@ -65,7 +64,7 @@ SLS_HOST_DEVICE inline float downsample_depth(const float* fine, int fine_width,
       if (fx >= fine_width || fy >= fine_height) continue;
       const long long i = static_cast<long long>(fy) * fine_width + fx;
       const float value = fine[i];
-      if (!valid_depth(value)) continue;
+      if (!is_measured_depth(value)) continue;
       if (fine_weight != nullptr) w[n] = fine_weight[i];
       z[n++] = value;
       nearest = value < nearest ? value : nearest;
@@ -108,7 +107,7 @@ struct DepthRayPoints {  // a depth map along its ray map
   SLS_HOST_DEVICE Vec3f operator()(long long i) const {
     const float z = depth[i];
     const Vec3f ray = rays[i];
-    if (!valid_depth(z) || !(ray.z > 0.0f)) return Vec3f{0.0f, 0.0f, 0.0f};
+    if (!is_measured_depth(z) || !(ray.z > 0.0f)) return Vec3f{0.0f, 0.0f, 0.0f};
     return z * ray;
   }
 };
@@ -127,7 +126,7 @@ SLS_HOST_DEVICE inline Vec3f baseline_normal(const Points& point_at, int width, 
   const long long i = static_cast<long long>(y) * width + x;
   const Vec3f p = point_at(i);
   const float z = p.z;
-  if (!valid_depth(z)) return none;
+  if (!is_measured_depth(z)) return none;
   const float footprint = z / fx;
   const int b = normal_baseline_px(z, fx, baseline_m);
   if (x < b || y < b || x + b >= width || y + b >= height) return none;
@@ -137,7 +136,7 @@ SLS_HOST_DEVICE inline Vec3f baseline_normal(const Points& point_at, int width, 
   Vec3f v[4];
   for (int k = 0; k < 4; ++k) {
     v[k] = point_at(neighbours[k]);
-    if (!valid_depth(v[k].z) || !(std::fabs(v[k].z - z) <= step)) return none;
+    if (!is_measured_depth(v[k].z) || !(std::fabs(v[k].z - z) <= step)) return none;
   }
   Vec3f n = cross(v[1] - v[0], v[3] - v[2]);
   const float length = norm(n);
@@ -231,7 +230,7 @@ SLS_HOST_DEVICE inline int track_pixel(const TrackLiveView& live, const TrackMod
                                        int x, int y, float jacobian[6], float* residual, float* weight) {
   const long long i = static_cast<long long>(y) * live.width + x;
   const float z = live.depth[i];
-  if (!valid_depth(z)) return kTrackNoMatch;
+  if (!is_measured_depth(z)) return kTrackNoMatch;
   const Vec3f n_live = live.normals[i];
   if (!has_normal(n_live)) return kTrackNoMatch;
   *weight = live.weights != nullptr ? live.weights[i] : 1.0f;
@@ -339,7 +338,7 @@ template <typename T>
 SLS_HOST_DEVICE inline void accumulate_frame_statistics(Vec3f model_point, float live_depth, Vec3f live_ray,
                                                         const TrackRegion& region, Vec3f reference,
                                                         T sums[kFrameSums]) {
-  if (valid_depth(live_depth)) {
+  if (is_measured_depth(live_depth)) {
     sums[inside_region(region, live_ray, live_depth) ? kFrameLivePixels : kFrameLiveOutside] += T(1);
   }
   if (!(model_point.z > 0.0f)) return;

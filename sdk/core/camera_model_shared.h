@@ -159,7 +159,10 @@ SLS_HOST_DEVICE inline Vec2T<T> pixel_to_normalized(const CameraIntrinsicsT<T>& 
 template <typename T>
 SLS_HOST_DEVICE inline bool project(const CameraIntrinsicsT<T>& c, Vec3T<T> point_camera, Vec2T<T>* pixel) {
   if (!(point_camera.z > T(0))) return false;
-  const Vec2T<T> n = {point_camera.x / point_camera.z, point_camera.y / point_camera.z};
+  // One reciprocal and two products, not two divisions: an IEEE division is a dozen
+  // instructions on a GPU, and the integration and ICP kernels project every voxel or pixel.
+  const T inverse_z = T(1) / point_camera.z;
+  const Vec2T<T> n = {point_camera.x * inverse_z, point_camera.y * inverse_z};
   *pixel = normalized_to_pixel(c, distort_normalized(c, n));
   return true;
 }
