@@ -122,6 +122,17 @@ class SlsCli(unittest.TestCase):
                                  bench["stages"]["move"]["total_s"] + 1e-9)
             self.assertLessEqual(parts["ship_assemble"]["total_s"], parts["ship"]["total_s"] + 1e-9)
             self.assertLessEqual(bench["frame_ms"]["median"], bench["frame_ms"]["max"])
+            # Every frame's own figures: the frames' time is their sum, the stages lie within each.
+            per_frame = bench["per_frame"]
+            self.assertEqual(sorted(per_frame), sorted(
+                ("frame_ms", "decode_ms", "track_ms", "integrate_ms", "move_ms", "raycast_ms", "deform_ms",
+                 "upload_wait_ms")))
+            self.assertTrue(all(len(column) == frames for column in per_frame.values()))
+            self.assertAlmostEqual(sum(per_frame["frame_ms"]) * 1e-3, bench["frames_s"], places=6)
+            self.assertEqual(max(per_frame["frame_ms"]), bench["frame_ms"]["max"])
+            for k in range(frames):
+                stages = sum(per_frame[key][k] for key in per_frame if key != "frame_ms")
+                self.assertLessEqual(stages, per_frame["frame_ms"][k] + 1e-6)
             self.assertNotIn("gpu", bench)
             self.assertFalse(bench["upload_ahead"])  # on the CPU there is nothing to upload
             self.assertEqual(bench["stages"]["upload_wait"]["total_s"], 0.0)
