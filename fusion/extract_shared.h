@@ -223,4 +223,28 @@ SLS_HOST_DEVICE inline bool edge_has_region_cell(const VolumeView& v, const Regi
   return false;
 }
 
+// Whether a region that keeps its outside drops everything found from the voxels first..last
+// (inclusive, per axis): a crossing on one of their edges, a cell around such an edge and a
+// cell of theirs all have their points (crossings, cell centres) within [first - 1/2, last +
+// 3/2] voxels (voxel centres at +1/2); when that box lies inside the region's box (convex:
+// its corners do, by 0.05 voxel for float rounding), the region keeps none of them. Lets the
+// GPU skip the bulk of a moving volume that stays (false for a region that keeps its inside).
+SLS_HOST_DEVICE inline bool region_drops_voxels(const RegionFilter& r, float voxel_size_m, const int first[3],
+                                                const int last[3]) {
+  if (r.keep_outside == 0) return false;
+  const float tolerance = 0.05f * voxel_size_m;
+  for (int corner = 0; corner < 8; ++corner) {
+    float p[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      const bool high = ((corner >> axis) & 1) != 0;
+      p[axis] = (high ? static_cast<float>(last[axis]) + 1.5f : static_cast<float>(first[axis]) - 0.5f) * voxel_size_m;
+    }
+    const Vec3f q = transform_point(r.T_box_volume, Vec3f{p[0], p[1], p[2]});
+    const bool inside = q.x >= r.lo.x + tolerance && q.y >= r.lo.y + tolerance && q.z >= r.lo.z + tolerance &&
+                        q.x <= r.hi.x - tolerance && q.y <= r.hi.y - tolerance && q.z <= r.hi.z - tolerance;
+    if (!inside) return false;
+  }
+  return true;
+}
+
 }  // namespace sls::fusion

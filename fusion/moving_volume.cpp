@@ -134,7 +134,8 @@ struct MovingVolume::Impl {
   cudaStream_t ship_stream = nullptr;  // ship_gpu_stream's
   DeviceBuffer<EdgeCrossing> crossings;
   DeviceBuffer<CellCase> cells;
-  DeviceBuffer<std::uint32_t> counters;
+  DeviceBuffer<std::uint32_t> counters;      // crossings, cells, listed bricks
+  DeviceBuffer<std::uint32_t> region_bricks;  // the bricks a ship searches
   detail::RegionSortScratch sort_scratch;
 #endif
   // The ship in the background (options.ship_in_background): the job, and the move's stats,
@@ -197,13 +198,23 @@ struct MovingVolume::Impl {
     const float min_weight = options.extract.min_weight;
     if (crossings.size() == 0) crossings.allocate(std::size_t{1} << 16);
     if (cells.size() == 0) cells.allocate(std::size_t{1} << 16);
+    // Only the bricks the region may keep anything of: a move's leaving part.
+    const std::uint32_t bricks = detail::region_brick_count(view);
+    if (region_bricks.size() < bricks) region_bricks.allocate(bricks);
+    std::uint32_t brick_count = 0;
+    SLS_CUDA_CHECK(cudaMemsetAsync(counters.data() + 2, 0, sizeof(std::uint32_t), ship_stream));
+    detail::launch_region_bricks_cuda(view, filter, region_bricks.data(), counters.data() + 2, ship_stream);
+    SLS_CUDA_CHECK(cudaMemcpyAsync(&brick_count, counters.data() + 2, sizeof brick_count, cudaMemcpyDeviceToHost,
+                                   ship_stream));
+    SLS_CUDA_CHECK(cudaStreamSynchronize(ship_stream));
     std::uint32_t counts[2] = {0, 0};
     for (int attempt = 0; attempt < 2; ++attempt) {
       SLS_CUDA_CHECK(cudaMemsetAsync(counters.data(), 0, 2 * sizeof(std::uint32_t), ship_stream));
-      detail::launch_region_crossings_cuda(view, filter, min_weight, crossings.data(),
-                                           static_cast<std::uint32_t>(crossings.size()), counters.data(), ship_stream);
-      detail::launch_region_cells_cuda(view, filter, min_weight, cells.data(), static_cast<std::uint32_t>(cells.size()),
-                                       counters.data() + 1, ship_stream);
+      detail::launch_region_crossings_cuda(view, filter, min_weight, region_bricks.data(), brick_count,
+                                           crossings.data(), static_cast<std::uint32_t>(crossings.size()),
+                                           counters.data(), ship_stream);
+      detail::launch_region_cells_cuda(view, filter, min_weight, region_bricks.data(), brick_count, cells.data(),
+                                       static_cast<std::uint32_t>(cells.size()), counters.data() + 1, ship_stream);
       SLS_CUDA_CHECK(cudaMemcpyAsync(counts, counters.data(), sizeof counts, cudaMemcpyDeviceToHost, ship_stream));
       SLS_CUDA_CHECK(cudaStreamSynchronize(ship_stream));
       const bool fits = counts[0] <= crossings.size() && counts[1] <= cells.size();
@@ -274,7 +285,7 @@ MovingVolume::MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFor
   if (device.is_cuda()) {
     impl_->stream = cuda_stream(impl_->resample_stream);
     impl_->ship_stream = cuda_stream(impl_->ship_gpu_stream);
-    impl_->counters.allocate(2);
+    impl_->counters.allocate(3);
   }
 #endif
 }

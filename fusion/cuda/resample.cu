@@ -22,12 +22,74 @@ __global__ void resample_kernel(VolumeView from, VolumeView to, Rigid3f grid_fro
   resample_voxel(from, to, grid_from_to, i, j, k);
 }
 
-__global__ void region_crossings_kernel(VolumeView volume, RegionFilter region, float min_weight, EdgeCrossing* out,
-                                        std::uint32_t capacity, std::uint32_t* count) {
-  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
-  const int j = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
-  const int k = static_cast<int>(blockIdx.z);
-  if (i >= volume.nx || j >= volume.ny) return;
+// A region brick's voxels: 32 along a row (a warp), 4 rows, 4 layers.
+constexpr int kRegionBrickX = 32, kRegionBrickY = 4, kRegionBrickZ = 4;  // scalars: usable in device code
+
+struct RegionBricks {
+  int x = 0, y = 0, z = 0;  // bricks along each axis
+  explicit RegionBricks(const VolumeView& v)
+      : x((v.nx + kRegionBrickX - 1) / kRegionBrickX),
+        y((v.ny + kRegionBrickY - 1) / kRegionBrickY),
+        z((v.nz + kRegionBrickZ - 1) / kRegionBrickZ) {}
+  SLS_HOST_DEVICE std::uint32_t count() const {
+    return static_cast<std::uint32_t>(x) * static_cast<std::uint32_t>(y) * static_cast<std::uint32_t>(z);
+  }
+  // Brick b's first voxel.
+  SLS_HOST_DEVICE void first(std::uint32_t b, int voxel[3]) const {
+    const auto bx = static_cast<std::uint32_t>(x), by = static_cast<std::uint32_t>(y);
+    voxel[0] = static_cast<int>(b % bx) * kRegionBrickX;
+    voxel[1] = static_cast<int>((b / bx) % by) * kRegionBrickY;
+    voxel[2] = static_cast<int>(b / (bx * by)) * kRegionBrickZ;
+  }
+};
+
+// Each listed brick's voxels read once (the neighbours they read are mostly the brick's own).
+double region_bytes(const VolumeView& volume, std::uint32_t brick_count) {
+  return static_cast<double>(brick_count) * kRegionBrickX * kRegionBrickY * kRegionBrickZ *
+         static_cast<double>(volume.bytes_per_voxel());
+}
+
+dim3 region_block() { return dim3(kRegionBrickX, kRegionBrickY, kRegionBrickZ); }
+
+__global__ void region_bricks_kernel(VolumeView volume, RegionFilter region, RegionBricks bricks, std::uint32_t* out,
+                                     std::uint32_t* count) {
+  const std::uint32_t b = blockIdx.x * blockDim.x + threadIdx.x;
+  bool keep = false;
+  if (b < bricks.count()) {
+    int first[3], last[3];
+    bricks.first(b, first);
+    last[0] = min(first[0] + kRegionBrickX, volume.nx) - 1;
+    last[1] = min(first[1] + kRegionBrickY, volume.ny) - 1;
+    last[2] = min(first[2] + kRegionBrickZ, volume.nz) - 1;
+    keep = !region_drops_voxels(region, volume.voxel_size_m, first, last);
+  }
+  // One atomic per warp (blockDim.x is a multiple of 32, so no lane has left).
+  const unsigned want = __ballot_sync(0xffffffffu, keep);
+  if (want == 0u) return;
+  const unsigned lane = threadIdx.x % 32u;
+  const int leader = __ffs(static_cast<int>(want)) - 1;
+  std::uint32_t base = 0;
+  if (static_cast<int>(lane) == leader) base = atomicAdd(count, static_cast<std::uint32_t>(__popc(want)));
+  base = __shfl_sync(0xffffffffu, base, leader);
+  if (keep) out[base + static_cast<std::uint32_t>(__popc(want & ((1u << lane) - 1u)))] = b;
+}
+
+// The voxel of this thread in its block's brick; false past the volume's end.
+__device__ bool region_voxel(const VolumeView& volume, const RegionBricks& bricks, const std::uint32_t* listed, int* i,
+                             int* j, int* k) {
+  int first[3];
+  bricks.first(listed[blockIdx.x], first);
+  *i = first[0] + static_cast<int>(threadIdx.x);
+  *j = first[1] + static_cast<int>(threadIdx.y);
+  *k = first[2] + static_cast<int>(threadIdx.z);
+  return *i < volume.nx && *j < volume.ny && *k < volume.nz;
+}
+
+__global__ void region_crossings_kernel(VolumeView volume, RegionFilter region, float min_weight, RegionBricks bricks,
+                                        const std::uint32_t* listed, EdgeCrossing* out, std::uint32_t capacity,
+                                        std::uint32_t* count) {
+  int i = 0, j = 0, k = 0;
+  if (!region_voxel(volume, bricks, listed, &i, &j, &k)) return;
   if (!voxel_usable(volume, volume.index(i, j, k), min_weight)) return;
   for (int axis = 0; axis < 3; ++axis) {
     // Place first: the normal's gradient only for the crossings the region keeps (most of the
@@ -43,12 +105,12 @@ __global__ void region_crossings_kernel(VolumeView volume, RegionFilter region, 
   }
 }
 
-__global__ void region_cells_kernel(VolumeView volume, RegionFilter region, float min_weight, CellCase* out,
-                                    std::uint32_t capacity, std::uint32_t* count) {
-  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
-  const int j = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
-  const int k = static_cast<int>(blockIdx.z);
-  if (i + 1 >= volume.nx || j + 1 >= volume.ny) return;
+__global__ void region_cells_kernel(VolumeView volume, RegionFilter region, float min_weight, RegionBricks bricks,
+                                    const std::uint32_t* listed, CellCase* out, std::uint32_t capacity,
+                                    std::uint32_t* count) {
+  int i = 0, j = 0, k = 0;
+  if (!region_voxel(volume, bricks, listed, &i, &j, &k)) return;
+  if (i + 1 >= volume.nx || j + 1 >= volume.ny || k + 1 >= volume.nz) return;
   if (!voxel_usable(volume, volume.index(i, j, k), min_weight)) return;  // cheap reject of the unobserved bulk
   const int cube_case = cell_case(volume, i, j, k, min_weight);
   if (cube_case <= 0 || cube_case == 255) return;
@@ -128,21 +190,34 @@ void launch_resample_cuda(const VolumeView& from, const VolumeView& to, const Ri
   SLS_CUDA_CHECK_LAUNCH();
 }
 
-void launch_region_crossings_cuda(const VolumeView& volume, const RegionFilter& region, float min_weight,
-                                  EdgeCrossing* out, std::uint32_t capacity, std::uint32_t* count,
-                                  cudaStream_t stream) {
-  const dim3 block(64, 4, 1);
-  region_crossings_kernel<<<voxel_grid(volume.nx, volume.ny, volume.nz, block), block, 0, stream>>>(
-      volume, region, min_weight, out, capacity, count);
+std::uint32_t region_brick_count(const VolumeView& volume) { return RegionBricks(volume).count(); }
+
+void launch_region_bricks_cuda(const VolumeView& volume, const RegionFilter& region, std::uint32_t* bricks,
+                               std::uint32_t* count, cudaStream_t stream) {
+  const RegionBricks grid(volume);
+  const unsigned threads = 256;  // a multiple of the warp: region_bricks_kernel's ballot
+  region_bricks_kernel<<<(grid.count() + threads - 1) / threads, threads, 0, stream>>>(volume, region, grid, bricks,
+                                                                                       count);
   SLS_CUDA_CHECK_LAUNCH();
 }
 
-void launch_region_cells_cuda(const VolumeView& volume, const RegionFilter& region, float min_weight, CellCase* out,
+void launch_region_crossings_cuda(const VolumeView& volume, const RegionFilter& region, float min_weight,
+                                  const std::uint32_t* bricks, std::uint32_t brick_count, EdgeCrossing* out,
+                                  std::uint32_t capacity, std::uint32_t* count, cudaStream_t stream) {
+  if (brick_count == 0) return;
+  const KernelTimer timer("ship_region", region_bytes(volume, brick_count), stream);
+  region_crossings_kernel<<<brick_count, region_block(), 0, stream>>>(volume, region, min_weight, RegionBricks(volume),
+                                                                    bricks, out, capacity, count);
+  SLS_CUDA_CHECK_LAUNCH();
+}
+
+void launch_region_cells_cuda(const VolumeView& volume, const RegionFilter& region, float min_weight,
+                              const std::uint32_t* bricks, std::uint32_t brick_count, CellCase* out,
                               std::uint32_t capacity, std::uint32_t* count, cudaStream_t stream) {
-  const dim3 block(64, 4, 1);
-  // Cells along z: nz - 1 layers.
-  region_cells_kernel<<<voxel_grid(volume.nx, volume.ny, volume.nz - 1, block), block, 0, stream>>>(
-      volume, region, min_weight, out, capacity, count);
+  if (brick_count == 0) return;
+  const KernelTimer timer("ship_region", region_bytes(volume, brick_count), stream);
+  region_cells_kernel<<<brick_count, region_block(), 0, stream>>>(volume, region, min_weight, RegionBricks(volume),
+                                                                bricks, out, capacity, count);
   SLS_CUDA_CHECK_LAUNCH();
 }
 

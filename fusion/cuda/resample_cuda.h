@@ -17,16 +17,26 @@ namespace sls::fusion::detail {
 void launch_resample_cuda(const VolumeView& from, const VolumeView& to, const Rigid3f& grid_from_to,
                           cudaStream_t stream);
 
-// The crossings of `volume` the region keeps, and those on edges around a cell the region
-// keeps (the vertices of its triangles), appended in no order to out[0, capacity) through
-// *count (which may end above capacity: call again with more room). *count must be 0 first.
-void launch_region_crossings_cuda(const VolumeView& volume, const RegionFilter& region, float min_weight,
-                                  EdgeCrossing* out, std::uint32_t capacity, std::uint32_t* count,
-                                  cudaStream_t stream);
+// The surface a region keeps is searched brick by brick: bricks of 32 x 4 x 4 voxels (a warp
+// along a row), only those the region may keep anything of (region_drops_voxels). A move's
+// region keeps what leaves the volume, a fraction of it.
+std::uint32_t region_brick_count(const VolumeView& volume);
+// Lists those bricks, in no order, into bricks[0, region_brick_count) through *count (0 first).
+void launch_region_bricks_cuda(const VolumeView& volume, const RegionFilter& region, std::uint32_t* bricks,
+                               std::uint32_t* count, cudaStream_t stream);
 
-// The cells the region keeps (by centre) whose case is 1..254 (all corners usable), appended
-// likewise.
-void launch_region_cells_cuda(const VolumeView& volume, const RegionFilter& region, float min_weight, CellCase* out,
+// The crossings the region keeps in the listed bricks, and those on edges around a cell the
+// region keeps (the vertices of its triangles), appended in no order to out[0, capacity)
+// through *count (which may end above capacity: call again with more room). *count must be
+// 0 first.
+void launch_region_crossings_cuda(const VolumeView& volume, const RegionFilter& region, float min_weight,
+                                  const std::uint32_t* bricks, std::uint32_t brick_count, EdgeCrossing* out,
+                                  std::uint32_t capacity, std::uint32_t* count, cudaStream_t stream);
+
+// The cells of the listed bricks the region keeps (by centre) whose case is 1..254 (all
+// corners usable), appended likewise.
+void launch_region_cells_cuda(const VolumeView& volume, const RegionFilter& region, float min_weight,
+                              const std::uint32_t* bricks, std::uint32_t brick_count, CellCase* out,
                               std::uint32_t capacity, std::uint32_t* count, cudaStream_t stream);
 
 // What sort_region_parts_cuda works in, grown as needed and kept from one move to the next.

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <map>
+#include <random>
 #include <set>
 #include <utility>
 #include <vector>
@@ -586,6 +587,70 @@ TEST(ExtractErrors, ACudaVolumeMustBeCopiedToTheHostFirst) {
     EXPECT_NE(std::string(error.what()).find("to_host"), std::string::npos);
   }
   EXPECT_TRUE(extract_points(volume.to_host()).empty());
+}
+
+// The GPU ship searches only bricks a region may keep anything of (region_drops_voxels): for
+// regions that keep their outside, turned and shifted at random, a dropped box of voxels has
+// no crossing point (anywhere on its voxels' edges) and no cell centre around them kept.
+TEST(RegionBricks, ADroppedBoxOfVoxelsHasNothingTheRegionKeeps) {
+  std::mt19937 generator(3);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const float h = 1e-4f;  // 0.1 mm voxels
+  VolumeView view;
+  view.nx = view.ny = view.nz = 96;
+  view.voxel_size_m = h;
+  std::size_t dropped = 0, kept = 0, points = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    // The new placement of a 96³ volume: turned by up to ~20° and shifted by up to 12 voxels.
+    const double shift = 12.0 * static_cast<double>(h);
+    const Pose T_old_new = Pose::exp((Eigen::Matrix<double, 6, 1>() << shift * unit(generator), shift * unit(generator),
+                                      shift * unit(generator), 0.35 * unit(generator), 0.35 * unit(generator),
+                                      0.35 * unit(generator))
+                                         .finished());
+    RegionFilter region;
+    region.T_box_volume = T_old_new.inverse().to_rigid3f();
+    region.lo = Vec3f{0.5f * h, 0.5f * h, 0.5f * h};
+    region.hi = Vec3f{95.5f * h, 95.5f * h, 95.5f * h};
+    region.keep_outside = 1;
+    for (int brick = 0; brick < 40; ++brick) {
+      std::uniform_int_distribution<int> start(0, 90);
+      const int first[3] = {start(generator), start(generator), start(generator)};
+      const int last[3] = {std::min(first[0] + 31, 95), first[1] + 3, first[2] + 3};
+      if (!region_drops_voxels(region, h, first, last)) {
+        ++kept;
+        continue;
+      }
+      ++dropped;
+      for (int k = first[2]; k <= last[2]; ++k) {
+        for (int j = first[1]; j <= last[1]; ++j) {
+          for (int i = first[0]; i <= last[0]; ++i) {
+            // Points along each edge to the next voxel, and the centres of the cells around them.
+            for (int axis = 0; axis < 3; ++axis) {
+              for (const float t : {0.0f, 0.5f, 1.0f}) {
+                Vec3f p = view.voxel_centre(i, j, k);
+                (axis == 0 ? p.x : axis == 1 ? p.y : p.z) += t * h;
+                ASSERT_FALSE(region_keeps(region, p)) << trial << " " << i << "," << j << "," << k;
+                ++points;
+              }
+              ASSERT_FALSE(edge_has_region_cell(view, region, i, j, k, axis)) << trial;
+            }
+            if (i + 1 < view.nx && j + 1 < view.ny && k + 1 < view.nz) {
+              ASSERT_FALSE(region_keeps(region, cell_centre(view, i, j, k)));
+            }
+          }
+        }
+      }
+    }
+  }
+  std::printf("[region-bricks] %zu boxes dropped, %zu kept, %zu points checked\n", dropped, kept, points);
+  EXPECT_GT(dropped, 2000u);  // most of a volume stays after such a move
+  EXPECT_GT(kept, 1000u);
+  // A region that keeps its inside drops nothing this way.
+  RegionFilter inside;
+  inside.lo = Vec3f{0.0f, 0.0f, 0.0f};
+  inside.hi = Vec3f{1.0f, 1.0f, 1.0f};
+  const int first[3] = {0, 0, 0}, last[3] = {3, 3, 3};
+  EXPECT_FALSE(region_drops_voxels(inside, h, first, last));
 }
 
 }  // namespace
