@@ -31,6 +31,7 @@ class SimCamera final : public drivers::Camera {
     scanner_->exposure_scale_ = exposure_us / kSimNominalExposureUs;
   }
   double exposure_us() const override { return exposure_us_; }
+  std::optional<ScannerCalibration> exact_calibration() const override { return scanner_->rig().calibration(); }
   void set_trigger_source(drivers::TriggerSource source) override { source_ = source; }
   ~SimCamera() override { stop(); }
   void start() override {
