@@ -38,6 +38,11 @@ BoardSpec read_board_json(const std::string& path) {
     board.inner_cols = json.at("inner_corners").at(0).get<int>();
     board.inner_rows = json.at("inner_corners").at(1).get<int>();
     board.square_m = json.at("square_m").get<double>();
+    if (json.contains("kind") && json.at("kind").is_string() && json.at("kind").get_ref<const std::string&>() == "charuco") {  // sls sim --calibration --board charuco
+      board.kind = BoardKind::kCharuco;
+      board.marker_m = json.at("marker_m").get<double>();
+      board.dictionary = json.at("dictionary").get<std::string>();
+    }
     return board;
   } catch (const nlohmann::json::exception& error) {
     throw_error(ErrorCode::kFormat, "{}: not a board description: {}", path, error.what());
@@ -153,7 +158,8 @@ CalibrateCaptureResult calibrate_capture(const CalibrateCaptureOptions& options,
   result.camera_bit_depth = source.bit_depth;
   result.board = options.board;
   const std::string board_json = source.groundtruth.empty() ? "" : source.groundtruth + "/board.json";
-  if (result.board.square_m <= 0.0 && result.board.inner_cols <= 0 && !board_json.empty() && fs::exists(board_json)) {
+  if (result.board.square_m <= 0.0 && result.board.inner_cols <= 0 && !result.board.is_charuco() &&
+      !board_json.empty() && fs::exists(board_json)) {
     result.board = read_board_json(board_json);
   }
   if (result.board.inner_cols <= 0 || result.board.inner_rows <= 0 || result.board.square_m <= 0.0) {
@@ -230,9 +236,13 @@ CalibrateCaptureResult calibrate_capture(const CalibrateCaptureOptions& options,
   calibration.projector_rms_px = result.procam.projector_rms_px;
   calibration.calibrated_utc = utc_now();
   calibration.description = fmt::format(
-      "slscan calibrate: {} of {} board views ({}x{} corners, {} m squares), pattern set {}, camera {:.3f} px, "
+      "slscan calibrate: {} of {} board views ({}), pattern set {}, camera {:.3f} px, "
       "projector {:.3f} px, stereo {:.3f} px RMS{}",
-      result.procam.views_used, count, result.board.inner_cols, result.board.inner_rows, result.board.square_m,
+      result.procam.views_used, count,
+      result.board.is_charuco()
+          ? result.board.describe()
+          : fmt::format("{}x{} corners, {} m squares", result.board.inner_cols, result.board.inner_rows,
+                        result.board.square_m),
       source.patterns.name, result.procam.camera_rms_px, result.procam.projector_rms_px, result.procam.stereo_rms_px,
       result.axis.fitted ? fmt::format(", turntable axis from {} views", result.axis.views) : "");
 

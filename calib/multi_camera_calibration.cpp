@@ -25,6 +25,22 @@ bool inlier(const std::vector<std::uint8_t>& mask, std::size_t corner) {
   return corner < mask.size() && mask[corner] != 0;
 }
 
+// A view's corner ids (all of the board's, in order, for a view made without them), checked.
+std::vector<int> corner_ids(const ViewObservation& view, std::size_t board_corners) {
+  std::vector<int> ids = view.corner_ids;
+  if (ids.empty()) {
+    ids.resize(view.camera_corners.size());
+    for (std::size_t c = 0; c < ids.size(); ++c) ids[c] = static_cast<int>(c);
+  }
+  for (int id : ids) {
+    if (id < 0 || static_cast<std::size_t>(id) >= board_corners) {
+      throw_error(ErrorCode::kInvalidArgument, "view '{}': corner id {} is not one of the board's {}", view.name, id,
+                  board_corners);
+    }
+  }
+  return ids;
+}
+
 std::string camera_folder(const std::string& folder, std::size_t camera) { return head_camera_folder(folder, camera); }
 
 // The board poses a camera's capture holds, before anything is read: a recording's frames,
@@ -60,11 +76,18 @@ CameraPairSolution calibrate_camera_pair(const std::vector<ViewObservation>& vie
     object_points.emplace_back();
     points0.emplace_back();
     points.emplace_back();
-    for (std::size_t c = 0; c < object.size(); ++c) {
-      if (!inlier(s0.camera_inlier, c) || !inlier(s.camera_inlier, c)) continue;
-      object_points.back().push_back(to_cv(std::vector<Eigen::Vector3d>{object[c] / unit}).front());
-      points0.back().push_back(to_cv(views0[v].camera_corners[c]));
-      points.back().push_back(to_cv(views[v].camera_corners[c]));
+    // The corners both cameras found (by id: a ChArUco view has those it saw), camera 0's order.
+    const std::vector<int> ids0 = corner_ids(views0[v], object.size());
+    const std::vector<int> ids = corner_ids(views[v], object.size());
+    std::vector<int> position(object.size(), -1);  // of each id among camera K's corners
+    for (std::size_t c = 0; c < ids.size(); ++c) position[static_cast<std::size_t>(ids[c])] = static_cast<int>(c);
+    for (std::size_t c0 = 0; c0 < ids0.size(); ++c0) {
+      const int c = position[static_cast<std::size_t>(ids0[c0])];
+      if (c < 0 || !inlier(s0.camera_inlier, c0) || !inlier(s.camera_inlier, static_cast<std::size_t>(c))) continue;
+      object_points.back().push_back(
+          to_cv(std::vector<Eigen::Vector3d>{object[static_cast<std::size_t>(ids0[c0])] / unit}).front());
+      points0.back().push_back(to_cv(views0[v].camera_corners[c0]));
+      points.back().push_back(to_cv(views[v].camera_corners[static_cast<std::size_t>(c)]));
     }
     // A pose needs at least 4 points to be solved at all; a handful more to count.
     if (object_points.back().size() < 6) {

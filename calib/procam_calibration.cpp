@@ -36,15 +36,18 @@ struct Subsets {
 };
 
 // Per used view, the corners `take(view, corner)` accepts: camera (and projector) points.
+// objects[v]: view v's corners in the board frame (view_object_points).
 template <typename Take>
 Subsets collect(const std::vector<ViewObservation>& views, const std::vector<ViewSolution>& solutions,
-                const std::vector<Eigen::Vector3d>& object, bool projector_points, bool with_second, Take take) {
+                const std::vector<std::vector<Eigen::Vector3d>>& objects, bool projector_points, bool with_second,
+                Take take) {
   Subsets out;
   for (std::size_t v = 0; v < views.size(); ++v) {
     if (!solutions[v].used) continue;
     out.object.emplace_back();
     out.points.emplace_back();
     out.second.emplace_back();
+    const std::vector<Eigen::Vector3d>& object = objects[v];
     for (std::size_t c = 0; c < object.size(); ++c) {
       if (!take(v, c)) continue;
       out.object.back().push_back(to_cv(std::vector<Eigen::Vector3d>{object[c]}).front());
@@ -72,7 +75,7 @@ constexpr double kOutlierFloorPx = 0.1;
 const cv::TermCriteria kConvergence(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 500, 1e-15);
 
 int reject_outliers(const std::vector<ViewObservation>& views, std::vector<ViewSolution>* solutions,
-                    const std::vector<Eigen::Vector3d>& object, const cv::Mat& k, const cv::Mat& d,
+                    const std::vector<std::vector<Eigen::Vector3d>>& objects, const cv::Mat& k, const cv::Mat& d,
                     const std::vector<cv::Mat>& rvecs, const std::vector<cv::Mat>& tvecs, bool projector) {
   std::vector<std::pair<std::size_t, std::size_t>> where;
   std::vector<double> lengths;
@@ -80,6 +83,7 @@ int reject_outliers(const std::vector<ViewObservation>& views, std::vector<ViewS
   for (std::size_t v = 0; v < views.size(); ++v) {
     ViewSolution& s = (*solutions)[v];
     if (!s.used) continue;
+    const std::vector<Eigen::Vector3d>& object = objects[v];
     std::vector<cv::Point2f> predicted;
     cv::projectPoints(to_cv(object), rvecs[used], tvecs[used], k, d, predicted);
     ++used;
@@ -139,7 +143,7 @@ double rms_of(const std::vector<Eigen::Vector2d>& residuals, const std::vector<s
 
 void view_residuals(const ViewObservation& view, const ScannerCalibration& calibration, const BoardSpec& board,
                     const Pose& T_camera_board, ViewSolution* solution) {
-  const std::vector<Eigen::Vector3d> object = board.object_points();
+  const std::vector<Eigen::Vector3d> object = view_object_points(view, board.object_points());
   const Pose T_projector_board = calibration.T_camera_projector.inverse() * T_camera_board;
   solution->camera_residuals_px.assign(object.size(), Eigen::Vector2d::Zero());
   solution->projector_residuals_px.assign(object.size(), Eigen::Vector2d::Zero());
@@ -163,7 +167,7 @@ Pose refine_board_pose(const ViewObservation& view, const ScannerCalibration& ca
   const auto projector_used = [&](std::size_t c) {
     return masks == nullptr ? view.projector.valid[c] != 0 : masks->projector_inlier[c] != 0;
   };
-  const std::vector<Eigen::Vector3d> object = board.object_points();
+  const std::vector<Eigen::Vector3d> object = view_object_points(view, board.object_points());
   const Pose T_projector_camera = calibration.T_camera_projector.inverse();
   const auto residuals = [&](const Eigen::VectorXd& x, Eigen::VectorXd* r) {
     const Pose T_camera_board = Pose::exp(x.head<6>()) * initial;
@@ -195,19 +199,20 @@ ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, co
   }
   ProcamCalibration result;
   result.views.resize(views.size());
-  const std::vector<Eigen::Vector3d> object = settings.board.object_points();
+  const std::vector<Eigen::Vector3d> board_points = settings.board.object_points();
   // OpenCV solves in board squares, not metres: translations of ~100 squares beside focal
   // lengths of thousands of pixels keep its unscaled Levenberg–Marquardt well conditioned
   // (in metres, translations of 0.1 left the focal length 0.4 % off even from exact corners).
   const double unit = settings.board.square_m;
-  std::vector<Eigen::Vector3d> object_units;
-  for (const Eigen::Vector3d& p : object) object_units.push_back(p / unit);
+  // Per view, its corners' board points (a ChArUco view has those it found), in squares.
+  std::vector<std::vector<Eigen::Vector3d>> object_units(views.size());
   for (std::size_t v = 0; v < views.size(); ++v) {
     ViewSolution& s = result.views[v];
     s.used = views[v].rejected_reason.empty() && views[v].board_found;
     s.rejected_reason = views[v].rejected_reason;
     if (!s.used) continue;
-    s.camera_inlier.assign(object.size(), 1);
+    for (const Eigen::Vector3d& p : view_object_points(views[v], board_points)) object_units[v].push_back(p / unit);
+    s.camera_inlier.assign(object_units[v].size(), 1);
     s.projector_inlier = views[v].projector.valid;
   }
   const int flags = settings.estimate_k3 ? 0 : cv::CALIB_FIX_K3;
@@ -357,7 +362,7 @@ ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, co
     s.T_camera_board = refine_board_pose(views[v], calibration, settings.board, s.T_camera_board, &s, weight);
     s.obliquity_deg = obliquity_deg(s.T_camera_board);
     view_residuals(views[v], calibration, settings.board, s.T_camera_board, &s);
-    for (std::size_t c = 0; c < object.size(); ++c) {
+    for (std::size_t c = 0; c < object_units[v].size(); ++c) {
       if (s.camera_inlier[c] != 0) {
         camera_sum += s.camera_residuals_px[c].squaredNorm();
         ++camera_count;

@@ -109,7 +109,13 @@ AxisFit fit_turntable_axis(const std::vector<ViewObservation>& views, const std:
   Eigen::Vector3d e1, e2;
   perpendicular_basis(direction, &e1, &e2);
   const Pose T_axis_board0 = rotation_about_z(-first_angle) * axis_frame(direction, e1, point).inverse() * first;
-  const std::vector<Eigen::Vector3d> object = board.object_points();
+  const std::vector<Eigen::Vector3d> board_points = board.object_points();
+  std::vector<std::vector<Eigen::Vector3d>> objects(views.size());  // per view, its corners' points
+  std::size_t corners_used = 0;
+  for (std::size_t v : used) {
+    objects[v] = view_object_points(views[v], board_points);
+    corners_used += objects[v].size();
+  }
   const Pose T_projector_camera = calibration.T_camera_projector.inverse();
   const auto model = [&](const Eigen::VectorXd& x, Eigen::Vector3d* d, Eigen::Vector3d* p, Pose* T_axis_board) {
     *d = (direction + x(0) * e1 + x(1) * e2).normalized();
@@ -120,6 +126,7 @@ AxisFit fit_turntable_axis(const std::vector<ViewObservation>& views, const std:
   // at a board pose, into r from `row` on.
   const auto view_residuals = [&](std::size_t v, const Pose& T_camera_board, Eigen::VectorXd* r, Eigen::Index row) {
     const Pose T_projector_board = T_projector_camera * T_camera_board;
+    const std::vector<Eigen::Vector3d>& object = objects[v];
     for (std::size_t c = 0; c < object.size(); ++c, row += 4) {
       r->segment<2>(row) = views[v].camera_corners[c] - predict(calibration.camera, T_camera_board * object[c]);
       if (views[v].projector.valid[c] != 0) {
@@ -133,11 +140,11 @@ AxisFit fit_turntable_axis(const std::vector<ViewObservation>& views, const std:
     Pose T_axis_board;
     model(x, &d, &p, &T_axis_board);
     const Pose T_camera_axis = axis_frame(d, e1, p);
-    r->setZero(static_cast<Eigen::Index>(4 * object.size() * used.size()));
+    r->setZero(static_cast<Eigen::Index>(4 * corners_used));
     Eigen::Index row = 0;
     for (std::size_t v : used) {
       view_residuals(v, T_camera_axis * rotation_about_z(angles[v]) * T_axis_board, r, row);
-      row += static_cast<Eigen::Index>(4 * object.size());
+      row += static_cast<Eigen::Index>(4 * objects[v].size());
     }
   };
   const double length = board.square_m * std::max(board.inner_cols, board.inner_rows);
@@ -154,8 +161,8 @@ AxisFit fit_turntable_axis(const std::vector<ViewObservation>& views, const std:
   fit.views = static_cast<int>(used.size());
   // The RMS over observed corners only (the unobserved projector slots are zeros).
   std::size_t observed = 0;
-  for (std::size_t v : used) observed += object.size() + static_cast<std::size_t>(views[v].projector.valid_count());
-  fit.rms_px = solved.rms * std::sqrt(static_cast<double>(4 * object.size() * used.size()) / static_cast<double>(observed));
+  for (std::size_t v : used) observed += objects[v].size() + static_cast<std::size_t>(views[v].projector.valid_count());
+  fit.rms_px = solved.rms * std::sqrt(static_cast<double>(4 * corners_used) / static_cast<double>(observed));
   fit.fitted = true;
 
   // The table's repeatability (AxisFit::angle_sigma_deg, tilt_sigma_deg): each view's board
@@ -167,10 +174,10 @@ AxisFit fit_turntable_axis(const std::vector<ViewObservation>& views, const std:
   // residuals left after them (the table's own errors taken out), over the coordinates less
   // the parameters (10, and 3 a view).
   const Pose T_camera_axis = axis_frame(d, e1, p);
-  const Eigen::Index rows = static_cast<Eigen::Index>(4 * object.size());
   std::vector<Eigen::Vector3d> turns, unit_variances;  // per view: degrees; per σ_px²
   double residual_squares = 0.0;
   for (std::size_t v : used) {
+    const Eigen::Index rows = static_cast<Eigen::Index>(4 * objects[v].size());
     const auto residual_at = [&](const Eigen::Vector3d& turn_deg, Eigen::VectorXd* r) {
       const double angle = turn_deg.norm();
       const Pose turn(Eigen::Quaterniond(Eigen::AngleAxisd(

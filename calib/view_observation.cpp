@@ -71,6 +71,21 @@ Image16u crop(const Image16u& image, const Region& r) {
 
 }  // namespace
 
+std::vector<Eigen::Vector3d> view_object_points(const ViewObservation& view,
+                                                const std::vector<Eigen::Vector3d>& board_points) {
+  if (view.corner_ids.empty()) {  // a view made without ids: a whole chessboard's corners
+    if (view.camera_corners.size() != board_points.size()) {
+      throw_error(ErrorCode::kInvalidArgument, "view '{}': {} corners without ids, the board has {}", view.name,
+                  view.camera_corners.size(), board_points.size());
+    }
+    return board_points;
+  }
+  std::vector<Eigen::Vector3d> points;
+  points.reserve(view.corner_ids.size());
+  for (int id : view.corner_ids) points.push_back(board_points.at(static_cast<std::size_t>(id)));
+  return points;
+}
+
 ViewObservation observe_view(const std::string& name, std::optional<double> turntable_angle_deg,
                              const std::vector<Image16u>& stack, const PatternSet& patterns,
                              const ObservationOptions& options) {
@@ -84,7 +99,7 @@ ViewObservation observe_view(const std::string& name, std::optional<double> turn
   const Image16u& white = stack[static_cast<std::size_t>(find_reference(patterns, PatternKind::kWhite))];
   const Image16u& black = stack[static_cast<std::size_t>(find_reference(patterns, PatternKind::kBlack))];
   auto start = std::chrono::steady_clock::now();
-  const BoardDetection board = detect_chessboard(white, black, options.board);
+  const BoardDetection board = detect_board(white, black, options.board);
   view.detect_s = 1e-3 * ms_since(start);
   if (!board.found) {
     view.rejected_reason = board.reason;
@@ -92,6 +107,7 @@ ViewObservation observe_view(const std::string& name, std::optional<double> turn
   }
   view.board_found = true;
   view.camera_corners = board.corners;
+  view.corner_ids = board.ids;
   view.square_px = board.square_px;
   start = std::chrono::steady_clock::now();
   const Region region = board_region(board.corners, board.square_px, white.width(), white.height());
@@ -106,10 +122,11 @@ ViewObservation observe_view(const std::string& name, std::optional<double> turn
   view.projector = projector_corners_by_local_homography(decoded.projector_u, decoded.projector_v, corners_in_region,
                                                          board.square_px, options.homography);
   view.homography_s = 1e-3 * ms_since(start);
-  const int needed = static_cast<int>(std::ceil(options.min_projector_corner_fraction * options.board.corner_count()));
+  const int found = static_cast<int>(view.camera_corners.size());
+  const int needed = static_cast<int>(std::ceil(options.min_projector_corner_fraction * found));
   if (view.projector.valid_count() < needed) {
     view.rejected_reason = fmt::format("too few decoded corners: the projector sees {} of {} (need {})",
-                                       view.projector.valid_count(), options.board.corner_count(), needed);
+                                       view.projector.valid_count(), found, needed);
   }
   return view;
 }

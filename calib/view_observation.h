@@ -24,6 +24,9 @@ struct ViewObservation {
   bool board_found = false;
   std::string rejected_reason;               // empty while the view is usable
   std::vector<Eigen::Vector2d> camera_corners;
+  // Per camera corner: its id, the index of its point in BoardSpec::object_points(). A
+  // chessboard's views have every corner (0 .. N − 1); a ChArUco view those it found.
+  std::vector<int> corner_ids;
   ProjectorCorners projector;
   double square_px = 0.0;
   double decoded_fraction = 0.0;             // of the pixels inside the board's corner hull
@@ -35,11 +38,15 @@ struct ObservationOptions {
   BoardSpec board;
   DecodeOptions decode;
   LocalHomographyOptions homography;
-  // A view whose projector sees fewer of the corners than this is rejected ("too few decoded
-  // corners"): a partly shadowed board biases nothing, but a handful of corners adds little.
+  // A view whose projector sees fewer of the corners found in the camera than this is rejected
+  // ("too few decoded corners"): a partly shadowed board biases nothing, but a handful of
+  // corners adds little.
   double min_projector_corner_fraction = 0.5;
   Device device = Device::cpu();
 };
+
+// The board-frame points of the view's corners (object_points() at corner_ids).
+std::vector<Eigen::Vector3d> view_object_points(const ViewObservation& view, const std::vector<Eigen::Vector3d>& board_points);
 
 // Detects the board in the white − black image and finds its corners in the projector.
 // `stack` in the pattern set's order (white and black included). Never throws for a bad

@@ -31,7 +31,7 @@ add_library(SuiteSparse::CHOLMOD UNKNOWN IMPORTED)
 set_target_properties(SuiteSparse::CHOLMOD PROPERTIES IMPORTED_LOCATION "${CHOLMOD_LIBRARY}"
                       INTERFACE_INCLUDE_DIRECTORIES "${CHOLMOD_INCLUDE_DIR}")
 
-find_package(OpenCV 4 QUIET COMPONENTS core imgproc imgcodecs calib3d structured_light)
+find_package(OpenCV 4 QUIET COMPONENTS core imgproc imgcodecs calib3d structured_light aruco)
 find_package(PkgConfig)
 if(PkgConfig_FOUND)
   pkg_check_modules(ARAVIS QUIET IMPORTED_TARGET aravis-0.8)

@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 
+#include "sdk/core/calibration.h"
 #include "sdk/core/image.h"
 #include "sdk/core/memory_type.h"
 
@@ -83,6 +84,12 @@ class Camera {
   // CapturedImage::image.memory_type() says which. Default: kHost. Never throws.
   virtual void set_image_memory(MemoryType memory) { image_memory_ = memory; }
   MemoryType image_memory() const { return image_memory_; }
+
+  // The exact calibration of a simulated camera (sim://): this camera with the projector it is
+  // simulated with (and the turntable axis), as a simulated recording's groundtruth/ holds it,
+  // so a capture through simulated devices carries its truth (issue 17). nullopt for a real
+  // camera or a replayed one (their calibration is what is being measured). Never throws.
+  virtual std::optional<ScannerCalibration> exact_calibration() const { return std::nullopt; }
 
  private:
   MemoryType image_memory_ = MemoryType::kHost;

@@ -55,19 +55,40 @@ SLS_HOST_DEVICE inline void polygon_moments(const Vec2T<T>* v, int n, T* area, T
   *moment_y = my / T(6);
 }
 
+// Adds the area and first moments of the part of the rectangle [x0, x1] x [y0, y1] inside
+// the convex quadrilateral quad[0..3].
+template <typename T>
+SLS_HOST_DEVICE inline void add_rectangle_moments(const Vec2T<T> quad[4], T x0, T x1, T y0, T y1, T* area,
+                                                  T* moment_x, T* moment_y) {
+  Vec2T<T> a[8], b[8];
+  int n = clip_polygon(quad, 4, 0, x0, false, a);
+  n = clip_polygon(a, n, 0, x1, true, b);
+  n = clip_polygon(b, n, 1, y0, false, a);
+  n = clip_polygon(a, n, 1, y1, true, b);
+  if (n < 3) return;
+  T ca, cx, cy;
+  polygon_moments(b, n, &ca, &cx, &cy);
+  *area += ca;
+  *moment_x += cx;
+  *moment_y += cy;
+}
+
 }  // namespace detail
 
 // The most squares chessboard_mean_albedo() walks (a pixel footprint larger than that is
 // left to the caller).
 constexpr int kChessboardMaxFootprintSquares = 64;
+// And the most ChArUco marker cells it walks.
+constexpr int kChessboardMaxFootprintCells = 256;
 
 // The albedo of the chessboard averaged over the convex quadrilateral q[0..3] of its sheet
 // (vertices in order round it, sheet x and y): the exact area integral of the piecewise
-// constant albedo (each dark square clipped to the quadrilateral, its area taken), as a
+// constant albedo (each dark square, and each dark cell of a ChArUco board's markers, clipped
+// to the quadrilateral, its area taken), as a
 // camera pixel integrates the board over its footprint. *centroid (optional): the
 // albedo-weighted centroid, where the pixel's light comes from on average. Returns false
 // (nothing written) for a degenerate quadrilateral or one over more than
-// kChessboardMaxFootprintSquares squares.
+// kChessboardMaxFootprintSquares squares (or kChessboardMaxFootprintCells marker cells).
 template <typename T>
 SLS_HOST_DEVICE inline bool chessboard_mean_albedo(const ChessboardT<T>& s, const Vec2T<T> q[4], T* albedo,
                                                    Vec2T<T>* centroid = nullptr) {
@@ -94,23 +115,37 @@ SLS_HOST_DEVICE inline bool chessboard_mean_albedo(const ChessboardT<T>& s, cons
   const int last_j = static_cast<int>(detail::min2(std::floor(j0 + hi_y), static_cast<T>(s.squares_y - 1)));
   if ((last_i - first_i + 1) * (last_j - first_j + 1) > kChessboardMaxFootprintSquares) return false;
   T dark_area = T(0), dark_mx = T(0), dark_my = T(0);
+  // ChArUco: a marker's cells in square units (the marker centred in its square).
+  const T cells = static_cast<T>(s.marker_cells);
+  const T cell = s.is_charuco() ? s.marker * inverse / cells : T(0);
+  const T offset = s.is_charuco() ? T(0.5) * (T(1) - s.marker * inverse) : T(0);
+  int cells_walked = 0;
   for (int j = first_j; j <= last_j; ++j) {
     for (int i = first_i; i <= last_i; ++i) {
-      if ((i + j) % 2 != 0) continue;  // light (chessboard_albedo)
-      Vec2T<T> a[8], b[8];
-      int n = detail::clip_polygon(quad, 4, 0, static_cast<T>(i) - i0, false, a);
-      n = detail::clip_polygon(a, n, 0, static_cast<T>(i + 1) - i0, true, b);
-      n = detail::clip_polygon(b, n, 1, static_cast<T>(j) - j0, false, a);
-      n = detail::clip_polygon(a, n, 1, static_cast<T>(j + 1) - j0, true, b);
-      if (n < 3) continue;
-      T ca, cx, cy;
-      detail::polygon_moments(b, n, &ca, &cx, &cy);
-      dark_area += ca;
-      dark_mx += cx;
-      dark_my += cy;
+      const T x0 = static_cast<T>(i) - i0, y0 = static_cast<T>(j) - j0;
+      if (s.square_dark(i, j)) {
+        detail::add_rectangle_moments(quad, x0, static_cast<T>(i + 1) - i0, y0, static_cast<T>(j + 1) - j0, &dark_area,
+                                      &dark_mx, &dark_my);
+        continue;
+      }
+      if (!s.is_charuco()) continue;  // light (chessboard_albedo)
+      // The marker's cells the quad's bounding box reaches, each dark one clipped to the quad.
+      const T mx0 = x0 + offset, my0 = y0 + offset;
+      const int first_c = detail::max2(0, static_cast<int>(std::floor((lo_x - mx0) / cell)));
+      const int last_c = detail::min2(s.marker_cells - 1, static_cast<int>(std::floor((hi_x - mx0) / cell)));
+      const int first_r = detail::max2(0, static_cast<int>(std::floor((lo_y - my0) / cell)));
+      const int last_r = detail::min2(s.marker_cells - 1, static_cast<int>(std::floor((hi_y - my0) / cell)));
+      for (int r = first_r; r <= last_r; ++r) {
+        for (int c = first_c; c <= last_c; ++c) {
+          if (++cells_walked > kChessboardMaxFootprintCells) return false;
+          if (!s.cell_dark(i, j, r, c)) continue;
+          const T cx0 = mx0 + static_cast<T>(c) * cell, cy0 = my0 + static_cast<T>(r) * cell;
+          detail::add_rectangle_moments(quad, cx0, cx0 + cell, cy0, cy0 + cell, &dark_area, &dark_mx, &dark_my);
+        }
+      }
     }
   }
-  // Light everywhere (margin included), dark where the dark squares are.
+  // Light everywhere (margin included), dark where the dark squares (and marker cells) are.
   const T light = s.albedo_light, dark = s.albedo_dark;
   const T weight = light * area + (dark - light) * dark_area;
   *albedo = weight / area;

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "sdk/core/error.h"
@@ -322,6 +323,7 @@ double sheet_signed_distance(double half_x, double half_y, const Vec3& p) {
 void check(bool ok, const char* what) {
   if (!ok) throw_error(ErrorCode::kInvalidArgument, "invalid scene parameter: {}", what);
 }
+void check(bool ok, const std::string& what) { check(ok, what.c_str()); }
 
 void check_albedo(const AlbedoT<double>& a) {
   check(std::isfinite(a.base) && a.base >= 0.0 && a.base <= 1.0, "albedo base must lie in [0, 1]");
@@ -731,10 +733,41 @@ Scene make_chessboard_scene(const ChessboardParameters& p) {
   check(p.albedo_dark >= 0.0 && p.albedo_dark <= 1.0 && p.albedo_light >= 0.0 && p.albedo_light <= 1.0,
         "albedos must lie in [0, 1]");
   auto impl = std::make_shared<Scene::Impl>();
-  impl->name = "chessboard";
+  impl->name = p.is_charuco() ? "charuco" : "chessboard";
   impl->shape.kind = SceneKind::kChessboard;
   impl->shape.chessboard = {p.inner_corners_x + 1, p.inner_corners_y + 1, p.square, p.margin, p.albedo_dark,
                             p.albedo_light};
+  ChessboardT<double>& board = impl->shape.chessboard;
+  if (p.is_charuco()) {
+    const CharucoPattern& t = p.charuco;
+    const int squares = board.squares_x * board.squares_y;
+    check(squares <= kCharucoMaxSquares, fmt::format("a ChArUco board of {}x{} squares (the simulator renders up to {})",
+                                                     board.squares_x, board.squares_y, kCharucoMaxSquares));
+    check(t.cells >= 3 && t.cells <= kCharucoMaxCells,
+          fmt::format("ChArUco markers of {} cells a side (the simulator renders 3 to {}: markers of up to 6x6 bits)",
+                      t.cells, kCharucoMaxCells));
+    check(t.marker > 0.0 && t.marker < p.square, "the ChArUco marker must be positive and smaller than its square");
+    check(t.dark_square.size() == static_cast<std::size_t>(squares) &&
+              t.dark_cells.size() == static_cast<std::size_t>(squares * t.cells * t.cells),
+          "the ChArUco table's size does not match its squares and cells");
+    board.marker_cells = t.cells;
+    board.marker = t.marker;
+    // Board frame to sheet: square (I, J) is sheet square (I, squares_y − 1 − J), and a
+    // marker's row r (down the board) its row cells − 1 − r (sheet y is up the board).
+    for (int j = 0; j < board.squares_y; ++j) {
+      for (int i = 0; i < board.squares_x; ++i) {
+        const int sheet = j * board.squares_x + i;
+        const int square = (board.squares_y - 1 - j) * board.squares_x + i;
+        if (t.dark_square[static_cast<std::size_t>(square)] != 0) board.dark_squares[sheet / 32] |= 1u << (sheet % 32);
+        for (int r = 0; r < t.cells; ++r) {
+          for (int c = 0; c < t.cells; ++c) {
+            const std::size_t cell = static_cast<std::size_t>(square * t.cells * t.cells + (t.cells - 1 - r) * t.cells + c);
+            if (t.dark_cells[cell] != 0) board.marker_dark[sheet] |= 1ull << (r * t.cells + c);
+          }
+        }
+      }
+    }
+  }
   const ChessboardT<double>& c = impl->shape.chessboard;
   impl->parameters = Json{{"inner_corners_x", p.inner_corners_x},
                           {"inner_corners_y", p.inner_corners_y},
@@ -742,6 +775,14 @@ Scene make_chessboard_scene(const ChessboardParameters& p) {
                           {"margin_m", p.margin},
                           {"albedo_dark", p.albedo_dark},
                           {"albedo_light", p.albedo_light}};
+  if (p.is_charuco()) {
+    impl->parameters["charuco"] = Json{{"marker_m", p.charuco.marker},
+                                       {"marker_cells", p.charuco.cells},
+                                       {"dictionary", p.charuco.dictionary},
+                                       {"dark_square", p.charuco.dark_square},
+                                       {"dark_cells", p.charuco.dark_cells},
+                                       {"frame", "board frame (calibration's): square J * squares_x + I, cell r * cells + c"}};
+  }
   impl->derived = Json{{"squares_x", c.squares_x},
                        {"squares_y", c.squares_y},
                        {"board_width_m", 2.0 * c.half_width()},
@@ -757,6 +798,11 @@ Scene make_scene(const std::string& name) {
   if (name == "plane") return make_plane_scene();
   if (name == "sphere") return make_sphere_scene();
   if (name == "chessboard") return make_chessboard_scene();
+  if (name == "charuco") {
+    throw_error(ErrorCode::kInvalidArgument,
+                "scene 'charuco' needs its markers from OpenCV's dictionary: make it with make_chessboard_scene() and a "
+                "CharucoPattern (calib::charuco_pattern; `sls sim --object charuco` does)");
+  }
   std::string known;
   for (const std::string& n : scene_names()) known += (known.empty() ? "" : ", ") + n;
   throw_error(ErrorCode::kInvalidArgument, "unknown scene '{}' (known: {})", name, known);
@@ -883,9 +929,21 @@ Scene scene_from_json(const std::string& text) {
     });
     return make_sphere_scene(p);
   }
-  if (name == "chessboard") {
+  if (name == "chessboard" || name == "charuco") {
     ChessboardParameters p;
     r.each([&](const std::string& key, const Json& v) {
+      if (key == "charuco" && name == "charuco") {  // the table as written (make_chessboard_scene)
+        try {
+          p.charuco.marker = v.at("marker_m").get<double>();
+          p.charuco.cells = v.at("marker_cells").get<int>();
+          p.charuco.dictionary = v.at("dictionary").get<std::string>();
+          p.charuco.dark_square = v.at("dark_square").get<std::vector<std::uint8_t>>();
+          p.charuco.dark_cells = v.at("dark_cells").get<std::vector<std::uint8_t>>();
+        } catch (const nlohmann::json::exception& error) {
+          throw_error(ErrorCode::kFormat, "scene parameter 'charuco': {}", error.what());
+        }
+        return true;
+      }
       if (key == "inner_corners_x") p.inner_corners_x = r.integer(key, v);
       else if (key == "inner_corners_y") p.inner_corners_y = r.integer(key, v);
       else if (key == "square_m") p.square = r.number(key, v);

@@ -15,6 +15,7 @@
 
 #include <limits>
 #include <memory>
+#include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
@@ -60,6 +61,19 @@ struct SphereParameters {
   double albedo = 0.6;
 };
 
+// A ChArUco board's printed pattern as plain bits (calib::BoardPattern's, which comes from
+// OpenCV's dictionary: the simulator never includes OpenCV, and no marker is typed in by
+// hand). In the calibration's board frame (sim_calibration_capture.h: x right, y down the
+// board, origin at the first inner corner): square (I, J) spans [(I − 1) s, I s] x
+// [(J − 1) s, J s], index J * squares_x + I.
+struct CharucoPattern {
+  double marker = 0.0;      // marker side (m), centred in its square
+  int cells = 0;            // per marker side, its one-cell dark border included (≤ kCharucoMaxCells)
+  std::string dictionary;   // the name it came from (ground truth only)
+  std::vector<std::uint8_t> dark_square;  // per square: 1 dark (no marker)
+  std::vector<std::uint8_t> dark_cells;   // per square cells * cells, r * cells + c (r along y, c along x)
+};
+
 struct ChessboardParameters {
   int inner_corners_x = 9;  // as the procam data set (DESIGN.md section 8): 10 x 8 squares
   int inner_corners_y = 7;
@@ -67,6 +81,11 @@ struct ChessboardParameters {
   double margin = 0.0006;   // light border around the squares
   double albedo_dark = 0.1;
   double albedo_light = 0.9;
+  // A ChArUco board when charuco.cells > 0: its squares from the table (not by parity), its
+  // markers in the light squares; the scene is named "charuco".
+  CharucoPattern charuco;
+
+  bool is_charuco() const { return charuco.cells > 0; }
 };
 
 // A point of the dense reference sampling.

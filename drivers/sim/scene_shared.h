@@ -223,6 +223,16 @@ SLS_HOST_DEVICE inline bool intersect_sphere(const SphereT<T>& s, const RayT<T>&
 //   x in [-squares_x*square/2 + i*square, ... + square], y likewise with j;
 // square (0, 0) and every square with i + j even is dark. A light margin of width `margin`
 // surrounds the squares; outside the plate there is nothing.
+//
+// ChArUco (marker_cells > 0): which squares are dark is given per square (dark_squares), and
+// each light square holds a marker of side `marker` centred in it: a grid of marker_cells x
+// marker_cells cells (the marker's bits inside a one-cell dark border), cell (row r, column c)
+// dark when bit r * marker_cells + c of marker_dark[square] is set, r along +y and c along +x
+// of this sheet frame. The table is plain bits (the host fills it from OpenCV's dictionary in
+// calib/, drivers/sim never includes OpenCV), sized for the kernels' by-value parameters.
+constexpr int kCharucoMaxSquares = 192;  // e.g. 16 x 12
+constexpr int kCharucoMaxCells = 8;      // markers of up to 6 x 6 bits (64 cells in a word)
+
 template <typename T>
 struct ChessboardT {
   int squares_x = 10;
@@ -231,14 +241,40 @@ struct ChessboardT {
   T margin = T(0.0006);
   T albedo_dark = T(0.1);
   T albedo_light = T(0.9);
+  // ChArUco only (marker_cells 0: a plain chessboard).
+  int marker_cells = 0;
+  T marker = T(0);
+  unsigned int dark_squares[kCharucoMaxSquares / 32] = {};     // bit (square % 32) of word square / 32
+  unsigned long long marker_dark[kCharucoMaxSquares] = {};    // per square, its cells (above)
 
   template <typename U>
   SLS_HOST_DEVICE ChessboardT<U> cast() const {
-    return {squares_x, squares_y, static_cast<U>(square), static_cast<U>(margin), static_cast<U>(albedo_dark),
-            static_cast<U>(albedo_light)};
+    ChessboardT<U> o;
+    o.squares_x = squares_x;
+    o.squares_y = squares_y;
+    o.square = static_cast<U>(square);
+    o.margin = static_cast<U>(margin);
+    o.albedo_dark = static_cast<U>(albedo_dark);
+    o.albedo_light = static_cast<U>(albedo_light);
+    o.marker_cells = marker_cells;
+    o.marker = static_cast<U>(marker);
+    for (int k = 0; k < kCharucoMaxSquares / 32; ++k) o.dark_squares[k] = dark_squares[k];
+    for (int k = 0; k < kCharucoMaxSquares; ++k) o.marker_dark[k] = marker_dark[k];
+    return o;
   }
   SLS_HOST_DEVICE T half_width() const { return T(0.5) * static_cast<T>(squares_x) * square + margin; }
   SLS_HOST_DEVICE T half_height() const { return T(0.5) * static_cast<T>(squares_y) * square + margin; }
+  SLS_HOST_DEVICE bool is_charuco() const { return marker_cells > 0; }
+  // Whether square (i, j) is dark as a whole (a chessboard's parity, a ChArUco board's table).
+  SLS_HOST_DEVICE bool square_dark(int i, int j) const {
+    if (!is_charuco()) return (i + j) % 2 == 0;
+    const int k = j * squares_x + i;
+    return ((dark_squares[k / 32] >> (k % 32)) & 1u) != 0u;
+  }
+  // Whether cell (r, c) of square (i, j)'s marker is dark (a light square's).
+  SLS_HOST_DEVICE bool cell_dark(int i, int j, int r, int c) const {
+    return ((marker_dark[j * squares_x + i] >> (r * marker_cells + c)) & 1ull) != 0ull;
+  }
 };
 
 // Square index (row * squares_x + column) under (x, y), or -1 on the margin.
@@ -258,7 +294,17 @@ SLS_HOST_DEVICE inline T chessboard_albedo(const ChessboardT<T>& s, T x, T y) {
   if (square < 0) return s.albedo_light;
   const int i = square % s.squares_x;
   const int j = square / s.squares_x;
-  return ((i + j) % 2 == 0) ? s.albedo_dark : s.albedo_light;
+  if (s.square_dark(i, j)) return s.albedo_dark;
+  if (!s.is_charuco()) return s.albedo_light;
+  // The marker's cell under (x, y), in cells from the marker's corner of least x and y.
+  const T offset = T(0.5) * (s.square - s.marker);
+  const T cell = s.marker / static_cast<T>(s.marker_cells);
+  const T mx = (x + T(0.5) * static_cast<T>(s.squares_x) * s.square - static_cast<T>(i) * s.square - offset) / cell;
+  const T my = (y + T(0.5) * static_cast<T>(s.squares_y) * s.square - static_cast<T>(j) * s.square - offset) / cell;
+  const T n = static_cast<T>(s.marker_cells);
+  if (!(mx >= T(0) && my >= T(0) && mx < n && my < n)) return s.albedo_light;
+  return s.cell_dark(i, j, static_cast<int>(std::floor(my)), static_cast<int>(std::floor(mx))) ? s.albedo_dark
+                                                                                               : s.albedo_light;
 }
 
 template <typename T>

@@ -59,6 +59,10 @@ constexpr double kTableHalfRangeDeg = 40.0;
 constexpr double kEdgeMarginFraction = 0.01;
 constexpr double kMaxIncidenceDeg = 80.0;
 constexpr double kDepthOfFieldM = 5e-3;
+// A ChArUco board may be larger than the field and leave it: what must stay in view and in
+// the projector's light is its core, this share of its inner corners' span each way (centred),
+// so the hand poses push its corners out to the image's edges (partial views).
+constexpr double kCharucoCoreFraction = 0.5;
 
 // The lenses of cameras 1, 2, 3 of a head (camera 0 has the rig's: k1 −0.3, p1 2e-4, p2
 // −1e-4): barrel distortion and decentring of the same order, each its own, so that a
@@ -163,10 +167,18 @@ bool inside(const Eigen::Vector2d& px, int width, int height, double margin_frac
 // than kMaxIncidenceDeg, within the depth of field. When not, *why (optional) says where.
 bool plate_fits(const SimRig& rig, const ChessboardParameters& board, const Pose& T_camera, double margin_fraction,
                 std::string* why) {
-  // The plate's outline in the board frame, margin included.
-  const double left = -board.square - board.margin, top = -board.square - board.margin;
-  const double right = board.inner_corners_x * board.square + board.margin;
-  const double bottom = board.inner_corners_y * board.square + board.margin;
+  // The plate's outline in the board frame, margin included; of a ChArUco board only its core
+  // (kCharucoCoreFraction of the inner corners' span, centred), the rest may leave the view.
+  double left = -board.square - board.margin, top = -board.square - board.margin;
+  double right = board.inner_corners_x * board.square + board.margin;
+  double bottom = board.inner_corners_y * board.square + board.margin;
+  if (board.is_charuco()) {
+    const double w = (board.inner_corners_x - 1) * board.square, h = (board.inner_corners_y - 1) * board.square;
+    left = 0.5 * (1.0 - kCharucoCoreFraction) * w;
+    right = w - left;
+    top = 0.5 * (1.0 - kCharucoCoreFraction) * h;
+    bottom = h - top;
+  }
   const std::vector<Eigen::Vector3d> outline = {{left, top, 0.0}, {right, top, 0.0}, {right, bottom, 0.0},
                                                 {left, bottom, 0.0}};
   const PlateView view = project_board_points(rig, T_camera, outline);
@@ -183,9 +195,9 @@ bool plate_fits(const SimRig& rig, const ChessboardParameters& board, const Pose
     if (!(seen && lit && sharp)) {
       if (why != nullptr) {
         *why = fmt::format(
-            "the {:.2f} x {:.2f} mm board leaves the camera's view, the projector's light or the depth of field "
+            "the {:.2f} x {:.2f} mm board{} leaves the camera's view, the projector's light or the depth of field "
             "(corner at camera pixel ({:.1f}, {:.1f}), projector pixel ({:.1f}, {:.1f}), {:.2f} mm from the camera)",
-            (right - left) * 1e3, (bottom - top) * 1e3, view.camera_px[i].x(), view.camera_px[i].y(),
+            (right - left) * 1e3, (bottom - top) * 1e3, board.is_charuco() ? " (ChArUco core)" : "", view.camera_px[i].x(), view.camera_px[i].y(),
             view.projector_px[i].x(), view.projector_px[i].y(), p.z() * 1e3);
       }
       return false;
@@ -278,6 +290,9 @@ nlohmann::json matrix_json(const Pose& pose) {
 
 // The colour of the square between corners 0, 1, cols and cols + 1 (the scene's pattern).
 bool square_beyond_origin_is_dark(const ChessboardParameters& board) {
+  if (board.is_charuco()) {  // square (1, 1) of the board frame's table
+    return board.charuco.dark_square.at(static_cast<std::size_t>(board.inner_corners_x + 1 + 1)) != 0;
+  }
   const ChessboardT<double> shape{board.inner_corners_x + 1, board.inner_corners_y + 1, board.square, board.margin,
                                   board.albedo_dark, board.albedo_light};
   const Eigen::Vector3d centre = board_frame_in_object(board) * Eigen::Vector3d(0.5 * board.square, 0.5 * board.square, 0.0);
@@ -288,7 +303,8 @@ bool square_beyond_origin_is_dark(const ChessboardParameters& board) {
 std::string board_json(const ChessboardParameters& board) {
   nlohmann::json object_points = nlohmann::json::array();
   for (const Eigen::Vector3d& p : inner_corners_board(board)) object_points.push_back({p.x(), p.y(), p.z()});
-  const nlohmann::json json = {
+  nlohmann::json json = {
+      {"kind", "chessboard"},
       {"inner_corners", {board.inner_corners_x, board.inner_corners_y}},
       {"squares", {board.inner_corners_x + 1, board.inner_corners_y + 1}},
       {"square_m", board.square},
@@ -304,10 +320,26 @@ std::string board_json(const ChessboardParameters& board) {
       {"T_object_board", matrix_json(board_frame_in_object(board))},
       {"square_beyond_origin", square_beyond_origin_is_dark(board) ? "dark" : "light"},
   };
+  if (board.is_charuco()) {  // what `sls calibrate` reads (calib/calibrate_capture.cpp)
+    json["kind"] = "charuco";
+    json["marker_m"] = board.charuco.marker;
+    json["dictionary"] = board.charuco.dictionary;
+    json["marker_cells"] = board.charuco.cells;
+    json["order"] = "ChArUco corner ids: row by row, x fastest, as the chessboard's";
+  }
   return json.dump(2);
 }
 
 }  // namespace
+
+ChessboardParameters charuco_calibration_board_geometry() {
+  ChessboardParameters board;
+  board.inner_corners_x = 11;
+  board.inner_corners_y = 8;
+  board.square = 1.2e-3;
+  board.margin = 0.6e-3;
+  return board;
+}
 
 ChessboardParameters calibration_board() {
   ChessboardParameters board;

@@ -1,4 +1,5 @@
-// The simulator's calibration capture (issue #17): a chessboard shown to the simulated
+// The simulator's calibration capture (issue #17): a chessboard (or a ChArUco board, whose
+// views may show part of it: SimCalibrationOptions::board) shown to the simulated
 // scanner in varied poses "by hand" (turntable at 0°, manifest angle null), then on a fixed
 // mount on the turntable at several commanded angles (for the axis), captured through the
 // devices with a pattern set coding projector columns and rows. The recording is made
@@ -36,6 +37,12 @@ namespace sls::sim {
 // square (7.2 x 6.0 mm in all), so the whole plate stays inside the 12 x 9 mm field and the
 // projector's light at every pose while a square still spans 20 camera pixels at ci.
 ChessboardParameters calibration_board();
+// The default ChArUco target's geometry: 12 x 9 squares of 1.2 mm (11 x 8 inner corners, 14.4 x
+// 10.8 mm of squares), larger than the 12 x 9 mm field, so views near the field's edges are
+// partial (only its central half must stay in view); a square spans 40 camera pixels at ci.
+// Its markers (CharucoPattern) come from calib (OpenCV's dictionary): `sls sim --calibration
+// --board charuco` fills them, with 0.9 mm markers of DICT_5X5_100 by default.
+ChessboardParameters charuco_calibration_board_geometry();
 
 // The turntable's stepper for a calibration capture: 6400 steps (a 200-step motor at 1/32
 // microstepping, as the head controller's); commanded angles are whole steps.

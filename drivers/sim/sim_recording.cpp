@@ -175,7 +175,8 @@ void trim_trajectory(const std::string& path, const std::vector<StampedPose>& li
 
 SimRecordingSummary write_sim_recording(const std::string& folder, const SimRecordingOptions& options,
                                         const Device& device, const ProgressCallback& progress) {
-  const std::shared_ptr<SimScanner> scanner = SimScanner::create(options.object, options.rig, device);
+  const std::shared_ptr<SimScanner> scanner = options.scene ? SimScanner::create(*options.scene, options.rig, device)
+                                                            : SimScanner::create(options.object, options.rig, device);
   scanner->set_image_memory(options.image_memory);
   const SimRig& rig = scanner->rig();
   const bool depth_mode = options.depth_mode;

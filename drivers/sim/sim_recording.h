@@ -38,6 +38,9 @@ enum class SimFrameStep {
 
 struct SimRecordingOptions {
   std::string object = "knurled-screw";
+  // A scene made by the caller, imaged instead of `object` (a ChArUco board: its markers come
+  // from calib, make_chessboard_scene with a CharucoPattern; `sls sim --object charuco`).
+  std::optional<Scene> scene;
   RigOptions rig;                     // preset, frames, projector, sensor, turntable, seed, noise
   bool depth_mode = false;            // depth maps instead of pattern images
   double reference_spacing_m = 0.0;   // 0: per preset (ci 100 µm, demo 30 µm, paper 10 µm)

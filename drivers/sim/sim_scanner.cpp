@@ -31,6 +31,7 @@ class SimCamera final : public drivers::Camera {
     scanner_->exposure_scale_ = exposure_us / kSimNominalExposureUs;
   }
   double exposure_us() const override { return exposure_us_; }
+  std::optional<ScannerCalibration> exact_calibration() const override { return scanner_->rig().calibration(); }
   void set_trigger_source(drivers::TriggerSource source) override { source_ = source; }
   ~SimCamera() override { stop(); }
   void start() override {
@@ -156,7 +157,12 @@ class SimTurntable final : public drivers::Turntable {
 
 std::shared_ptr<SimScanner> SimScanner::create(const std::string& object, const RigOptions& rig_options,
                                                const Device& device) {
-  Scene scene = make_scene(object);
+  return create(make_scene(object), rig_options, device);
+}
+
+std::shared_ptr<SimScanner> SimScanner::create(const Scene& scene, const RigOptions& rig_options,
+                                               const Device& device) {
+  const std::string& object = scene.name();
   SimRig rig = make_rig(rig_options, scene);
   if (!surface_material_by_name(rig_options.material.c_str(), &rig.material)) {
     throw_error(ErrorCode::kInvalidArgument, "unknown material '{}' (expected painted or metal)", rig_options.material);

@@ -48,6 +48,9 @@ class SimScanner : public std::enable_shared_from_this<SimScanner> {
   static std::shared_ptr<SimScanner> open(const std::string& uri);
   static std::shared_ptr<SimScanner> create(const std::string& object, const RigOptions& rig_options,
                                             const Device& device);
+  // The same with a scene made by the caller (e.g. a ChArUco board, make_chessboard_scene with
+  // calib's marker table); the URI names it by scene.name().
+  static std::shared_ptr<SimScanner> create(const Scene& scene, const RigOptions& rig_options, const Device& device);
   // A rig and scene built by the caller (a calibration capture: rig.placements, a board of
   // its own); `uri` names the device in recordings.
   static std::shared_ptr<SimScanner> create(SimRig rig, Scene scene, const Device& device, std::string uri);

@@ -20,6 +20,19 @@ nlohmann::json vector_json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z
 
 namespace {
 
+// The board in calibration.json: a chessboard's inner corners and square; a ChArUco board's
+// also its kind, squares, marker and dictionary.
+nlohmann::json board_json(const calib::BoardSpec& board) {
+  nlohmann::json json = {{"inner_corners", {board.inner_cols, board.inner_rows}}, {"square_m", board.square_m}};
+  if (board.is_charuco()) {
+    json["kind"] = "charuco";
+    json["squares"] = {board.inner_cols + 1, board.inner_rows + 1};
+    json["marker_m"] = board.marker_m;
+    json["dictionary"] = board.dictionary;
+  }
+  return json;
+}
+
 using report::detail::add_row;
 using report::detail::escape_html;
 
@@ -126,7 +139,8 @@ nlohmann::json calibration_json(const calib::CalibrateCaptureResult& result) {
       entry["obliquity_deg"] = s.obliquity_deg;
       nlohmann::json corners = nlohmann::json::array();
       for (std::size_t c = 0; c < s.camera_residuals_px.size(); ++c) {
-        corners.push_back({{"camera_px", {view.camera_corners[c].x(), view.camera_corners[c].y()}},
+        corners.push_back({{"id", c < view.corner_ids.size() ? view.corner_ids[c] : static_cast<int>(c)},
+                           {"camera_px", {view.camera_corners[c].x(), view.camera_corners[c].y()}},
                            {"camera_residual_px", {s.camera_residuals_px[c].x(), s.camera_residuals_px[c].y()}},
                            {"camera_used", s.camera_inlier[c] != 0},
                            {"projector_px", view.projector.valid[c] != 0
@@ -146,7 +160,7 @@ nlohmann::json calibration_json(const calib::CalibrateCaptureResult& result) {
   nlohmann::json json = {
       {"input_kind", result.input_kind},
       {"pattern_set", result.pattern_set_name},
-      {"board", {{"inner_corners", {result.board.inner_cols, result.board.inner_rows}}, {"square_m", result.board.square_m}}},
+      {"board", board_json(result.board)},
       {"camera_rms_px", procam.camera_rms_px},
       {"projector_rms_px", procam.projector_rms_px},
       {"stereo_rms_px", procam.stereo_rms_px},
@@ -230,8 +244,7 @@ void write_calibration_report(const std::string& folder, const calib::CalibrateC
       "body{font-family:sans-serif;margin:1.5em}table{border-collapse:collapse}td,th{border:1px solid #ccc;"
       "padding:2px 8px;text-align:left}</style></head><body><h1>Calibration</h1><table>";
   add_row(html, "input", result.input_kind + ", pattern set " + result.pattern_set_name);
-  add_row(html, "board", fmt::format("{}x{} inner corners, {} m squares", result.board.inner_cols,
-                                     result.board.inner_rows, result.board.square_m));
+  add_row(html, "board", result.board.describe());
   add_row(html, "views", fmt::format("{} used of {}", procam.views_used, result.views.size()));
   add_row(html, "RMS", fmt::format("camera {:.3f} px, projector {:.3f} px, stereo (joint) {:.3f} px",
                                    procam.camera_rms_px, procam.projector_rms_px, procam.stereo_rms_px));

@@ -42,8 +42,10 @@ struct CalibrateOptions {
   std::string input;
   std::string out;
   std::string patterns;
-  std::string board;  // COLSxROWS
+  std::string board;  // COLSxROWS (chessboard) or charuco:COLSxROWS
   double square_m = 0.0;
+  double marker_m = 0.0;   // ChArUco
+  std::string dictionary;  // ChArUco; empty: calib's default
   std::string report;
   std::string device;
   double max_rms_px = 1.0;
@@ -133,6 +135,14 @@ session::PoseConfirmation terminal_confirmation(const CalibrateOptions& options,
 }
 
 // The command that continues an interrupted capture.
+// The board's flags as given: "--board B --square S [--marker M] [--dictionary D]".
+std::string board_words(const CalibrateOptions& options) {
+  std::string words = fmt::format("--board {} --square {:g}", options.board, options.square_m);
+  if (options.marker_m > 0.0) words += fmt::format(" --marker {:g}", options.marker_m);
+  if (!options.dictionary.empty()) words += " --dictionary " + options.dictionary;
+  return words;
+}
+
 std::string resume_command(const CalibrateOptions& options) {
   std::string command = "sls calibrate";
   for (const std::string& camera : options.camera_uris) command += " --camera " + camera;
@@ -144,7 +154,7 @@ std::string resume_command(const CalibrateOptions& options) {
     for (const double angle : options.turntable_angles) angles += (angles.empty() ? "" : ",") + fmt::format("{:g}", angle);
     command += " --turntable-angles " + angles;
   }
-  command += fmt::format(" --board {} --square {:g} --out {} --resume", options.board, options.square_m, options.out);
+  command += fmt::format(" {} --out {} --resume", board_words(options), options.out);
   return command;
 }
 
@@ -250,11 +260,11 @@ std::optional<session::CalibrationCapture> capture_views(const Context& context,
   }
   std::cerr << fmt::format("\ninterrupted by {} during the calibration capture: {} pose(s) captured into {} ({}, not "
                            "calibrated).\nContinue the capture: {}\nor calibrate what it holds: sls "
-                           "calibrate --input {} --board {} --square {:g} --out {}\n",
+                           "calibrate --input {} {} --out {}\n",
                            stop.signal_name(), frames, options.record,
                            head ? fmt::format("a valid recording per camera of the {}", options.camera_uris.size())
                                 : "a valid recording",
-                           resume_command(options), options.record, options.board, options.square_m, options.out);
+                           resume_command(options), options.record, board_words(options), options.out);
   return std::nullopt;
 }
 
@@ -273,8 +283,8 @@ int report_calibration_interrupted(const Context& context, const CalibrateOption
               << "\n";
   }
   std::cerr << fmt::format("\ninterrupted by {} during the calibration: the capture in {} is complete; calibrate it "
-                           "with sls calibrate --input {} --board {} --square {:g} --out {}\n",
-                           stop.signal_name(), options.record, options.record, options.board, options.square_m,
+                           "with sls calibrate --input {} {} --out {}\n",
+                           stop.signal_name(), options.record, options.record, board_words(options),
                            options.out);
   return kExitInterrupted;
 }
@@ -286,17 +296,10 @@ int run_calibrate(const Context& context, const CalibrateOptions& options) {
   calibrate.estimate_k3 = options.estimate_k3;
   calibrate.device = options.device.empty() ? Device::cpu() : parse_device(options.device);
   if (!options.board.empty()) {
-    char trailing = 0;
-    if (std::sscanf(options.board.c_str(), "%dx%d%c", &calibrate.board.inner_cols, &calibrate.board.inner_rows,
-                    &trailing) != 2) {
-      throw_error(ErrorCode::kInvalidArgument, "--board {}: expected COLSxROWS inner corners, e.g. 9x7", options.board);
-    }
-    if (!(options.square_m > 0.0)) {
-      throw_error(ErrorCode::kInvalidArgument, "--board needs --square (the square's side in metres)");
-    }
-    calibrate.board.square_m = options.square_m;
-  } else if (options.square_m > 0.0) {
-    throw_error(ErrorCode::kInvalidArgument, "--square needs --board COLSxROWS");
+    calibrate.board = calib::parse_board_spec(options.board, options.square_m, options.marker_m, options.dictionary);
+  } else if (options.square_m > 0.0 || options.marker_m > 0.0 || !options.dictionary.empty()) {
+    throw_error(ErrorCode::kInvalidArgument, "--square, --marker and --dictionary need --board (COLSxROWS or "
+                                             "charuco:COLSxROWS)");
   }
   // Capture mode (the board checked first): a signal stops the capture after the current pose,
   // or the calibration after it.
@@ -490,10 +493,21 @@ void add_calibrate_command(CLI::App& app, Context& context, int* exit_code) {
                       "--camera: the set to project, default gray-phase with columns and rows at the projector's "
                       "size)");
   auto* board = command->add_option("--board", options->board,
-                                    "Chessboard inner corners COLSxROWS, e.g. 9x7 (default: a simulated capture's own "
-                                    "board; required with --camera)");
-  auto* square = command->add_option("--square", options->square_m, "Chessboard square side in metres (with --board)")
+                                    "The board: COLSxROWS = a chessboard's inner corners, e.g. 9x7; charuco:COLSxROWS = "
+                                    "a ChArUco board's squares, e.g. charuco:12x9 (OpenCV's CharucoBoard: markers in "
+                                    "the light squares; views of part of the board count). Default: a simulated "
+                                    "capture's own board; required with --camera");
+  auto* square = command->add_option("--square", options->square_m, "Board square side in metres (with --board)")
                      ->check(CLI::PositiveNumber);
+  command->add_option("--marker", options->marker_m,
+                      "ChArUco marker side in metres, smaller than --square (with --board charuco:COLSxROWS)")
+      ->check(CLI::PositiveNumber)
+      ->needs(board);
+  command->add_option("--dictionary", options->dictionary,
+                      fmt::format("ChArUco markers' ArUco dictionary, OpenCV's name (default {}; e.g. DICT_4X4_50, "
+                                  "DICT_6X6_250, DICT_APRILTAG_36h11)",
+                                  "DICT_5X5_100"))
+      ->needs(board);
   camera->needs(board);
   camera->needs(square);
   command->add_option("--report", options->report, "Folder for calibration_report.html and calibration.json");

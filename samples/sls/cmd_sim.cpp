@@ -7,6 +7,9 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#if defined(SLS_HAVE_CALIB)
+#include "calib/board.h"
+#endif
 #include "drivers/sim/rig.h"
 #include "drivers/sim/sim_calibration_capture.h"
 #include "drivers/sim/sim_recording.h"
@@ -38,9 +41,64 @@ struct SimOptions {
   int turntable_poses = sim::SimCalibrationOptions{}.turntable_poses;
   int cameras = 1;  // of the head, with --calibration
   std::string exposures;  // HDR: relative exposure times, "1,0.25"; empty: one exposure
+  // The board (--calibration's target, or --object charuco's): "chessboard", "charuco" or
+  // "charuco:COLSxROWS"; sizes in metres (0: the default board's).
+  std::string board;
+  double square_m = 0.0, marker_m = 0.0;
+  std::string dictionary;
 };
 
+// The ChArUco board of --object charuco or --calibration --board charuco[:COLSxROWS]: the
+// geometry from the simulator's default (or the flags), the markers from calib (OpenCV's
+// dictionary): the simulator gets them as a plain bit table and never includes OpenCV.
+sim::ChessboardParameters charuco_board(const SimOptions& options, sim::ChessboardParameters geometry,
+                                        double default_marker_m) {
+#if defined(SLS_HAVE_CALIB)
+  const std::string size = options.board.rfind("charuco:", 0) == 0
+                                ? options.board
+                                : fmt::format("charuco:{}x{}", geometry.inner_corners_x + 1, geometry.inner_corners_y + 1);
+  const calib::BoardSpec spec = calib::parse_board_spec(size, options.square_m > 0.0 ? options.square_m : geometry.square,
+                                                        options.marker_m > 0.0 ? options.marker_m : default_marker_m,
+                                                        options.dictionary);
+  const calib::BoardPattern pattern = calib::charuco_pattern(spec);
+  geometry.inner_corners_x = spec.inner_cols;
+  geometry.inner_corners_y = spec.inner_rows;
+  geometry.square = spec.square_m;
+  geometry.margin = std::min(geometry.margin, 0.5 * spec.square_m);
+  geometry.charuco.marker = pattern.marker_m;
+  geometry.charuco.cells = pattern.cells;
+  geometry.charuco.dictionary = spec.dictionary;
+  geometry.charuco.dark_square = pattern.dark_square;
+  geometry.charuco.dark_cells = pattern.dark_cells;
+  return geometry;
+#else
+  (void)options;
+  (void)geometry;
+  (void)default_marker_m;
+  throw_error(ErrorCode::kUnsupported,
+              "sls was built without OpenCV: a ChArUco board's markers come from OpenCV's aruco dictionary");
+#endif
+}
+
+// The default ChArUco markers: 3/4 of the square (OpenCV's examples' ratio), 7 cells of a
+// 5x5-bit marker 4.3 camera pixels each at ci on the calibration board.
+constexpr double kCharucoMarkerRatio = 0.75;
+
 int run_sim(const Context& context, const SimOptions& options) {
+  const bool charuco = options.object == "charuco" && !options.calibration;
+  const bool board_flags = !options.board.empty() || options.square_m > 0.0 || options.marker_m > 0.0 ||
+                           !options.dictionary.empty();
+  if (board_flags && !options.calibration && !charuco) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "--board, --square, --marker and --dictionary describe --calibration's target or --object charuco");
+  }
+  if (charuco && !options.board.empty() && options.board.rfind("charuco", 0) != 0) {
+    throw_error(ErrorCode::kInvalidArgument, "--object charuco: --board {} (expected charuco:COLSxROWS)", options.board);
+  }
+  if (options.calibration && options.board.rfind("charuco", 0) != 0 &&
+      (options.marker_m > 0.0 || !options.dictionary.empty())) {
+    throw_error(ErrorCode::kInvalidArgument, "--marker and --dictionary need --board charuco[:COLSxROWS]");
+  }
   const Device device = options.device.empty() ? default_device() : parse_device(options.device);
   sim::RigOptions rig = options.rig;
   rig.noise = !options.no_noise;
@@ -63,11 +121,24 @@ int run_sim(const Context& context, const SimOptions& options) {
       calibration_options.turntable_poses = options.turntable_poses;
       calibration_options.head_object = options.object;
       calibration_options.cameras = options.cameras;
+      if (options.board.rfind("charuco", 0) == 0) {
+        const sim::ChessboardParameters geometry = sim::charuco_calibration_board_geometry();
+        const double square = options.square_m > 0.0 ? options.square_m : geometry.square;
+        calibration_options.board = charuco_board(options, geometry, kCharucoMarkerRatio * square);
+      } else if (options.square_m > 0.0) {
+        calibration_options.board.square = options.square_m;
+      }
       summary = sim::write_sim_calibration_recording(options.out, calibration_options, device, counting);
-      object = "chessboard";  // what is imaged; the head is set up for options.object
+      object = calibration_options.board.is_charuco() ? "charuco" : "chessboard";  // what is imaged; the head is
+                                                                                   // set up for options.object
     } else {
       sim::SimRecordingOptions sim_options;
       sim_options.object = options.object;
+      if (options.object == "charuco") {  // the chessboard scene's geometry with markers
+        const sim::ChessboardParameters geometry;
+        const double square = options.square_m > 0.0 ? options.square_m : geometry.square;
+        sim_options.scene = sim::make_chessboard_scene(charuco_board(options, geometry, kCharucoMarkerRatio * square));
+      }
       sim_options.rig = rig;
       // Only when given: the default through µm and back is not the same double, and the rig
       // would differ from `sls scan --sim`'s (a recording of one would not resume with the other).
@@ -160,8 +231,11 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::IsMember({"ci", "demo", "paper"}))
       ->capture_default_str();
   command->add_option("--object", options->object,
-                      "The object on the turntable (with --calibration: the one the head is set up for)")
-      ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "plane", "sphere"}))
+                      "The object on the turntable (with --calibration: the one the head is set up for). charuco: "
+                      "the chessboard's 10 x 8 squares of 1.2 mm with ArUco markers of 0.9 mm in its light squares "
+                      "(OpenCV's ChArUco board, markers from its dictionary; --square, --marker, --dictionary, "
+                      "--board charuco:COLSxROWS change it)")
+      ->check(CLI::IsMember({"knurled-screw", "knurled-knob", "chessboard", "charuco", "plane", "sphere"}))
       ->capture_default_str();
   CLI::Option* frames =
       command->add_option("--frames", options->rig.frames, "Frames per revolution (0: the preset's)")
@@ -255,6 +329,26 @@ void add_sim_command(CLI::App& app, Context& context, int* exit_code) {
       ->check(CLI::Range(1, sim::kMaxSimCalibrationCameras))
       ->needs(calibration)
       ->capture_default_str();
+  CLI::Option* board_option =
+      command->add_option("--board", options->board,
+                          "With --calibration: the target, chessboard (9 x 7 inner corners of 0.6 mm, the whole "
+                          "board in every view) or charuco[:COLSxROWS] (OpenCV's ChArUco board, default 12 x 9 squares "
+                          "of 1.2 mm with 0.9 mm markers: larger than the field, so views near its edges show part of "
+                          "it and its corners reach the image's edges); with --object charuco: charuco:COLSxROWS")
+          ->check([](const std::string& text) {
+            return text == "chessboard" || text == "charuco" || text.rfind("charuco:", 0) == 0
+                       ? std::string()
+                       : std::string("expected chessboard, charuco or charuco:COLSxROWS");
+          });
+  command->add_option("--square", options->square_m,
+                      "The board's square side in metres (with --board, or --object charuco; default: the board's)")
+      ->check(CLI::PositiveNumber);
+  command->add_option("--marker", options->marker_m,
+                      "A ChArUco board's marker side in metres, smaller than the square (default: 3/4 of it)")
+      ->check(CLI::PositiveNumber);
+  command->add_option("--dictionary", options->dictionary,
+                      "A ChArUco board's ArUco dictionary, OpenCV's name (default DICT_5X5_100)");
+  (void)board_option;
   for (CLI::Option* scan_only :
        {frames, mode, mount_tilt, mount_offset, reference_spacing, resume, patterns, exposures}) {
     scan_only->excludes(calibration);

@@ -125,13 +125,49 @@ std::vector<RecordingWriter> continue_head(const std::string& folder, const std:
   return writers;
 }
 
-// New recordings for the capture: the one at `folder`, or one per camera of a head in it.
+// The exact calibration of a head whose every camera is simulated (Camera::exact_calibration),
+// as the simulator's own capture writes it: camera 0's (with the projector and the turntable
+// axis), the others as additional cameras (T_camera0_cameraK = T_camera0_projector ·
+// T_cameraK_projector⁻¹). nullopt when some camera has none (a real head).
+std::optional<ScannerCalibration> exact_head_calibration(const std::vector<drivers::Camera*>& cameras) {
+  std::vector<ScannerCalibration> exact;
+  for (const drivers::Camera* camera : cameras) {
+    std::optional<ScannerCalibration> each = camera->exact_calibration();
+    if (!each) return std::nullopt;
+    exact.push_back(std::move(*each));
+  }
+  ScannerCalibration head = exact.front();
+  for (std::size_t k = 1; k < exact.size(); ++k) {
+    head.additional_cameras.push_back(
+        {exact[k].camera, exact.front().T_camera_projector * exact[k].T_camera_projector.inverse(), 0.0});
+  }
+  if (exact.size() > 1) {
+    head.description = fmt::format("exact calibration of a simulated head of {} cameras (captured through its devices)",
+                                   exact.size());
+  }
+  return head;
+}
+
+// A new recording for `camera`; a simulated camera's carries its exact calibration in
+// groundtruth/calibration.yml (as `sls sim --calibration` writes it), so calibrating it
+// reports the truth.
+RecordingWriter create_recording(const std::string& folder, const drivers::Camera& camera,
+                                 const drivers::Projector& projector, const PatternSet& patterns) {
+  RecordingInfo info = make_recording_info(projector, camera, patterns);
+  const std::optional<ScannerCalibration> exact = camera.exact_calibration();
+  info.has_groundtruth = exact.has_value();
+  RecordingWriter writer = RecordingWriter::create(folder, info, std::nullopt);  // made uncalibrated
+  if (exact) write_calibration(writer.groundtruth_folder() + "/calibration.yml", *exact);
+  return writer;
+}
+
+// New recordings for the capture: the one at `folder`, or one per camera of a head in it (a
+// simulated head's exact calibration beside them, in `folder`/groundtruth/calibration.yml).
 std::vector<RecordingWriter> create_recordings(const std::string& folder, const std::vector<drivers::Camera*>& cameras,
                                                const drivers::Projector& projector, const PatternSet& patterns) {
   std::vector<RecordingWriter> writers;
   if (cameras.size() == 1) {
-    writers.push_back(RecordingWriter::create(folder, make_recording_info(projector, *cameras.front(), patterns),
-                                              std::nullopt));  // made uncalibrated
+    writers.push_back(create_recording(folder, *cameras.front(), projector, patterns));
     return writers;
   }
   std::error_code error;
@@ -140,8 +176,11 @@ std::vector<RecordingWriter> create_recordings(const std::string& folder, const 
                 folder);
   }
   for (std::size_t k = 0; k < cameras.size(); ++k) {
-    writers.push_back(RecordingWriter::create(head_camera_folder(folder, k),
-                                              make_recording_info(projector, *cameras[k], patterns), std::nullopt));
+    writers.push_back(create_recording(head_camera_folder(folder, k), *cameras[k], projector, patterns));
+  }
+  if (const std::optional<ScannerCalibration> head = exact_head_calibration(cameras)) {
+    std::filesystem::create_directories(std::filesystem::path(folder) / "groundtruth", error);
+    write_calibration(folder + "/groundtruth/calibration.yml", *head);
   }
   return writers;
 }

@@ -18,6 +18,11 @@
 //     and one stack is captured; the frame carries the angle the table reports.
 // Every stack is appended to the recording as it arrives (RecordingWriter: flushed per frame),
 // with the capture sequencer's checks, re-captures and per-frame counters.
+// Simulated cameras (drivers::Camera::exact_calibration) make a recording with ground truth:
+// groundtruth/calibration.yml holds that camera's exact calibration (with the projector), and
+// a head's folder its exact calibration (groundtruth/calibration.yml, camera 0 with the others
+// as additional cameras), as `sls sim --calibration` writes them, so calibrating the capture
+// reports the truth per camera and camera to camera. Real cameras: no ground truth.
 //
 // A head of several cameras (devices.more_cameras): each pose is one pattern stack that every
 // camera takes together — the projector shows each pattern once and the cameras are

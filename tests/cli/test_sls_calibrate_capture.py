@@ -5,6 +5,7 @@ at each pose), each hand pose confirmed on stdin (Enter, s to skip, q to stop), 
 from the recording; --yes asks nothing; SIGINT at a prompt keeps the recording (exit 4); usage
 errors. Usage: test_sls_calibrate_capture.py PATH_TO_SLS (stdlib only)."""
 import json
+import math
 import os
 import pathlib
 import select
@@ -77,7 +78,17 @@ class SlsCalibrateCapture(unittest.TestCase):
         self.assertEqual(figures["views_used"], [f"frame {i}" for i in range(7)])
         self.assertTrue(figures["turntable_axis"]["fitted"])
         self.assertEqual(figures["turntable_axis"]["views"], 3)
-        self.assertNotIn("truth", figures)  # a capture through devices has no exact calibration beside it
+        # Captured through simulated devices: the recording carries the exact calibration (as
+        # `sls sim --calibration` writes it), so the truth is reported.
+        self.assertTrue((record / "groundtruth" / "calibration.yml").exists())
+        truth = figures["truth"]
+        print(f"\ncaptured through sim:// against its truth: {json.dumps(truth)}")
+        for key in ("focal_rel_err", "principal_point_err_px", "baseline_rel_err", "rotation_err_deg"):
+            self.assertIn(key, truth)
+            self.assertTrue(math.isfinite(truth[key]) and truth[key] >= 0.0, key)
+        self.assertLess(truth["focal_rel_err"], 0.1)
+        self.assertLess(truth["baseline_rel_err"], 0.1)
+        self.assertLess(truth["rotation_err_deg"], 3.0)
         text = (self.dir / "head" / "calibration.yml").read_text()
         for key in ("camera_matrix", "projector_matrix", "T_camera_projector", "turntable_axis_direction",
                     "reprojection_rms_px", "calibrated_utc"):

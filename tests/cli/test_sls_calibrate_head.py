@@ -84,9 +84,32 @@ class SlsCalibrateHead(unittest.TestCase):
         self.assertTrue(figures["turntable_axis"]["fitted"])
         self.assertIn("camera_count: 2\n", (self.dir / "head.yml").read_text())
 
+        # Captured through simulated devices, the head carries its exact calibration (each
+        # camera's recording its camera with the projector, the head's folder the head), so the
+        # truth is reported per camera and camera to camera, straight from the capture.
+        self.assertTrue((head / "groundtruth" / "calibration.yml").exists())
+        for k, camera in enumerate(cameras):
+            self.assertTrue((head / f"camera{k}" / "groundtruth" / "calibration.yml").exists(), k)
+            truth = camera["truth"]
+            print(f"\ncaptured head, camera{k} against its truth: {json.dumps(truth)}")
+            for key in ("focal_rel_err", "principal_point_err_px", "projector_baseline_rel_err",
+                        "projector_rotation_err_deg"):
+                self.assertIn(key, truth, f"camera{k}")
+                self.assertTrue(math.isfinite(truth[key]) and truth[key] >= 0.0, f"camera{k} {key}")
+            # ci's 400 x 300 pixels and 7 views: measured 5.4 % / 3.4 % focal, 20 / 50 px principal
+            # point, 5.8 % / 4.2 % baseline, 0.5° / 0.3° rotation (cameras 0 / 1); another camera's
+            # truth would be off by tens of percent and degrees.
+            self.assertLess(truth["focal_rel_err"], 0.1, f"camera{k}")
+            self.assertLess(truth["principal_point_err_px"], 100.0, f"camera{k}")
+            self.assertLess(truth["projector_baseline_rel_err"], 0.1, f"camera{k}")
+            self.assertLess(truth["projector_rotation_err_deg"], 3.0, f"camera{k}")
+        pair = cameras[1]["truth"]["camera_camera"]
+        self.assertLess(pair["baseline_rel_err"], 0.1)
+        self.assertLess(pair["rotation_err_deg"], 3.0)
+
         # The devices are `sls sim --calibration --cameras 2`'s head: its camera 1 renders the same
         # images pixel for pixel (its place, lens and sensor), and its exact calibration is the
-        # truth of the head just calibrated (copied beside the capture, as sls sim writes it).
+        # truth the capture carries (the same numbers to rounding).
         simulated = self.dir / "simulated"
         made = run("sim", "--calibration", "--object", "chessboard", "--cameras", "2", "--preset", "ci",
                    "--hand-poses", "4", "--turntable-poses", "0", "--device", "cpu", "--out", str(simulated))
@@ -97,17 +120,30 @@ class SlsCalibrateHead(unittest.TestCase):
                 theirs = simulated / f"camera{k}" / "frames" / "000002" / image
                 self.assertTrue(ours.exists(), ours)
                 self.assertEqual(ours.read_bytes(), theirs.read_bytes(), f"camera{k} {image}")
-        shutil.copytree(simulated / "groundtruth", head / "groundtruth")
         again = run("--json", "calibrate", "--input", str(head), *BOARD, "--out", str(self.dir / "again.yml"))
         self.assertEqual(again.returncode, 0, again.stderr)
         recalibrated = json.loads(again.stdout)
         self.assertEqual(recalibrated["camera_camera_rms_px"], figures["camera_camera_rms_px"])
-        truth = recalibrated["cameras"][1]["truth"]["camera_camera"]
-        print(f"\ncaptured head against sls sim's truth: {json.dumps(truth)}")
-        # ci's 400 x 300 pixels and 7 views: 4.7 % and 1.0° measured (docs/benchmarks.md); a
-        # camera of another place or another pose would be off by tens of percent and degrees.
-        self.assertLess(truth["baseline_rel_err"], 0.1)
-        self.assertLess(truth["rotation_err_deg"], 3.0)
+        for k in range(2):
+            self.assertEqual(recalibrated["cameras"][k]["truth"], figures["cameras"][k]["truth"])
+        # Against sls sim's own truth (copied over the capture's): the same figures to rounding.
+        shutil.rmtree(head / "groundtruth")
+        shutil.copytree(simulated / "groundtruth", head / "groundtruth")
+        for k in range(2):
+            shutil.rmtree(head / f"camera{k}" / "groundtruth")
+            shutil.copytree(simulated / f"camera{k}" / "groundtruth", head / f"camera{k}" / "groundtruth")
+        theirs = run("--json", "calibrate", "--input", str(head), *BOARD, "--out", str(self.dir / "theirs.yml"))
+        self.assertEqual(theirs.returncode, 0, theirs.stderr)
+        against_sim = json.loads(theirs.stdout)
+        for k in range(2):
+            for key, value in figures["cameras"][k]["truth"].items():
+                if isinstance(value, float):
+                    self.assertAlmostEqual(against_sim["cameras"][k]["truth"][key], value, delta=1e-9 + 1e-6 * value,
+                                           msg=f"camera{k} {key}")
+        sim_pair = against_sim["cameras"][1]["truth"]["camera_camera"]
+        print(f"\ncaptured head against sls sim's truth: {json.dumps(sim_pair)}")
+        self.assertAlmostEqual(sim_pair["baseline_rel_err"], pair["baseline_rel_err"], delta=1e-6)
+        self.assertAlmostEqual(sim_pair["rotation_err_deg"], pair["rotation_err_deg"], delta=1e-6)
 
     def test_resume_continues_every_camera_and_refuses_disagreeing_recordings(self):
         head = self.dir / "head"

@@ -150,6 +150,12 @@ TEST(CalibrationDeviceCapture, CapturesThroughTheDevicesAndCalibrates) {
   ASSERT_TRUE(result.axis.fitted);
   EXPECT_EQ(result.axis.views, 3);
   const calib::CalibrationErrors e = calib::compare_calibrations(result.procam.calibration, head.scanner->rig().calibration());
+  // The recording carries the simulated camera's exact calibration, so the result has its truth.
+  ASSERT_FALSE(reader.groundtruth_folder().empty());
+  ASSERT_TRUE(result.truth.has_value() && result.errors.has_value());
+  EXPECT_EQ(result.errors->camera_focal_rel_err, e.camera_focal_rel_err);
+  EXPECT_EQ(result.errors->camera_principal_point_err_px, e.camera_principal_point_err_px);
+  EXPECT_EQ(result.errors->baseline_rel_err, e.baseline_rel_err);
   std::printf("captured through the devices: %d poses in %.1f s (%.2f s per pose); calibrated in %.1f s: rms "
               "%.3f/%.3f/%.3f px; focal %.3f %% / %.3f %%, principal point %.1f / %.1f px, baseline %.3f %%, "
               "rotation %.3f deg, axis %.3f deg / %.0f um\n",

@@ -558,6 +558,66 @@ TEST(Renderer, ChessboardFootprintAlbedoIsTheExactAreaIntegral) {
   EXPECT_FALSE(chessboard_mean_albedo(board, quad, &albedo));
 }
 
+// A ChArUco board's footprint albedo (its dark squares and its markers' dark cells, each
+// clipped to the footprint) against a brute-force midpoint sum, as the chessboard's above; its
+// point albedo against the table it was made from; the scene's name and parameters.
+TEST(Renderer, CharucoFootprintAlbedoIsTheExactAreaIntegral) {
+  const ChessboardParameters parameters = synthetic_charuco();
+  const Scene scene = make_chessboard_scene(parameters);
+  EXPECT_EQ(scene.name(), "charuco");
+  EXPECT_TRUE(scene.to_json().find("\"charuco\"") != std::string::npos);
+  const ChessboardT<double>& board = scene.shape().chessboard;
+  ASSERT_TRUE(board.is_charuco());
+  // The table in the board frame (y down the board) at cell centres: board square (I, J),
+  // cell (r, c) lies at sheet x = −5 s + I s + offset + (c + ½) cell, sheet y = 4 s − J s −
+  // offset − (r + ½) cell (the board frame's y is the sheet's flipped).
+  const double s = board.square, cell = board.marker / board.marker_cells, offset = 0.5 * (s - board.marker);
+  int checked = 0;
+  for (int J = 0; J < 8; ++J) {
+    for (int I = 0; I < 10; ++I) {
+      const std::size_t square = static_cast<std::size_t>(J * 10 + I);
+      for (int r = 0; r < board.marker_cells; ++r) {
+        for (int c = 0; c < board.marker_cells; ++c) {
+          const double x = -5.0 * s + I * s + offset + (c + 0.5) * cell;
+          const double y = 4.0 * s - J * s - offset - (r + 0.5) * cell;
+          const bool dark = parameters.charuco.dark_square[square] != 0 ||
+                            parameters.charuco.dark_cells[square * 49 + static_cast<std::size_t>(r * 7 + c)] != 0;
+          ASSERT_EQ(chessboard_albedo(board, x, y), dark ? board.albedo_dark : board.albedo_light)
+              << I << ", " << J << " cell " << r << ", " << c;
+          ++checked;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(checked, 80 * 49);
+  const double range = board.albedo_light - board.albedo_dark;
+  NoiseStream draws = make_noise_stream(NoiseKey{11, 0, 0, 0}, 0);
+  double worst = 0.0;
+  for (int trial = 0; trial < 60; ++trial) {
+    const Vec2d centre{14e-3 * (draws.uniform() - 0.5), 12e-3 * (draws.uniform() - 0.5)};
+    // Pixel-sized (10 .. 60 µm) and every tenth 0.2 .. 0.6 mm (over several cells).
+    const double size = trial % 10 == 9 ? 0.2e-3 + 0.4e-3 * draws.uniform() : 10e-6 + 50e-6 * draws.uniform();
+    const double angle = 2.0 * M_PI * draws.uniform();
+    const Vec2d a{size * std::cos(angle), size * std::sin(angle)};
+    const Vec2d b{-a.y * 0.8, a.x * 0.8};
+    const Vec2d quad[4] = {centre - 0.5 * a - 0.5 * b, centre + 0.5 * a - 0.5 * b, centre + 0.5 * a + 0.5 * b,
+                           centre - 0.5 * a + 0.5 * b};
+    double albedo = 0.0;
+    ASSERT_TRUE(chessboard_mean_albedo(board, quad, &albedo)) << "trial " << trial;
+    constexpr int kSteps = 1000;
+    double sum = 0.0;
+    for (int j = 0; j < kSteps; ++j) {
+      for (int i = 0; i < kSteps; ++i) {
+        const Vec2d p = centre + ((i + 0.5) / kSteps - 0.5) * a + ((j + 0.5) / kSteps - 0.5) * b;
+        sum += chessboard_albedo(board, p.x, p.y);
+      }
+    }
+    worst = std::max(worst, std::fabs(albedo - sum / (kSteps * kSteps)) / range);
+  }
+  std::printf("charuco footprints: worst difference from a 1000 x 1000 midpoint sum %.2g of the albedo range\n", worst);
+  EXPECT_LT(worst, 2e-3);  // the midpoint sum's own error (more edges per footprint than a chessboard's)
+}
+
 // The footprint of a pixel `pixel_m` wide at (0.1 m) on the plane through `point` with
 // `normal`, seen from `towards` (unit, on the normal's side), its rows turned by `turn`.
 PixelFootprint footprint_at(Vec3d point, Vec3d normal, Vec3d towards, double pixel_m, double turn) {

@@ -27,6 +27,7 @@ TEST(RendererCuda, EqualsCpu) {
   const std::pair<const char*, Scene> scenes[] = {{"knurled-screw", make_scene("knurled-screw")},
                                                   {"knurled-knob", make_scene("knurled-knob")},
                                                   {"chessboard", make_scene("chessboard")},
+                                                  {"charuco (synthetic markers)", make_chessboard_scene(synthetic_charuco())},
                                                   {"textured knurled-knob", textured_knob()},
                                                   {"knurled-screw, projector gamma 2.2", make_scene("knurled-screw")}};
   for (const auto& [object, scene] : scenes) {
