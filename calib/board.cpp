@@ -47,6 +47,30 @@ cv::Mat to_8bit(const cv::Mat& contrast) {
   return out;
 }
 
+// What both detectors search and refine on: the contrast, its 8-bit stretch, and that reduced
+// by an integer factor to at most kSearchLongSide on the long side.
+struct BoardImages {
+  cv::Mat contrast, image8, search;
+  int factor = 1;
+};
+
+BoardImages board_images(const Image16u& white, const Image16u& black) {
+  if (white.empty() || white.width() != black.width() || white.height() != black.height()) {
+    throw_error(ErrorCode::kInvalidArgument, "board detection: white {}x{} and black {}x{} images differ",
+                white.width(), white.height(), black.width(), black.height());
+  }
+  BoardImages images;
+  images.contrast = contrast_image(white, black);
+  images.image8 = to_8bit(images.contrast);
+  const int long_side = std::max(images.image8.cols, images.image8.rows);
+  images.factor = std::max(1, (long_side + kSearchLongSide - 1) / kSearchLongSide);
+  images.search = images.image8;
+  if (images.factor > 1) {
+    cv::resize(images.image8, images.search, cv::Size(), 1.0 / images.factor, 1.0 / images.factor, cv::INTER_AREA);
+  }
+  return images;
+}
+
 // OpenCV's predefined dictionaries by name.
 const std::map<std::string, cv::aruco::PREDEFINED_DICTIONARY_NAME>& dictionaries() {
   using namespace cv::aruco;
@@ -238,17 +262,11 @@ BoardPattern charuco_pattern(const BoardSpec& board) {
 BoardDetection detect_chessboard(const Image16u& white, const Image16u& black, const BoardSpec& board) {
   board.validate();
   if (board.is_charuco()) return detect_charuco(white, black, board);
-  if (white.empty() || white.width() != black.width() || white.height() != black.height()) {
-    throw_error(ErrorCode::kInvalidArgument, "board detection: white {}x{} and black {}x{} images differ",
-                white.width(), white.height(), black.width(), black.height());
-  }
   BoardDetection detection;
-  const cv::Mat contrast = contrast_image(white, black);
-  const cv::Mat image8 = to_8bit(contrast);
-  const int long_side = std::max(image8.cols, image8.rows);
-  const int factor = std::max(1, (long_side + kSearchLongSide - 1) / kSearchLongSide);
-  cv::Mat search = image8;
-  if (factor > 1) cv::resize(image8, search, cv::Size(), 1.0 / factor, 1.0 / factor, cv::INTER_AREA);
+  const BoardImages images = board_images(white, black);
+  const cv::Mat& contrast = images.contrast;
+  const cv::Mat& search = images.search;
+  const int factor = images.factor;
 
   const cv::Size pattern(board.inner_cols, board.inner_rows);
   std::vector<cv::Point2f> found;
@@ -299,17 +317,12 @@ BoardDetection detect_chessboard(const Image16u& white, const Image16u& black, c
 BoardDetection detect_charuco(const Image16u& white, const Image16u& black, const BoardSpec& board) {
   board.validate();
   if (!board.is_charuco()) return detect_chessboard(white, black, board);
-  if (white.empty() || white.width() != black.width() || white.height() != black.height()) {
-    throw_error(ErrorCode::kInvalidArgument, "board detection: white {}x{} and black {}x{} images differ",
-                white.width(), white.height(), black.width(), black.height());
-  }
   BoardDetection detection;
-  const cv::Mat contrast = contrast_image(white, black);
-  const cv::Mat image8 = to_8bit(contrast);
-  const int long_side = std::max(image8.cols, image8.rows);
-  const int factor = std::max(1, (long_side + kSearchLongSide - 1) / kSearchLongSide);
-  cv::Mat search = image8;
-  if (factor > 1) cv::resize(image8, search, cv::Size(), 1.0 / factor, 1.0 / factor, cv::INTER_AREA);
+  const BoardImages images = board_images(white, black);
+  const cv::Mat& contrast = images.contrast;
+  const cv::Mat& image8 = images.image8;
+  const cv::Mat& search = images.search;
+  const int factor = images.factor;
 
   const cv::Ptr<cv::aruco::CharucoBoard> cv_board = opencv_board(board);
   const cv::Ptr<cv::aruco::DetectorParameters> parameters = cv::aruco::DetectorParameters::create();
