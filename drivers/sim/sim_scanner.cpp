@@ -173,7 +173,7 @@ std::shared_ptr<SimScanner> SimScanner::create(const Scene& scene, const RigOpti
                     "&projector=" + rig_options.projector;
   // Only when not the default: the URIs of existing recordings stay what they were.
   if (rig_options.material != "painted") uri += "&material=" + rig_options.material;
-  Renderer renderer(std::move(rig), std::move(scene), device);
+  Renderer renderer(std::move(rig), scene, device);
   return std::shared_ptr<SimScanner>(new SimScanner(std::move(uri), std::move(renderer)));
 }
 
