@@ -344,19 +344,27 @@ SLS_HOST_DEVICE inline PixelGeometry trace_pixel(const FrameRenderParams& p, Vec
 }
 
 // Step 2: mean photo-electrons at a pixel centre for one projected pattern.
-SLS_HOST_DEVICE inline float pattern_electrons(const PixelGeometry& g, const PatternDesc& pattern,
+// `levels` is the PatternDesc itself or a PatternLevelTable of it: the same value, the table
+// sparing a cos per level of a phase pattern (the CPU renderer makes one per image).
+template <typename Levels>
+SLS_HOST_DEVICE inline float pattern_electrons(const PixelGeometry& g, const Levels& levels, PatternAxis axis,
                                                const ProjectorModel& projector) {
   if (!(g.flags & kPixelVisible)) return 0.0f;
   if (!(g.flags & kPixelLit)) return g.ambient_electrons;
-  const bool columns = pattern.axis == PatternAxis::kColumns;
+  const bool columns = axis == PatternAxis::kColumns;
   const double u = columns ? static_cast<double>(g.pattern_u) : static_cast<double>(g.pattern_v);
   const double sigma = columns ? static_cast<double>(g.projector_sigma_u)
                                : static_cast<double>(g.projector_sigma_v);
   const double value = projector.gamma == 1.0
-                           ? pattern_value_blurred(pattern, u, sigma)
-                           : pattern_value_blurred(pattern, u, sigma, ProjectorGammaResponse{projector.gamma});
+                           ? pattern_value_blurred(levels, u, sigma)
+                           : pattern_value_blurred(levels, u, sigma, ProjectorGammaResponse{projector.gamma});
   return static_cast<float>(static_cast<double>(g.ambient_electrons) +
                             static_cast<double>(g.white_electrons) * projector_relative_irradiance(projector, value));
+}
+
+SLS_HOST_DEVICE inline float pattern_electrons(const PixelGeometry& g, const PatternDesc& pattern,
+                                               const ProjectorModel& projector) {
+  return pattern_electrons(g, pattern, pattern.axis, projector);
 }
 
 // Step 3a: one 1-D pass of the camera blur at pixel `i` of a line of `n` samples (stride in

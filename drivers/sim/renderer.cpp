@@ -6,6 +6,7 @@
 #include "drivers/sim/render_backend.h"
 #include "sdk/core/error.h"
 #include "sdk/decode/decoder.h"
+#include "sdk/decode/pattern_set.h"
 
 namespace sls::sim {
 namespace {
@@ -32,10 +33,13 @@ class CpuRenderBackend final : public RenderBackend {
 
   void render_pattern(const PatternRenderParams& params, std::uint16_t* out) override {
     const long count = static_cast<long>(geometry_.size());
+    // The pattern's levels once per image, not a cos per level and pixel: the same values.
+    levels_ = pattern_levels(params.pattern);
+    const PatternLevelTable table{levels_.data(), params.pattern.extent};
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < count; ++i) {
       const auto index = static_cast<std::size_t>(i);
-      electrons_[index] = pattern_electrons(geometry_[index], params.pattern, params.projector);
+      electrons_[index] = pattern_electrons(geometry_[index], table, params.pattern.axis, params.projector);
     }
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < height_; ++y) {
@@ -83,6 +87,7 @@ class CpuRenderBackend final : public RenderBackend {
   int width_;
   int height_;
   std::vector<PixelGeometry> geometry_;
+  std::vector<std::uint8_t> levels_;
   std::vector<float> electrons_;
   std::vector<float> blurred_rows_;
   std::vector<std::uint16_t> image_;

@@ -164,11 +164,11 @@ struct DescLevels {
 
 // The light a projector emits for each DMD level: response(level) in [0, 255] (a projector
 // that is not linear in its levels, e.g. video gamma).
-template <typename Response>
+template <typename Levels, typename Response>
 struct ResponseLevels {
-  const PatternDesc* desc;
+  Levels level;
   Response response;
-  SLS_HOST_DEVICE double operator()(int k) const { return response(pattern_pixel_value(*desc, k)); }
+  SLS_HOST_DEVICE double operator()(int k) const { return response(level(k)); }
 };
 
 struct TableLevels {
@@ -251,13 +251,21 @@ SLS_HOST_DEVICE inline T pattern_value_blurred(const PatternDesc& d, T u, T sigm
 // the level itself: the response applies to each DMD pixel, before the lens blurs them.
 template <typename T, typename Response>
 SLS_HOST_DEVICE inline T pattern_value_blurred(const PatternDesc& d, T u, T sigma_px, const Response& response) {
-  return detail::blurred_value(detail::ResponseLevels<Response>{&d, response}, d.extent, u, sigma_px);
+  return detail::blurred_value(detail::ResponseLevels<detail::DescLevels, Response>{{&d}, response}, d.extent, u,
+                               sigma_px);
 }
 
 // The same over a precomputed level table (identical result: the levels are the same).
 template <typename T>
 SLS_HOST_DEVICE inline T pattern_value_blurred(const PatternLevelTable& table, T u, T sigma_px) {
   return detail::blurred_value(detail::TableLevels{table}, table.extent, u, sigma_px);
+}
+
+template <typename T, typename Response>
+SLS_HOST_DEVICE inline T pattern_value_blurred(const PatternLevelTable& table, T u, T sigma_px,
+                                               const Response& response) {
+  return detail::blurred_value(detail::ResponseLevels<detail::TableLevels, Response>{{table}, response}, table.extent,
+                               u, sigma_px);
 }
 
 }  // namespace sls
