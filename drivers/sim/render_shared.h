@@ -380,14 +380,24 @@ SLS_HOST_DEVICE inline float blur_gather_1d(const float* line, int n, int stride
   // bit, and the shot-noise sampler (rejection sampling between 10 and 1000 e-) turns a
   // last-bit difference of the mean into a different draw. Rounded from double, the CPU and
   // GPU means agree except when they straddle a float rounding boundary (odds ~1e-8).
-  const double inverse_two_variance = 0.5 / (static_cast<double>(sigma) * static_cast<double>(sigma));
-  double sum = 0.0, weights = 0.0;
-  for (int k = -radius; k <= radius; ++k) {
-    const int j = i + k;
-    if (j < 0 || j >= n) continue;  // the image edge: renormalise over what exists
-    const double w = std::exp(-static_cast<double>(k * k) * inverse_two_variance);
-    sum += w * static_cast<double>(line[j * stride]);
-    weights += w;
+  // The weights w_k = exp(-k^2 a) by recurrence, w_k = w_{k-1} q_k with q_k = q_{k-1} exp(-2a):
+  // two exps a pixel, not one a tap (a third of a CPU render), a few ulps of double off.
+  const double a = 0.5 / (static_cast<double>(sigma) * static_cast<double>(sigma));
+  const double q_step = std::exp(-2.0 * a);
+  double q = std::exp(-a), w = 1.0;
+  double sum = static_cast<double>(line[i * stride]), weights = 1.0;
+  for (int k = 1; k <= radius; ++k) {
+    w *= q;
+    q *= q_step;
+    // The image edge: renormalise over what exists.
+    if (i - k >= 0) {
+      sum += w * static_cast<double>(line[(i - k) * stride]);
+      weights += w;
+    }
+    if (i + k < n) {
+      sum += w * static_cast<double>(line[(i + k) * stride]);
+      weights += w;
+    }
   }
   return static_cast<float>(sum / weights);
 }
