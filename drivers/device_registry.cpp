@@ -113,7 +113,7 @@ std::shared_ptr<sim::SimScanner> shared_sim_scanner(DeviceUri uri, const OpenOpt
     it = it->second.expired() ? scanners.erase(it) : std::next(it);
   }
   if (auto scanner = scanners[key].lock()) return scanner;
-  std::shared_ptr<sim::SimScanner> scanner = sim::SimScanner::open(key);
+  std::shared_ptr<sim::SimScanner> scanner = sim::SimScanner::open(key, options.sim_charuco_board);
   scanners[key] = scanner;
   return scanner;
 }

@@ -26,6 +26,7 @@
 #include "drivers/interfaces/camera.h"
 #include "drivers/interfaces/projector.h"
 #include "drivers/interfaces/turntable.h"
+#include "drivers/sim/scene.h"
 #include "sdk/core/device.h"
 
 namespace sls::drivers {
@@ -98,6 +99,10 @@ struct OpenOptions {
   // Where simulated devices render when their sim:// URI has no device= key; unset: the first
   // usable CUDA GPU, else the CPU.
   std::optional<Device> sim_device;
+  // Makes the board of a sim:// calibration target with board=charuco[:COLSxROWS] (its markers
+  // need calib, above the drivers; session::device_open_options() sets it); unset: such a URI
+  // is refused (kUnsupported).
+  sim::CharucoBoardMaker sim_charuco_board;
 };
 
 // Open a device by URI, ready to use (a camera in software-trigger mode, not yet started).

@@ -13,6 +13,7 @@
 // All lengths in metres, in the scene's object frame (scene_shared.h).
 #pragma once
 
+#include <functional>
 #include <limits>
 #include <memory>
 #include <cstdint>
@@ -87,6 +88,13 @@ struct ChessboardParameters {
 
   bool is_charuco() const { return charuco.cells > 0; }
 };
+
+// Makes the ChArUco board `spec` ("charuco" or "charuco:COLSxROWS" squares) on `geometry`. Its
+// markers come from OpenCV's dictionary through calib, on which the drivers do not depend
+// (DESIGN.md section 2): whoever opens a sim:// calibration target with board=charuco hands one
+// in (drivers::OpenOptions::sim_charuco_board; the SDK's: sdk/session/sim_charuco_board.h).
+using CharucoBoardMaker =
+    std::function<ChessboardParameters(const std::string& spec, const ChessboardParameters& geometry)>;
 
 // A point of the dense reference sampling.
 struct SurfaceSample {

@@ -5,6 +5,8 @@
 #include <set>
 #include <string>
 
+#include <fmt/format.h>
+
 #include "drivers/sim/sim_calibration_capture.h"
 #include "sdk/core/error.h"
 
@@ -182,20 +184,21 @@ std::shared_ptr<SimScanner> SimScanner::create(SimRig rig, Scene scene, const De
   return std::shared_ptr<SimScanner>(new SimScanner(std::move(uri), std::move(renderer)));
 }
 
-std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
+std::shared_ptr<SimScanner> SimScanner::open(const std::string& text, const CharucoBoardMaker& charuco_board) {
   const drivers::DeviceUri uri = drivers::parse_device_uri(text);
   if (uri.scheme != "sim") throw_error(ErrorCode::kInvalidArgument, "'{}' is not a sim:// URI", text);
   static const std::set<std::string> kKeys = {"preset", "frames",  "seed",   "noise", "device", "width",
                                               "projector", "bits", "gamma", "jitter", "tilt",  "offset_um",
-                                              "calibration", "hand_poses", "head", "material", "cameras", "camera"};
+                                              "calibration", "hand_poses", "head", "material", "cameras", "camera",
+                                              "board"};
   for (const auto& [key, value] : uri.query) {
     if (kKeys.count(key) == 0) {
-      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector, bits, gamma, jitter, tilt, offset_um, calibration, hand_poses, head, cameras, camera, material)",
+      throw_error(ErrorCode::kInvalidArgument, "{}: unknown option '{}' (known: preset, frames, seed, noise, device, width, projector, bits, gamma, jitter, tilt, offset_um, calibration, hand_poses, head, cameras, camera, board, material)",
                   text, key);
     }
   }
   const bool calibration = uri.get_int("calibration", 0) != 0;
-  for (const char* key : {"hand_poses", "head", "cameras", "camera"}) {
+  for (const char* key : {"hand_poses", "head", "cameras", "camera", "board"}) {
     if (!calibration && uri.query.count(key) != 0) {
       throw_error(ErrorCode::kInvalidArgument, "{}: '{}' is an option of a calibration target (calibration=1)", text, key);
     }
@@ -244,6 +247,22 @@ std::shared_ptr<SimScanner> SimScanner::open(const std::string& text) {
     throw_error(ErrorCode::kInvalidArgument, "{}: camera={} is not a camera of a head of {} (0 .. {}{})", text, camera,
                 calibration_options.cameras, calibration_options.cameras - 1,
                 uri.query.count("cameras") == 0 ? "; cameras=N says how many the head has" : "");
+  }
+  const std::string board_spec = uri.get("board", "chessboard");
+  if (board_spec.rfind("charuco", 0) == 0) {
+    if (!charuco_board) {
+      throw_error(ErrorCode::kUnsupported,
+                  "{}: board={} needs the ChArUco markers of calib (OpenCV), which the opener did not provide", text,
+                  board_spec);
+    }
+    try {
+      calibration_options.board = charuco_board(board_spec, charuco_calibration_board_geometry());
+    } catch (const Error& error) {
+      throw Error(error.code(), fmt::format("{}: board={}: {}", text, board_spec, error.what()));
+    }
+  } else if (board_spec != "chessboard") {
+    throw_error(ErrorCode::kInvalidArgument, "{}: board={} (chessboard, charuco or charuco:COLSxROWS)", text,
+                board_spec);
   }
   Scene board = make_chessboard_scene(calibration_options.board);
   // The head's geometry and poses depend on its camera count (every pose in view of all).

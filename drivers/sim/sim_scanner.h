@@ -14,6 +14,11 @@
 // turntable is homed; from then on the board sits on the turntable's mount, and every capture
 // sees it at the angle the table is at (any angle: in view or not, as on a real table).
 // `frames`, `tilt` and `offset_um` (a scan's) are refused with calibration=1.
+// `board` is the target, as `sls sim --calibration --board` spells it: chessboard (the
+// default), or charuco[:COLSxROWS], OpenCV's ChArUco board (default 12 x 9 squares of 1.2 mm with
+// 0.9 mm markers of DICT_5X5_100, larger than the field: views near its edges show part of it),
+// posed as `sls sim --calibration --board charuco` poses it. Its markers come from calib: the
+// opener hands in the board maker (open()'s charuco_board; drivers::OpenOptions).
 //
 // A head of several cameras (`sls sim --calibration --cameras N`'s, sim_calibration_capture.h):
 //   sim://chessboard?calibration=1&preset=ci&hand_poses=12&cameras=2&camera=1
@@ -44,8 +49,8 @@ constexpr double kSimNominalExposureUs = 10000.0;
 class SimScanner : public std::enable_shared_from_this<SimScanner> {
  public:
   // Throws sls::Error(kInvalidArgument) naming the URI's bad part (scheme, object, preset,
-  // a query key it does not know).
-  static std::shared_ptr<SimScanner> open(const std::string& uri);
+  // a query key it does not know); kUnsupported for board=charuco without `charuco_board`.
+  static std::shared_ptr<SimScanner> open(const std::string& uri, const CharucoBoardMaker& charuco_board = {});
   static std::shared_ptr<SimScanner> create(const std::string& object, const RigOptions& rig_options,
                                             const Device& device);
   // The same with a scene made by the caller (e.g. a ChArUco board, make_chessboard_scene with

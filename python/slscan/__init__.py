@@ -15,9 +15,9 @@ A failed call raises :class:`Error` (a subclass per status, e.g. :class:`NotFoun
 ``slscan._lib`` (``$SLSCAN_LIBRARY`` first); :data:`library_path` says which was.
 """
 from ._lib import API_VERSION, library_path
-from ._types import (CalibrationDevice, CalibrationPoseKind, DeviceKind, DeviceRole, FrameStatus, FusionMethod,
-                     GtsdfPenalty, IcpWeights, LogLevel, LoopClosureMode, PoseDecision, PoseSource, RevisitPolicy,
-                     Status)
+from ._types import (CalibrationBoardKind, CalibrationDevice, CalibrationPoseKind, DeviceKind, DeviceRole, FrameStatus,
+                     FusionMethod, GtsdfPenalty, IcpWeights, LogLevel, LoopClosureMode, PoseDecision, PoseSource,
+                     RevisitPolicy, Status)
 from ._errors import (BusyError, CancelledError, DeviceError, DeviceTimeoutError, Error, FormatError, InternalError,
                       InvalidArgumentError, IoError, NotFoundError, OutOfMemoryError, UnsupportedError,
                       VersionMismatchError)
@@ -39,7 +39,8 @@ __version__ = f"{API_VERSION // 10000}.{API_VERSION // 100 % 100}.{API_VERSION %
 __all__ = [
     "API_VERSION", "library_path", "version", "build_info", "cuda_device_count",
     "Status", "LogLevel", "DeviceKind", "DeviceRole", "FusionMethod", "GtsdfPenalty", "PoseSource", "IcpWeights",
-    "LoopClosureMode", "RevisitPolicy", "FrameStatus", "CalibrationDevice", "CalibrationPoseKind", "PoseDecision",
+    "LoopClosureMode", "RevisitPolicy", "FrameStatus", "CalibrationDevice", "CalibrationBoardKind",
+    "CalibrationPoseKind", "PoseDecision",
     "Error", "InvalidArgumentError", "IoError", "FormatError", "NotFoundError", "OutOfMemoryError",
     "UnsupportedError", "VersionMismatchError", "DeviceError", "DeviceTimeoutError", "CancelledError",
     "BusyError", "InternalError",

@@ -1,4 +1,4 @@
-"""Calibration from chessboard captures (sls_calibration.h): camera and projector intrinsics,
+"""Calibration from chessboard or ChArUco captures (sls_calibration.h): camera and projector intrinsics,
 their extrinsics and the turntable axis. Needs a libsls built with OpenCV; otherwise every call
 raises :class:`UnsupportedError`. And the capture of those views through the devices
 (sls_calibration_capture.h), in every build."""
@@ -17,8 +17,9 @@ from ._context import Context, Handle, context_or_default
 from ._devices import Camera, Projector, Turntable
 from ._errors import call
 from ._progress import progress_trampoline
-from ._types import (CalibrationCameraC, CalibrationCaptureConfigC, CalibrationCaptureResultC, CalibrationConfigC,
-                     CalibrationDevice, CalibrationPoseC, CalibrationPoseKind, CalibrationProgressC, CalibrationSummaryC,
+from ._scan_config import enum_value
+from ._types import (CalibrationBoardKind, CalibrationCameraC, CalibrationCaptureConfigC, CalibrationCaptureResultC,
+                     CalibrationConfigC, CalibrationDevice, CalibrationPoseC, CalibrationPoseKind, CalibrationProgressC, CalibrationSummaryC,
                      CalibrationViewC, IntrinsicsC, PoseDecision, copy_reported)
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -64,6 +65,10 @@ class CalibrationSummary:
     rotation_err_deg: float
     axis_direction_err_deg: float
     axis_point_err_um: float
+    board_kind: CalibrationBoardKind
+    """API 0.10: the rest of the board used (board_marker_m 0 and board_dictionary "" for a chessboard)."""
+    board_marker_m: float
+    board_dictionary: str
 
 
 @dataclass(frozen=True)
@@ -133,7 +138,8 @@ class Calibration(Handle):
         """RMS figures, views used and rejected, the board, errors against ground truth."""
         summary = _lib.init(CalibrationSummaryC, "sls_calibration_summary_init")
         call(_lib.lib.sls_calibration_get_summary, self._checked(), ctypes.byref(summary))
-        return _lib.dataclass_from_c(CalibrationSummary, summary)
+        figures = _lib.dataclass_from_c(CalibrationSummary, summary)
+        return dataclasses.replace(figures, board_kind=CalibrationBoardKind(figures.board_kind))
 
     def intrinsics(self, device: Union[CalibrationDevice, str]) -> Intrinsics:
         """The ``"camera"``'s or the ``"projector"``'s intrinsics."""
@@ -197,7 +203,8 @@ class Calibration(Handle):
 
 
 _CONFIG_KEYS = ("board_inner_cols", "board_inner_rows", "board_square_m", "pattern_set", "estimate_k3",
-                "max_obliquity_deg", "min_projector_corner_fraction", "max_rms_px")
+                "max_obliquity_deg", "min_projector_corner_fraction", "max_rms_px", "board_kind", "board_marker_m",
+                "board_dictionary")
 
 
 def calibrate(input_path: PathLike, context: Optional[Context] = None,
@@ -213,18 +220,25 @@ def calibrate(input_path: PathLike, context: Optional[Context] = None,
         **config: sls_calibration_config fields: board_inner_cols, board_inner_rows,
             board_square_m (all three unset: a simulated capture's ground truth), pattern_set
             (e.g. ``"opencv-graycode:1024x768"``; needed for a folder of captures),
-            estimate_k3, max_obliquity_deg, min_projector_corner_fraction, max_rms_px.
+            estimate_k3, max_obliquity_deg, min_projector_corner_fraction, max_rms_px; and
+            (API 0.10) board_kind (a :class:`CalibrationBoardKind`, its value or ``"chessboard"``
+            / ``"charuco"``; default chessboard), board_marker_m and board_dictionary (a ChArUco
+            board's marker side and OpenCV dictionary name, default ``"DICT_5X5_100"``). A
+            ChArUco board's board_inner_cols x board_inner_rows are its squares less one each way
+            (``sls calibrate --board charuco:12x9`` is 11 x 8).
     Ctrl-C cancels the run between views and is raised. Raises :class:`UnsupportedError` in a
     libsls built without OpenCV."""
     unknown = sorted(set(config) - set(_CONFIG_KEYS))
     if unknown:
         raise TypeError(f"calibrate: unknown config {', '.join(unknown)}; known: {', '.join(_CONFIG_KEYS)}")
     c_config = _lib.init(CalibrationConfigC, "sls_calibration_config_init")
-    pattern_set = None
+    strings = []  # kept referenced during the run
     for key, value in config.items():
-        if key == "pattern_set":
-            pattern_set = _lib.encode(value)  # kept referenced during the run
-            value = pattern_set
+        if key in ("pattern_set", "board_dictionary"):
+            value = _lib.encode(value)
+            strings.append(value)
+        elif key == "board_kind":
+            value = int(enum_value(CalibrationBoardKind, key, value))
         elif key == "estimate_k3":
             value = int(bool(value))
         elif key in ("board_inner_cols", "board_inner_rows"):
@@ -244,7 +258,7 @@ def calibrate(input_path: PathLike, context: Optional[Context] = None,
             raise raised[0] from None
         raise
     finally:
-        del c_callback, pattern_set
+        del c_callback, strings
     return result
 
 

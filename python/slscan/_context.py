@@ -13,7 +13,7 @@ from ._types import ContextConfigC, DeviceInfoC, DeviceKind, DevicePreference, D
 
 
 def version() -> str:
-    """The C API version of the loaded libsls, e.g. ``"0.9.0"`` (sls_get_api_version)."""
+    """The C API version of the loaded libsls, e.g. ``"0.10.0"`` (sls_get_api_version)."""
     number = _lib.lib.sls_get_api_version()
     return f"{number // 10000}.{number // 100 % 100}.{number % 100}"
 

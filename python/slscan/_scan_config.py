@@ -94,7 +94,7 @@ _BOOLS = ("use_turntable_prior", "online_deformation", "no_record")
 _INTS = ("gtsdf_iterations", "loop_frames")
 
 
-def _enum_value(cls: Type[E], name: str, value: Any) -> E:
+def enum_value(cls: Type[E], name: str, value: Any) -> E:
     """An enum member from itself, its value, or its name as ``sls scan`` spells it."""
     if isinstance(value, str):
         try:
@@ -113,7 +113,7 @@ def to_c(config: ScanConfig) -> ScanConfigC:
         if value is None:
             continue
         if name in _ENUMS:
-            value = int(_enum_value(_ENUMS[name], name, value))
+            value = int(enum_value(_ENUMS[name], name, value))
         elif name == "volume_size_m":
             value = [float(v) for v in value]
             if len(value) != 3:

@@ -122,6 +122,12 @@ class CalibrationDevice(enum.IntEnum):
     PROJECTOR = 1
 
 
+class CalibrationBoardKind(enum.IntEnum):
+    """sls_calibration_board_kind (sls_calibration.h, API 0.10): the calibration target."""
+    CHESSBOARD = 0
+    CHARUCO = 1
+
+
 class CalibrationPoseKind(enum.IntEnum):
     """sls_calibration_pose_kind (sls_calibration_capture.h)."""
     HAND = 0
@@ -237,7 +243,9 @@ class CalibrationConfigC(Structure):
     _fields_ = [("struct_size", c_size_t), ("board_inner_cols", c_int), ("board_inner_rows", c_int),
                 ("board_square_m", c_double), ("pattern_set", c_char_p), ("estimate_k3", c_int),
                 ("max_obliquity_deg", c_double), ("min_projector_corner_fraction", c_double),
-                ("max_rms_px", c_double)]
+                ("max_rms_px", c_double),
+                # API 0.10
+                ("board_kind", c_int), ("board_marker_m", c_double), ("board_dictionary", c_char_p)]
 
 
 class CalibrationProgressC(Structure):
@@ -255,7 +263,9 @@ class CalibrationSummaryC(Structure):
                 ("pattern_set", c_char_p), ("has_truth", c_int), ("focal_rel_err", c_double),
                 ("principal_point_err_px", c_double), ("baseline_rel_err", c_double),
                 ("rotation_err_deg", c_double), ("axis_direction_err_deg", c_double),
-                ("axis_point_err_um", c_double)]
+                ("axis_point_err_um", c_double),
+                # API 0.10
+                ("board_kind", c_int), ("board_marker_m", c_double), ("board_dictionary", c_char_p)]
 
 
 class IntrinsicsC(Structure):

@@ -7,9 +7,6 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#if defined(SLS_HAVE_CALIB)
-#include "calib/board.h"
-#endif
 #include "drivers/sim/rig.h"
 #include "drivers/sim/sim_calibration_capture.h"
 #include "drivers/sim/sim_recording.h"
@@ -20,6 +17,7 @@
 #include "sdk/core/recording.h"
 #include "sdk/decode/hdr_fusion.h"
 #include "sdk/decode/pattern_families.h"
+#include "sdk/session/sim_charuco_board.h"
 
 namespace sls::cli {
 namespace {
@@ -48,41 +46,12 @@ struct SimOptions {
   std::string dictionary;
 };
 
-// The ChArUco board of --object charuco or --calibration --board charuco[:COLSxROWS]: the
-// geometry from the simulator's default (or the flags), the markers from calib (OpenCV's
-// dictionary): the simulator gets them as a plain bit table and never includes OpenCV.
-sim::ChessboardParameters charuco_board(const SimOptions& options, sim::ChessboardParameters geometry,
-                                        double default_marker_m) {
-#if defined(SLS_HAVE_CALIB)
-  const std::string size = options.board.rfind("charuco:", 0) == 0
-                                ? options.board
-                                : fmt::format("charuco:{}x{}", geometry.inner_corners_x + 1, geometry.inner_corners_y + 1);
-  const calib::BoardSpec spec = calib::parse_board_spec(size, options.square_m > 0.0 ? options.square_m : geometry.square,
-                                                        options.marker_m > 0.0 ? options.marker_m : default_marker_m,
-                                                        options.dictionary);
-  const calib::BoardPattern pattern = calib::charuco_pattern(spec);
-  geometry.inner_corners_x = spec.inner_cols;
-  geometry.inner_corners_y = spec.inner_rows;
-  geometry.square = spec.square_m;
-  geometry.margin = std::min(geometry.margin, 0.5 * spec.square_m);
-  geometry.charuco.marker = pattern.marker_m;
-  geometry.charuco.cells = pattern.cells;
-  geometry.charuco.dictionary = spec.dictionary;
-  geometry.charuco.dark_square = pattern.dark_square;
-  geometry.charuco.dark_cells = pattern.dark_cells;
-  return geometry;
-#else
-  (void)options;
-  (void)geometry;
-  (void)default_marker_m;
-  throw_error(ErrorCode::kUnsupported,
-              "sls was built without OpenCV: a ChArUco board's markers come from OpenCV's aruco dictionary");
-#endif
+// The ChArUco board of --object charuco or --calibration --board charuco[:COLSxROWS] on the
+// simulator's `geometry`, changed by the flags (session::sim_charuco_board: markers from calib).
+sim::ChessboardParameters charuco_board(const SimOptions& options, const sim::ChessboardParameters& geometry) {
+  return session::sim_charuco_board(options.board.empty() ? "charuco" : options.board, geometry, options.square_m,
+                                    options.marker_m, options.dictionary);
 }
-
-// The default ChArUco markers: 3/4 of the square (OpenCV's examples' ratio), 7 cells of a
-// 5x5-bit marker 4.3 camera pixels each at ci on the calibration board.
-constexpr double kCharucoMarkerRatio = 0.75;
 
 int run_sim(const Context& context, const SimOptions& options) {
   const bool charuco = options.object == "charuco" && !options.calibration;
@@ -122,9 +91,7 @@ int run_sim(const Context& context, const SimOptions& options) {
       calibration_options.head_object = options.object;
       calibration_options.cameras = options.cameras;
       if (options.board.rfind("charuco", 0) == 0) {
-        const sim::ChessboardParameters geometry = sim::charuco_calibration_board_geometry();
-        const double square = options.square_m > 0.0 ? options.square_m : geometry.square;
-        calibration_options.board = charuco_board(options, geometry, kCharucoMarkerRatio * square);
+        calibration_options.board = charuco_board(options, sim::charuco_calibration_board_geometry());
       } else if (options.square_m > 0.0) {
         calibration_options.board.square = options.square_m;
       }
@@ -135,9 +102,7 @@ int run_sim(const Context& context, const SimOptions& options) {
       sim::SimRecordingOptions sim_options;
       sim_options.object = options.object;
       if (options.object == "charuco") {  // the chessboard scene's geometry with markers
-        const sim::ChessboardParameters geometry;
-        const double square = options.square_m > 0.0 ? options.square_m : geometry.square;
-        sim_options.scene = sim::make_chessboard_scene(charuco_board(options, geometry, kCharucoMarkerRatio * square));
+        sim_options.scene = sim::make_chessboard_scene(charuco_board(options, sim::ChessboardParameters{}));
       }
       sim_options.rig = rig;
       // Only when given: the default through µm and back is not the same double, and the rig

@@ -24,6 +24,7 @@
 
 #include <fmt/format.h>
 
+#include "calib/board.h"
 #include "calib/calibrate_capture.h"
 #include "calib/multi_camera_calibration.h"
 #include "sdk/core/calibration.h"
@@ -80,6 +81,15 @@ constexpr std::size_t kViewFirstVersionSize = offsetof(sls_calibration_view, dec
 constexpr std::size_t kCameraFirstVersionSize =
     offsetof(sls_calibration_camera, camera_camera_rotation_err_deg) + sizeof(double);
 
+// The fields appended in 0.10 start past the first version's structs, padding included
+// (versioned_struct.h): an older caller's struct never reaches them and means a chessboard.
+static_assert(offsetof(sls_calibration_config, board_kind) >=
+                  sls::capi::size_ending_at<sls_calibration_config>(kConfigFirstVersionSize),
+              "board_kind lies in the padding of the first config");
+static_assert(offsetof(sls_calibration_summary, board_kind) >=
+                  sls::capi::size_ending_at<sls_calibration_summary>(kSummaryFirstVersionSize),
+              "board_kind lies in the padding of the first summary");
+
 void copy_matrix(const sls::Pose& pose, double out[16]) {
   const Eigen::Matrix4d T = pose.matrix();
   for (int row = 0; row < 4; ++row) {
@@ -87,11 +97,20 @@ void copy_matrix(const sls::Pose& pose, double out[16]) {
   }
 }
 
-sls::calib::CalibrateCaptureOptions capture_options(const sls_calibration_config& config, const std::string& input,
-                                                    const sls::Device& device) {
-  sls::calib::CalibrateCaptureOptions options;
-  options.input = input;
-  if (config.pattern_set != nullptr) options.patterns = config.pattern_set;
+// The board the config describes, each fault naming its field; or, all three of its sizes 0,
+// none (inner corners and square 0): the whole board, kind included, from a simulated capture's
+// ground truth (groundtruth/board.json).
+sls::calib::BoardSpec config_board(const sls_calibration_config& config) {
+  const long long kind = sls::capi::c_enum_value(config.board_kind);
+  if (kind != SLS_CALIBRATION_BOARD_CHESSBOARD && kind != SLS_CALIBRATION_BOARD_CHARUCO) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "config.board_kind {} is not an sls_calibration_board_kind (SLS_CALIBRATION_BOARD_CHESSBOARD or "
+                     "SLS_CALIBRATION_BOARD_CHARUCO)",
+                     kind);
+  }
+  const bool charuco = kind == SLS_CALIBRATION_BOARD_CHARUCO;
+  const bool dictionary_given = config.board_dictionary != nullptr && config.board_dictionary[0] != '\0';
+  const std::string dictionary = dictionary_given ? config.board_dictionary : "";
   const bool board_automatic =
       config.board_inner_cols == 0 && config.board_inner_rows == 0 && config.board_square_m == 0.0;
   const bool board_given = config.board_inner_cols > 0 && config.board_inner_rows > 0 &&
@@ -102,7 +121,63 @@ sls::calib::CalibrateCaptureOptions capture_options(const sls_calibration_config
                      "simulated capture's ground truth, or all three positive)",
                      config.board_inner_cols, config.board_inner_rows, config.board_square_m);
   }
-  options.board = {config.board_inner_cols, config.board_inner_rows, config.board_square_m};
+  if (board_automatic) {
+    if (charuco || config.board_marker_m != 0.0 || dictionary_given) {
+      sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                       "config.board_kind {}, board_marker_m {}, board_dictionary '{}' with board_inner_cols, "
+                       "board_inner_rows and board_square_m all 0: the whole board, its kind included, comes from a "
+                       "simulated capture's ground truth (describe the board to give its kind)",
+                       kind, config.board_marker_m, dictionary);
+    }
+    return {0, 0, 0.0};
+  }
+  sls::calib::BoardSpec board{config.board_inner_cols, config.board_inner_rows, config.board_square_m};
+  if (!charuco) {
+    if (config.board_marker_m != 0.0 || dictionary_given) {
+      sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                       "config.board_marker_m {} and board_dictionary '{}' describe a ChArUco board, but "
+                       "config.board_kind is SLS_CALIBRATION_BOARD_CHESSBOARD",
+                       config.board_marker_m, dictionary);
+    }
+    return board;
+  }
+  board.kind = sls::calib::BoardKind::kCharuco;
+  if (board.inner_cols < 3 || board.inner_rows < 3 || board.inner_cols > 100 || board.inner_rows > 100) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "config.board_inner_cols {}, board_inner_rows {}: a ChArUco board of {}x{} squares (its inner "
+                     "corners are its squares less one each way; it needs 4..101 squares each way)",
+                     board.inner_cols, board.inner_rows, board.inner_cols + 1, board.inner_rows + 1);
+  }
+  if (!(config.board_marker_m > 0.0) || !std::isfinite(config.board_marker_m)) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "config.board_marker_m {} (a ChArUco board's marker side in metres, positive)",
+                     config.board_marker_m);
+  }
+  if (config.board_marker_m >= config.board_square_m) {
+    sls::throw_error(sls::ErrorCode::kInvalidArgument,
+                     "config.board_marker_m {} m must be smaller than config.board_square_m {} m (a marker sits "
+                     "inside its square)",
+                     config.board_marker_m, config.board_square_m);
+  }
+  board.marker_m = config.board_marker_m;
+  // What is left to refuse is the dictionary's: unknown, or with fewer markers than the board
+  // has light squares.
+  try {
+    if (dictionary_given) board.dictionary = sls::calib::charuco_dictionary_name(dictionary);
+    board.validate();
+  } catch (const sls::Error& error) {
+    throw sls::Error(error.code(), fmt::format("config.board_dictionary '{}': {}",
+                                              dictionary_given ? dictionary : board.dictionary, error.what()));
+  }
+  return board;
+}
+
+sls::calib::CalibrateCaptureOptions capture_options(const sls_calibration_config& config, const std::string& input,
+                                                    const sls::Device& device) {
+  sls::calib::CalibrateCaptureOptions options;
+  options.input = input;
+  if (config.pattern_set != nullptr) options.patterns = config.pattern_set;
+  options.board = config_board(config);
   options.estimate_k3 = config.estimate_k3 != 0;
   if (!(config.max_obliquity_deg > 0.0 && config.max_obliquity_deg <= 90.0)) {
     sls::throw_error(sls::ErrorCode::kInvalidArgument, "config.max_obliquity_deg {} (degrees, in (0, 90])",
@@ -217,6 +292,10 @@ SLS_API sls_status sls_calibration_get_summary(const sls_calibration* calibratio
     filled.board_inner_rows = result.board.inner_rows;
     filled.board_square_m = result.board.square_m;
     filled.pattern_set = result.pattern_set_name.c_str();
+    const bool charuco = result.board.is_charuco();
+    filled.board_kind = charuco ? SLS_CALIBRATION_BOARD_CHARUCO : SLS_CALIBRATION_BOARD_CHESSBOARD;
+    filled.board_marker_m = charuco ? result.board.marker_m : 0.0;
+    filled.board_dictionary = charuco ? result.board.dictionary.c_str() : "";
     filled.has_truth = result.errors.has_value() ? 1 : 0;
     filled.focal_rel_err = result.errors ? result.errors->focal_rel_err() : nan;
     filled.principal_point_err_px = result.errors ? result.errors->principal_point_err_px() : nan;

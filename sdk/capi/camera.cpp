@@ -13,6 +13,7 @@
 #include "sdk/capi/device_handles.h"
 #include "sdk/capi/versioned_struct.h"
 #include "sdk/core/error.h"
+#include "sdk/session/sim_charuco_board.h"
 #include "sls/sls_camera.h"
 
 namespace {
@@ -81,8 +82,7 @@ SLS_API sls_status sls_camera_open(sls_context* context, const char* uri, sls_ca
   SLS_CAPI_REQUIRE(context != nullptr, error, "context is NULL");
   SLS_CAPI_REQUIRE(uri != nullptr, error, "uri is NULL");
   return sls::capi::guarded(__func__, error, [&] {
-    sls::drivers::OpenOptions options;
-    options.sim_device = context->device;
+    const sls::drivers::OpenOptions options = sls::session::device_open_options(context->device);
     auto opened = std::make_unique<sls_camera>();
     opened->camera = sls::drivers::open_camera(uri, options);
     opened->info = opened->camera->info();

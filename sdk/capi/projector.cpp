@@ -10,6 +10,7 @@
 #include "sdk/capi/device_handles.h"
 #include "sdk/capi/versioned_struct.h"
 #include "sdk/core/error.h"
+#include "sdk/session/sim_charuco_board.h"
 #include "sdk/session/scan_setup.h"
 #include "sls/sls_projector.h"
 
@@ -30,8 +31,7 @@ SLS_API sls_status sls_projector_open(sls_context* context, const char* uri, sls
   SLS_CAPI_REQUIRE(context != nullptr, error, "context is NULL");
   SLS_CAPI_REQUIRE(uri != nullptr, error, "uri is NULL");
   return sls::capi::guarded(__func__, error, [&] {
-    sls::drivers::OpenOptions options;
-    options.sim_device = context->device;
+    const sls::drivers::OpenOptions options = sls::session::device_open_options(context->device);
     std::unique_ptr<sls::drivers::Projector> opened = sls::drivers::open_projector(uri, options);
     sls::drivers::ProjectorInfo info = opened->info();
     *projector = new sls_projector{std::move(opened), std::move(info)};

@@ -8,6 +8,7 @@
 #include "sdk/capi/context_internal.h"
 #include "sdk/capi/device_handles.h"
 #include "sdk/core/error.h"
+#include "sdk/session/sim_charuco_board.h"
 #include "sls/sls_turntable.h"
 
 extern "C" {
@@ -19,8 +20,7 @@ SLS_API sls_status sls_turntable_open(sls_context* context, const char* uri, sls
   SLS_CAPI_REQUIRE(context != nullptr, error, "context is NULL");
   SLS_CAPI_REQUIRE(uri != nullptr, error, "uri is NULL");
   return sls::capi::guarded(__func__, error, [&] {
-    sls::drivers::OpenOptions options;
-    options.sim_device = context->device;
+    const sls::drivers::OpenOptions options = sls::session::device_open_options(context->device);
     *turntable = new sls_turntable{sls::drivers::open_turntable(uri, options), uri};
   });
 }

@@ -14,6 +14,7 @@
 #include "sdk/core/error.h"
 #include "sdk/core/recording.h"
 #include "sdk/session/scan_setup.h"
+#include "sdk/session/sim_charuco_board.h"
 
 namespace sls::session {
 namespace {
@@ -426,8 +427,7 @@ CalibrationCapture capture_calibration_from_devices(const std::string& folder, c
     }
   }
   options.validate();  // before any device is opened
-  drivers::OpenOptions open_options;
-  open_options.sim_device = request.sim_device;
+  const drivers::OpenOptions open_options = device_open_options(request.sim_device);
   const drivers::ScannerDevices opened =
       drivers::open_scanner_devices(request.projector_uri, request.camera_uri, request.turntable_uri, open_options);
   // The head's other cameras, closed before the projector (opened's) as open_scanner_devices does.

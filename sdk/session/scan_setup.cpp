@@ -15,6 +15,7 @@
 #include "sdk/core/error.h"
 #include "sdk/core/ply.h"
 #include "sdk/session/hdr_frame.h"
+#include "sdk/session/sim_charuco_board.h"
 
 namespace sls::session {
 
@@ -107,8 +108,7 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
   std::optional<ScannerCalibration> calibration;
   if (!request.calibration_path.empty()) calibration = read_calibration(request.calibration_path);
 
-  drivers::OpenOptions open_options;
-  open_options.sim_device = request.sim_device;
+  const drivers::OpenOptions open_options = device_open_options(request.sim_device);
   const drivers::ScannerDevices opened =
       drivers::open_scanner_devices(request.projector_uri, request.camera_uri, request.turntable_uri, open_options);
   drivers::Projector* const projector = opened.projector.get();

@@ -15,7 +15,10 @@
  *  - the write refused above max_rms_px without force (nothing written), written with force, a
  *    calibration.yml with its figures;
  *  - the mistakes: NULL arguments, bad config fields and struct sizes, a missing input (named),
- *    a folder of captures without a pattern set, a view index out of range, a bad device value.
+ *    a folder of captures without a pattern set, a view index out of range, a bad device value;
+ *  - a program built against the 0.9 header (API 0.10 appended the board's kind): its smaller
+ *    config, whatever lies past it, still calibrates the chessboard (three of the captures, in
+ *    SCRATCH/three by symbolic links), and its smaller summary gets nothing past its end.
  * Without calibration: every function answers SLS_ERROR_UNSUPPORTED with the message, the
  * _init() functions still work, destroy(NULL) is a no-op.
  * Exit status 0 when every check holds; each failed check prints its line. */
@@ -24,10 +27,12 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <sls/sls.h>
 
@@ -223,6 +228,53 @@ static void check_cancel(sls_context* context, const char* captures) {
   CHECK(log.calls == 1 && log.sane);
 }
 
+/* A 0.9 program's structs end where 0.10 appended the board's kind, marker and dictionary. */
+static void check_older_structs(sls_context* context, const char* captures, const char* scratch) {
+  static const char* const kUsed[] = {"capture_0", "capture_1", "capture_2"};
+  sls_calibration_config config;
+  sls_calibration_summary summary, older;
+  sls_calibration* calibration = NULL;
+  char* three = path_join(scratch, "three");
+  size_t i;
+  if (mkdir(three, 0755) != 0 && errno != EEXIST) {
+    fprintf(stderr, "cannot create %s\n", three);
+    exit(2);
+  }
+  for (i = 0; i < 3; ++i) {
+    char* target = path_join(captures, kUsed[i]);
+    char* link = path_join(three, kUsed[i]);
+    remove(link);
+    CHECK(symlink(target, link) == 0);
+    free(target), free(link);
+  }
+  /* The bytes past the older struct say ChArUco: they are not the caller's, and not read. */
+  procam_config(&config);
+  config.board_kind = SLS_CALIBRATION_BOARD_CHARUCO;
+  config.board_marker_m = 0.05;
+  config.board_dictionary = "no such dictionary";
+  config.struct_size = offsetof(sls_calibration_config, board_kind);
+  CHECK_OK(sls_calibration_run(context, three, &config, NULL, NULL, &calibration, &error_));
+  if (calibration != NULL) {
+    sls_calibration_summary_init(&summary);
+    CHECK_OK(sls_calibration_get_summary(calibration, &summary, &error_));
+    printf("0.9 config: %zu views used, stereo RMS %.3f px\n", summary.views_used, summary.stereo_rms_px);
+    CHECK(summary.views_used == 3 && summary.stereo_rms_px > 0.0 && summary.stereo_rms_px < 0.5);
+    CHECK(summary.board_kind == SLS_CALIBRATION_BOARD_CHESSBOARD && summary.board_inner_cols == 9);
+    CHECK(summary.board_marker_m == 0.0 && strcmp(summary.board_dictionary, "") == 0);
+    /* A 0.9 summary: filled up to its end, the bytes past it left as they were. */
+    memset(&older, 0x5A, sizeof(older));
+    older.struct_size = offsetof(sls_calibration_summary, board_kind);
+    CHECK_OK(sls_calibration_get_summary(calibration, &older, &error_));
+    CHECK(older.struct_size == offsetof(sls_calibration_summary, board_kind));
+    CHECK(older.stereo_rms_px == summary.stereo_rms_px && older.axis_point_err_um != older.axis_point_err_um);
+    for (i = offsetof(sls_calibration_summary, board_kind); i < sizeof(older); ++i) {
+      CHECK(((const unsigned char*)&older)[i] == 0x5A);
+    }
+  }
+  sls_calibration_destroy(calibration);
+  free(three);
+}
+
 static void check_result(const sls_calibration* calibration, const progress_log* log, const char* scratch) {
   sls_calibration_summary summary;
   sls_calibration_summary uninitialised;
@@ -392,6 +444,7 @@ static int check_calibration(const char* captures, const char* scratch) {
 
   check_mistakes(context, captures);
   check_cancel(context, captures);
+  check_older_structs(context, captures, scratch);
 
   procam_config(&config);
   config.max_rms_px = 0.01; /* far below any real calibration: the write must refuse */

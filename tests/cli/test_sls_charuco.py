@@ -2,9 +2,11 @@
 """ChArUco boards (issue 17): `sls sim --calibration --board charuco` writes a capture of a ChArUco
 board larger than the field, whose views near the field's edges show part of it; `sls calibrate`
 finds each view's corners by id (partial views count) at the simulator's exact projections and
-recovers the exact calibration; `sls sim --object charuco` scans one; bad boards are refused
-naming the cause; `--help` documents every new flag. Usage: test_sls_charuco.py PATH_TO_SLS
-[Class.test] (stdlib only)."""
+recovers the exact calibration; the same board captured through sim:// devices (`sls calibrate
+--camera sim://chessboard?calibration=1&board=charuco`) has its corners found in every view and
+calibrates; `sls sim --object charuco` scans one; bad boards are refused naming the cause;
+`--help` documents every new flag. Usage: test_sls_charuco.py PATH_TO_SLS [Class.test] (stdlib
+only)."""
 import json
 import math
 import pathlib
@@ -95,6 +97,45 @@ class SlsCharuco(unittest.TestCase):
                     "--marker", "0.0009", "--dictionary", "DICT_5X5_100", "--out", str(self.dir / "again.yml"))
         self.assertEqual(again.returncode, 0, again.stderr)
         self.assertEqual(json.loads(again.stdout)["stereo_rms_px"], figures["stereo_rms_px"])
+
+    def test_capture_through_sim_devices(self):
+        # `sls sim --calibration --board charuco`'s head and board, captured pose by pose through
+        # sim:// devices (the simulated operator moving the board), then calibrated.
+        uri = "sim://chessboard?calibration=1&preset=ci&hand_poses=4&board=charuco"
+        record, report = self.dir / "record", self.dir / "report"
+        result = run("--json", "calibrate", "--camera", uri, "--projector", uri, "--record", str(record),
+                     "--hand-poses", "4", "--yes", "--device", "cpu", "--board", "charuco:12x9", "--square", "0.0012",
+                     "--marker", "0.0009", "--out", str(self.dir / "c.yml"), "--report", str(report))
+        skip_without_opencv(self, result)
+        self.assertEqual(result.returncode, 0, result.stderr)
+        figures = json.loads(result.stdout)
+        self.assertEqual(figures["capture"]["frames"], 4)
+        self.assertEqual(figures["views_used"], [f"frame {i}" for i in range(4)], figures["views_rejected"])
+        # Each view's corners found by id, part of the board's 88 (it is larger than the field).
+        for view in json.loads((report / "calibration.json").read_text())["views"]:
+            ids = [c["id"] for c in view["corners"]]
+            self.assertTrue(8 <= len(ids) < 88, (view["name"], len(ids)))
+            self.assertEqual(ids, sorted(set(ids)))
+        # The truth written as through a chessboard target (groundtruth/calibration.yml), and
+        # the bounds of the recording's calibration above.
+        self.assertTrue((record / "groundtruth" / "calibration.yml").exists())
+        truth = figures["truth"]
+        print(f"\nChArUco captured through sim:// at ci, 4 poses: truth {json.dumps(truth)}")
+        self.assertLess(figures["camera_rms_px"], 0.2)
+        self.assertLess(truth["focal_rel_err"], 0.02)
+        self.assertLess(truth["camera_principal_point_err_px"], 30.0)
+        self.assertLess(truth["principal_point_err_px"], 60.0)
+        self.assertLess(truth["baseline_rel_err"], 0.02)
+        self.assertLess(truth["rotation_err_deg"], 1.5)
+        # A board the target cannot be, refused naming the URI's key.
+        for board, message in (("hexagon", "board=hexagon (chessboard, charuco or charuco:COLSxROWS)"),
+                               ("charuco:3x9", "board=charuco:3x9: ChArUco board of 3x9 squares (need 4..101")):
+            bad_uri = f"sim://chessboard?calibration=1&preset=ci&board={board}"
+            bad = run("calibrate", "--camera", bad_uri, "--projector", bad_uri, "--record", str(self.dir / board),
+                      "--board", "charuco:12x9", "--square", "0.0012", "--marker", "0.0009", "--out",
+                      str(self.dir / "bad.yml"))
+            self.assertEqual(bad.returncode, 1, bad.stderr)
+            self.assertIn(message, bad.stderr)
 
     def test_scan_of_a_charuco_board(self):
         out = self.dir / "scan"

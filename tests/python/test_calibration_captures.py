@@ -23,6 +23,8 @@ def test_calibrate_real_captures(context: slscan.Context, tmp_path: pathlib.Path
         assert (summary.views_total, summary.views_used, summary.views_rejected) == (6, 5, 1)
         assert 0 < summary.stereo_rms_px < 0.5 and not summary.has_truth and np.isnan(summary.focal_rel_err)
         assert summary.board_inner_cols == 9 and "1024x768" in summary.pattern_set
+        assert summary.board_kind is slscan.CalibrationBoardKind.CHESSBOARD
+        assert (summary.board_marker_m, summary.board_dictionary) == (0.0, "")
         camera = calibration.intrinsics("camera")
         projector = calibration.intrinsics(slscan.CalibrationDevice.PROJECTOR)
         assert (camera.width, camera.height, projector.width, projector.height) == (1280, 1024, 1024, 768)

@@ -1,6 +1,6 @@
 /* Calibration: camera and projector intrinsics, their relative pose and, when the capture
- * allows, the turntable's axis, from captures of a chessboard (the same solver as
- * `sls calibrate`).
+ * allows, the turntable's axis, from captures of a chessboard or (API 0.10) a ChArUco board
+ * (the same solver as `sls calibrate`).
  *
  * sls_calibration_run() calibrates from what is on disk:
  *   - a recording (sdk recording folder with manifest.json) whose frames are board poses,
@@ -48,6 +48,8 @@
  *   config.board_inner_rows = 7;
  *   config.board_square_m = 0.075;
  *   config.pattern_set = "opencv-graycode:1024x768";
+ *   (a ChArUco board of 12 x 9 squares: board_kind = SLS_CALIBRATION_BOARD_CHARUCO, 11 x 8 inner
+ *   corners, board_marker_m = 0.056, board_dictionary NULL for DICT_5X5_100)
  *   if (sls_calibration_run(context, "captures", &config, NULL, NULL, &calibration, &error) == SLS_OK) {
  *     sls_calibration_summary summary;
  *     sls_calibration_summary_init(&summary);
@@ -78,9 +80,17 @@ extern "C" {
  * immutable once made. */
 typedef struct sls_calibration sls_calibration;
 
+/* The calibration target (API 0.10). */
+typedef enum sls_calibration_board_kind {
+  SLS_CALIBRATION_BOARD_CHESSBOARD = 0, /* found whole in every view (OpenCV's findChessboardCorners) */
+  SLS_CALIBRATION_BOARD_CHARUCO = 1     /* OpenCV's CharucoBoard: ArUco markers in the light
+                                         * squares name each corner, so a view of part of the
+                                         * board counts (docs/calibration.md, "ChArUco boards") */
+} sls_calibration_board_kind;
+
 /* Calibration configuration. Versioned by its size: initialise with
  * sls_calibration_config_init(), which sets struct_size and the defaults, then change fields.
- * Later library versions only append fields. The string is read during sls_calibration_run()
+ * Later library versions only append fields. The strings are read during sls_calibration_run()
  * only. */
 typedef struct sls_calibration_config {
   size_t struct_size;
@@ -100,6 +110,21 @@ typedef struct sls_calibration_config {
                                          * corners than this fraction is rejected; default 0.5 */
   double max_rms_px;      /* sls_calibration_write() refuses a calibration whose stereo RMS is
                            * above this unless forced; default 1.0 */
+  /* Appended in API 0.10: the board's kind (a struct of an older version, without these
+   * fields, describes a chessboard). With the board from the ground truth (board_inner_cols,
+   * board_inner_rows, board_square_m all 0) these keep their defaults: the ground truth's
+   * board.json gives the kind too. */
+  sls_calibration_board_kind board_kind; /* default SLS_CALIBRATION_BOARD_CHESSBOARD. For
+                           * SLS_CALIBRATION_BOARD_CHARUCO (`sls calibrate --board charuco:COLSxROWS`)
+                           * board_inner_cols and board_inner_rows are still its inner corners: its
+                           * squares less one each way (charuco:12x9 is 11 x 8), at least 3 x 3 */
+  double board_marker_m;  /* ChArUco only: the side of a marker, metres, positive and smaller than
+                           * board_square_m (`--marker`); default 0 (a chessboard has none) */
+  const char* board_dictionary; /* ChArUco only: the markers' ArUco dictionary, OpenCV's name as
+                           * `--dictionary` takes it (e.g. "DICT_4X4_50", "DICT_6X6_250",
+                           * "DICT_APRILTAG_36h11"; case-insensitive, "DICT_" optional), with at
+                           * least as many markers as the board has light squares; NULL or ""
+                           * (the default): "DICT_5X5_100" */
 } sls_calibration_config;
 
 /* Fills *config with the defaults. */
@@ -135,7 +160,10 @@ typedef int (*sls_calibration_progress_callback)(const sls_calibration_progress*
  *   calibration: receives the result; the caller owns it and frees it with
  *                sls_calibration_destroy(). Left NULL on failure.
  * Blocks the calling thread. Fails with
- * SLS_ERROR_INVALID_ARGUMENT for a NULL argument, a bad config field (named), a board not
+ * SLS_ERROR_INVALID_ARGUMENT for a NULL argument, a bad config field (named: e.g. a board_kind
+ * that is no sls_calibration_board_kind, a ChArUco marker not smaller than its square, an
+ * unknown dictionary or one with too few markers, a marker or dictionary for a chessboard or for
+ * the ground truth's board, a ChArUco board of fewer than 4 x 4 squares), a board not
  * described (no config board and no ground truth), a folder of captures without a pattern set,
  * a subfolder whose image count does not match the set, or fewer than 3 usable views (each
  * rejected view named with its reason);
@@ -183,6 +211,10 @@ typedef struct sls_calibration_summary {
   double rotation_err_deg;       /* angle between the estimated and exact camera-projector rotations */
   double axis_direction_err_deg; /* angle between the turntable axes */
   double axis_point_err_um;      /* distance of the exact axis from the estimated axis point, micrometres */
+  /* Appended in API 0.10: the rest of the board used (the config's, or the ground truth's). */
+  sls_calibration_board_kind board_kind;
+  double board_marker_m;         /* a ChArUco board's marker side; 0 for a chessboard */
+  const char* board_dictionary;  /* a ChArUco board's dictionary, e.g. "DICT_5X5_100"; "" for a chessboard */
 } sls_calibration_summary;
 
 /* Sets struct_size and clears the other fields. */

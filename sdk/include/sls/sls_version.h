@@ -9,7 +9,7 @@
 #include "sls/sls_export.h"
 
 #define SLS_API_VERSION_MAJOR 0
-#define SLS_API_VERSION_MINOR 9
+#define SLS_API_VERSION_MINOR 10
 #define SLS_API_VERSION_PATCH 0
 
 /* One integer: major * 10000 + minor * 100 + patch. */

@@ -29,12 +29,11 @@ inline std::shared_ptr<SimScanner> calibration_scanner(const SimCalibrationOptio
   return SimScanner::create(make_calibration_rig(options, board), board, Device::cpu(), uri);
 }
 
-// A ChArUco-like board for the renderer's tests: the default chessboard's squares with
-// markers of 0.9 mm (7 x 7 cells, a dark border round pseudo-random bits) in its light squares.
-// Not ArUco codes (those come from OpenCV through calib, which these tests do not link): what
-// is tested is the rendering of whatever bit table it is given.
-inline ChessboardParameters synthetic_charuco(int cells = 7) {
-  ChessboardParameters board;
+// A ChArUco-like board for the renderer's tests: the squares of `board` (default: the default
+// chessboard's) with markers of 0.9 mm (7 x 7 cells, a dark border round pseudo-random bits) in
+// its light squares. Not ArUco codes (those come from OpenCV through calib, which these tests
+// do not link): what is tested is the rendering of whatever bit table it is given.
+inline ChessboardParameters synthetic_charuco(int cells = 7, ChessboardParameters board = {}) {
   board.charuco.marker = 0.9e-3;
   board.charuco.cells = cells;
   board.charuco.dictionary = "synthetic";

@@ -548,6 +548,61 @@ TEST(SimCalibrationCapture, ACalibrationTargetByUriHasAnOperatorWhoPlacesTheBoar
   }
 }
 
+// board=charuco: the target's board is made by the maker its opener hands in (its markers come
+// from calib, which the drivers do not link), on the ChArUco geometry, in the poses `sls sim
+// --calibration --board charuco` gives it; without a maker, or a board the target cannot be,
+// refused naming the URI.
+TEST(SimCalibrationCapture, AChArUcoTargetByUriHasTheBoardItsOpenerMakes) {
+  const std::string uri =
+      "sim://chessboard?calibration=1&preset=ci&width=64&hand_poses=2&head=chessboard&device=cpu&board=charuco:12x9";
+  std::string asked;
+  const CharucoBoardMaker maker = [&](const std::string& spec, const ChessboardParameters& geometry) {
+    asked = spec;
+    return synthetic_charuco(7, geometry);
+  };
+  const std::shared_ptr<SimScanner> scanner = SimScanner::open(uri, maker);
+  EXPECT_EQ(asked, "charuco:12x9");
+  EXPECT_EQ(scanner->scene().name(), "charuco");
+  SimCalibrationOptions options;
+  options.rig.preset = "ci";
+  options.rig.camera_width = 64;
+  options.hand_poses = 2;
+  options.turntable_poses = 0;
+  options.head_object = "chessboard";
+  options.board = synthetic_charuco(7, charuco_calibration_board_geometry());
+  const SimRig rig = make_calibration_rigs(options).front();
+  ASSERT_EQ(scanner->rig().placements.size(), 2u);
+  for (std::size_t k = 0; k < 2; ++k) {
+    EXPECT_EQ(scanner->rig().placements[k].mount.matrix(), rig.placements[k].mount.matrix()) << k;
+  }
+
+  const auto refusal = [&](const std::string& text, const CharucoBoardMaker& with) -> Error {
+    try {
+      SimScanner::open(text, with);
+    } catch (const Error& error) {
+      return error;
+    }
+    ADD_FAILURE() << text << " opened";
+    return Error(ErrorCode::kInternal, "");
+  };
+  const Error no_maker = refusal(uri, {});
+  EXPECT_EQ(no_maker.code(), ErrorCode::kUnsupported);
+  EXPECT_NE(std::string(no_maker.what()).find("board=charuco:12x9 needs the ChArUco markers of calib"),
+            std::string::npos)
+      << no_maker.what();
+  const Error hexagon = refusal("sim://chessboard?calibration=1&preset=ci&board=hexagon", maker);
+  EXPECT_EQ(hexagon.code(), ErrorCode::kInvalidArgument);
+  EXPECT_NE(std::string(hexagon.what()).find("board=hexagon (chessboard, charuco or charuco:COLSxROWS)"),
+            std::string::npos);
+  EXPECT_EQ(refusal("sim://chessboard?preset=ci&board=charuco", maker).code(), ErrorCode::kInvalidArgument);
+  const CharucoBoardMaker failing = [](const std::string&, const ChessboardParameters&) -> ChessboardParameters {
+    throw Error(ErrorCode::kInvalidArgument, "marker too large");
+  };
+  const Error failed = refusal(uri, failing);
+  EXPECT_EQ(failed.code(), ErrorCode::kInvalidArgument);
+  EXPECT_EQ(std::string(failed.what()), uri + ": board=charuco:12x9: marker too large");
+}
+
 // The devices of one head by URI (cameras=2&camera=K): camera K is rigs[K] of that head; what
 // the projector opened from any of its URIs shows, every camera sees; the operator places the
 // board once per acquisition of the head (both cameras started for one pose), not per camera.
