@@ -23,6 +23,7 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
+using test::bumpy_model;
 using test::kVoxel;
 using test::Model;
 
@@ -178,11 +179,6 @@ test::BumpyScene single_cap_scene() {
 
 const Model& single_cap_model() {
   static const Model model(single_cap_scene());
-  return model;
-}
-
-const Model& bumpy_model() {
-  static const Model model(test::bumpy_scene());
   return model;
 }
 

@@ -215,6 +215,14 @@ struct Model {
   }
 };
 
+// The bumpy scene's model, made once per test executable.
+inline const Model& bumpy_model() {
+  static const Model model(bumpy_scene());
+  return model;
+}
+
+inline double degrees(double radians) { return radians * 180.0 / M_PI; }
+
 // The error of a registration where it matters: how far the live frame's surface points land
 // from where they belong (RMS and max over the live depth map, in metres).
 struct SurfaceError {
