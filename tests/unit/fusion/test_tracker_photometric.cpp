@@ -25,6 +25,7 @@ using test::bumpy_model;
 using test::degrees;
 using test::kVoxel;
 using test::Model;
+
 // ---------------------------------------------------------------------------------------
 // The photometric term (photometric_shared.h), on frames the simulator renders.
 
