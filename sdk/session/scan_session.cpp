@@ -359,10 +359,10 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
       report.move = s.moving->move_to(s.moving->placement(T_world_camera));
       report.times.move_ms = ms_since(start);
       if (report.move.shipping) {
-        s.pending_ship = Impl::PendingShip{frame.index - 1, shipped_before};
+        s.pending_ship = Impl::PendingShip{frame.index - 1, shipped_before, s.graph_grows()};
       } else if (s.deformation) {
         start = Clock::now();
-        s.record_shipped(frame.index - 1, shipped_before);
+        s.record_shipped(frame.index - 1, shipped_before, s.graph_grows());
         report.times.deform_ms += ms_since(start);
       }
     }
@@ -390,9 +390,13 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
   }
   if (s.deformation) {
     if (s.pending_ship && s.deformation->wants_keyframe(T_world_camera, s.focus_point(T_world_camera))) {
-      start = Clock::now();
-      report.shipped = s.collect_ship();  // before the keyframe, as if shipped by the move
-      report.times.move_ms += ms_since(start);
+      if (s.ship_matchable_by_next_keyframe()) {
+        start = Clock::now();
+        report.shipped = s.collect_ship();  // before the keyframe, as if shipped by the move
+        report.times.move_ms += ms_since(start);
+      } else {
+        ++s.pending_ship->keyframes;  // queued ahead of the part: the same result, no wait
+      }
     }
     start = Clock::now();
     report.deformation = s.feed_deformation(frame.index, T_world_camera, frame.turntable_angle_deg, maps);

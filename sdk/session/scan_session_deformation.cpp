@@ -44,17 +44,29 @@ std::optional<fusion::MoveStats> ScanSession::Impl::collect_ship() {
   if (!moving || !moving->shipping()) return std::nullopt;
   const fusion::MoveStats stats = moving->finish_shipping();
   if (pending_ship) {
-    if (deformation) record_shipped(pending_ship->time, pending_ship->shipped_before);
+    if (deformation) record_shipped(pending_ship->time, pending_ship->shipped_before, pending_ship->graph_grows);
     pending_ship.reset();
   }
   return stats;
 }
 
-void ScanSession::Impl::record_shipped(int time, std::size_t shipped_before) {
+bool ScanSession::Impl::ship_matchable_by_next_keyframe() const {
+  // The part's samples bind to nodes among the temporal_window made up to its time
+  // (DeformationGraph::bind_before), the newest of which is the last node before the move: so
+  // each sample's newest node is at least (nodes at the move) - temporal_window, and the
+  // keyframe that makes node (nodes at the move) + keyframes matches only parts whose newest
+  // node is revisit_gap_nodes older than its own.
+  return pending_ship->keyframes + options.deformation.graph.temporal_window >= options.deformation.revisit_gap_nodes;
+}
+
+bool ScanSession::Impl::graph_grows() const {
+  // Past the graph's revolution no keyframe comes to match them (first_revolution_only).
+  return !(options.deformation.first_revolution_only && past_first_revolution());
+}
+
+void ScanSession::Impl::record_shipped(int time, std::size_t shipped_before, bool graph_grows) {
   const PointCloud& shipped = moving->shipped_cloud();
   parts.push_back({time, shipped.size(), moving->shipped_mesh().vertices.size()});
-  // Past the graph's revolution no keyframe comes to match them (first_revolution_only).
-  const bool graph_grows = !(options.deformation.first_revolution_only && past_first_revolution());
   if (deformation && graph_grows && shipped.size() > shipped_before) {
     deformation->add_shipped(time, shipped, shipped_before, shipped.size());
   }

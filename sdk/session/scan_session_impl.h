@@ -271,18 +271,26 @@ struct ScanSession::Impl {
   // Online deformation's share of a fused frame (scan_session_deformation.cpp): the reference
   // raycast, a shipped part recorded and queued, the last frame kept, a keyframe queued.
   void capture_reference(const fusion::Volume& volume);
-  void record_shipped(int time, std::size_t shipped_before);
-  // A move shipping in the background (GPU): the frame its part is recorded under and the
-  // shipped cloud's size before it. collect_ship() waits for it, records it (with online
-  // deformation) and returns its figures (nullopt when none is pending). The frame loop
-  // collects it before the next keyframe and before the next move, so the deformation's
-  // worker gets the same jobs in the same order as when a move shipped before returning.
+  // graph_grows(): whether a part shipped now joins the graph, decided at its move.
+  bool graph_grows() const;
+  void record_shipped(int time, std::size_t shipped_before, bool graph_grows);
+  // A move shipping in the background (GPU): the frame its part is recorded under, the
+  // shipped cloud's size before it and the keyframes queued since. collect_ship() waits for
+  // it, records it (with online deformation) and returns its figures (nullopt when none is
+  // pending). The frame loop collects it before the next move, and before a keyframe that
+  // could match it (ship_matchable_by_next_keyframe): until then the part's place in the
+  // worker's queue changes nothing of what the worker computes, as a shipped part binds to the
+  // nodes made up to its time whenever it comes, and only parts revisit_gap_nodes older than a
+  // keyframe are matched. So the frame loop waits for a ship only where the result needs it.
   struct PendingShip {
     int time = 0;
     std::size_t shipped_before = 0;
+    bool graph_grows = true;
+    int keyframes = 0;
   };
   std::optional<PendingShip> pending_ship;
   std::optional<fusion::MoveStats> collect_ship();
+  bool ship_matchable_by_next_keyframe() const;
   // The turntable's prior on a keyframe node's rotation (scan_session_deformation.cpp);
   // nullopt unless the table's angles, axis and σ are known and used.
   std::optional<fusion::deformation::RotationPrior> turntable_rotation_prior(const Pose& T_world_camera,
