@@ -26,12 +26,21 @@ class ProgressDisplay {
       if (update.total > 0 && update.done >= update.total) std::fputc('\n', stderr);
       std::fflush(stderr);
     } else {
+      // A log gets a line per tenth of a round. A new round (another stage, or the same stage
+      // counting again from below: a head's next camera) starts its tenths again.
+      if (stage != round_stage_ || update.done < round_done_) {
+        round_stage_ = stage;
+        last_decile_ = -1;
+        finished_ = false;
+      }
+      round_done_ = update.done;
       const int decile = static_cast<int>(fraction * 10.0);
       if (decile > last_decile_ || (update.total > 0 && update.done >= update.total && !finished_)) {
         last_decile_ = decile;
         finished_ = update.total > 0 && update.done >= update.total;
-        std::fprintf(stderr, "%s: %zu/%zu (%d%%) %.1fs\n", stage.c_str(), update.done, update.total,
-                     static_cast<int>(fraction * 100.0), seconds);
+        std::fprintf(stderr, "%s: %zu/%zu (%d%%) %.1fs%s%s\n", stage.c_str(), update.done, update.total,
+                     static_cast<int>(fraction * 100.0), seconds, update.detail.empty() ? "" : " ",
+                     update.detail.c_str());
       }
     }
     return true;
@@ -42,6 +51,8 @@ class ProgressDisplay {
   std::string stage_;
   bool terminal_;
   Clock::time_point start_;
+  std::string round_stage_;
+  std::size_t round_done_ = 0;
   int last_decile_ = -1;
   bool finished_ = false;
 };

@@ -46,6 +46,15 @@ ErrorCode code_of(const std::function<void()>& f) {
   return ErrorCode::kInternal;
 }
 
+std::string message_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& error) {
+    return error.what();
+  }
+  return "";
+}
+
 std::string bytes_of(const std::string& path) {
   const std::vector<std::uint8_t> bytes = read_file_bytes(path);
   return {bytes.begin(), bytes.end()};

@@ -34,6 +34,8 @@ bool has_cuda_device();
 
 // The code of the sls::Error that `f` throws; ErrorCode::kInternal when it throws none.
 ErrorCode code_of(const std::function<void()>& f);
+// The message of the sls::Error that `f` throws; empty when it throws none.
+std::string message_of(const std::function<void()>& f);
 
 // A file's bytes as a string (throws sls::Error when it cannot be read).
 std::string bytes_of(const std::string& path);

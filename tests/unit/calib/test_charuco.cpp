@@ -3,25 +3,16 @@
 // OpenCV's own drawing of the board, cell by cell, and its corners against OpenCV's.
 #include <gtest/gtest.h>
 
-#include <functional>
 #include <string>
 
 #include <opencv2/aruco/charuco.hpp>
 
 #include "calib/board.h"
 #include "sdk/core/error.h"
+#include "tests/support/test_support.h"
 
 namespace sls::calib {
 namespace {
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& error) {
-    return error.what();
-  }
-  return "";
-}
 
 TEST(Charuco, ParsesTheBoardAndNamesWhatIsWrong) {
   const BoardSpec chessboard = parse_board_spec("9x7", 0.0006, 0.0, "");
@@ -33,17 +24,17 @@ TEST(Charuco, ParsesTheBoardAndNamesWhatIsWrong) {
   EXPECT_EQ(board.inner_rows, 8);
   EXPECT_EQ(board.dictionary, "DICT_5X5_100");
   EXPECT_EQ(parse_board_spec("charuco:5x5", 1.0, 0.5, "apriltag_36h11").dictionary, "DICT_APRILTAG_36H11");
-  EXPECT_NE(error_of([] { parse_board_spec("charuco:12x9", 0.0012, 0.0009, "DICT_9X9_1"); })
+  EXPECT_NE(test::message_of([] { parse_board_spec("charuco:12x9", 0.0012, 0.0009, "DICT_9X9_1"); })
                 .find("unknown ArUco dictionary 'DICT_9X9_1' (known: "),
             std::string::npos);
-  EXPECT_NE(error_of([] { parse_board_spec("charuco:12x9", 0.0012, 0.0012, ""); })
+  EXPECT_NE(test::message_of([] { parse_board_spec("charuco:12x9", 0.0012, 0.0012, ""); })
                 .find("marker size 0.0012 m must be smaller than the square size 0.0012 m"),
             std::string::npos);
-  EXPECT_NE(error_of([] { parse_board_spec("charuco:12x9", 0.0012, 0.0, ""); }).find("needs --marker"),
+  EXPECT_NE(test::message_of([] { parse_board_spec("charuco:12x9", 0.0012, 0.0, ""); }).find("needs --marker"),
             std::string::npos);
-  EXPECT_NE(error_of([] { parse_board_spec("9x7", 0.0012, 0.0009, ""); }).find("describe a ChArUco board"),
+  EXPECT_NE(test::message_of([] { parse_board_spec("9x7", 0.0012, 0.0009, ""); }).find("describe a ChArUco board"),
             std::string::npos);
-  EXPECT_NE(error_of([] { parse_board_spec("charuco:20x20", 1.0, 0.5, "DICT_4X4_50"); })
+  EXPECT_NE(test::message_of([] { parse_board_spec("charuco:20x20", 1.0, 0.5, "DICT_4X4_50"); })
                 .find("needs 200 markers; the dictionary DICT_4X4_50 has 50"),
             std::string::npos);
 }

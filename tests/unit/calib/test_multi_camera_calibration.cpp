@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <functional>
 #include <random>
 #include <string>
 
@@ -169,27 +168,18 @@ TEST(MultiCameraCalibration, PairNeedsTheSamePosesAndEnoughOfThem) {
   }
 }
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& error) {
-    return error.what();
-  }
-  return "";
-}
-
 // Bad layouts fail at once (before any image is read) and name the folder.
 TEST(MultiCameraCapture, LayoutErrorsNameTheFolder) {
   test::TemporaryDirectory directory;
   const std::string head = directory.file("head");
   create_directories(head);
   EXPECT_FALSE(is_multi_camera_capture(head));
-  EXPECT_NE(error_of([&] { multi_camera_folders(head); }).find(head + ": no camera0"), std::string::npos);
+  EXPECT_NE(test::message_of([&] { multi_camera_folders(head); }).find(head + ": no camera0"), std::string::npos);
   create_directories(head + "/camera0/pose0");
   EXPECT_TRUE(is_multi_camera_capture(head));
-  EXPECT_NE(error_of([&] { multi_camera_folders(head); }).find("only camera0"), std::string::npos);
+  EXPECT_NE(test::message_of([&] { multi_camera_folders(head); }).find("only camera0"), std::string::npos);
   create_directories(head + "/camera2/pose0");
-  const std::string gap = error_of([&] { multi_camera_folders(head); });
+  const std::string gap = test::message_of([&] { multi_camera_folders(head); });
   EXPECT_NE(gap.find(head + "/camera2 is there but " + head + "/camera1 is missing"), std::string::npos) << gap;
   create_directories(head + "/camera1/pose0");
   create_directories(head + "/camera1/pose1");
@@ -198,7 +188,7 @@ TEST(MultiCameraCapture, LayoutErrorsNameTheFolder) {
   options.input = head;
   options.patterns = "gray-phase:912x1140";
   options.board = board();
-  const std::string counts = error_of([&] { calibrate_multi_camera_capture(options, {}); });
+  const std::string counts = test::message_of([&] { calibrate_multi_camera_capture(options, {}); });
   EXPECT_NE(counts.find(head + "/camera1: 2 board poses, " + head + "/camera0 has 1"), std::string::npos) << counts;
 }
 
