@@ -669,7 +669,7 @@ TEST_F(KnurledKnob, HitsLieOnTheSurfaceAndMatchBruteForceMarching) {
     int steps = 0;
     const bool got = intersect_knurled_knob(k, ray, 0.0, 1.0, &hit, &steps);
     // Reference: fixed 0.5 um steps on F inside the bounding cylinder, then bisection.
-    double lo, hi, c0, c1;
+    double lo = 0.0, hi = 0.0, c0 = 0.0, c1 = 0.0;
     double ref = std::numeric_limits<double>::infinity();
     if (clip_to_cylinder(k.outer_radius, k.height, ray, 0.0, 1.0, &lo, &hi, &c0, &c1)) {
       auto f = [&](double t) { return implicit(e(ray.origin + t * ray.direction)); };
@@ -713,7 +713,7 @@ TEST_F(KnurledKnob, MarchingNeverSkipsAThinRidge) {
     const Ray ray = make_ray(foot - 0.02 * d, d);
     Hit hit;
     const bool got = scene.intersect(ray, 0.0, 1.0, &hit);
-    double lo, hi, c0, c1;
+    double lo = 0.0, hi = 0.0, c0 = 0.0, c1 = 0.0;
     double ref = std::numeric_limits<double>::infinity();
     if (clip_to_cylinder(k.outer_radius, k.height, ray, 0.0, 1.0, &lo, &hi, &c0, &c1)) {
       auto f = [&](double t) { return implicit(e(ray.origin + t * ray.direction)); };
@@ -754,7 +754,7 @@ TEST_F(KnurledKnob, RaysFromInsideFindTheExit) {
     const Vec3 o(rho * std::cos(a), rho * std::sin(a), uniform(rng, 0.0, k.height));
     const Ray ray = make_ray(o, random_unit(rng));
     ASSERT_TRUE(scene.intersect(ray, 0.0, 1.0, &hit)) << i;
-    double lo, hi, c0, c1;
+    double lo = 0.0, hi = 0.0, c0 = 0.0, c1 = 0.0;
     ASSERT_TRUE(clip_to_cylinder(k.outer_radius, k.height, ray, 0.0, 1.0, &lo, &hi, &c0, &c1));
     auto f = [&](double t) { return -implicit(e(ray.origin + t * ray.direction)); };
     const double ref = std::min(brute_force_root(f, 0.0, hi, 0.5e-6), hi);  // leaves by hi at the latest
