@@ -2,22 +2,16 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
+#include <memory>
 #include <tuple>
 #include <utility>
 #include <vector>
 
+#include "fusion/integrator_gpu.h"
+#include "fusion/integrator_internal.h"
 #include "sdk/core/error.h"
 #include "sdk/core/parallel_for.h"
-
-#if defined(SLS_HAVE_CUDA)
-#include <cuda_runtime_api.h>
-
-#include "fusion/cuda/integrate_cuda.h"
-#include "sdk/core/cuda/cuda_stream.h"
-#include "sdk/core/cuda/device_buffer.h"
-#endif
 
 namespace sls::fusion {
 
@@ -160,30 +154,6 @@ VoxelBox frustum_voxel_box(const VolumeGeometry& geometry, const CameraIntrinsic
   return box;
 }
 
-namespace {
-
-// integration_depth_band's rule on its sample (the valid depths of every kDepthBandStride-th
-// pixel); under 1000 samples the map's whole valid range, which `range()` gives as [lo, hi]
-// (hi 0: nothing valid).
-template <typename Range>
-std::pair<double, double> band_of_sample(std::vector<float>& sample, const Range& range) {
-  if (sample.size() < 1000) {
-    const auto [lo, hi] = range();
-    if (!(hi > 0.0f)) return {0.0, 0.0};  // nothing measured: nothing to integrate
-    return {static_cast<double>(lo), static_cast<double>(hi)};
-  }
-  const auto quantile = [&sample](double q) {
-    auto at = sample.begin() + static_cast<std::ptrdiff_t>(q * static_cast<double>(sample.size() - 1));
-    std::nth_element(sample.begin(), at, sample.end());
-    return static_cast<double>(*at);
-  };
-  const double q_lo = quantile(kDepthBandQuantile), q_hi = quantile(1.0 - kDepthBandQuantile);
-  const double half_span = 0.5 * (q_hi - q_lo);
-  return {std::max(1e-6, q_lo - half_span), q_hi + half_span};
-}
-
-}  // namespace
-
 std::pair<double, double> integration_depth_band(const Image32f& depth_m) {
   std::vector<float> sample;
   sample.reserve(depth_m.pixel_count() / kDepthBandStride + 1);
@@ -191,7 +161,7 @@ std::pair<double, double> integration_depth_band(const Image32f& depth_m) {
   for (std::size_t i = 0; i < depth_m.pixel_count(); i += kDepthBandStride) {
     if (data[i] > 0.0f && std::isfinite(data[i])) sample.push_back(data[i]);
   }
-  return band_of_sample(sample, [&] {
+  return detail::band_of_sample(sample, [&] {
     // Too few samples for quantiles: the whole measured range.
     float lo = std::numeric_limits<float>::infinity(), hi = 0.0f;
     for (std::size_t i = 0; i < depth_m.pixel_count(); ++i) {
@@ -203,53 +173,20 @@ std::pair<double, double> integration_depth_band(const Image32f& depth_m) {
   });
 }
 
-namespace {
-
-// The box of voxels within η of the measured range.
-VoxelBox band_box(const VolumeGeometry& geometry, const CameraIntrinsics& camera, const Pose& T_world_camera,
-                  double min_depth_m, double max_depth_m, const IntegrationOptions& options) {
+VoxelBox detail::band_box(const VolumeGeometry& geometry, const CameraIntrinsics& camera, const Pose& T_world_camera,
+                          double min_depth_m, double max_depth_m, const IntegrationOptions& options) {
   if (max_depth_m <= 0.0) return VoxelBox{};  // an empty depth map
   const double eta = options.eta_voxels * geometry.voxel_size_m;
   return frustum_voxel_box(geometry, camera, T_world_camera, std::max(1e-6, min_depth_m - eta), max_depth_m + eta);
 }
-
-}  // namespace
 
 struct Integrator::Impl {
   Device device;
   IntegrationOptions options;
   // CPU: the active voxels of each parity.
   std::vector<ActiveVoxel> active[2];
-  GpuStream gpu_stream;  // the session's, or its own (CUDA)
-#if defined(SLS_HAVE_CUDA)
-  cudaStream_t stream = nullptr;  // gpu_stream's
-  DeviceBuffer<float> depth;
-  DeviceBuffer<ActiveVoxel> device_active[2];
-  DeviceBuffer<std::uint32_t> counters;
-  std::uint32_t capacity = 0;
-  void* sort_scratch = nullptr;  // cub's temporary storage and the sorted copy, grown as needed
-  std::size_t sort_scratch_bytes = 0;
-  ActiveVoxel* sorted = nullptr;
-  std::size_t sorted_capacity = 0;
-  // summarize's sample, valid count and depth bounds (float bits).
-  DeviceBuffer<float> summary_sample;
-  DeviceBuffer<unsigned long long> summary_counts;
-  DeviceBuffer<unsigned> summary_bounds;
-  // The GPU's share of integrate() and summarize(), on a map in device memory.
-  IntegrationStats integrate_on_device(Volume& volume, const float* depth_device, const CameraIntrinsics& camera,
-                                       const Pose& T_world_camera, const DepthBand& band);
-  DepthMapSummary summarize_on_device(const float* depth_device, std::size_t pixels);
-  ~Impl() {
-    if (sort_scratch != nullptr) {
-      (void)cudaFree(sort_scratch);
-      note_gpu_allocation(-static_cast<std::ptrdiff_t>(sort_scratch_bytes));
-    }
-    if (sorted != nullptr) {
-      (void)cudaFree(sorted);
-      note_gpu_allocation(-static_cast<std::ptrdiff_t>(sorted_capacity * sizeof(ActiveVoxel)));
-    }
-  }
-#endif
+  GpuStream gpu_stream;                     // the session's, or its own (CUDA)
+  std::unique_ptr<detail::IntegratorGpu> gpu;  // on a GPU: its buffers and launches
 };
 
 Integrator::Integrator(const Device& device, const IntegrationOptions& options, const GpuStream& stream)
@@ -259,10 +196,7 @@ Integrator::Integrator(const Device& device, const IntegrationOptions& options, 
   impl_->options = options;
   if (device.is_cuda()) {
     impl_->gpu_stream = GpuStream::or_create(stream, device);
-#if defined(SLS_HAVE_CUDA)
-    impl_->stream = cuda_stream(impl_->gpu_stream);
-    impl_->counters.allocate(2);
-#endif
+    impl_->gpu = std::make_unique<detail::IntegratorGpu>(device, impl_->gpu_stream);
   }
 }
 
@@ -273,20 +207,14 @@ Integrator& Integrator::operator=(Integrator&&) noexcept = default;
 const IntegrationOptions& Integrator::options() const { return impl_->options; }
 const Device& Integrator::device() const { return impl_->device; }
 
-namespace {
-
-std::size_t active_capacity(const IntegrationOptions& options, const VolumeGeometry& geometry) {
+std::size_t detail::active_capacity(const IntegrationOptions& options, std::size_t voxel_count) {
   if (options.active_capacity > 0) return options.active_capacity;
-  return std::min<std::size_t>(geometry.voxel_count(), std::size_t{1} << 25);
+  return std::min<std::size_t>(voxel_count, std::size_t{1} << 25);
 }
-
-}  // namespace
 
 std::size_t integration_gpu_bytes(const IntegrationOptions& options, std::size_t voxel_count) {
   if (!options.is_gtsdf()) return 0;
-  const std::size_t capacity =
-      options.active_capacity > 0 ? options.active_capacity : std::min<std::size_t>(voxel_count, std::size_t{1} << 25);
-  return 4 * capacity * sizeof(ActiveVoxel);
+  return 4 * detail::active_capacity(options, voxel_count) * sizeof(ActiveVoxel);
 }
 
 namespace {
@@ -386,31 +314,20 @@ IntegrationStats Integrator::integrate(Volume& volume, const Image32f& depth_m, 
     }
     const VolumeView view = volume.view();
     const DepthFrameView frame = make_depth_frame_view(depth_m.data(), camera, T_world_camera, volume.geometry());
-    const VoxelBox box = band_box(volume.geometry(), camera, T_world_camera, band->near_m, band->far_m, s.options);
+    const VoxelBox box =
+        detail::band_box(volume.geometry(), camera, T_world_camera, band->near_m, band->far_m, s.options);
     return integrate_cpu(view, s.options.params(volume.geometry().voxel_size_m), frame, box, s.options.iterations,
-                         active_capacity(s.options, volume.geometry()), s.active);
+                         detail::active_capacity(s.options, volume.geometry().voxel_count()), s.active);
   }
-#if defined(SLS_HAVE_CUDA)
-  require_device(s.device);
   if (!band && on_device) {
-    const DepthMapSummary summary = s.summarize_on_device(depth_m.data(), depth_m.pixel_count());
+    const DepthMapSummary summary = s.gpu->summarize(depth_m.data(), depth_m.pixel_count());
     band = DepthBand{summary.near_m, summary.far_m};
   } else if (!band) {
     const auto [near_m, far_m] = integration_depth_band(depth_m);
     band = DepthBand{near_m, far_m};
   }
   if (!(band->far_m > 0.0)) return IntegrationStats{};  // nothing measured
-  const float* depth_device = depth_m.data();
-  if (!on_device) {
-    const std::size_t pixels = depth_m.pixel_count();
-    if (s.depth.size() < pixels) s.depth.allocate(pixels);
-    s.depth.upload(depth_m.data(), pixels, s.stream);
-    depth_device = s.depth.data();
-  }
-  return s.integrate_on_device(volume, depth_device, camera, T_world_camera, *band);
-#else
-  throw_error(ErrorCode::kUnsupported, "fusion: CUDA integration asked of a build without CUDA");
-#endif
+  return s.gpu->integrate(volume, s.gpu->on_device(depth_m), camera, T_world_camera, *band, s.options);
 }
 
 DepthMapSummary Integrator::summarize(const Image32f& depth_m) {
@@ -425,104 +342,7 @@ DepthMapSummary Integrator::summarize(const Image32f& depth_m) {
   if (!s.device.is_cuda()) {
     throw_error(ErrorCode::kInvalidArgument, "fusion: the depth map lives on a GPU, the integrator on the CPU");
   }
-#if defined(SLS_HAVE_CUDA)
-  return s.summarize_on_device(depth_m.data(), depth_m.pixel_count());
-#else
-  throw_error(ErrorCode::kUnsupported, "fusion: a depth map on a GPU in a build without CUDA");
-#endif
+  return s.gpu->summarize(depth_m.data(), depth_m.pixel_count());
 }
-
-#if defined(SLS_HAVE_CUDA)
-DepthMapSummary Integrator::Impl::summarize_on_device(const float* depth_device, std::size_t pixels) {
-  Impl& s = *this;
-  require_device(s.device);
-  DepthMapSummary summary;
-  if (pixels == 0) return summary;
-  const std::size_t samples = (pixels + kDepthBandStride - 1) / kDepthBandStride;
-  if (s.summary_sample.size() < samples) s.summary_sample.allocate(samples);
-  if (s.summary_counts.size() == 0) {
-    s.summary_counts.allocate(1);
-    s.summary_bounds.allocate(2);
-  }
-  const unsigned bounds_start[2] = {0xffffffffu, 0u};
-  SLS_CUDA_CHECK(cudaMemsetAsync(s.summary_counts.data(), 0, sizeof(unsigned long long), s.stream));
-  s.summary_bounds.upload(bounds_start, 2, s.stream);
-  detail::launch_depth_summary_cuda(depth_device, pixels, kDepthBandStride, s.summary_sample.data(),
-                                    s.summary_counts.data(), s.summary_bounds.data(), s.stream);
-  std::vector<float> sample(samples);
-  unsigned long long count = 0;
-  unsigned bounds[2] = {0, 0};
-  s.summary_sample.download(sample.data(), samples, s.stream);
-  s.summary_counts.download(&count, 1, s.stream);
-  s.summary_bounds.download(bounds, 2, s.stream);
-  SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
-  summary.valid_pixels = static_cast<std::size_t>(count);
-  sample.erase(std::remove_if(sample.begin(), sample.end(), [](float z) { return !(z > 0.0f); }), sample.end());
-  std::tie(summary.near_m, summary.far_m) = band_of_sample(sample, [&] {
-    float lo = 0.0f, hi = 0.0f;
-    if (count > 0) {
-      std::memcpy(&lo, &bounds[0], sizeof(float));
-      std::memcpy(&hi, &bounds[1], sizeof(float));
-    }
-    return std::pair<float, float>(lo, hi);
-  });
-  return summary;
-}
-
-IntegrationStats Integrator::Impl::integrate_on_device(Volume& volume, const float* depth_device,
-                                                      const CameraIntrinsics& camera, const Pose& T_world_camera,
-                                                      const DepthBand& band) {
-  Impl& s = *this;
-  const double min_depth_m = band.near_m, max_depth_m = band.far_m;
-  check_inputs(volume, s.device, camera.width, camera.height, camera, s.options);
-  require_device(s.device);
-  const VolumeView view = volume.view();
-  const IntegrationParams params = s.options.params(volume.geometry().voxel_size_m);
-  const DepthFrameView frame = make_depth_frame_view(depth_device, camera, T_world_camera, volume.geometry());
-  const bool sweeps = params.alpha > 0.0f && s.options.iterations > 0;
-  const std::uint32_t wanted = static_cast<std::uint32_t>(active_capacity(s.options, volume.geometry()));
-  if (sweeps && s.capacity < wanted) {
-    s.device_active[0].allocate(wanted);
-    s.device_active[1].allocate(wanted);
-    s.capacity = wanted;
-  }
-  SLS_CUDA_CHECK(cudaMemsetAsync(s.counters.data(), 0, 2 * sizeof(std::uint32_t), s.stream));
-  ActiveVoxel* const lists[2] = {s.device_active[0].data(), s.device_active[1].data()};
-  const VoxelBox box = std::isfinite(max_depth_m)
-                            ? band_box(volume.geometry(), camera, T_world_camera, min_depth_m, max_depth_m, s.options)
-                            : frustum_voxel_box(volume.geometry(), camera, T_world_camera, 0.0, max_depth_m);
-  const int first[3] = {box.i0, box.j0, box.k0};
-  const int extent[3] = {box.i1 - box.i0, box.j1 - box.j0, box.k1 - box.k0};
-  detail::launch_integrate_cuda(view, params, frame, first, extent, lists, s.counters.data(), sweeps ? wanted : 0u,
-                                s.stream);
-  IntegrationStats stats;
-  stats.voxels_visited = box.count();
-  if (!sweeps) {
-    SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
-    return stats;
-  }
-  std::uint32_t counts[2] = {0, 0};
-  SLS_CUDA_CHECK(cudaMemcpyAsync(counts, s.counters.data(), sizeof counts, cudaMemcpyDeviceToHost, s.stream));
-  SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
-  stats.active_voxels = std::size_t{counts[0]} + counts[1];
-  for (int parity = 0; parity < 2; ++parity) {
-    if (counts[parity] > wanted) {
-      stats.overflow += counts[parity] - wanted;
-      counts[parity] = wanted;
-    }
-  }
-  for (int parity = 0; parity < 2; ++parity) {
-    detail::sort_active_cuda(s.device_active[parity].data(), counts[parity], &s.sort_scratch, &s.sort_scratch_bytes,
-                             &s.sorted, &s.sorted_capacity, s.stream);
-  }
-  for (int t = 0; t < s.options.iterations; ++t) {
-    for (int parity = 0; parity < 2; ++parity) {
-      detail::launch_relax_cuda(view, params, s.device_active[parity].data(), counts[parity], s.stream);
-    }
-  }
-  SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
-  return stats;
-}
-#endif
 
 }  // namespace sls::fusion

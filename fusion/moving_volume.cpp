@@ -5,26 +5,20 @@
 #include <chrono>
 #include <cmath>
 #include <future>
+#include <memory>
 #include <optional>
 #include <utility>
 #include <vector>
 
 #include "fusion/extract_internal.h"
 #include "fusion/extract_shared.h"
+#include "fusion/moving_volume_gpu.h"
 #include "fusion/resample_shared.h"
 #include "fusion/revisit_filter.h"
 #include "sdk/core/error.h"
 #include "sdk/core/host_memory.h"
 #include "sdk/core/serial_worker.h"
 #include "sdk/core/stopwatch.h"
-
-#if defined(SLS_HAVE_CUDA)
-#include <cuda_runtime_api.h>
-
-#include "fusion/cuda/resample_cuda.h"
-#include "sdk/core/cuda/cuda_stream.h"
-#include "sdk/core/cuda/device_buffer.h"
-#endif
 
 namespace sls::fusion {
 
@@ -129,15 +123,7 @@ struct MovingVolume::Impl {
   // The session's or its own (CUDA): resampling follows the frames' work on `resample`;
   // shipping (and final_surface's extraction) runs beside it on `ship`.
   GpuStream resample_stream, ship_gpu_stream;
-#if defined(SLS_HAVE_CUDA)
-  cudaStream_t stream = nullptr;       // resample_stream's
-  cudaStream_t ship_stream = nullptr;  // ship_gpu_stream's
-  DeviceBuffer<EdgeCrossing> crossings;
-  DeviceBuffer<CellCase> cells;
-  DeviceBuffer<std::uint32_t> counters;      // crossings, cells, listed bricks
-  DeviceBuffer<std::uint32_t> region_bricks;  // the bricks a ship searches
-  detail::RegionSortScratch sort_scratch;
-#endif
+  std::unique_ptr<detail::MovingVolumeGpu> gpu;  // on a GPU: its buffers and launches
   // The ship in the background (options.ship_in_background): the job, and the move's stats,
   // whose ship figures the job fills, until finish_shipping() collects them.
   std::future<void> ship_job;
@@ -145,7 +131,7 @@ struct MovingVolume::Impl {
   bool ship_pending = false;
 
   ~Impl() {
-    if (ship_job.valid()) ship_job.wait();  // it reads the buffers and streams below
+    if (ship_job.valid()) ship_job.wait();  // it reads the buffers, the GPU half and the streams
   }
   // Waits for a ship in the background; rethrows what it threw.
   void wait_shipping() {
@@ -178,67 +164,8 @@ struct MovingVolume::Impl {
     if (!volume.device().is_cuda()) {
       return extract_surface(volume.view(), volume.geometry().T_world_volume, region, options.extract);
     }
-#if defined(SLS_HAVE_CUDA)
-    return extract_part_cuda(volume, region, assemble_ms);
-#else
-    throw_error(ErrorCode::kUnsupported, "moving volume: a CUDA volume in a build without CUDA");
-#endif
+    return gpu->extract_part(volume, region, options.extract, assemble_ms);
   }
-
-#if defined(SLS_HAVE_CUDA)
-  // On the device: the region's crossings (and the vertices of its cells) and its surface
-  // cells, appended by atomics and put in edge / cell order; only those come to the host,
-  // where the CPU extraction's own host code assembles them, so the cloud and the mesh are the
-  // CPU's, point for point.
-  ExtractedSurface extract_part_cuda(const Volume& volume, const OrientedRegion& region, double* assemble_ms) {
-    require_device(device);
-    const VolumeView view = volume.view();
-    const Pose& T_world_volume = volume.geometry().T_world_volume;
-    const RegionFilter filter = detail::region_filter(region, T_world_volume);
-    const float min_weight = options.extract.min_weight;
-    if (crossings.size() == 0) crossings.allocate(std::size_t{1} << 16);
-    if (cells.size() == 0) cells.allocate(std::size_t{1} << 16);
-    // Only the bricks the region may keep anything of: a move's leaving part.
-    const std::uint32_t bricks = detail::region_brick_count(view);
-    if (region_bricks.size() < bricks) region_bricks.allocate(bricks);
-    std::uint32_t brick_count = 0;
-    SLS_CUDA_CHECK(cudaMemsetAsync(counters.data() + 2, 0, sizeof(std::uint32_t), ship_stream));
-    detail::launch_region_bricks_cuda(view, filter, region_bricks.data(), counters.data() + 2, ship_stream);
-    SLS_CUDA_CHECK(cudaMemcpyAsync(&brick_count, counters.data() + 2, sizeof brick_count, cudaMemcpyDeviceToHost,
-                                   ship_stream));
-    SLS_CUDA_CHECK(cudaStreamSynchronize(ship_stream));
-    std::uint32_t counts[2] = {0, 0};
-    for (int attempt = 0; attempt < 2; ++attempt) {
-      SLS_CUDA_CHECK(cudaMemsetAsync(counters.data(), 0, 2 * sizeof(std::uint32_t), ship_stream));
-      detail::launch_region_crossings_cuda(view, filter, min_weight, region_bricks.data(), brick_count,
-                                           crossings.data(), static_cast<std::uint32_t>(crossings.size()),
-                                           counters.data(), ship_stream);
-      detail::launch_region_cells_cuda(view, filter, min_weight, region_bricks.data(), brick_count, cells.data(),
-                                       static_cast<std::uint32_t>(cells.size()), counters.data() + 1, ship_stream);
-      SLS_CUDA_CHECK(cudaMemcpyAsync(counts, counters.data(), sizeof counts, cudaMemcpyDeviceToHost, ship_stream));
-      SLS_CUDA_CHECK(cudaStreamSynchronize(ship_stream));
-      const bool fits = counts[0] <= crossings.size() && counts[1] <= cells.size();
-      if (fits) break;
-      // Too many for the buffers: grow them to what was counted and run again (once).
-      if (counts[0] > crossings.size()) crossings.allocate(counts[0]);
-      if (counts[1] > cells.size()) cells.allocate(counts[1]);
-    }
-    // Ordered on the GPU, then downloaded.
-    detail::sort_region_parts_cuda(crossings.data(), counts[0], cells.data(), counts[1],
-                                   static_cast<std::uint64_t>(volume.geometry().voxel_count()), &sort_scratch, ship_stream);
-    std::vector<EdgeCrossing> found(counts[0]);
-    std::vector<CellCase> found_cells(counts[1]);
-    crossings.download(found.data(), found.size(), ship_stream);
-    cells.download(found_cells.data(), found_cells.size(), ship_stream);
-    SLS_CUDA_CHECK(cudaStreamSynchronize(ship_stream));
-    const auto assemble_start = SteadyClock::now();
-    ExtractedSurface part;
-    part.cloud = detail::crossing_cloud(found, T_world_volume, &filter, options.extract);
-    part.mesh = detail::cell_mesh(view.nx, view.ny, found, found_cells, T_world_volume, options.extract);
-    *assemble_ms = ms_since(assemble_start);
-    return part;
-  }
-#endif
 
   void resample(const Volume& from, Volume& to) {
     const Rigid3f grid = grid_transform(from.geometry().T_world_volume, to.geometry().T_world_volume,
@@ -247,11 +174,7 @@ struct MovingVolume::Impl {
       resample_cpu(from.view(), to.view(), grid);
       return;
     }
-#if defined(SLS_HAVE_CUDA)
-    require_device(device);
-    detail::launch_resample_cuda(from.view(), to.view(), grid, stream);
-    SLS_CUDA_CHECK(cudaStreamSynchronize(stream));
-#endif
+    gpu->resample(from, to, grid);
   }
 };
 
@@ -281,13 +204,9 @@ MovingVolume::MovingVolume(int nx, int ny, int nz, double voxel_size_m, VoxelFor
   impl_->buffers.emplace_back(geometry, format, device, average);
   impl_->resample_stream = GpuStream::or_create(stream, device);
   impl_->ship_gpu_stream = GpuStream::or_create(ship_stream, device);
-#if defined(SLS_HAVE_CUDA)
   if (device.is_cuda()) {
-    impl_->stream = cuda_stream(impl_->resample_stream);
-    impl_->ship_stream = cuda_stream(impl_->ship_gpu_stream);
-    impl_->counters.allocate(3);
+    impl_->gpu = std::make_unique<detail::MovingVolumeGpu>(device, impl_->resample_stream, impl_->ship_gpu_stream);
   }
-#endif
 }
 
 MovingVolume::~MovingVolume() = default;
