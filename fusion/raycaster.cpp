@@ -3,13 +3,9 @@
 #include <algorithm>
 #include <limits>
 
+#include "fusion/raycaster_gpu.h"
 #include "sdk/core/error.h"
 #include "sdk/core/ray_map.h"
-
-#if defined(SLS_HAVE_CUDA)
-#include "fusion/cuda/raycast_cuda.h"
-#include "sdk/core/cuda/cuda_stream.h"
-#endif
 
 namespace sls::fusion {
 
@@ -140,9 +136,7 @@ void Raycaster::Impl::raycast_cpu(const Volume& volume, const Pose& T_world_came
 
 void Raycaster::Impl::raycast_gpu(const Volume& volume, const Pose& T_world_camera, const Image32f* guide_depth_m,
                                   RaycastResult& out) {
-#if defined(SLS_HAVE_CUDA)
   require_device(device);
-  const cudaStream_t stream = cuda_stream(gpu_stream);
   RaycastGuideView guide;
   if (guide_depth_m != nullptr) {
     const Image32f* guide_on_device = guide_depth_m;
@@ -153,9 +147,9 @@ void Raycaster::Impl::raycast_gpu(const Volume& volume, const Pose& T_world_came
     const std::size_t tiles = static_cast<std::size_t>(tiles_x()) * static_cast<std::size_t>(tiles_y());
     guide_tile_min.resize_uninitialized(tiles, MemoryType::kDevice);
     guide_tile_max.resize_uninitialized(tiles, MemoryType::kDevice);
-    detail::launch_raycast_guide_tiles_cuda(guide_on_device->data(), guide_on_device->width(),
-                                            guide_on_device->height(), camera.width, camera.height,
-                                            guide_tile_min.data(), guide_tile_max.data(), stream);
+    detail::raycast_guide_tiles_gpu(guide_on_device->data(), guide_on_device->width(), guide_on_device->height(),
+                                    camera.width, camera.height, guide_tile_min.data(), guide_tile_max.data(),
+                                    gpu_stream);
     guide = guide_view(volume, guide_on_device->data(), guide_on_device->width(), guide_on_device->height(),
                        guide_tile_min.data(), guide_tile_max.data());
   }
@@ -170,8 +164,8 @@ void Raycaster::Impl::raycast_gpu(const Volume& volume, const Pose& T_world_came
   outputs.points = maps.points_camera.data();
   outputs.normals = maps.normals_camera.data();
   outputs.shaded = maps.shaded.data();
-  detail::launch_raycast_cuda(volume.view(), params(volume), guide, T_volume_camera, shared_rays->rays_device,
-                              camera.width, camera.height, outputs, stream);
+  detail::raycast_gpu(volume.view(), params(volume), guide, T_volume_camera, shared_rays->rays_device, camera.width,
+                      camera.height, outputs, gpu_stream);
   if (download) {
     out.depth_m.copy_from(maps.depth_m, gpu_stream);
     out.points_camera.copy_from(maps.points_camera, gpu_stream);
@@ -179,10 +173,6 @@ void Raycaster::Impl::raycast_gpu(const Volume& volume, const Pose& T_world_came
     out.shaded.copy_from(maps.shaded, gpu_stream);
     gpu_stream.synchronize();
   }
-#else
-  (void)volume, (void)T_world_camera, (void)guide_depth_m, (void)out;
-  throw_error(ErrorCode::kUnsupported, "raycast: CUDA asked of a build without CUDA");
-#endif
 }
 
 Raycaster::Raycaster(const Device& device, const CameraIntrinsics& camera, const RaycastOptions& options,

@@ -1,5 +1,5 @@
 // The Tracker: its options, the Gauss–Newton loop and its lost-frame tests, and the CPU path
-// (the CUDA path: tracker_device.cpp).
+// (the CUDA path: cuda/tracker_gpu.cpp).
 #include "fusion/tracker.h"
 
 #include <Eigen/Eigenvalues>

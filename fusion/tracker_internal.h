@@ -1,7 +1,8 @@
 // The Tracker's state and the types its two halves share: tracker.cpp (options, the
-// Gauss–Newton loop and its tests, the CPU path), tracker_device.cpp (the CUDA path) and
+// Gauss–Newton loop and its tests, the CPU path), cuda/tracker_gpu.cpp (the CUDA path) and
 // tracker_reference.cpp (the photometric reference frame).
-// Internal to fusion/: included by tracker.cpp, tracker_device.cpp, tracker_reference.cpp and pose_prior.cpp only.
+// Internal to fusion/: included by tracker.cpp, cuda/tracker_gpu.cpp, no_cuda.cpp,
+// tracker_reference.cpp and pose_prior.cpp only.
 #pragma once
 
 #include <Eigen/Core>
@@ -20,13 +21,6 @@
 #include "fusion/tracker.h"
 #include "sdk/core/error.h"
 #include "sdk/core/ray_map.h"
-
-#if defined(SLS_HAVE_CUDA)
-#include <cuda_runtime_api.h>
-
-#include "sdk/core/cuda/cuda_stream.h"
-#include "sdk/core/cuda/device_buffer.h"
-#endif
 
 namespace sls::fusion {
 namespace tracking_detail {
@@ -141,29 +135,13 @@ struct Tracker::Impl {
   } reference_frame;
   using ReducePhotometric = std::function<PhotometricSums(int, const PhotometricParams&)>;
   GpuStream gpu_stream;  // the session's, or its own (CUDA)
-#if defined(SLS_HAVE_CUDA)
-  cudaStream_t stream = nullptr;  // gpu_stream's
-  std::vector<DeviceBuffer<float>> depth;  // level 0: uploads of host maps; the coarse levels
-  DeviceBuffer<float> live_upload;         // a host live map at the live camera's size
-  std::vector<DeviceBuffer<float>> input_device;  // the halvings down to level 0
-  // The measurement weights (options.weight_by_confidence): per level (level 0 when the input
-  // is halved or uploaded), a host map's upload, the halvings down to level 0.
-  std::vector<DeviceBuffer<float>> weight_device, input_weight_device;
-  DeviceBuffer<float> weight_upload;
-  std::vector<DeviceBuffer<Vec3f>> normals;
-  DeviceBuffer<Vec3f> crease_normals_device;
-  DeviceBuffer<std::uint8_t> crease_mask_device;
-  DeviceBuffer<Vec3f> uploaded_points, uploaded_normals;  // host models, uploaded
-  DeviceBuffer<double> partials, device_sums;
-  double* host_sums = nullptr;  // pinned, kTrackSums
-  // The photometric term's: the texture pyramid (level 0 when the input is halved or
-  // uploaded), a host texture's upload, the halvings, the reference's pyramids, and the
-  // reductions' buffers (kPhotometricSums).
-  std::vector<DeviceBuffer<float>> texture_device, input_texture_device;
-  DeviceBuffer<float> texture_upload;
-  std::vector<DeviceBuffer<float>> reference_depth, reference_texture;
-  DeviceBuffer<double> photometric_partials, photometric_sums;
-  double* photometric_host_sums = nullptr;  // pinned, kPhotometricSums
+  // A CUDA tracker's stream and device buffers (fusion/cuda/tracker_gpu.cpp): made by
+  // allocate_on_device(); none in a build without CUDA, where no tracker lives on a GPU.
+  struct Gpu;
+  struct GpuDelete {
+    void operator()(Gpu* gpu) const;
+  };
+  std::unique_ptr<Gpu, GpuDelete> gpu;
   // The pyramid, normals, frame statistics and Gauss–Newton steps on the device: one
   // device-to-host copy of the sums per step, no allocation.
   TrackingResult track_on_device(const float* depth_device, const Vec3f* model_points, const Vec3f* model_normals,
@@ -178,11 +156,6 @@ struct Tracker::Impl {
   void keep_reference_device(const float* const level_depth[8], const float* const level_texture[8], double mean,
                              const Pose& T_world_camera);
   void set_reference_on_device(const float* depth_device, const float* texture_in, const Pose& T_world_camera);
-  ~Impl() {
-    if (host_sums != nullptr) (void)cudaFreeHost(host_sums);
-    if (photometric_host_sums != nullptr) (void)cudaFreeHost(photometric_host_sums);
-  }
-#endif
 
   // The Gauss–Newton loop over the levels, coarse to fine, and the lost-frame tests; `reduce`
   // (level, params) returns the level's sums for one estimate; with `photometric`,
@@ -222,7 +195,7 @@ struct Tracker::Impl {
   // depth pixels is live_mean: on when there is a reference, else off with the reason.
   std::optional<PhotometricSetup> photometric_setup(bool have_texture, double live_mean, const Pose& T_world_model,
                                                     std::string* skipped) const;
-  // A CUDA tracker's track() and set_reference_frame() (tracker_device.cpp): maps on the GPU
+  // A CUDA tracker's track() and set_reference_frame() (cuda/tracker_gpu.cpp): maps on the GPU
   // read in place, host maps uploaded. kUnsupported in a build without CUDA.
   TrackingResult track_gpu(const Image32f& depth_m, const Image<Vec3f>& model_points,
                            const Image<Vec3f>& model_normals, const Pose& T_world_model, const Pose& guess,

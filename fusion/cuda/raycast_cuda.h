@@ -6,15 +6,9 @@
 #include <cuda_runtime_api.h>
 
 #include "fusion/raycast_shared.h"
+#include "fusion/raycaster_gpu.h"
 
 namespace sls::fusion::detail {
-
-struct RaycastOutputsDevice {
-  float* depth = nullptr;
-  Vec3f* points = nullptr;
-  Vec3f* normals = nullptr;
-  std::uint8_t* shaded = nullptr;
-};
 
 // guide: RaycastGuideView{} for an unguided raycast.
 void launch_raycast_cuda(const VolumeView& volume, const RaycastParams& params, const RaycastGuideView& guide,
