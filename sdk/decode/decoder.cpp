@@ -7,11 +7,8 @@
 
 #include "sdk/core/error.h"
 
+#include "sdk/decode/decoder_gpu.h"
 #include "sdk/decode/stack_check.h"
-
-#if defined(SLS_HAVE_CUDA)
-#include "sdk/decode/cuda/decoder_cuda.h"
-#endif
 
 namespace sls {
 
@@ -169,9 +166,7 @@ struct Decoder::Impl {
   TriangulationParams triangulation;
   std::shared_ptr<const SharedRayMap> shared_rays;  // the camera's, shared with the other stages
   const RayMap* rays = nullptr;                     // shared_rays->host
-#if defined(SLS_HAVE_CUDA)
-  std::unique_ptr<detail::CudaDecodeContext> cuda;
-#endif
+  std::unique_ptr<detail::CudaDecodeContext> cuda;  // on a GPU: its state and pipeline
   bool decoded_on_device = false;  // the GPU holds an accepted stack's outputs (download_depth)
   StackCheckPlan check_plan;       // what the stack check judges (stack_check_shared.h)
 };
@@ -200,13 +195,9 @@ Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, c
   impl_->shared_rays = shared_ray_map(calibration.camera, device);
   impl_->rays = &impl_->shared_rays->host;
   if (device.is_cuda()) {
-#if defined(SLS_HAVE_CUDA)
     impl_->cuda = std::make_unique<detail::CudaDecodeContext>(
         impl_->params, impl_->triangulation, impl_->shared_rays, GpuStream::or_create(stream, device),
         GpuStream::or_create(upload_stream, device));
-#else
-    (void)stream, (void)upload_stream;
-#endif
   }
 }
 
@@ -217,29 +208,19 @@ void Decoder::download_depth(Image32f* depth_m) {
     }
     return;  // a CPU decoder decodes into the frame
   }
-#if defined(SLS_HAVE_CUDA)
   const int width = impl_->rays->width, height = impl_->rays->height;
   if (depth_m->width() != width || depth_m->height() != height) depth_m->resize(width, height);
   require_device(impl_->device);
   detail::DecodeOutputsHost host;
   host.depth = depth_m->data();
   impl_->cuda->download(host);
-#else
-  (void)depth_m;
-#endif
 }
 
 const Image32f* Decoder::depth_on_device() const {
-#if defined(SLS_HAVE_CUDA)
-  if (impl_->cuda) return &impl_->cuda->depth_image();
-#endif
-  return nullptr;
+  return impl_->cuda ? &impl_->cuda->depth_image() : nullptr;
 }
 const Image32f* Decoder::confidence_on_device() const {
-#if defined(SLS_HAVE_CUDA)
-  if (impl_->cuda) return &impl_->cuda->confidence_image();
-#endif
-  return nullptr;
+  return impl_->cuda ? &impl_->cuda->confidence_image() : nullptr;
 }
 
 Decoder::~Decoder() = default;
@@ -264,14 +245,10 @@ bool Decoder::prefetch(const std::vector<Image16u>& stack) {
   for (const Image16u& image : stack) {
     if (image.width() != impl_->rays->width || image.height() != impl_->rays->height) return false;
   }
-#if defined(SLS_HAVE_CUDA)
   require_device(impl_->device);  // this thread's current device
   std::vector<const std::uint16_t*> planes(stack.size());
   for (std::size_t k = 0; k < stack.size(); ++k) planes[k] = stack[k].data();
   return impl_->cuda->prefetch(planes.data());
-#else
-  return false;
-#endif
 }
 
 void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, DecodedFrame* frame_out) {
@@ -320,7 +297,6 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
     size_to(frame.depth_m, true);
   };
   if (impl_->device.is_cuda()) {
-#if defined(SLS_HAVE_CUDA)
     // The checks run where the stack lands, each grid pixel judged there into histograms; the
     // host takes their medians (judge_stack_histograms) while the GPU decodes. On the host the
     // same check took the frame's critical path 6 ms (docs/benchmarks.md).
@@ -358,7 +334,6 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
     host.mask = all ? frame.mask.data() : nullptr;
     host.depth = frame.depth_m.data();
     cuda.download(host);
-#endif
     return;
   }
   int largest = std::numeric_limits<int>::min();

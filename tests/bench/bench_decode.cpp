@@ -24,6 +24,7 @@
 #if defined(SLS_HAVE_CUDA)
 #include <cuda_runtime_api.h>
 
+#include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/decode/cuda/decoder_cuda.h"
 #endif
@@ -165,14 +166,14 @@ void time_resident_decode(benchmark::State& state, const Stack& stack) {
   const std::size_t pixels = stack.images[0].pixel_count();
   const PinnedStack pinned(stack.images);
   DeviceBuffer<std::uint16_t> device_stack(stack.images.size() * pixels);
-  device_stack.upload(pinned.data, stack.images.size() * pixels, context.stream());
+  device_stack.upload(pinned.data, stack.images.size() * pixels, cuda_stream(context.stream()));
   context.decode_resident(device_stack.data(), pixels);  // warm-up
-  SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+  SLS_CUDA_CHECK(cudaStreamSynchronize(cuda_stream(context.stream())));
   CudaEvents events;
   for (auto _ : state) {
-    events.start(context.stream());
+    events.start(cuda_stream(context.stream()));
     context.decode_resident(device_stack.data(), pixels);
-    state.SetIterationTime(events.stop_ms(context.stream()) * 1e-3);
+    state.SetIterationTime(events.stop_ms(cuda_stream(context.stream())) * 1e-3);
   }
   state.counters["Mpixel"] = static_cast<double>(pixels) / 1e6;
 }
@@ -250,10 +251,10 @@ void BM_UploadStackPageable(benchmark::State& state) {
   for (const Image16u& image : stack.images) planes.push_back(image.data());
   context.decode_slot(context.upload_async(planes.data()));  // warm-up: slots and staging allocated
   context.decode_slot(context.upload_async(planes.data()));
-  SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+  SLS_CUDA_CHECK(cudaStreamSynchronize(cuda_stream(context.stream())));
   for (auto _ : state) {
     context.decode_slot(context.upload_async(planes.data()));
-    SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+    SLS_CUDA_CHECK(cudaStreamSynchronize(cuda_stream(context.stream())));
   }
   state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations()) *
                           static_cast<std::int64_t>(stack.images.size() * stack.images[0].size_bytes()));
@@ -294,7 +295,7 @@ void BM_DecodeCudaHostStacks(benchmark::State& state) {
   constexpr int kStacks = 8;
   context.decode_slot(context.upload_async(planes.data()));  // warm-up: allocates both slots' first
   context.decode_slot(context.upload_async(planes.data()));
-  SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+  SLS_CUDA_CHECK(cudaStreamSynchronize(cuda_stream(context.stream())));
   for (auto _ : state) {
     if (overlapped) {
       int slot = context.upload_async(planes.data());
@@ -303,11 +304,11 @@ void BM_DecodeCudaHostStacks(benchmark::State& state) {
         context.decode_slot(slot);
         slot = next;
       }
-      SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+      SLS_CUDA_CHECK(cudaStreamSynchronize(cuda_stream(context.stream())));
     } else {
       for (int n = 0; n < kStacks; ++n) {
         context.decode_slot(context.upload_async(planes.data()));
-        SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+        SLS_CUDA_CHECK(cudaStreamSynchronize(cuda_stream(context.stream())));
       }
     }
   }

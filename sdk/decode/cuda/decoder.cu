@@ -211,11 +211,10 @@ CudaDecodeContext::~CudaDecodeContext() {
   delete state_;
 }
 
-void CudaDecodeContext::decode_resident(const std::uint16_t* stack_device, std::size_t plane_stride,
-                                        cudaStream_t stream) {
+void CudaDecodeContext::decode_resident(const std::uint16_t* stack_device, std::size_t plane_stride) {
   State& s = *state_;
   launch_decode_cuda(s.decode, s.triangulation, s.width, s.height, stack_device, plane_stride, s.rays->rays_device,
-                     s.rays->valid_device, outputs(), stream != nullptr ? stream : s.stream);
+                     s.rays->valid_device, outputs(), s.stream);
 }
 
 int CudaDecodeContext::claim_slot(bool prefetch, const std::uint16_t* const* planes) {
@@ -356,7 +355,7 @@ void CudaDecodeContext::decode_slot(int slot) {
   State& s = *state_;
   require_uploaded(slot, "decode_slot");
   SLS_CUDA_CHECK(cudaStreamWaitEvent(s.stream, s.uploaded[slot], 0));
-  decode_resident(s.slots[slot].data(), s.pixels, s.stream);
+  decode_resident(s.slots[slot].data(), s.pixels);
   SLS_CUDA_CHECK(cudaEventRecord(s.consumed[slot], s.stream));
   release_slot(slot);  // after `consumed` is recorded: the next upload into it waits for this decode
 }
@@ -509,7 +508,7 @@ DecodeOutputsDevice CudaDecodeContext::outputs() const {
   return out;
 }
 
-cudaStream_t CudaDecodeContext::stream() const { return state_->stream; }
+const GpuStream& CudaDecodeContext::stream() const { return state_->decode_stream; }
 int CudaDecodeContext::width() const { return state_->width; }
 int CudaDecodeContext::height() const { return state_->height; }
 

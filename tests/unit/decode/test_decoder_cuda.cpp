@@ -14,6 +14,7 @@
 
 #include "drivers/sim/renderer.h"
 #include "drivers/sim/rig.h"
+#include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/error.h"
 #include "sdk/core/gpu_stream.h"
@@ -89,15 +90,15 @@ DecodedFrame download_outputs(const detail::CudaDecodeContext& context) {
   frame.depth_m.resize(width, height);
   const detail::DecodeOutputsDevice out = context.outputs();
   SLS_CUDA_CHECK(cudaMemcpyAsync(frame.projector_u.data(), out.u, pixels * sizeof(float), cudaMemcpyDeviceToHost,
-                                 context.stream()));
+                                 cuda_stream(context.stream())));
   SLS_CUDA_CHECK(cudaMemcpyAsync(frame.projector_v.data(), out.v, pixels * sizeof(float), cudaMemcpyDeviceToHost,
-                                 context.stream()));
+                                 cuda_stream(context.stream())));
   SLS_CUDA_CHECK(cudaMemcpyAsync(frame.confidence.data(), out.confidence, pixels * sizeof(float),
-                                 cudaMemcpyDeviceToHost, context.stream()));
-  SLS_CUDA_CHECK(cudaMemcpyAsync(frame.mask.data(), out.mask, pixels, cudaMemcpyDeviceToHost, context.stream()));
+                                 cudaMemcpyDeviceToHost, cuda_stream(context.stream())));
+  SLS_CUDA_CHECK(cudaMemcpyAsync(frame.mask.data(), out.mask, pixels, cudaMemcpyDeviceToHost, cuda_stream(context.stream())));
   SLS_CUDA_CHECK(cudaMemcpyAsync(frame.depth_m.data(), out.depth, pixels * sizeof(float), cudaMemcpyDeviceToHost,
-                                 context.stream()));
-  SLS_CUDA_CHECK(cudaStreamSynchronize(context.stream()));
+                                 cuda_stream(context.stream())));
+  SLS_CUDA_CHECK(cudaStreamSynchronize(cuda_stream(context.stream())));
   return frame;
 }
 
@@ -138,7 +139,7 @@ TEST(DecoderCuda, DeviceResidentStackEqualsHostPath) {
   const auto context_owner = cuda_context(gpu, c.rig.camera);
   detail::CudaDecodeContext& context = *context_owner;
   DeviceBuffer<std::uint16_t> stack(packed.size());
-  stack.upload(packed.data(), packed.size(), context.stream());
+  stack.upload(packed.data(), packed.size(), cuda_stream(context.stream()));
   context.decode_resident(stack.data(), stride);
   const DecodedFrame resident = download_outputs(context);
   EXPECT_EQ(resident.mask, host_path.mask);
