@@ -41,9 +41,9 @@ class RenderBackend {
 constexpr std::uint32_t kDepthImage = 0xFFFFu;
 
 std::unique_ptr<RenderBackend> make_cpu_render_backend(const RayMap& rays);
-#if defined(SLS_HAVE_CUDA)
+// sim/cuda/render_backend.cu; in a build without CUDA sim/no_cuda.cpp's, which throws
+// kUnsupported (never reached: the renderer refuses a GPU first, by require_device).
 std::unique_ptr<RenderBackend> make_cuda_render_backend(const RayMap& rays, int device_id);
-#endif
 
 // The noisy depth of one pixel: one body for both backends.
 SLS_HOST_DEVICE inline float noisy_depth(const PixelGeometry& g, NoiseKey key) {

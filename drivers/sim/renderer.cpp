@@ -141,9 +141,7 @@ Renderer::Renderer(SimRig rig, Scene scene, const Device& device)
   static_assert(sizeof(PixelGeometry) == 48, "PixelGeometry is uploaded as raw bytes");
   rays_ = std::make_unique<RayMap>(compute_ray_map(rig_.camera, device_));
   if (device_.is_cuda()) {
-#if defined(SLS_HAVE_CUDA)
     backend_ = make_cuda_render_backend(*rays_, device_.id);
-#endif
   } else {
     backend_ = make_cpu_render_backend(*rays_);
   }
