@@ -5,11 +5,13 @@
 // being TSDF's bit for bit. Raycasting the fused plane finds it where it is.
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "fusion/integrate_shared.h"
 #include "fusion/integrator.h"
 #include "fusion/raycaster.h"
 #include "sdk/core/error.h"
@@ -289,6 +291,49 @@ TEST(Integrate, GtsdfRunningAverageIsTsdfBitForBit) {
     EXPECT_EQ(c.average_differs, 0u);
     EXPECT_EQ(c.weight_differs, 0u);
     EXPECT_GT(c.differs_from_own_u, 1000u);
+  }
+}
+
+// One Gauss-Seidel step against its definition (integrate_shared.h): U from A and the observed
+// ones of the 6 axis neighbours that the volume holds, found here by (i, j, k) and index(). Every
+// voxel of a small odd-sized volume, faces, edges and corners included, bit for bit.
+TEST(Integrate, RelaxVoxelIsTheStepOverItsObservedNeighbours) {
+  for (const VoxelFormat format : {VoxelFormat::kFloat32, VoxelFormat::kCompact}) {
+    Volume volume(VolumeGeometry::centred(Eigen::Vector3d(0.0, 0.0, 0.1), 7, 5, 3, kVoxel), format, Device::cpu());
+    const VolumeView v = volume.view();
+    std::uint32_t state = 12345u;
+    const auto next = [&state] {
+      state = state * 1664525u + 1013904223u;
+      return static_cast<float>(state >> 8) / 16777216.0f;  // [0, 1)
+    };
+    for (std::size_t n = 0; n < v.voxel_count(); ++n) {
+      v.set_u(n, 2.0f * next() - 1.0f);
+      v.set_w(n, next() < 0.3f ? 0.0f : 1.0f + std::floor(10.0f * next()));  // a third unobserved
+    }
+    IntegrationParams params;
+    params.alpha = 0.7f;
+    params.kappa = 0.05f;
+    const int offsets[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    for (int k = 0; k < v.nz; ++k)
+      for (int j = 0; j < v.ny; ++j)
+        for (int i = 0; i < v.nx; ++i) {
+          const ActiveVoxel voxel{static_cast<std::uint32_t>(v.index(i, j, k)), 0.25f};
+          const float u = v.u(voxel.index);
+          float numerator = voxel.average, denominator = 1.0f;
+          for (const auto& o : offsets) {
+            if (!v.contains(i + o[0], j + o[1], k + o[2])) continue;
+            const std::size_t neighbour = v.index(i + o[0], j + o[1], k + o[2]);
+            if (!(v.w(neighbour) > 0.0f)) continue;
+            const float b = params.alpha * penalty_weight(params.penalty, std::fabs(v.u(neighbour) - u), params.kappa);
+            numerator += b * v.u(neighbour);
+            denominator += b;
+          }
+          const float expected = numerator / denominator;
+          const float got = relax_voxel(v, params, voxel);
+          ASSERT_EQ(std::memcmp(&got, &expected, sizeof got), 0)
+              << voxel_format_name(format) << " voxel " << i << "," << j << "," << k << ": " << got << " against "
+              << expected;
+        }
   }
 }
 
