@@ -227,8 +227,15 @@ CalibrateCaptureResult calibrate_capture(const CalibrateCaptureOptions& options,
   settings.projector_height = source.patterns.projector_height;
   settings.estimate_k3 = options.estimate_k3;
   settings.max_obliquity_deg = options.max_obliquity_deg;
-  result.procam = calibrate_procam(result.views, settings);
+  // The solve's steps: the procam's, then the turntable axis (each camera's ~1-3 s at ci sizes).
+  constexpr std::size_t kSolveSteps = kProcamSolveSteps + 1;
+  const ProgressCallback solve_progress = [&progress](const ProgressUpdate& update) {
+    return !progress || progress({update.stage, update.done, kSolveSteps, update.detail});
+  };
+  result.procam = calibrate_procam(result.views, settings, solve_progress);
+  report_progress(progress, {"solve", kProcamSolveSteps, kSolveSteps, "turntable axis"});
   result.axis = fit_turntable_axis(result.views, result.procam.views, result.procam.calibration, result.board);
+  report_progress(progress, {"solve", kSolveSteps, kSolveSteps, "solved"});
   result.solve_s = 1e-3 * ms_since(solve_start);
   ScannerCalibration& calibration = result.procam.calibration;
   if (result.axis.fitted) calibration.turntable = result.axis.axis;

@@ -52,7 +52,8 @@ struct CalibrateCaptureResult {
 // Throws sls::Error: kNotFound / kFormat for unreadable input (naming the file), kInvalidArgument
 // for a bad board, pattern set or too few usable views (naming each rejected view and why),
 // kCancelled when progress asks to stop. Progress: stage "calibrate", one unit per view, the
-// view's name as detail, then "solve".
+// view's name as detail; then stage "solve", before each of its steps ("camera", "projector",
+// "camera and projector", "turntable axis": done 0..3 of 4) and once done ("solved", 4 of 4).
 CalibrateCaptureResult calibrate_capture(const CalibrateCaptureOptions& options, const ProgressCallback& progress);
 
 }  // namespace sls::calib

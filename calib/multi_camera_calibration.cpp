@@ -204,8 +204,12 @@ MultiCameraCalibrateResult calibrate_multi_camera_capture(const CalibrateCapture
   result.calibration = first.procam.calibration;
   double squared_sum = 0.0;
   int corners = 0;
+  const std::size_t pair_count = result.cameras.size() - 1;
   for (std::size_t k = 1; k < result.cameras.size(); ++k) {
     const CalibrateCaptureResult& camera = result.cameras[k];
+    report_progress(progress, {"camera pairs", k - 1, pair_count,
+                               fmt::format("{} against {}", fs::path(result.camera_folders[k]).filename().string(),
+                                           fs::path(result.camera_folders.front()).filename().string())});
     try {
       result.pairs.push_back(
           calibrate_camera_pair(first.views, first.procam, camera.views, camera.procam, first.board));
@@ -220,6 +224,7 @@ MultiCameraCalibrateResult calibrate_multi_camera_capture(const CalibrateCapture
     result.calibration.additional_cameras.push_back(
         {camera.procam.calibration.camera, pair.T_camera0_camera, camera.procam.camera_rms_px});
   }
+  report_progress(progress, {"camera pairs", pair_count, pair_count, ""});
   result.camera_camera_rms_px = corners > 0 ? std::sqrt(squared_sum / corners) : 0.0;
   result.calibration.description +=
       fmt::format("; a head of {} cameras, camera-camera {:.3f} px RMS", result.cameras.size(),

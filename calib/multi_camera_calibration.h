@@ -71,7 +71,8 @@ struct MultiCameraCalibrateResult {
 // options.input is the multi-camera folder; each camera is calibrated with the other options.
 // Throws sls::Error naming the camera folder: a layout error (above), camera folders of
 // different board pose counts or names, any camera's calibration failing. Progress: each
-// camera's as calibrate_capture's, its detail prefixed with the camera folder's name.
+// camera's as calibrate_capture's, its detail prefixed with the camera folder's name; then stage
+// "camera pairs", before each camera's pair with camera0 ("camera1 against camera0") and once done.
 MultiCameraCalibrateResult calibrate_multi_camera_capture(const CalibrateCaptureOptions& options,
                                                           const ProgressCallback& progress);
 

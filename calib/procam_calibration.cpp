@@ -190,7 +190,8 @@ Pose refine_board_pose(const ViewObservation& view, const ScannerCalibration& ca
   return Pose::exp(fit.x.head<6>()) * initial;
 }
 
-ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, const ProcamSettings& settings) {
+ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, const ProcamSettings& settings,
+                                   const ProgressCallback& progress) {
   settings.board.validate();
   if (settings.camera_width <= 0 || settings.camera_height <= 0 || settings.projector_width <= 0 ||
       settings.projector_height <= 0) {
@@ -285,6 +286,7 @@ ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, co
     result.camera_tangential = model.tangential;
     result.camera_k2 = model.k2;
   };
+  report_progress(progress, {"solve", 0, kProcamSolveSteps, "camera"});
   solve_camera(false);
   bool dropped = false;
   std::size_t k = 0;
@@ -312,6 +314,7 @@ ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, co
     result.projector_tangential = model.tangential;
     result.projector_k2 = model.k2;
   };
+  report_progress(progress, {"solve", 1, kProcamSolveSteps, "projector"});
   solve_projector(false);
   result.projector_outliers =
       reject_outliers(views, &result.views, object_units, projector_k, projector_d, rvecs, tvecs, true);
@@ -322,6 +325,7 @@ ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, co
   // w = σ_camera / σ_projector scales its residuals by w and its camera matrix by w, nothing
   // else (distortion acts before the camera matrix), so stereoCalibrate minimises the weighted
   // sum; the matrix is scaled back after. p1, p2 (k2) stay free if either device's model has them.
+  report_progress(progress, {"solve", 2, kProcamSolveSteps, "camera and projector"});
   const Subsets joint = collect(views, result.views, object_units, false, true, [&](std::size_t v, std::size_t c) {
     return camera_take(v, c) && projector_take(v, c);
   });

@@ -5,6 +5,7 @@
 // per-view and per-corner residuals.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -15,6 +16,7 @@
 #include "calib/view_observation.h"
 #include "sdk/core/calibration.h"
 #include "sdk/core/pose.h"
+#include "sdk/core/progress.h"
 
 namespace sls::calib {
 
@@ -76,7 +78,11 @@ struct ProcamCalibration {
 
 // Throws sls::Error(kInvalidArgument) when fewer than min_views views are usable (naming how
 // many were rejected and why), or the sizes are missing.
-ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, const ProcamSettings& settings);
+// Progress: stage "solve", before each of its kProcamSolveSteps steps (done 0, 1, 2 of 3: "camera",
+// "projector", "camera and projector"); a callback that returns false ends it with kCancelled.
+inline constexpr std::size_t kProcamSolveSteps = 3;
+ProcamCalibration calibrate_procam(const std::vector<ViewObservation>& views, const ProcamSettings& settings,
+                                   const ProgressCallback& progress = {});
 
 // Residuals of one view under a calibration and board pose (observed − predicted).
 void view_residuals(const ViewObservation& view, const ScannerCalibration& calibration, const BoardSpec& board,

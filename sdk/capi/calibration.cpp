@@ -251,11 +251,17 @@ SLS_API sls_status sls_calibration_run(sls_context* context, const char* input_p
             : sls::capi::read_versioned(config, defaults, kConfigFirstVersionSize, "sls_calibration_config");
     const sls::calib::CalibrateCaptureOptions options = capture_options(resolved, input_path, context->device);
     auto made = std::make_unique<sls_calibration>();
+    // The header promises stage "calibrate" only (one report per view, then "solve"): the
+    // solve's own steps and the camera pairs, which `sls calibrate` shows, are not passed on.
+    const sls::ProgressCallback caller = sls::capi::progress_callback(progress, user);
+    const sls::ProgressCallback views_only = [&caller](const sls::ProgressUpdate& update) {
+      return !caller || update.stage != "calibrate" || caller(update);
+    };
     if (sls::calib::is_multi_camera_capture(options.input)) {
-      made->head = sls::calib::calibrate_multi_camera_capture(options, sls::capi::progress_callback(progress, user));
+      made->head = sls::calib::calibrate_multi_camera_capture(options, views_only);
       made->result = made->head->cameras.front();
     } else {
-      made->result = sls::calib::calibrate_capture(options, sls::capi::progress_callback(progress, user));
+      made->result = sls::calib::calibrate_capture(options, views_only);
     }
     made->max_rms_px = resolved.max_rms_px;
     made->rejected_reasons = rejected_reasons(made->result);

@@ -145,8 +145,18 @@ TEST(CalibrationDeviceCapture, CapturesThroughTheDevicesAndCalibrates) {
   calib::CalibrateCaptureOptions calibrate;
   calibrate.input = dir.file("rec");
   calibrate.board = {9, 7, sim::calibration_board().square};
-  const calib::CalibrateCaptureResult result = calib::calibrate_capture(calibrate, {});
+  updates.clear();
+  const calib::CalibrateCaptureResult result = calib::calibrate_capture(calibrate, progress);
   EXPECT_EQ(result.procam.views_used, 8);
+  // A view per update, then the solve's steps (calib/calibrate_capture.h).
+  ASSERT_EQ(updates.size(), 8u + 1u + 5u);
+  std::vector<std::string> solve;
+  for (std::size_t k = 9; k < updates.size(); ++k) {
+    EXPECT_EQ(updates[k].stage, "solve");
+    EXPECT_EQ((std::vector<std::size_t>{updates[k].done, updates[k].total}), (std::vector<std::size_t>{k - 9, 4}));
+    solve.push_back(updates[k].detail);
+  }
+  EXPECT_EQ(solve, (std::vector<std::string>{"camera", "projector", "camera and projector", "turntable axis", "solved"}));
   ASSERT_TRUE(result.axis.fitted);
   EXPECT_EQ(result.axis.views, 3);
   const calib::CalibrationErrors e = calib::compare_calibrations(result.procam.calibration, head.scanner->rig().calibration());

@@ -14,6 +14,8 @@
 #include "calib/procam_calibration.h"
 #include "calib/turntable_axis.h"
 #include "sdk/core/camera_model_shared.h"
+#include "sdk/core/error.h"
+#include "sdk/core/progress.h"
 #include "tests/unit/calib/synthetic_views.h"
 
 namespace sls::calib {
@@ -36,6 +38,39 @@ TEST(ProcamCalibration, ExactCornersGiveTheExactCalibration) {
   EXPECT_EQ(result.camera_outliers + result.projector_outliers, 0);
   // Exact corners see the camera's p1, p2 (2e-4, -1e-4: < 0.01 px at the image's corners).
   EXPECT_TRUE(result.camera_tangential);
+}
+
+// The solve says what it works on, step by step (a head's camera takes seconds here), and stops
+// at the next step when asked, as kCancelled.
+TEST(ProcamCalibration, ReportsEachStepOfTheSolveAndStopsWhenAsked) {
+  const ScannerCalibration rig = demo_rig();
+  std::mt19937 rng(1);
+  std::vector<ViewObservation> views;
+  for (const Pose& pose : hand_poses(6)) views.push_back(observe(rig, pose, 0.0, &rng));
+  std::vector<ProgressUpdate> updates;
+  calibrate_procam(views, settings(), [&updates](const ProgressUpdate& update) {
+    updates.push_back(update);
+    return true;
+  });
+  ASSERT_EQ(updates.size(), kProcamSolveSteps);
+  const char* const steps[] = {"camera", "projector", "camera and projector"};
+  for (std::size_t k = 0; k < updates.size(); ++k) {
+    EXPECT_EQ(updates[k].stage, "solve");
+    EXPECT_EQ((std::array<std::size_t, 2>{updates[k].done, updates[k].total}),
+              (std::array<std::size_t, 2>{k, kProcamSolveSteps}));
+    EXPECT_EQ(updates[k].detail, steps[k]);
+  }
+  std::size_t calls = 0;
+  try {
+    calibrate_procam(views, settings(), [&calls](const ProgressUpdate& update) {
+      ++calls;
+      return update.detail != "projector";
+    });
+    FAIL() << "not stopped";
+  } catch (const Error& error) {
+    EXPECT_EQ(error.code(), ErrorCode::kCancelled) << error.what();
+  }
+  EXPECT_EQ(calls, 2u);
 }
 
 // Corners located to 0.03 px (what the simulator's demo capture gives, measured against its
