@@ -69,8 +69,10 @@ SLS_HOST_DEVICE inline bool integrate_voxel(const VolumeView& v, const Integrati
   if (!(px >= 0.0f && py >= 0.0f && px < static_cast<float>(frame.width) && py < static_cast<float>(frame.height))) {
     return false;
   }
-  const float measured =
-      frame.depth_m[static_cast<std::size_t>(py) * static_cast<std::size_t>(frame.width) + static_cast<std::size_t>(px)];
+  // The pixel's index in 32 bits (a frame has < 2^31 pixels), its read by the read-only path.
+  const float measured = load_read_only(
+      frame.depth_m + (static_cast<std::uint32_t>(py) * static_cast<std::uint32_t>(frame.width) +
+                       static_cast<std::uint32_t>(px)));
   if (!is_measured_depth(measured)) return false;
   const float d = measured - point_camera.z;
   if (d < -p.eta_m) return false;  // hidden behind the surface: no information

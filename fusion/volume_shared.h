@@ -112,10 +112,12 @@ struct VolumeView {
   SLS_HOST_DEVICE std::size_t voxel_count() const {
     return static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny) * static_cast<std::size_t>(nz);
   }
+  // In 32-bit arithmetic, widened: a volume holds at most 2^32 voxels (volume.cpp), and the
+  // GPU's 64-bit multiplies are several instructions each.
   SLS_HOST_DEVICE std::size_t index(int i, int j, int k) const {
-    return (static_cast<std::size_t>(k) * static_cast<std::size_t>(ny) + static_cast<std::size_t>(j)) *
-               static_cast<std::size_t>(nx) +
-           static_cast<std::size_t>(i);
+    return (static_cast<std::uint32_t>(k) * static_cast<std::uint32_t>(ny) + static_cast<std::uint32_t>(j)) *
+               static_cast<std::uint32_t>(nx) +
+           static_cast<std::uint32_t>(i);
   }
   SLS_HOST_DEVICE bool contains(int i, int j, int k) const {
     return i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz;

@@ -19,3 +19,14 @@
 #else
 #define SLS_LAMBDA [=]
 #endif
+
+// A read of memory no thread writes while the kernel runs, through the GPU's read-only data
+// path (__ldg) in device code; a plain read on the CPU. The same value either way.
+template <typename T>
+SLS_HOST_DEVICE inline T load_read_only(const T* p) {
+#if defined(__CUDA_ARCH__)
+  return __ldg(p);
+#else
+  return *p;
+#endif
+}
