@@ -18,6 +18,7 @@
 
 #include <fmt/format.h>
 
+#include "drivers/aravis/aravis_support.h"
 #include "drivers/aravis/frame_data.h"
 #include "sdk/core/error.h"
 #include "sdk/core/log.h"
@@ -25,93 +26,18 @@
 namespace sls::drivers {
 namespace {
 
-// Aravis's device list (discovery) and camera creation use global state that is not
-// thread-safe; every call into them holds this lock.
-std::mutex& aravis_system_mutex() {
-  static std::mutex mutex;
-  return mutex;
-}
-
-std::string text_or_empty(const char* text) { return text != nullptr ? std::string(text) : std::string(); }
-
-// Owns the GError an Aravis call may set, so that no path leaks it.
-class GErrorSlot {
- public:
-  GErrorSlot() = default;
-  ~GErrorSlot() { g_clear_error(&error_); }
-  GErrorSlot(const GErrorSlot&) = delete;
-  GErrorSlot& operator=(const GErrorSlot&) = delete;
-
-  GError** out() {
-    g_clear_error(&error_);
-    return &error_;
-  }
-  bool failed() const { return error_ != nullptr; }
-  const GError* get() const { return error_; }
-
- private:
-  GError* error_ = nullptr;
-};
-
-// Frees a NULL-terminated or counted array of strings Aravis hands over with g_free.
-struct GFreeDeleter {
-  void operator()(void* pointer) const { g_free(pointer); }
-};
-
-ErrorCode error_code_for(const GError& error) {
-  if (error.domain == ARV_DEVICE_ERROR) {
-    switch (error.code) {
-      case ARV_DEVICE_ERROR_TIMEOUT:
-        return ErrorCode::kTimeout;
-      case ARV_DEVICE_ERROR_NOT_FOUND:
-        return ErrorCode::kNotFound;
-      case ARV_DEVICE_ERROR_FEATURE_NOT_FOUND:
-      case ARV_DEVICE_ERROR_WRONG_FEATURE:
-      case ARV_DEVICE_ERROR_PROTOCOL_ERROR_NOT_IMPLEMENTED:
-        return ErrorCode::kUnsupported;
-      case ARV_DEVICE_ERROR_NOT_CONTROLLER:
-      case ARV_DEVICE_ERROR_PROTOCOL_ERROR_BUSY:
-      case ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED:
-        return ErrorCode::kBusy;
-      case ARV_DEVICE_ERROR_INVALID_PARAMETER:
-      case ARV_DEVICE_ERROR_PROTOCOL_ERROR_INVALID_PARAMETER:
-        return ErrorCode::kInvalidArgument;
-      default:
-        return ErrorCode::kDevice;
-    }
-  }
-  if (error.domain == ARV_GC_ERROR) {
-    switch (error.code) {
-      case ARV_GC_ERROR_OUT_OF_RANGE:
-      case ARV_GC_ERROR_ENUM_ENTRY_NOT_FOUND:
-      case ARV_GC_ERROR_READ_ONLY:
-        return ErrorCode::kInvalidArgument;
-      case ARV_GC_ERROR_NODE_NOT_FOUND:
-        return ErrorCode::kUnsupported;
-      default:
-        return ErrorCode::kDevice;
-    }
-  }
-  return ErrorCode::kDevice;
-}
+using aravis_support::aravis_system_mutex;
+using aravis_support::discover_locked;
+using aravis_support::error_code_for;
+using aravis_support::GErrorSlot;
+using aravis_support::GFreeDeleter;
+using aravis_support::join;
+using aravis_support::take_string_array;
+using aravis_support::text_or_empty;
 
 bool is_ipv4_address(const std::string& text) {
   in_addr address{};
   return inet_pton(AF_INET, text.c_str(), &address) == 1;
-}
-
-std::string join(const std::vector<std::string>& items) {
-  std::string out;
-  for (const std::string& item : items) out += (out.empty() ? "" : ", ") + item;
-  return out.empty() ? std::string("none") : out;
-}
-
-// Strings from an Aravis "dup_available_..." call (array freed with g_free, strings not owned).
-std::vector<std::string> take_string_array(const char** strings, guint count) {
-  std::unique_ptr<const char*, GFreeDeleter> owner(strings);
-  std::vector<std::string> out;
-  for (guint i = 0; strings != nullptr && i < count; ++i) out.push_back(text_or_empty(strings[i]));
-  return out;
 }
 
 // The MTU of the host interface holding IPv4 `address`; 0 when it cannot be told.
@@ -163,35 +89,7 @@ std::string describe_buffer_status(ArvBufferStatus status) {
   }
 }
 
-std::vector<DiscoveredCamera> discover_locked() {
-  arv_update_device_list();
-  std::vector<DiscoveredCamera> cameras;
-  const unsigned count = arv_get_n_devices();
-  for (unsigned i = 0; i < count; ++i) {
-    DiscoveredCamera camera;
-    camera.id = text_or_empty(arv_get_device_id(i));
-    camera.vendor = text_or_empty(arv_get_device_vendor(i));
-    camera.model = text_or_empty(arv_get_device_model(i));
-    camera.serial = text_or_empty(arv_get_device_serial_nbr(i));
-    camera.address = text_or_empty(arv_get_device_address(i));
-    camera.protocol = text_or_empty(arv_get_device_protocol(i));
-    // Only real transports: Aravis's "Fake" interface (off by default) is no camera.
-    if (camera.protocol == "GigEVision" || camera.protocol == "USB3Vision") cameras.push_back(std::move(camera));
-  }
-  return cameras;
-}
-
 }  // namespace
-
-std::string DiscoveredCamera::uri() const {
-  if (protocol == "USB3Vision") return "usb3://" + (serial.empty() ? id : serial);
-  return "gige://" + (address.empty() ? id : address);
-}
-
-std::vector<DiscoveredCamera> discover_aravis_cameras() {
-  std::lock_guard<std::mutex> lock(aravis_system_mutex());
-  return discover_locked();
-}
 
 struct AravisCamera::Impl {
   ArvCamera* camera = nullptr;  // owned
