@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <future>
 #include <string>
 #include <thread>
 #include <utility>
@@ -172,10 +173,18 @@ TEST(RecordingWriterThread, ABusyDiskHoldsTheCaptureBackCountedAndNeverDropsAFra
 
 TEST(RecordingWriterThread, AFailedWriteIsThrownByTheNextPushAndNothingAfterItIsWritten) {
   std::vector<int> written;
+  // Frame 1's write fails only once frame 2 is queued: without the gate, the failure could show
+  // before push(2), which would then throw instead (also right, but not what this test checks).
+  std::promise<void> frame_2_queued;
+  std::shared_future<void> gate = frame_2_queued.get_future().share();
   RecordingWriterThread writes("/full/disk", 4);
   writes.push(0, [&] { written.push_back(0); });
-  writes.push(1, [] { throw_error(ErrorCode::kIo, "No space left on device"); });
-  writes.push(2, [&] { written.push_back(2); });  // may be queued before the failure shows
+  writes.push(1, [gate] {
+    gate.wait();
+    throw_error(ErrorCode::kIo, "No space left on device");
+  });
+  writes.push(2, [&] { written.push_back(2); });
+  frame_2_queued.set_value();
   try {
     writes.finish();
     FAIL() << "finish should throw the write error";
