@@ -223,12 +223,13 @@ enum TrackOutcome : int {
   kTrackOnCrease = 2,  // it projects onto a model pixel near a crease (TrackModelView::creases)
 };
 
-// One live pixel: associates it with the model and, for an inlier, returns the Jacobian
-// row J (d r / d[ρ, ω']), the point-to-plane residual r = n · (T p − q) in metres and the
-// pixel's measurement weight.
+// One live pixel, `i` = y · width + x (its index in the live maps): associates it with the
+// model and, for an inlier, returns the Jacobian row J (d r / d[ρ, ω']), the point-to-plane
+// residual r = n · (T p − q) in metres and the pixel's measurement weight. Indices are 32-bit
+// (a map holds < 2^31 pixels; the tracker refuses larger): a GPU thread then neither divides
+// to find its (x, y) nor multiplies in 64 bits.
 SLS_HOST_DEVICE inline int track_pixel(const TrackLiveView& live, const TrackModelView& model, const TrackParams& p,
-                                       int x, int y, float jacobian[6], float* residual, float* weight) {
-  const long long i = static_cast<long long>(y) * live.width + x;
+                                       int i, float jacobian[6], float* residual, float* weight) {
   const float z = live.depth[i];
   if (!is_measured_depth(z)) return kTrackNoMatch;
   const Vec3f n_live = live.normals[i];
@@ -245,7 +246,7 @@ SLS_HOST_DEVICE inline int track_pixel(const TrackLiveView& live, const TrackMod
         v < static_cast<float>(model.camera.height))) {
     return kTrackNoMatch;
   }
-  const long long j = static_cast<long long>(v) * model.camera.width + static_cast<long long>(u);
+  const int j = static_cast<int>(v) * model.camera.width + static_cast<int>(u);
   const Vec3f q = model.points[j];
   if (!(q.z > 0.0f)) return kTrackNoMatch;
   if (model.creases != nullptr && model.creases[j] != 0) return kTrackOnCrease;
@@ -300,10 +301,10 @@ SLS_HOST_DEVICE inline void accumulate_track_row(const float jacobian[6], float 
 // inlier, a count when its match is on a crease.
 template <typename T>
 SLS_HOST_DEVICE inline void accumulate_track_pixel(const TrackLiveView& live, const TrackModelView& model,
-                                                   const TrackParams& params, int x, int y, T sums[kTrackSums]) {
+                                                   const TrackParams& params, int i, T sums[kTrackSums]) {
   float jacobian[6];
   float residual = 0.0f, weight = 1.0f;
-  const int outcome = track_pixel(live, model, params, x, y, jacobian, &residual, &weight);
+  const int outcome = track_pixel(live, model, params, i, jacobian, &residual, &weight);
   if (outcome == kTrackInlier) {
     accumulate_track_row(jacobian, residual, params.huber_m, params.tukey_m, weight, sums);
   } else if (outcome == kTrackOnCrease) {

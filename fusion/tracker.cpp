@@ -393,6 +393,11 @@ Tracker::Tracker(const Device& device, const CameraIntrinsics& live_camera, cons
     throw_error(ErrorCode::kInvalidArgument, "tracking: focal lengths {} {} are not positive", live_camera.fx,
                 live_camera.fy);
   }
+  // Pixels are indexed in 32 bits (track_shared.h).
+  if (static_cast<long long>(live_camera.width) * live_camera.height > std::numeric_limits<int>::max()) {
+    throw_error(ErrorCode::kInvalidArgument, "tracking: a camera of {}x{} pixels is too large (at most 2^31 - 1 pixels)",
+                live_camera.width, live_camera.height);
+  }
   Impl& s = *impl_;
   s.live_camera = live_camera;
   CameraIntrinsics camera = live_camera;
@@ -620,7 +625,8 @@ TrackingResult Tracker::track(const Image32f& depth_m, const RaycastResult& mode
     live.width = level.camera.width;
     live.height = level.camera.height;
     return parallel_sum<kTrackSums>(live.height, [&](int y, double* sums) {
-      for (int x = 0; x < live.width; ++x) accumulate_track_pixel(live, model_view, params, x, y, sums);
+      const int row = y * live.width;
+      for (int x = 0; x < live.width; ++x) accumulate_track_pixel(live, model_view, params, row + x, sums);
     });
   };
 

@@ -116,9 +116,7 @@ __global__ void track_kernel(TrackLiveView live, TrackModelView model, TrackPara
   const int pixels = live.width * live.height;
   for (int n = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x); n < pixels;
        n += static_cast<int>(gridDim.x * blockDim.x)) {
-    const int y = n / live.width;
-    const int x = n - y * live.width;
-    accumulate_track_pixel(live, model, params, x, y, sums);
+    accumulate_track_pixel(live, model, params, n, sums);
   }
   block_sums_to_partials<kTrackSums>(sums, partials);
 }

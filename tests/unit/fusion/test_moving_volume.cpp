@@ -593,6 +593,87 @@ TEST(MovingVolumeResample, SupportRuleAndWeightsOnOneVoxel) {
   EXPECT_EQ(resample_at(std::numeric_limits<float>::quiet_NaN()).second, 0.0f);
 }
 
+// resample_voxel against its definition (resample_shared.h), written out corner by corner: bit
+// for bit on every voxel of an odd-sized volume turned by 7 degrees and shifted by 1.4, -1.6 and
+// 0.6 voxels, so that cells inside the old volume, on its border and outside it all occur, in
+// both formats, with a separate running average and a third of the voxels unobserved.
+TEST(MovingVolumeResample, EveryVoxelIsItsDefinitionBitForBit) {
+  for (const VoxelFormat format : {VoxelFormat::kFloat32, VoxelFormat::kCompact}) {
+    const VolumeGeometry geometry = VolumeGeometry::centred(Eigen::Vector3d::Zero(), 9, 7, 5, 1e-4);
+    Volume from(geometry, format, Device::cpu(), AverageStorage::kSeparate);
+    Volume to(geometry, format, Device::cpu(), AverageStorage::kSeparate);
+    const VolumeView a = from.view(), b = to.view();
+    std::uint32_t state = 2024u;
+    const auto next = [&state] {
+      state = state * 1664525u + 1013904223u;
+      return static_cast<float>(state >> 8) / 16777216.0f;  // [0, 1)
+    };
+    for (std::size_t n = 0; n < a.voxel_count(); ++n) {
+      a.set_u(n, 2.0f * next() - 1.0f);
+      a.set_average(n, 2.0f * next() - 1.0f);
+      a.set_w(n, next() < 0.3f ? 0.0f : 1.0f + std::floor(20.0f * next()));
+    }
+    const float angle = 7.0f * static_cast<float>(M_PI) / 180.0f;
+    Rigid3f grid{};
+    grid.rotation = Mat3T<float>{{std::cos(angle), -std::sin(angle), 0, std::sin(angle), std::cos(angle), 0, 0, 0, 1}};
+    grid.translation = Vec3f{1.4f, -1.6f, 0.6f};
+    // The expected values as the format stores them (half floats, whole uint8 counts).
+    Volume expected_volume(VolumeGeometry::centred(Eigen::Vector3d::Zero(), 2, 2, 2, 1e-4), format, Device::cpu(),
+                           AverageStorage::kSeparate);
+    const VolumeView e = expected_volume.view();
+    std::size_t interior = 0, border = 0, outside = 0;
+    for (int k = 0; k < b.nz; ++k)
+      for (int j = 0; j < b.ny; ++j)
+        for (int i = 0; i < b.nx; ++i) {
+          const Vec3f g = transform_point(grid, Vec3f{static_cast<float>(i), static_cast<float>(j), static_cast<float>(k)});
+          const float gx = snap_to_grid(g.x), gy = snap_to_grid(g.y), gz = snap_to_grid(g.z);
+          float u = 1.0f, average = 1.0f, w = 0.0f;
+          if (gx > -1.0f && gy > -1.0f && gz > -1.0f && gx < static_cast<float>(a.nx) && gy < static_cast<float>(a.ny) &&
+              gz < static_cast<float>(a.nz)) {
+            const float fx = std::floor(gx), fy = std::floor(gy), fz = std::floor(gz);
+            const int i0 = static_cast<int>(fx), j0 = static_cast<int>(fy), k0 = static_cast<int>(fz);
+            const bool inside = a.contains(i0, j0, k0) && a.contains(i0 + 1, j0 + 1, k0 + 1);
+            ++(inside ? interior : border);
+            const float tx = gx - fx, ty = gy - fy, tz = gz - fz;
+            float support = 0.0f, sum_u = 0.0f, sum_a = 0.0f, sum_w = 0.0f;
+            for (int c = 0; c < 8; ++c) {
+              const int dx = c & 1, dy = (c >> 1) & 1, dz = (c >> 2) & 1;
+              const float weight =
+                  (dx != 0 ? tx : 1.0f - tx) * (dy != 0 ? ty : 1.0f - ty) * (dz != 0 ? tz : 1.0f - tz);
+              if (!(weight > 0.0f) || !a.contains(i0 + dx, j0 + dy, k0 + dz)) continue;
+              const std::size_t index = a.index(i0 + dx, j0 + dy, k0 + dz);
+              if (!(a.w(index) > 0.0f)) continue;
+              support += weight;
+              sum_u += weight * a.u(index);
+              sum_a += weight * a.average(index);
+              sum_w += weight * a.w(index);
+            }
+            if (support >= kResampleMinSupport) {
+              const float inverse_support = 1.0f / support;
+              u = std::fmax(-1.0f, std::fmin(1.0f, sum_u * inverse_support));
+              average = std::fmax(-1.0f, std::fmin(1.0f, sum_a * inverse_support));
+              w = std::fmax(1.0f, std::floor(sum_w * inverse_support + 0.5f));
+            }
+          } else {
+            ++outside;
+          }
+          resample_voxel(a, b, grid, i, j, k);
+          const std::size_t out = b.index(i, j, k);
+          e.set_u(0, u);
+          e.set_average(0, average);
+          e.set_w(0, w);
+          const float got[3] = {b.u(out), b.average(out), b.w(out)};
+          const float want[3] = {e.u(0), e.average(0), e.w(0)};
+          ASSERT_EQ(std::memcmp(got, want, sizeof got), 0)
+              << voxel_format_name(format) << " voxel " << i << "," << j << "," << k << ": U " << got[0] << " A "
+              << got[1] << " W " << got[2] << " against " << want[0] << " " << want[1] << " " << want[2];
+        }
+    EXPECT_GT(interior, 50u);
+    EXPECT_GT(border, 50u);
+    EXPECT_GT(outside, 5u);
+  }
+}
+
 // --- Host memory admission ------------------------------------------------------------------
 
 #if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)  // they need the address space

@@ -414,6 +414,7 @@ TEST(Tracker, BadInputIsAClearError) {
   small.points_camera.resize(10, 1);
   test::expect_invalid([&] { tracker.track(m.raycast.depth_m, small, m.T_world_model, m.T_world_model); }, "model maps");
   test::expect_invalid([&] { Tracker(Device::cpu(), test::tracker_camera(40, 30)); }, "too small");
+  test::expect_invalid([&] { Tracker(Device::cpu(), test::tracker_camera(65536, 32768)); }, "too large");
   auto invalid_option = [&](auto change, const std::string& fragment) {
     TrackingOptions options;
     change(options);
