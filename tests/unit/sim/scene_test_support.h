@@ -7,6 +7,7 @@
 #include <functional>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -63,22 +64,49 @@ inline double brute_force_root(const std::function<double(double)>& f, double t0
   return std::numeric_limits<double>::infinity();
 }
 
-// Random rays aimed near the screw from 5-10 cm away.
-inline Ray random_screw_ray(std::mt19937& rng, const KnurledScrewT<double>& k, double range = 0.0) {
+// A random ray aimed at a point of the cylinder shell [inner - 1 mm, outer + 0.5 mm] x
+// [-1 mm, height + 1 mm] around a knurled object's axis, from `range` away (0: 5-10 cm).
+inline Ray random_ray_near(std::mt19937& rng, double inner_radius, double outer_radius, double height, double range) {
   const double a = uniform(rng, -kPi, kPi);
-  const double rho = uniform(rng, k.root_radius - 1e-3, k.ridge_radius + 5e-4);
-  const Vec3 target(rho * std::cos(a), rho * std::sin(a), uniform(rng, -1e-3, k.height + 1e-3));
+  const double rho = uniform(rng, inner_radius - 1e-3, outer_radius + 5e-4);
+  const Vec3 target(rho * std::cos(a), rho * std::sin(a), uniform(rng, -1e-3, height + 1e-3));
   const Vec3 o = target + (range > 0.0 ? range : uniform(rng, 0.05, 0.1)) * random_unit(rng);
   return make_ray(o, target - o);
 }
-
-// Random rays aimed near the knob from 5-10 cm away.
+inline Ray random_screw_ray(std::mt19937& rng, const KnurledScrewT<double>& k, double range = 0.0) {
+  return random_ray_near(rng, k.root_radius, k.ridge_radius, k.height, range);
+}
 inline Ray random_knob_ray(std::mt19937& rng, const KnurledKnobT<double>& k, double range = 0.0) {
-  const double a = uniform(rng, -kPi, kPi);
-  const double rho = uniform(rng, k.root_radius - 1e-3, k.outer_radius + 5e-4);
-  const Vec3 target(rho * std::cos(a), rho * std::sin(a), uniform(rng, -1e-3, k.height + 1e-3));
-  const Vec3 o = target + (range > 0.0 ? range : uniform(rng, 0.05, 0.1)) * random_unit(rng);
-  return make_ray(o, target - o);
+  return random_ray_near(rng, k.root_radius, k.outer_radius, k.height, range);
+}
+
+// The scene's hits in float (the GPU's path) against double, for the rays `next_ray()` gives,
+// away from grazing incidence (where float's t is ill-conditioned): the largest distance
+// between the two hits, how many were compared, and which rays float missed.
+struct FloatAgainstDouble {
+  double worst_m = 0.0;
+  int compared = 0;
+  std::vector<int> missed_by_float;
+};
+template <typename NextRay>
+FloatAgainstDouble float_against_double(const Scene& scene, int rays, NextRay next_ray) {
+  const SceneShapeT<float> shape = scene.shape_float();
+  FloatAgainstDouble result;
+  for (int i = 0; i < rays; ++i) {
+    const Ray ray = next_ray();
+    Hit hit;
+    if (!scene.intersect(ray, 0.0, 1.0, &hit)) continue;
+    if (std::abs(e(hit.normal).dot(e(ray.direction))) < 0.2) continue;
+    HitT<float> hit_float;
+    if (!intersect(shape, to_float(ray), 0.0f, 1.0f, &hit_float)) {
+      result.missed_by_float.push_back(i);
+      continue;
+    }
+    const Vec3 point(hit_float.point.x, hit_float.point.y, hit_float.point.z);
+    result.worst_m = std::max(result.worst_m, (point - e(hit.point)).norm());
+    ++result.compared;
+  }
+  return result;
 }
 
 }  // namespace sls::sim::scene_test

@@ -257,24 +257,12 @@ TEST_F(KnurledKnob, SignedDistanceMatchesBruteForceSampling) {
 }
 
 TEST_F(KnurledKnob, FloatAgreesWithDoubleAtTenCentimetres) {
-  const SceneShapeT<float> sf = scene.shape_float();
   std::mt19937 rng(13);
-  double worst = 0.0;
-  int compared = 0;
-  for (int i = 0; i < 2000; ++i) {
-    const Ray ray = random_knob_ray(rng, k, 0.1);
-    Hit hd;
-    if (!scene.intersect(ray, 0.0, 1.0, &hd)) continue;
-    if (std::abs(e(hd.normal).dot(e(ray.direction))) < 0.2) continue;
-    const RayT<float> rf = to_float(ray);
-    HitT<float> hf;
-    ASSERT_TRUE(intersect(sf, rf, 0.0f, 1.0f, &hf)) << i;
-    worst = std::max(worst, (Vec3(hf.point.x, hf.point.y, hf.point.z) - e(hd.point)).norm());
-    ++compared;
-  }
-  std::printf("knob float vs double at 0.1 m: max %.3g m over %d hits\n", worst, compared);
-  EXPECT_GT(compared, 300);
-  EXPECT_LE(worst, 1e-7);
+  const FloatAgainstDouble r = float_against_double(scene, 2000, [&] { return random_knob_ray(rng, k, 0.1); });
+  std::printf("knob float vs double at 0.1 m: max %.3g m over %d hits\n", r.worst_m, r.compared);
+  EXPECT_TRUE(r.missed_by_float.empty()) << "ray " << r.missed_by_float.front();
+  EXPECT_GT(r.compared, 300);
+  EXPECT_LE(r.worst_m, 1e-7);
 }
 
 TEST_F(KnurledKnob, CreasePolylinesFollowTheCurvesAndDistanceMatchesBruteForce) {
