@@ -140,9 +140,10 @@ void read_rows(png_structp png, png_bytepp rows) {
 template <typename T>
 AnyImage decode_into(ReadContext& context, const DecodedLayout& layout, const std::string& name,
                      MemoryType memory) {
-  // Decoded straight into the memory asked for (page-locked for a scan fused on a GPU): no copy.
+  // Decoded straight into the memory asked for (page-locked for a scan fused on a GPU): no
+  // copy, and no fill first (libpng writes every row: row_bytes is the width's, checked).
   Image<T> image(memory);
-  image.resize(static_cast<int>(layout.width), static_cast<int>(layout.height));
+  image.resize_uninitialized(static_cast<int>(layout.width), static_cast<int>(layout.height));
   std::vector<png_bytep> rows(layout.height);
   for (png_uint_32 y = 0; y < layout.height; ++y) {
     rows[y] = reinterpret_cast<png_bytep>(image.data() + static_cast<std::size_t>(y) * layout.width);
