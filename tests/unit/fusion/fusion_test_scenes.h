@@ -14,6 +14,20 @@
 
 namespace sls::fusion::test {
 
+// Floats in [0, 1) from a linear congruential generator: the same sequence on every platform
+// and compiler (std's distributions are not), for volumes filled at random.
+class UnitRandom {
+ public:
+  explicit UnitRandom(std::uint32_t seed) : state_(seed) {}
+  float operator()() {
+    state_ = state_ * 1664525u + 1013904223u;
+    return static_cast<float>(state_ >> 8) / 16777216.0f;
+  }
+
+ private:
+  std::uint32_t state_;
+};
+
 inline CameraIntrinsics small_camera(int width = 160, int height = 120) {
   CameraIntrinsics c;
   c.width = width;

@@ -301,11 +301,7 @@ TEST(Integrate, RelaxVoxelIsTheStepOverItsObservedNeighbours) {
   for (const VoxelFormat format : {VoxelFormat::kFloat32, VoxelFormat::kCompact}) {
     Volume volume(VolumeGeometry::centred(Eigen::Vector3d(0.0, 0.0, 0.1), 7, 5, 3, kVoxel), format, Device::cpu());
     const VolumeView v = volume.view();
-    std::uint32_t state = 12345u;
-    const auto next = [&state] {
-      state = state * 1664525u + 1013904223u;
-      return static_cast<float>(state >> 8) / 16777216.0f;  // [0, 1)
-    };
+    test::UnitRandom next(12345u);
     for (std::size_t n = 0; n < v.voxel_count(); ++n) {
       v.set_u(n, 2.0f * next() - 1.0f);
       v.set_w(n, next() < 0.3f ? 0.0f : 1.0f + std::floor(10.0f * next()));  // a third unobserved

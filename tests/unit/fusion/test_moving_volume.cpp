@@ -603,11 +603,7 @@ TEST(MovingVolumeResample, EveryVoxelIsItsDefinitionBitForBit) {
     Volume from(geometry, format, Device::cpu(), AverageStorage::kSeparate);
     Volume to(geometry, format, Device::cpu(), AverageStorage::kSeparate);
     const VolumeView a = from.view(), b = to.view();
-    std::uint32_t state = 2024u;
-    const auto next = [&state] {
-      state = state * 1664525u + 1013904223u;
-      return static_cast<float>(state >> 8) / 16777216.0f;  // [0, 1)
-    };
+    test::UnitRandom next(2024u);
     for (std::size_t n = 0; n < a.voxel_count(); ++n) {
       a.set_u(n, 2.0f * next() - 1.0f);
       a.set_average(n, 2.0f * next() - 1.0f);
