@@ -2,6 +2,7 @@
 // through the decoded patterns, in the projector.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -13,6 +14,7 @@
 #include "calib/projector_corners.h"
 #include "sdk/core/device.h"
 #include "sdk/core/image.h"
+#include "sdk/core/image_io.h"
 #include "sdk/decode/decoder.h"
 #include "sdk/decode/pattern_set.h"
 
@@ -48,7 +50,31 @@ struct ObservationOptions {
 // The board-frame points of the view's corners (object_points() at corner_ids).
 std::vector<Eigen::Vector3d> view_object_points(const ViewObservation& view, const std::vector<Eigen::Vector3d>& board_points);
 
-// Detects the board in the white − black image and finds its corners in the projector.
+// A view's board found in its white − black image, and the part of the image that its
+// corners and their homography windows reach (a quarter of a 4000 x 3000 image, typically):
+// all of the view's other images that the calibration reads.
+struct BoardSighting {
+  BoardDetection board;
+  ImageRegion region;    // set when board.found
+  double detect_s = 0.0;
+};
+
+// The positions of the white and the black image in the set; kInvalidArgument without them.
+std::size_t white_image_index(const PatternSet& patterns);
+std::size_t black_image_index(const PatternSet& patterns);
+
+// Finds the board (detect_board) and its region. Never throws for a bad view.
+BoardSighting sight_board(const Image16u& white, const Image16u& black, const ObservationOptions& options);
+
+// The view from its sighting and its images cropped to the sighting's region, in the pattern
+// set's order: the board's corners decoded in the projector. A sighting without a board
+// gives a view rejected for its reason.
+ViewObservation observe_sighted_view(const std::string& name, std::optional<double> turntable_angle_deg,
+                                     const BoardSighting& sighting, const std::vector<Image16u>& region_stack,
+                                     const PatternSet& patterns, const ObservationOptions& options);
+
+// Detects the board in the white − black image and finds its corners in the projector
+// (sight_board, then observe_sighted_view on the stack cropped to the region).
 // `stack` in the pattern set's order (white and black included). Never throws for a bad
 // view (the reason is in rejected_reason); throws sls::Error for bad arguments (a stack
 // that does not match the set, a set without white/black or without both axes).

@@ -1,6 +1,6 @@
 # Third-party libraries. The core and the GPU path (sdk/core, sdk/decode, fusion,
 # drivers/sim) need only Eigen, libpng, yaml-cpp, nlohmann-json, spdlog and fmt, which the
-# GPU machine has too; OpenCV, Aravis, libusb and SuiteSparse are optional so that path
+# GPU machine has too; OpenCV, Aravis, libusb, libdeflate and SuiteSparse are optional so that path
 # builds there (DESIGN.md section 9). scripts/install-deps installs all of them on Debian 12.
 find_package(Threads REQUIRED)
 find_package(Eigen3 3.3 REQUIRED NO_MODULE)
@@ -37,6 +37,9 @@ if(PkgConfig_FOUND)
   pkg_check_modules(ARAVIS QUIET IMPORTED_TARGET aravis-0.8)
   pkg_check_modules(LIBUSB QUIET IMPORTED_TARGET libusb-1.0)
   pkg_check_modules(UMOCKDEV QUIET IMPORTED_TARGET umockdev-1.0)
+  # libdeflate: a camera's PNGs inflated ~1.6x faster than by zlib behind libpng
+  # (sdk/core/png_gray_decode.cpp); without it, libpng reads them.
+  pkg_check_modules(LIBDEFLATE QUIET IMPORTED_TARGET libdeflate)
 endif()
 find_package(GTest)
 find_package(benchmark QUIET)
@@ -50,4 +53,4 @@ endif()
 
 message(STATUS "CHOLMOD: ${CHOLMOD_LIBRARY}")
 message(STATUS "optional: OpenCV=${OpenCV_FOUND} Aravis=${ARAVIS_FOUND} libusb=${LIBUSB_FOUND} "
-               "umockdev=${UMOCKDEV_FOUND} GTest=${GTest_FOUND} benchmark=${benchmark_FOUND} OpenMP=${OpenMP_FOUND}")
+               "umockdev=${UMOCKDEV_FOUND} libdeflate=${LIBDEFLATE_FOUND} GTest=${GTest_FOUND} benchmark=${benchmark_FOUND} OpenMP=${OpenMP_FOUND}")

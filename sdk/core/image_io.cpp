@@ -15,9 +15,12 @@
 #include <cstring>
 #include <limits>
 #include <new>
+#include <optional>
+#include <variant>
 
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
+#include "sdk/core/png_gray_decode.h"
 
 // libpng reports errors by calling our error callback, which must not return: it longjmps
 // back to the setjmp in run_guarded(). Nothing with a destructor may live in the frames
@@ -392,12 +395,61 @@ void check_chunk_lengths(const std::uint8_t* data, std::size_t size, const std::
 
 }  // namespace
 
+namespace {
+
+template <typename T>
+AnyImage crop_image(const Image<T>& image, const ImageRegion& region, MemoryType memory) {
+  Image<T> out(memory);
+  out.resize_uninitialized(region.width, region.height);
+  for (int y = 0; y < region.height; ++y) {
+    const T* row = image.data() + static_cast<std::size_t>(region.y0 + y) * static_cast<std::size_t>(image.width());
+    std::copy(row + region.x0, row + region.x0 + region.width,
+              out.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(region.width));
+  }
+  return out;
+}
+
+// Decodes the whole image (region nullptr) or its region (checked by the caller).
+AnyImage decode_png_in(const std::uint8_t* data, std::size_t size, const std::string& name,
+                       const ImageRegion* region, MemoryType memory);
+
+}  // namespace
+
 AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name, MemoryType memory) {
+  return decode_png_in(data, size, name, nullptr, memory);
+}
+
+AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name, const ImageRegion& region,
+                    MemoryType memory) {
+  if (data == nullptr || !has_png_signature(data, size)) throw_not_png(name, data == nullptr ? 0 : size);
+  const PngHeader header = parse_png_header(data, size, name);
+  if (region.x0 < 0 || region.y0 < 0 || region.width <= 0 || region.height <= 0 ||
+      std::int64_t{region.x0} + region.width > header.width || std::int64_t{region.y0} + region.height > header.height) {
+    throw_error(ErrorCode::kInvalidArgument, "{}: the region {}x{} at ({}, {}) is not inside the {}x{} image", name,
+                region.width, region.height, region.x0, region.y0, header.width, header.height);
+  }
+  return decode_png_in(data, size, name, &region, memory);
+}
+
+namespace {
+
+AnyImage decode_png_in(const std::uint8_t* data, std::size_t size, const std::string& name,
+                       const ImageRegion* region, MemoryType memory) {
   if (memory == MemoryType::kDevice) {
     throw_error(ErrorCode::kInvalidArgument, "{}: a PNG decodes into host memory, not a GPU's", name);
   }
   if (data == nullptr || !has_png_signature(data, size)) throw_not_png(name, data == nullptr ? 0 : size);
   check_chunk_lengths(data, size, name);
+  // A camera's PNG (gray, 8 or 16 bits, not interlaced): inflated by libdeflate, unfiltered
+  // into the region only. Any other PNG, or one that path finds fault with, through libpng.
+  if (size >= kHeaderBytes) {
+    const std::uint32_t width = big_endian_u32(data + kSignatureSize + 8);
+    const std::uint32_t height = big_endian_u32(data + kSignatureSize + 12);
+    const ImageRegion whole{0, 0, static_cast<int>(std::min(width, kMaxSide)), static_cast<int>(std::min(height, kMaxSide))};
+    if (std::optional<AnyImage> fast = png_detail::decode_gray_png(data, size, region ? *region : whole, memory)) {
+      return std::move(*fast);
+    }
+  }
   ReadContext context;
   context.data = data;
   context.size = size;
@@ -434,16 +486,46 @@ AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::strin
     throw_error(ErrorCode::kFormat, "{}: unsupported PNG: {}x{} pixels, {} bytes per row", name, layout.width,
                 layout.height, layout.row_bytes);
   }
-  return layout.bit_depth == 16 ? decode_into<std::uint16_t>(context, layout, name, memory)
-                                : decode_into<std::uint8_t>(context, layout, name, memory);
+  if (region == nullptr) {
+    return layout.bit_depth == 16 ? decode_into<std::uint16_t>(context, layout, name, memory)
+                                  : decode_into<std::uint8_t>(context, layout, name, memory);
+  }
+  const AnyImage whole = layout.bit_depth == 16 ? decode_into<std::uint16_t>(context, layout, name, MemoryType::kHost)
+                                                : decode_into<std::uint8_t>(context, layout, name, MemoryType::kHost);
+  return std::visit([region, memory](const auto& image) { return crop_image(image, *region, memory); }, whole);
 }
 
-AnyImage read_png(const std::string& path, MemoryType memory) {
+}  // namespace
+
+namespace {
+
+// The file's bytes, its header checked first (a size it cannot hold is refused unread).
+std::vector<std::uint8_t> read_png_file(const std::string& path) {
   const RegularFile file(path);
   std::uint8_t header_bytes[kHeaderBytes] = {};
   const PngHeader header = parse_png_header(header_bytes, file.read_at(0, header_bytes, kHeaderBytes), path);
-  const std::vector<std::uint8_t> bytes = file.read_all(max_png_file_bytes(header));
+  return file.read_all(max_png_file_bytes(header));
+}
+
+// An 8-bit image widened by value (255 stays 255).
+Image16u widened_to_u16(AnyImage image, MemoryType memory) {
+  if (auto* image16 = std::get_if<Image16u>(&image)) return std::move(*image16);
+  const Image8u& image8 = std::get<Image8u>(image);
+  Image16u widened(image8.width(), image8.height(), 0, memory);
+  std::copy(image8.data(), image8.data() + image8.pixel_count(), widened.data());
+  return widened;
+}
+
+}  // namespace
+
+AnyImage read_png(const std::string& path, MemoryType memory) {
+  const std::vector<std::uint8_t> bytes = read_png_file(path);
   return decode_png(bytes.data(), bytes.size(), path, memory);
+}
+
+Image16u read_png_u16(const std::string& path, const ImageRegion& region, MemoryType memory) {
+  const std::vector<std::uint8_t> bytes = read_png_file(path);
+  return widened_to_u16(decode_png(bytes.data(), bytes.size(), path, region, memory), memory);
 }
 
 Image8u read_png_u8(const std::string& path) {
@@ -453,12 +535,7 @@ Image8u read_png_u8(const std::string& path) {
 }
 
 Image16u read_png_u16(const std::string& path, MemoryType memory) {
-  AnyImage image = read_png(path, memory);
-  if (auto* image16 = std::get_if<Image16u>(&image)) return std::move(*image16);
-  const Image8u& image8 = std::get<Image8u>(image);
-  Image16u widened(image8.width(), image8.height(), 0, memory);
-  std::copy(image8.data(), image8.data() + image8.pixel_count(), widened.data());
-  return widened;
+  return widened_to_u16(read_png(path, memory), memory);
 }
 
 std::vector<std::uint8_t> encode_png(ImageView<const std::uint8_t> image, const PngWriteOptions& options) {

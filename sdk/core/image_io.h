@@ -61,6 +61,19 @@ Image16u read_png_u16(const std::string& path, MemoryType memory = MemoryType::k
 AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name,
                     MemoryType memory = MemoryType::kHost);
 
+// A rectangle of an image: columns [x0, x0 + width), rows [y0, y0 + height).
+struct ImageRegion {
+  int x0 = 0, y0 = 0, width = 0, height = 0;
+};
+
+// As read_png_u16 and decode_png, only the pixels of `region` (a non-empty rectangle inside
+// the image, else kInvalidArgument): only they are allocated and written, and a camera's PNG
+// (gray, not interlaced) is not unfiltered below the region. What a calibration reads around
+// its board.
+Image16u read_png_u16(const std::string& path, const ImageRegion& region, MemoryType memory = MemoryType::kHost);
+AnyImage decode_png(const std::uint8_t* data, std::size_t size, const std::string& name, const ImageRegion& region,
+                    MemoryType memory = MemoryType::kHost);
+
 // Encodes to a PNG in memory (8-bit or 16-bit grayscale). Throws kInvalidArgument for an
 // empty image and kFormat/kOutOfMemory if libpng fails.
 std::vector<std::uint8_t> encode_png(ImageView<const std::uint8_t> image, const PngWriteOptions& options = {});

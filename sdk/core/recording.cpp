@@ -6,14 +6,10 @@
 #include <cerrno>
 #include <cmath>
 #include <algorithm>
-#include <atomic>
 #include <cstdint>
 #include <ctime>
-#include <exception>
 #include <filesystem>
 #include <limits>
-#include <mutex>
-#include <thread>
 #include <utility>
 
 #include <nlohmann/json.hpp>
@@ -24,6 +20,7 @@
 #include "sdk/core/host_memory.h"
 #include "sdk/core/image_io.h"
 #include "sdk/core/recording_manifest.h"
+#include "sdk/core/run_parallel.h"
 
 namespace sls {
 namespace {
@@ -196,44 +193,6 @@ void check_capture_counters(const std::string& folder, const FrameCaptureCounter
                 ">= 0, packet counts < 2^63)",
                 folder, capture.attempts, capture.incomplete_images, capture.lost_images, capture.stale_images);
   }
-}
-
-// Runs job(0..count-1) on up to `threads` threads (0: one per hardware thread). PNG
-// encoding is CPU-bound and a frame holds tens of 24 MB images, so they are encoded side by
-// side. Rethrows the first job's exception after all threads have joined.
-template <typename Job>
-void run_parallel(std::size_t count, int threads, const Job& job) {
-  std::size_t workers = threads > 0 ? static_cast<std::size_t>(threads) : std::thread::hardware_concurrency();
-  workers = std::max<std::size_t>(1, std::min(workers, count));
-  if (workers <= 1) {
-    for (std::size_t k = 0; k < count; ++k) job(k);
-    return;
-  }
-  std::atomic<std::size_t> next{0};
-  std::atomic<bool> failed{false};
-  std::exception_ptr first_error;
-  std::mutex error_mutex;
-  const auto work = [&] {
-    for (std::size_t k = next++; k < count && !failed; k = next++) {
-      try {
-        job(k);
-      } catch (...) {
-        const std::lock_guard<std::mutex> lock(error_mutex);
-        if (!first_error) first_error = std::current_exception();
-        failed = true;
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  pool.reserve(workers - 1);
-  try {
-    for (std::size_t t = 1; t < workers; ++t) pool.emplace_back(work);
-  } catch (...) {
-    // Could not start more threads: the ones running and this one finish the work.
-  }
-  work();
-  for (std::thread& thread : pool) thread.join();
-  if (first_error) std::rethrow_exception(first_error);
 }
 
 }  // namespace
@@ -562,14 +521,34 @@ void check_size(const Image<T>& image, const RecordingCamera& camera, const std:
 }  // namespace
 
 Image16u RecordingReader::load_image(std::size_t position, std::size_t image, MemoryType memory) const {
+  return load_image_in(position, image, nullptr, memory);
+}
+
+Image16u RecordingReader::load_image(std::size_t position, std::size_t image, const ImageRegion& region,
+                                     MemoryType memory) const {
+  return load_image_in(position, image, &region, memory);
+}
+
+Image16u RecordingReader::load_image_in(std::size_t position, std::size_t image, const ImageRegion* region,
+                                        MemoryType memory) const {
   const FrameInfo& info = frame(position);
   if (image >= info.image_files.size()) {
     throw_error(ErrorCode::kInvalidArgument, "recording {}: frame {} has {} images, no image {}", folder_, position,
                 info.image_files.size(), image);
   }
   const std::string path = file_path(info.image_files[image]);
-  Image16u pixels = read_png_u16(path, memory);
-  check_size(pixels, info_.camera, path, "image");
+  Image16u pixels;
+  if (region == nullptr) {
+    pixels = read_png_u16(path, memory);
+    check_size(pixels, info_.camera, path, "image");
+  } else {
+    const PngHeader header = read_png_header(path);
+    if (header.width != info_.camera.width || header.height != info_.camera.height) {
+      throw_error(ErrorCode::kFormat, "{}: image is {}x{}, the recording's camera is {}x{}", path, header.width,
+                  header.height, info_.camera.width, info_.camera.height);
+    }
+    pixels = read_png_u16(path, *region, memory);
+  }
   // Values beyond the camera's bit depth (an image scaled to 16 bits, another camera's) would
   // decode to wrong stripes, not to no data: the image is refused instead.
   if (info_.camera.bit_depth > 0 && info_.camera.bit_depth < 16) {
@@ -594,9 +573,16 @@ std::vector<Image16u> RecordingReader::load_images(std::size_t position, MemoryT
                         fmt::format("frame {}'s pattern stack ({} images of {}x{})", info.index,
                                     info.image_files.size(), info_.camera.width, info_.camera.height),
                         "free memory for it (other programs, a smaller volume: --voxel-um / --max-voxels)");
-  // Decoding is CPU-bound (~0.3 s per 24 MB image): decode the frame's images side by side.
+  // Decoding is CPU-bound (~0.1 s per 24 MB image): decode the frame's images side by side.
   std::vector<Image16u> images(info.image_files.size());
   run_parallel(images.size(), 0, [&](std::size_t k) { images[k] = load_image(position, k, memory); });
+  return images;
+}
+
+std::vector<Image16u> RecordingReader::load_images(std::size_t position, const ImageRegion& region,
+                                                   MemoryType memory) const {
+  std::vector<Image16u> images(frame(position).image_files.size());
+  run_parallel(images.size(), 0, [&](std::size_t k) { images[k] = load_image(position, k, region, memory); });
   return images;
 }
 

@@ -51,6 +51,7 @@
 
 #include "sdk/core/calibration.h"
 #include "sdk/core/image.h"
+#include "sdk/core/image_io.h"
 
 namespace sls {
 
@@ -250,6 +251,12 @@ class RecordingReader {
   Image16u load_image(std::size_t position, std::size_t image, MemoryType memory = MemoryType::kHost) const;
   // All images of a frame, in pattern order (decoded on several threads).
   std::vector<Image16u> load_images(std::size_t position, MemoryType memory = MemoryType::kHost) const;
+  // As those two, only the pixels of `region` (inside the camera's image, else
+  // kInvalidArgument): what a calibration reads around its board.
+  Image16u load_image(std::size_t position, std::size_t image, const ImageRegion& region,
+                      MemoryType memory = MemoryType::kHost) const;
+  std::vector<Image16u> load_images(std::size_t position, const ImageRegion& region,
+                                    MemoryType memory = MemoryType::kHost) const;
   // The frame's depth map in metres (0 = invalid), or nullopt when it has none.
   std::optional<Image32f> load_depth_m(std::size_t position) const;
 
@@ -262,6 +269,7 @@ class RecordingReader {
 
  private:
   RecordingReader() = default;
+  Image16u load_image_in(std::size_t position, std::size_t image, const ImageRegion* region, MemoryType memory) const;
 
   std::string folder_;
   RecordingInfo info_;

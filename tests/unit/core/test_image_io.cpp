@@ -4,6 +4,8 @@
 #include <unistd.h>
 
 #include <cstdint>
+#include <cstdlib>
+#include <optional>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -17,6 +19,7 @@
 #include "sdk/core/error.h"
 #include "sdk/core/file_util.h"
 #include "sdk/core/image_io.h"
+#include "sdk/core/png_gray_decode.h"
 #include "tests/support/test_support.h"
 
 namespace sls {
@@ -50,7 +53,8 @@ void put_chunk(Bytes& out, const char* type, const Bytes& data) {
 
 // `scanlines`: each row already prefixed with its filter byte (0 = none).
 Bytes make_png(std::uint32_t width, std::uint32_t height, int bit_depth, int color_type, const Bytes& scanlines,
-               const std::vector<std::pair<const char*, Bytes>>& extra_chunks = {}, bool interlaced = false) {
+               const std::vector<std::pair<const char*, Bytes>>& extra_chunks = {}, bool interlaced = false,
+               std::size_t idat_chunks = 1) {
   Bytes out = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   Bytes ihdr;
   put_u32(ihdr, width);
@@ -76,8 +80,37 @@ Bytes make_png(std::uint32_t width, std::uint32_t height, int bit_depth, int col
     b = (b + a) % 65521u;
   }
   put_u32(z, (b << 16) | a);
-  put_chunk(out, "IDAT", z);
+  // The stream split over `idat_chunks` consecutive IDAT chunks, as encoders with a buffer do.
+  const std::size_t part = (z.size() + idat_chunks - 1) / idat_chunks;
+  for (std::size_t at = 0; at < z.size(); at += part) {
+    put_chunk(out, "IDAT", Bytes(z.begin() + static_cast<std::ptrdiff_t>(at),
+                                 z.begin() + static_cast<std::ptrdiff_t>(std::min(z.size(), at + part))));
+  }
   put_chunk(out, "IEND", {});
+  return out;
+}
+
+// PNG's five row filters (ISO 15948 section 9) applied to unfiltered rows, as an encoder does:
+// row y gets filter `filter_of(y)`; the result carries each row's filter byte.
+int paeth(int a, int b, int c) {
+  const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+  return pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
+}
+
+Bytes filter_rows(const Bytes& raw, std::size_t row_bytes, std::size_t bpp, int (*filter_of)(int)) {
+  Bytes out;
+  const std::size_t height = raw.size() / row_bytes;
+  for (std::size_t y = 0; y < height; ++y) {
+    const int filter = filter_of(static_cast<int>(y));
+    out.push_back(static_cast<std::uint8_t>(filter));
+    const std::uint8_t* row = raw.data() + y * row_bytes;
+    const std::uint8_t* up = y > 0 ? row - row_bytes : nullptr;
+    for (std::size_t i = 0; i < row_bytes; ++i) {
+      const int a = i >= bpp ? row[i - bpp] : 0, b = up ? up[i] : 0, c = (up && i >= bpp) ? up[i - bpp] : 0;
+      const int predictor = filter == 1 ? a : filter == 2 ? b : filter == 3 ? (a + b) / 2 : filter == 4 ? paeth(a, b, c) : 0;
+      out.push_back(static_cast<std::uint8_t>(row[i] - predictor));
+    }
+  }
   return out;
 }
 
@@ -183,6 +216,93 @@ TEST(Png, SixteenBitIsBigEndianOnDisk) {
   // Written by someone else: big-endian bytes 01 02 read back as 0x0102.
   const Bytes crafted = make_png(1, 1, 16, 0, {0, 0x01, 0x02});
   EXPECT_EQ(std::get<Image16u>(decode_png(crafted.data(), crafted.size(), "crafted"))(0, 0), 0x0102);
+}
+
+// A camera's PNG (gray, 8 or 16 bits) with each of the five row filters, its data split over
+// several IDAT chunks: read back exactly, whichever path reads it (libdeflate's or libpng's),
+// and by libdeflate's where the build has it.
+TEST(Png, EveryRowFilterOfACamerasImageReadsBackExactly) {
+  const int width = 37, height = 30;
+  for (const int bit_depth : {8, 16}) {
+    const std::size_t bpp = static_cast<std::size_t>(bit_depth / 8), row_bytes = std::size_t{width} * bpp;
+    std::mt19937 random(static_cast<std::uint32_t>(bit_depth));
+    Bytes raw(row_bytes * height);
+    for (std::size_t i = 0; i < raw.size(); ++i) {
+      raw[i] = static_cast<std::uint8_t>((i % row_bytes) * 3 + (i / row_bytes) * 5 + (random() % 9));  // a ramp, noisy
+    }
+    const Bytes scanlines = filter_rows(raw, row_bytes, bpp, [](int y) { return y % 5; });
+    for (const std::size_t chunks : {std::size_t{1}, std::size_t{4}}) {
+      const Bytes png = make_png(width, height, bit_depth, 0, scanlines, {{"tEXt", Bytes(5, 'x')}}, false, chunks);
+      const AnyImage decoded = decode_png(png.data(), png.size(), "filters");
+      std::optional<AnyImage> fast = png_detail::decode_gray_png(png.data(), png.size(), {0, 0, width, height},
+                                                                 MemoryType::kHost);
+#if SLS_HAVE_LIBDEFLATE
+      ASSERT_TRUE(fast.has_value()) << bit_depth << " bits, " << chunks << " IDAT chunks";
+#endif
+      for (const AnyImage* image : {&decoded, fast ? &*fast : &decoded}) {
+        for (int y = 0; y < height; ++y) {
+          for (int x = 0; x < width; ++x) {
+            const std::uint8_t* sample = raw.data() + static_cast<std::size_t>(y) * row_bytes + static_cast<std::size_t>(x) * bpp;
+            if (bit_depth == 8) {
+              ASSERT_EQ(std::get<Image8u>(*image)(x, y), sample[0]) << x << "," << y;
+            } else {
+              ASSERT_EQ(std::get<Image16u>(*image)(x, y), (sample[0] << 8) | sample[1]) << x << "," << y;
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+// What the fast path leaves to libpng, and libpng then judges: a PLTE chunk in a gray image, a
+// bad filter type, a zlib stream shorter than the image.
+TEST(Png, ACamerasImageTheFastPathFindsFaultWithGoesToLibpng) {
+  const Bytes rows = {0, 1, 2, 0, 3, 4};
+  Bytes png = make_png(2, 2, 8, 0, rows, {{"PLTE", {0, 0, 0}}});
+  EXPECT_FALSE(png_detail::decode_gray_png(png.data(), png.size(), {0, 0, 2, 2}, MemoryType::kHost));
+  png = make_png(2, 2, 8, 0, {7, 1, 2, 0, 3, 4});
+  EXPECT_FALSE(png_detail::decode_gray_png(png.data(), png.size(), {0, 0, 2, 2}, MemoryType::kHost));
+  expect_error([&] { (void)decode_png(png.data(), png.size(), "filter.png"); }, ErrorCode::kFormat, "filter.png");
+  png = make_png(2, 2, 8, 0, {0, 1, 2});
+  EXPECT_FALSE(png_detail::decode_gray_png(png.data(), png.size(), {0, 0, 2, 2}, MemoryType::kHost));
+  expect_error([&] { (void)decode_png(png.data(), png.size(), "short.png"); }, ErrorCode::kFormat, "short.png");
+}
+
+// A region of the image: the crop of the whole image, for a camera's PNG (libdeflate's path)
+// and for those libpng reads (RGB, interlaced); one outside the image is refused.
+TEST(Png, ARegionIsTheCropOfTheWholeImage) {
+  test::TemporaryDirectory dir;
+  const Image16u image16 = random_image<std::uint16_t>(41, 29, 11);
+  write_png(dir.file("16.png"), image16);
+  const ImageRegion region{5, 7, 30, 13};
+  const Image16u part = read_png_u16(dir.file("16.png"), region);
+  ASSERT_EQ(part.width(), 30);
+  ASSERT_EQ(part.height(), 13);
+  for (int y = 0; y < 13; ++y) {
+    for (int x = 0; x < 30; ++x) ASSERT_EQ(part(x, y), image16(x + 5, y + 7));
+  }
+  const Image8u image8 = random_image<std::uint8_t>(41, 29, 12);
+  write_png(dir.file("8.png"), image8);
+  const Image16u widened = read_png_u16(dir.file("8.png"), region);
+  for (int y = 0; y < 13; ++y) {
+    for (int x = 0; x < 30; ++x) ASSERT_EQ(widened(x, y), image8(x + 5, y + 7));
+  }
+  // RGB with equal channels (libpng converts it to that gray value).
+  std::vector<std::uint8_t> rgb(static_cast<std::size_t>(41) * 29 * 3);
+  for (std::size_t n = 0; n < rgb.size(); ++n) rgb[n] = image8.data()[n / 3];
+  write_png_rgb(dir.file("rgb.png"), rgb.data(), 41, 29);
+  const Image16u from_rgb = read_png_u16(dir.file("rgb.png"), region);
+  for (int y = 0; y < 13; ++y) {
+    for (int x = 0; x < 30; ++x) ASSERT_EQ(from_rgb(x, y), image8(x + 5, y + 7));
+  }
+  const Bytes adam7 = make_png(2, 2, 8, 0, {0, 11, 0, 22, 0, 33, 44}, {}, true);
+  EXPECT_EQ(std::get<Image8u>(decode_png(adam7.data(), adam7.size(), "adam7", ImageRegion{1, 1, 1, 1}))(0, 0), 44);
+  for (const ImageRegion outside : {ImageRegion{35, 0, 7, 5}, ImageRegion{0, 25, 5, 5}, ImageRegion{-1, 0, 5, 5},
+                                    ImageRegion{0, 0, 0, 5}}) {
+    expect_error([&] { (void)read_png_u16(dir.file("16.png"), outside); }, ErrorCode::kInvalidArgument,
+                 "16.png: the region");
+  }
 }
 
 TEST(Png, ReadsLowBitDepthGray) {
