@@ -98,12 +98,20 @@ void RegularFile::check_size(std::uint64_t max_bytes) const {
 }
 
 std::vector<std::uint8_t> RegularFile::read_all(std::uint64_t max_bytes) const {
+  std::vector<std::uint8_t> bytes;
+  read_all(max_bytes, &bytes);
+  return bytes;
+}
+
+void RegularFile::read_all(std::uint64_t max_bytes, std::vector<std::uint8_t>* out) const {
   check_size(max_bytes);
   // One sized read, then whatever a growing file adds, up to one byte past the limit to
-  // tell "exactly the limit" from "more".
-  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size_));
-  std::size_t filled = read_at(0, bytes.data(), bytes.size());
-  if (filled == bytes.size()) {
+  // tell "exactly the limit" from "more". Only what the vector lacks is allocated (and
+  // value-initialised) first.
+  std::vector<std::uint8_t>& bytes = *out;
+  if (bytes.size() < size_) bytes.resize(static_cast<std::size_t>(size_));
+  std::size_t filled = read_at(0, bytes.data(), static_cast<std::size_t>(size_));
+  if (filled == size_) {
     for (;;) {
       const std::uint64_t room = max_bytes + 1 - filled;
       const std::size_t chunk = static_cast<std::size_t>(std::min<std::uint64_t>(room, 65536));
@@ -116,7 +124,6 @@ std::vector<std::uint8_t> RegularFile::read_all(std::uint64_t max_bytes) const {
     if (filled > max_bytes) throw_too_large(path_, filled, max_bytes);
   }
   bytes.resize(filled);
-  return bytes;
 }
 
 std::vector<std::uint8_t> read_file_bytes(const std::string& path, std::uint64_t max_bytes) {

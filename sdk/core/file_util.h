@@ -34,6 +34,8 @@ class RegularFile {
   // The whole file. Throws kFormat naming the path, its size and the limit when it holds
   // more than max_bytes (also when it grows past them while being read), kIo on a read error.
   std::vector<std::uint8_t> read_all(std::uint64_t max_bytes) const;
+  // The same into `bytes`, whose capacity is reused: a reader of many large files keeps one.
+  void read_all(std::uint64_t max_bytes, std::vector<std::uint8_t>* bytes) const;
   // Throws kFormat, as read_all would, when the file holds more than max_bytes.
   void check_size(std::uint64_t max_bytes) const;
 
