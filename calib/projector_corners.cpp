@@ -79,24 +79,36 @@ int ProjectorCorners::valid_count() const {
   return static_cast<int>(std::count(valid.begin(), valid.end(), std::uint8_t{1}));
 }
 
+int local_homography_half_window(double square_px, const LocalHomographyOptions& options) {
+  return options.half_window_px > 0 ? options.half_window_px : std::clamp(static_cast<int>(0.5 * square_px), 10, 60);
+}
+
+CornerWindow local_homography_window(const Eigen::Vector2d& corner, int half, int width, int height) {
+  const int cx = static_cast<int>(std::lround(corner.x()));
+  const int cy = static_cast<int>(std::lround(corner.y()));
+  CornerWindow window;
+  window.x0 = std::max(0, cx - half);
+  window.x1 = std::min(width - 1, cx + half);
+  window.y0 = std::max(0, cy - half);
+  window.y1 = std::min(height - 1, cy + half);
+  return window;
+}
+
 ProjectorCorners projector_corners_by_local_homography(const Image32f& projector_u, const Image32f& projector_v,
                                                        const std::vector<Eigen::Vector2d>& camera_corners,
                                                        double square_px, const LocalHomographyOptions& options) {
   if (projector_u.width() != projector_v.width() || projector_u.height() != projector_v.height()) {
     throw_error(ErrorCode::kInvalidArgument, "local homographies: u and v images differ in size");
   }
-  const int half = options.half_window_px > 0 ? options.half_window_px
-                                              : std::clamp(static_cast<int>(0.5 * square_px), 10, 60);
+  const int half = local_homography_half_window(square_px, options);
   ProjectorCorners out;
   out.corners.assign(camera_corners.size(), Eigen::Vector2d::Zero());
   out.valid.assign(camera_corners.size(), 0);
   out.samples.assign(camera_corners.size(), 0);
   const int width = projector_u.width(), height = projector_u.height();
   for (std::size_t c = 0; c < camera_corners.size(); ++c) {
-    const int cx = static_cast<int>(std::lround(camera_corners[c].x()));
-    const int cy = static_cast<int>(std::lround(camera_corners[c].y()));
-    const int x0 = std::max(0, cx - half), x1 = std::min(width - 1, cx + half);
-    const int y0 = std::max(0, cy - half), y1 = std::min(height - 1, cy + half);
+    const CornerWindow window = local_homography_window(camera_corners[c], half, width, height);
+    const int x0 = window.x0, x1 = window.x1, y0 = window.y0, y1 = window.y1;
     int count = 0;
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) count += decoded(projector_u, projector_v, x, y) ? 1 : 0;

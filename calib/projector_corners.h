@@ -43,8 +43,19 @@ struct ProjectorCorners {
   int valid_count() const;
 };
 
+// The camera pixels a corner's local homography reads: [x0, x1] x [y0, y1] around the corner's
+// nearest pixel, `half` pixels each way, clipped to a width x height image.
+struct CornerWindow {
+  int x0 = 0, y0 = 0, x1 = -1, y1 = -1;
+  int width() const { return x1 - x0 + 1; }
+  int height() const { return y1 - y0 + 1; }
+};
+int local_homography_half_window(double square_px, const LocalHomographyOptions& options);
+CornerWindow local_homography_window(const Eigen::Vector2d& corner, int half, int width, int height);
+
 // `square_px`: the board's square size in the camera image (BoardDetection::square_px); the
 // window's half size is 0.5 of it, 10..60 px (Moreno–Taubin's 47 x 47 px at their scale).
+// Reads projector_u and projector_v only in the corners' windows.
 ProjectorCorners projector_corners_by_local_homography(const Image32f& projector_u, const Image32f& projector_v,
                                                        const std::vector<Eigen::Vector2d>& camera_corners,
                                                        double square_px, const LocalHomographyOptions& options = {});

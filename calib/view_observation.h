@@ -31,7 +31,7 @@ struct ViewObservation {
   std::vector<int> corner_ids;
   ProjectorCorners projector;
   double square_px = 0.0;
-  double decoded_fraction = 0.0;             // of the pixels inside the board's corner hull
+  double decoded_fraction = 0.0;             // of the pixels around the corners (the local homographies' windows)
   // Where the time went (seconds): finding the board, decoding, the local homographies.
   double detect_s = 0.0, decode_s = 0.0, homography_s = 0.0;
 };

@@ -288,7 +288,8 @@ typedef struct sls_calibration_view {
   double obliquity_deg;        /* the board normal's angle from the camera's axis (0 when not solved) */
   size_t corners;              /* the board's inner corners (cols x rows) */
   size_t projector_corners_valid; /* of them, located in the projector through the decoded patterns */
-  double decoded_fraction;     /* of the camera pixels inside the board's corners, decoded */
+  double decoded_fraction;     /* of the camera pixels around the board's corners (the local
+                                  homographies' windows), decoded */
 } sls_calibration_view;
 
 /* Sets struct_size and clears the other fields. */
