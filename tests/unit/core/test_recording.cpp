@@ -278,6 +278,35 @@ TEST(Recording, ImagesLoadIntoTheMemoryAskedFor) {
   }
 }
 
+// A region of each image (what a calibration reads around its board): the crop of the whole
+// image, for 8- and 16-bit recordings; a region outside the camera's image is refused.
+TEST(Recording, ARegionOfEachImageIsItsCrop) {
+  test::TemporaryDirectory dir;
+  for (const int bits : {8, 16}) {
+    const std::string folder = dir.file("rec" + std::to_string(bits));
+    const std::vector<Image16u> images = random_images<std::uint16_t>(kImagesPerFrame, bits == 8 ? 255 : 4095, 11);
+    {
+      RecordingWriter writer = RecordingWriter::create(folder, make_info(bits), make_calibration());
+      writer.append_frame(images, metadata(1, std::nullopt));
+    }
+    const RecordingReader reader = RecordingReader::open(folder);
+    const ImageRegion region{3, 5, kWidth - 7, kHeight - 9};
+    const std::vector<Image16u> parts = reader.load_images(0, region);
+    ASSERT_EQ(parts.size(), images.size());
+    for (std::size_t k = 0; k < images.size(); ++k) {
+      ASSERT_EQ(parts[k].width(), region.width);
+      ASSERT_EQ(parts[k].height(), region.height);
+      for (int y = 0; y < region.height; ++y) {
+        for (int x = 0; x < region.width; ++x) {
+          ASSERT_EQ(parts[k](x, y), images[k](x + region.x0, y + region.y0)) << bits << "-bit image " << k;
+        }
+      }
+    }
+    expect_error([&] { (void)reader.load_image(0, 1, ImageRegion{0, 0, kWidth + 1, 4}); }, ErrorCode::kInvalidArgument,
+                 "frames/000000/pattern_001.png: the region");
+  }
+}
+
 TEST(Recording, SixteenBitImagesForAnEightBitCameraAreStoredAs8Bit) {
   test::TemporaryDirectory dir;
   RecordingWriter writer = RecordingWriter::create(dir.file("rec"), make_info(8), make_calibration());
@@ -562,6 +591,8 @@ TEST_F(DamagedRecording, TruncatedImageNamesTheFile) {
   truncate_file(png, read_file_bytes(png).size() / 2);
   const RecordingReader reader = RecordingReader::open(folder);
   expect_error([&] { reader.load_images(2); }, ErrorCode::kFormat, "frames/000002/pattern_001.png");
+  expect_error([&] { reader.load_images(2, ImageRegion{0, 0, 4, 4}); }, ErrorCode::kFormat,
+               "frames/000002/pattern_001.png");
   expect_error([&] { reader.verify(true); }, ErrorCode::kFormat, "frames/000002/pattern_001.png");
   truncate_file(file("frames/000000/depth.png"), 40);
   expect_error([&] { reader.load_depth_m(0); }, ErrorCode::kFormat, "frames/000000/depth.png");
@@ -571,6 +602,8 @@ TEST_F(DamagedRecording, WrongSizeImageNamesTheFile) {
   write_png(file("frames/000001/pattern_000.png"), Image16u(kWidth, kHeight + 1));
   const RecordingReader reader = RecordingReader::open(folder);
   expect_error([&] { reader.load_images(1); }, ErrorCode::kFormat, "frames/000001/pattern_000.png: image is 37x24");
+  expect_error([&] { reader.load_images(1, ImageRegion{0, 0, 4, 4}); }, ErrorCode::kFormat,
+               "frames/000001/pattern_000.png: image is 37x24");
   expect_error([&] { reader.verify(); }, ErrorCode::kFormat, "frames/000001/pattern_000.png");
   write_png(file("frames/000002/depth.png"), Image8u(kWidth, kHeight));
   expect_error([&] { reader.load_depth_m(2); }, ErrorCode::kFormat, "depth.png");
