@@ -442,10 +442,11 @@ AnyImage decode_png_in(const std::uint8_t* data, std::size_t size, const std::st
   check_chunk_lengths(data, size, name);
   // A camera's PNG (gray, 8 or 16 bits, not interlaced): inflated by libdeflate, unfiltered
   // into the region only. Any other PNG, or one that path finds fault with, through libpng.
-  if (size >= kHeaderBytes) {
-    const std::uint32_t width = big_endian_u32(data + kSignatureSize + 8);
-    const std::uint32_t height = big_endian_u32(data + kSignatureSize + 12);
-    const ImageRegion whole{0, 0, static_cast<int>(std::min(width, kMaxSide)), static_cast<int>(std::min(height, kMaxSide))};
+  // (Sides past kMaxSide are libpng's to refuse.)
+  const std::uint32_t width = size >= kHeaderBytes ? big_endian_u32(data + kSignatureSize + 8) : 0;
+  const std::uint32_t height = size >= kHeaderBytes ? big_endian_u32(data + kSignatureSize + 12) : 0;
+  if (width > 0 && height > 0 && width <= kMaxSide && height <= kMaxSide) {
+    const ImageRegion whole{0, 0, static_cast<int>(width), static_cast<int>(height)};
     if (std::optional<AnyImage> fast = png_detail::decode_gray_png(data, size, region ? *region : whole, memory)) {
       return std::move(*fast);
     }

@@ -159,7 +159,8 @@ std::optional<AnyImage> decode_gray_png(const std::uint8_t* data, std::size_t si
   if (ihdr[9] != 0 || (bit_depth != 8 && bit_depth != 16) || ihdr[10] != 0 || ihdr[11] != 0 || ihdr[12] != 0) {
     return std::nullopt;
   }
-  if (width == 0 || height == 0 || region.x0 < 0 || region.y0 < 0 || region.width <= 0 || region.height <= 0 ||
+  // Sides of up to 2^24 keep every size below in 64 bits (image_io's own limit is 2^20).
+  if (width == 0 || height == 0 || width > (1u << 24) || height > (1u << 24) || region.x0 < 0 || region.y0 < 0 || region.width <= 0 || region.height <= 0 ||
       std::uint64_t(region.x0) + std::uint64_t(region.width) > width ||
       std::uint64_t(region.y0) + std::uint64_t(region.height) > height) {
     return std::nullopt;

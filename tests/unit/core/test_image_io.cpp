@@ -267,6 +267,10 @@ TEST(Png, ACamerasImageTheFastPathFindsFaultWithGoesToLibpng) {
   png = make_png(2, 2, 8, 0, {0, 1, 2});
   EXPECT_FALSE(png_detail::decode_gray_png(png.data(), png.size(), {0, 0, 2, 2}, MemoryType::kHost));
   expect_error([&] { (void)decode_png(png.data(), png.size(), "short.png"); }, ErrorCode::kFormat, "short.png");
+  // Sides past what image_io reads (2^20): libpng refuses them.
+  png = make_png(1u << 25, 1, 8, 0, {0, 1, 2});
+  EXPECT_FALSE(png_detail::decode_gray_png(png.data(), png.size(), {0, 0, 2, 1}, MemoryType::kHost));
+  expect_error([&] { (void)decode_png(png.data(), png.size(), "wide.png"); }, ErrorCode::kFormat, "wide.png");
 }
 
 // A region of the image: the crop of the whole image, for a camera's PNG (libdeflate's path)
