@@ -154,6 +154,15 @@ void write_standard_recording(const std::string& folder) {
   writer.close();
 }
 
+// A recording of one frame of random images of `bits` bits in `folder`; returns the images.
+std::vector<Image16u> write_one_frame(const std::string& folder, int bits, std::uint32_t seed) {
+  const std::vector<Image16u> images = random_images<std::uint16_t>(kImagesPerFrame, bits == 8 ? 255 : 4095, seed);
+  RecordingWriter writer = RecordingWriter::create(folder, make_info(bits), make_calibration());
+  writer.append_frame(images, metadata(1, std::nullopt));
+  writer.close();
+  return images;
+}
+
 TEST(Recording, RoundTrip16Bit) {
   test::TemporaryDirectory dir;
   const std::string folder = dir.file("rec");
@@ -261,11 +270,7 @@ TEST(Recording, ImagesLoadIntoTheMemoryAskedFor) {
   const bool gpu = cuda_compiled() && cuda_device_count() > 0;
   for (const int bits : {8, 16}) {
     const std::string folder = dir.file("rec" + std::to_string(bits));
-    const std::vector<Image16u> images = random_images<std::uint16_t>(kImagesPerFrame, bits == 8 ? 255 : 4095, 9);
-    {
-      RecordingWriter writer = RecordingWriter::create(folder, make_info(bits), make_calibration());
-      writer.append_frame(images, metadata(1, std::nullopt));
-    }
+    const std::vector<Image16u> images = write_one_frame(folder, bits, 9);
     const RecordingReader reader = RecordingReader::open(folder);
     const std::vector<Image16u> pinned = reader.load_images(0, MemoryType::kPinned);
     ASSERT_EQ(pinned.size(), images.size());
@@ -284,11 +289,7 @@ TEST(Recording, ARegionOfEachImageIsItsCrop) {
   test::TemporaryDirectory dir;
   for (const int bits : {8, 16}) {
     const std::string folder = dir.file("rec" + std::to_string(bits));
-    const std::vector<Image16u> images = random_images<std::uint16_t>(kImagesPerFrame, bits == 8 ? 255 : 4095, 11);
-    {
-      RecordingWriter writer = RecordingWriter::create(folder, make_info(bits), make_calibration());
-      writer.append_frame(images, metadata(1, std::nullopt));
-    }
+    const std::vector<Image16u> images = write_one_frame(folder, bits, 11);
     const RecordingReader reader = RecordingReader::open(folder);
     const ImageRegion region{3, 5, kWidth - 7, kHeight - 9};
     const std::vector<Image16u> parts = reader.load_images(0, region);
