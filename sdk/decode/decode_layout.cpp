@@ -186,7 +186,10 @@ void fill_axis(const PatternSet& set, PatternAxis axis, AxisCode* code) {
     code->gray_inverse_index[i] = inverse_index[lowest + i];
   }
   code->phase_group_count = static_cast<int>(groups.size());
-  for (std::size_t g = 0; g < groups.size(); ++g) code->phase[g] = groups[g].group;
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    code->phase[g] = groups[g].group;
+    set_phase_group_scales(code->phase[g]);
+  }
   if (heterodyne) detail::check_heterodyne_axis(axis_name, *code);
 }
 

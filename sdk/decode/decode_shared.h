@@ -71,7 +71,17 @@ struct PhaseGroup {
   int index[kDecodeMaxPhaseSteps] = {};
   float cos_step[kDecodeMaxPhaseSteps] = {};  // cos(2 pi j / N) of that image's step j
   float sin_step[kDecodeMaxPhaseSteps] = {};
+  // Per group, not per pixel (set_phase_group_scales, once the group is complete): B = 2/N |(C, S)|
+  // and the coordinate's noise P / 2 pi sqrt(2/N) sigma_I / B, the same float operations.
+  float modulation_scale = 0.0f;  // 2 / N
+  float sigma_scale = 0.0f;       // P / 2 pi * sqrt(2 / N)
 };
+
+SLS_HOST_DEVICE inline void set_phase_group_scales(PhaseGroup& g) {
+  const float n = static_cast<float>(g.count);
+  g.modulation_scale = 2.0f / n;
+  g.sigma_scale = g.period_px * 0.159154943f * std::sqrt(2.0f / n);
+}
 
 // How Gray bits without a projected complement are thresholded.
 enum GrayThreshold : std::int32_t {
@@ -141,13 +151,14 @@ struct DecodeParams {
 };
 
 // Sample accessors: value of stack image k at one pixel.
-// Planes laid out one after another with a fixed stride (a device-resident stack).
+// Planes laid out one after another with a fixed stride (a device-resident stack). The stride
+// is 32-bit (a plane of fewer than 2^32 pixels; launch_decode_cuda checks it): image k's offset
+// is then one widening multiply, not a 64-bit one, for each of a pixel's ~22 samples.
 struct StridedStackSamples {
-  const std::uint16_t* base;
-  std::size_t plane_stride;  // elements from one image to the next
-  std::size_t pixel;         // element index within an image
+  const std::uint16_t* pixel_base;  // the pixel's element in image 0
+  std::uint32_t plane_stride;       // elements from one image to the next
   SLS_HOST_DEVICE float operator()(int k) const {
-    return static_cast<float>(base[static_cast<std::size_t>(k) * plane_stride + pixel]);
+    return static_cast<float>(pixel_base[static_cast<std::uint64_t>(static_cast<std::uint32_t>(k)) * plane_stride]);
   }
 };
 
@@ -241,9 +252,8 @@ SLS_HOST_DEVICE inline WrappedPhase wrapped_phase(const PhaseGroup& g, const Dec
     s += value * g.sin_step[i];
     sum += value;
   }
-  const float n = static_cast<float>(g.count);
-  out.mean = sum / n;
-  out.modulation = (2.0f / n) * std::sqrt(c * c + s * s);
+  out.mean = sum / static_cast<float>(g.count);
+  out.modulation = g.modulation_scale * std::sqrt(c * c + s * s);
   const float two_pi = 6.28318530717958648f;
   // psi = sign * 2 pi u / P + offset  =>  u = P / 2 pi * sign * (psi - offset), mod P.
   float turns = g.sign * (std::atan2(-s, c) - g.offset_rad) / two_pi;
@@ -254,7 +264,7 @@ SLS_HOST_DEVICE inline WrappedPhase wrapped_phase(const PhaseGroup& g, const Dec
   // Phase noise of N-step phase shifting: sigma_phi = sqrt(2/N) sigma_I / B.
   const float sigma_intensity = std::sqrt(sample_variance(t, out.mean));
   if (out.modulation > 0.0f) {
-    out.sigma_px = g.period_px * 0.159154943f * std::sqrt(2.0f / n) * sigma_intensity / out.modulation;
+    out.sigma_px = g.sigma_scale * sigma_intensity / out.modulation;
   }
   return out;
 }

@@ -182,6 +182,7 @@ void fill_micro_phase_axis(const PatternSet& set, PatternAxis axis, AxisCode* co
     g.sin_step[g.count] = static_cast<float>(std::sin(angle));
     ++g.count;
   }
+  set_phase_group_scales(g);
   out.phase_group_count = 1;
   for (const PeriodImages& p : periods) {
     if (&p == main) continue;

@@ -13,6 +13,7 @@
 #include "sdk/core/cuda/cuda_check.h"
 #include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
+#include "sdk/core/error.h"
 #include "sdk/core/host_memory.h"
 #include "sdk/core/kernel_profile.h"
 #include "sdk/core/pinned_memory.h"
@@ -25,7 +26,7 @@ namespace {
 template <int Unwrap>
 __device__ __forceinline__ void decode_and_store(const DecodeParams& decode, const TriangulationParams& triangulation,
                                                  int width, int height, const std::uint16_t* __restrict__ stack,
-                                                 std::size_t plane_stride, const Vec3f* __restrict__ rays,
+                                                 std::uint32_t plane_stride, const Vec3f* __restrict__ rays,
                                                  const std::uint8_t* __restrict__ ray_valid,
                                                  const DecodeOutputsDevice& out) {
   const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
@@ -33,7 +34,7 @@ __device__ __forceinline__ void decode_and_store(const DecodeParams& decode, con
   if (x >= width || y >= height) return;
   const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
   // Plane-major stack: neighbouring threads read neighbouring pixels of each image (coalesced).
-  const StridedStackSamples samples{stack, plane_stride, i};
+  const StridedStackSamples samples{stack + i, plane_stride};
   PixelDecode pixel = decode_pixel_unwrapped<Unwrap>(decode, samples);
   out.depth[i] = triangulate_decoded_pixel(decode.layout, triangulation, &pixel, rays[i], ray_valid[i] != 0);
   out.u[i] = pixel.u;
@@ -47,7 +48,7 @@ constexpr int kDecodeBlockThreads = 256;  // 32 x 8
 // One kernel per unwrapping (DecodeUnwrap), so that each carries only its own code and registers.
 template <int Unwrap>
 __global__ void decode_kernel(DecodeParams decode, TriangulationParams triangulation, int width, int height,
-                              const std::uint16_t* __restrict__ stack, std::size_t plane_stride,
+                              const std::uint16_t* __restrict__ stack, std::uint32_t plane_stride,
                               const Vec3f* __restrict__ rays, const std::uint8_t* __restrict__ ray_valid,
                               DecodeOutputsDevice out) {
   decode_and_store<Unwrap>(decode, triangulation, width, height, stack, plane_stride, rays, ray_valid, out);
@@ -59,7 +60,7 @@ __global__ void decode_kernel(DecodeParams decode, TriangulationParams triangula
 // (decode_micro_singles is sized per count); larger ones spill a few, outside the search loop.
 __global__ void __launch_bounds__(kDecodeBlockThreads, 4)
     decode_micro_phase_kernel(DecodeParams decode, TriangulationParams triangulation, int width, int height,
-                              const std::uint16_t* __restrict__ stack, std::size_t plane_stride,
+                              const std::uint16_t* __restrict__ stack, std::uint32_t plane_stride,
                               const Vec3f* __restrict__ rays, const std::uint8_t* __restrict__ ray_valid,
                               DecodeOutputsDevice out) {
   decode_and_store<kUnwrapMicroPhase>(decode, triangulation, width, height, stack, plane_stride, rays, ray_valid,
@@ -72,6 +73,11 @@ void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& t
                         const std::uint16_t* stack, std::size_t plane_stride, const Vec3f* rays,
                         const std::uint8_t* ray_valid, const DecodeOutputsDevice& outputs, cudaStream_t stream) {
   if (width <= 0 || height <= 0) return;
+  if (plane_stride > std::numeric_limits<std::uint32_t>::max()) {
+    throw_error(ErrorCode::kInvalidArgument, "decode: planes of {} elements; the GPU decoder takes fewer than 2^32",
+                plane_stride);
+  }
+  const auto stride = static_cast<std::uint32_t>(plane_stride);
   // Per pixel each image of the stack read (16 bits), its ray (and validity) read, each output
   // asked for written.
   const int images = std::max({decode.layout.pattern_count, decode.layout.white_index + 1, decode.layout.black_index + 1});
@@ -85,15 +91,15 @@ void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& t
   switch (decode.layout.unwrap) {
     case kUnwrapHeterodyne:
       decode_kernel<kUnwrapHeterodyne><<<grid, block, 0, stream>>>(decode, triangulation, width, height, stack,
-                                                                   plane_stride, rays, ray_valid, outputs);
+                                                                   stride, rays, ray_valid, outputs);
       break;
     case kUnwrapMicroPhase:
       decode_micro_phase_kernel<<<grid, block, 0, stream>>>(
-          decode, triangulation, width, height, stack, plane_stride, rays, ray_valid, outputs);
+          decode, triangulation, width, height, stack, stride, rays, ray_valid, outputs);
       break;
     default:
       decode_kernel<kUnwrapGrayPhase><<<grid, block, 0, stream>>>(decode, triangulation, width, height, stack,
-                                                                  plane_stride, rays, ray_valid, outputs);
+                                                                  stride, rays, ray_valid, outputs);
       break;
   }
   SLS_CUDA_CHECK_LAUNCH();
