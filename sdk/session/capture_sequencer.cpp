@@ -156,19 +156,31 @@ CaptureStatistics CaptureSequencer::run(const std::vector<RecordingWriter*>& rec
     }
   }
 
-  // Each camera's stack is held until it is recorded (~1 GB at 12 MP): admitted before anything
-  // moves, as a volume is (Linux overcommits; a stack that does not fit would end in the OOM
-  // killer part-way through a frame).
+  // Each camera's stack is held until it is recorded and the callback is done with it (~0.5 GB
+  // at 12 MP): every stack that can be held at once is admitted before anything moves, as a
+  // volume is (Linux overcommits; stacks that do not fit would end in the OOM killer part-way
+  // through a scan). The one being captured, and the most recent ones the writer thread or the
+  // callback still holds (CaptureOptions::callback_holds_frames).
   std::uint64_t stack_bytes = 0;
   for (drivers::Camera* camera : cameras_) {
     const drivers::CameraInfo info = camera->info();
     stack_bytes += static_cast<std::uint64_t>(patterns_.size() * exposure_count()) * static_cast<std::uint64_t>(info.width) *
                    static_cast<std::uint64_t>(info.height) * sizeof(std::uint16_t);
   }
-  admit_host_allocation(stack_bytes,
-                        fmt::format("capturing a pattern stack ({} images from {} camera(s))", patterns_.size(),
-                                    cameras_.size()),
-                        "free memory for it (other programs), or capture with fewer cameras");
+  const std::size_t writer_holds =
+      recordings.empty() || options_.write_queue_frames == 0 ? 0 : options_.write_queue_frames + 1;
+  // No more than the run captures (a calibration pose's run takes one stack).
+  const auto remaining = static_cast<std::size_t>(std::max(1, frame_count() - options_.first_frame));
+  const std::size_t stacks_held = std::min(remaining, 1 + std::max(writer_holds, options_.callback_holds_frames));
+  const std::string what =
+      stacks_held == 1
+          ? fmt::format("capturing a pattern stack ({} images from {} camera(s))", patterns_.size(), cameras_.size())
+          : fmt::format("capturing pattern stacks ({} images from {} camera(s), up to {} at once: the one being "
+                        "captured and {} still being written or fused)",
+                        patterns_.size(), cameras_.size(), stacks_held, stacks_held - 1);
+  admit_host_allocation(stack_bytes * stacks_held, what,
+                        "free memory for them (other programs), capture with fewer cameras, or hold fewer stacks "
+                        "(CaptureOptions::write_queue_frames)");
 
   const Clock::time_point start = Clock::now();
   statistics_ = CaptureStatistics{};

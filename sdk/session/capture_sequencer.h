@@ -114,6 +114,12 @@ struct CaptureOptions {
   // 0: each stack is written on the capturing thread before the callback sees it (the capture
   // as it was before the writer thread).
   std::size_t write_queue_frames = 2;
+  // Stacks the per-frame callback may keep after it returns, at most (a live scan: the frames
+  // waiting to be fused and the one being fused). With the writer's, they set the memory run()
+  // admits before anything moves: 1 + max(writer, callback) stacks, the writer holding
+  // write_queue_frames + 1 (the one being written) when there are recordings. Both hold the most
+  // recent frames, so a frame they share counts once.
+  std::size_t callback_holds_frames = 0;
 
   // Throws sls::Error(kInvalidArgument) naming the first bad value.
   void validate() const;

@@ -135,6 +135,7 @@ DeviceCapture capture_from_devices(const std::string& folder, const DeviceCaptur
     }
   }
   capture.write_queue_frames = request.write_queue_frames;
+  capture.callback_holds_frames = recorded ? request.recorded_holds_frames : 0;
   std::optional<RecordingWriter> writer;
   if (request.record) {
     writer.emplace(request.resume

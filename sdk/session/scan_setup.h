@@ -25,6 +25,7 @@
 #include "sdk/core/trajectory.h"
 #include "sdk/decode/pattern_set.h"
 #include "sdk/session/capture_sequencer.h"
+#include "sdk/session/frame_pipeline.h"
 #include "sdk/session/scan_session.h"
 
 namespace sls::session {
@@ -58,6 +59,10 @@ struct DeviceCaptureRequest {
   bool record = true;
   // Stacks waiting for the recording's writer thread, at most (CaptureOptions::write_queue_frames).
   std::size_t write_queue_frames = CaptureOptions{}.write_queue_frames;
+  // Stacks `recorded` (capture_from_devices) may keep after it returns, at most: a live scan's
+  // frames waiting to be fused and the one being fused (frame_pipeline.h). Counted in the memory
+  // the capture admits before anything moves (CaptureOptions::callback_holds_frames).
+  std::size_t recorded_holds_frames = PipelineOptions{}.queue_frames + 1;
   // Called once the devices are open, before the first frame, on the capturing thread: what the
   // recording holds (or, without `record`, would hold) and the calibration it is captured with
   // (none: uncalibrated). What a scan session is made from when there is no recording to open.

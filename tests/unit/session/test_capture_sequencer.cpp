@@ -632,6 +632,51 @@ TEST(CaptureSequencer, AStackBeyondTheMemoryLimitIsRefusedBeforeAnythingMoves) {
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0) << "1: captured beyond the limit; 2: another error, or a device moved; 3: no limit";
 }
+
+// The stacks the recording's writer thread and the per-frame callback still hold count too: a
+// 1100x1000 camera's 36 MiB stack fits the 64 MiB left by ulimit -v, but not the 4 a capture with
+// the writer's default queue may hold (the one captured, 2 queued, 1 being written), nor the 3 of
+// a callback that keeps 2, nor the 2 of a two-frame run; each is refused before anything moves.
+TEST(CaptureSequencer, TheStacksStillBeingWrittenOrFusedAreAdmittedToo) {
+  if (!test::address_space_limits_hold()) GTEST_SKIP() << "ulimit -v does not bind here (a user-mode emulator)";
+  struct Case {
+    int frames;
+    bool record;
+    std::size_t callback_holds;
+    const char* named;
+  };
+  const Case cases[] = {{4, true, 0, "up to 4 at once"}, {4, false, 2, "up to 3 at once"}, {2, true, 0, "up to 2 at once"}};
+  for (const Case& c : cases) {
+    Bench bench;
+    bench.camera.width = 1100;
+    bench.camera.height = 1000;
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      std::optional<RecordingWriter> writer;
+      if (c.record) writer.emplace(bench.writer());
+      CaptureOptions options = bench.options(c.frames);
+      options.callback_holds_frames = c.callback_holds;
+      CaptureSequencer sequencer(bench.projector, {&bench.camera}, &bench.turntable, bench.patterns, options);
+      if (!test::limit_address_space(64ull << 20)) _exit(3);
+      try {
+        sequencer.run(writer ? std::vector<RecordingWriter*>{&*writer} : std::vector<RecordingWriter*>{});
+      } catch (const Error& error) {
+        const bool named = std::string(error.what()).find(c.named) != std::string::npos &&
+                           std::string(error.what()).find("17 images from 1 camera(s)") != std::string::npos;
+        const bool untouched = bench.stage.shown == -1 && bench.turntable.homes == 0 && bench.camera.starts == 0;
+        _exit(error.code() == ErrorCode::kOutOfMemory && named && untouched ? 0 : 2);
+      }
+      _exit(1);
+    }
+    int status = 0;
+    ASSERT_EQ(waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 0) << c.named
+                                      << " (1: captured beyond the limit; 2: another error, or a device moved; 3: no "
+                                         "limit)";
+  }
+}
 #endif
 
 TEST(CaptureSequencer, SimulatedScannerGivesTheSimulatorsRecording) {
