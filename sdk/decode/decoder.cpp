@@ -166,7 +166,7 @@ struct Decoder::Impl {
   TriangulationParams triangulation;
   std::shared_ptr<const SharedRayMap> shared_rays;  // the camera's, shared with the other stages
   const RayMap* rays = nullptr;                     // shared_rays->host
-  std::unique_ptr<detail::CudaDecodeContext> cuda;  // on a GPU: its state and pipeline
+  std::unique_ptr<detail::DecoderGpu> cuda;  // on a GPU: its state and pipeline
   bool decoded_on_device = false;  // the GPU holds an accepted stack's outputs (download_depth)
   StackCheckPlan check_plan;       // what the stack check judges (stack_check_shared.h)
 };
@@ -195,7 +195,7 @@ Decoder::Decoder(const PatternSet& set, const ScannerCalibration& calibration, c
   impl_->shared_rays = shared_ray_map(calibration.camera, device);
   impl_->rays = &impl_->shared_rays->host;
   if (device.is_cuda()) {
-    impl_->cuda = std::make_unique<detail::CudaDecodeContext>(
+    impl_->cuda = std::make_unique<detail::DecoderGpu>(
         impl_->params, impl_->triangulation, impl_->shared_rays, GpuStream::or_create(stream, device),
         GpuStream::or_create(upload_stream, device));
   }
@@ -301,7 +301,7 @@ void Decoder::decode(const std::vector<Image16u>& stack, DecodeOutputs outputs, 
     // host takes their medians (judge_stack_histograms) while the GPU decodes. On the host the
     // same check took the frame's critical path 6 ms (docs/benchmarks.md).
     require_device(impl_->device);
-    detail::CudaDecodeContext& cuda = *impl_->cuda;
+    detail::DecoderGpu& cuda = *impl_->cuda;
     const bool on_device = outputs == DecodeOutputs::kDepthAndConfidenceOnDevice;
     impl_->decoded_on_device = false;
     int slot = cuda.take_prefetched(planes.data());

@@ -48,16 +48,16 @@ struct StackCheckInputs {
 
 // The decoder's device state: the ray map, an upload buffer for host stacks, the outputs and
 // a stream, allocated once per Decoder and reused for every frame.
-class CudaDecodeContext {
+class DecoderGpu {
  public:
   // `rays`: the camera's shared ray map, on this device. Decodes on `stream`, uploads on
   // `upload_stream` (both valid). Selects nothing: the caller has made the decoder's device
   // current (require_device).
-  CudaDecodeContext(const DecodeParams& decode, const TriangulationParams& triangulation,
+  DecoderGpu(const DecodeParams& decode, const TriangulationParams& triangulation,
                     std::shared_ptr<const SharedRayMap> rays, const GpuStream& stream, const GpuStream& upload_stream);
-  ~CudaDecodeContext();
-  CudaDecodeContext(const CudaDecodeContext&) = delete;
-  CudaDecodeContext& operator=(const CudaDecodeContext&) = delete;
+  ~DecoderGpu();
+  DecoderGpu(const DecoderGpu&) = delete;
+  DecoderGpu& operator=(const DecoderGpu&) = delete;
 
   // Decodes a stack already on the device into outputs() on stream(); asynchronous: the
   // ≤ 2 ms path, no host traffic.

@@ -11,24 +11,24 @@ namespace {
 
 }  // namespace
 
-struct CudaDecodeContext::State {};
+struct DecoderGpu::State {};
 
-CudaDecodeContext::CudaDecodeContext(const DecodeParams&, const TriangulationParams&, std::shared_ptr<const SharedRayMap>,
+DecoderGpu::DecoderGpu(const DecodeParams&, const TriangulationParams&, std::shared_ptr<const SharedRayMap>,
                                      const GpuStream&, const GpuStream&)
     : state_(nullptr) {
   no_cuda();
 }
-CudaDecodeContext::~CudaDecodeContext() = default;
-bool CudaDecodeContext::prefetch(const std::uint16_t* const*) { no_cuda(); }
-int CudaDecodeContext::take_prefetched(const std::uint16_t* const*) { no_cuda(); }
-int CudaDecodeContext::upload_async(const std::uint16_t* const*) { no_cuda(); }
-void CudaDecodeContext::decode_slot(int) { no_cuda(); }
-void CudaDecodeContext::gather_check_async(int, const StackCheckGrid&, const StackCheckPlan&) { no_cuda(); }
-StackCheckInputs CudaDecodeContext::wait_check() { no_cuda(); }
-void CudaDecodeContext::queue_landing(bool, bool) { no_cuda(); }
-void CudaDecodeContext::download(const DecodeOutputsHost&) { no_cuda(); }
-void CudaDecodeContext::synchronize() { no_cuda(); }
-const Image32f& CudaDecodeContext::depth_image() const { no_cuda(); }
-const Image32f& CudaDecodeContext::confidence_image() const { no_cuda(); }
+DecoderGpu::~DecoderGpu() = default;
+bool DecoderGpu::prefetch(const std::uint16_t* const*) { no_cuda(); }
+int DecoderGpu::take_prefetched(const std::uint16_t* const*) { no_cuda(); }
+int DecoderGpu::upload_async(const std::uint16_t* const*) { no_cuda(); }
+void DecoderGpu::decode_slot(int) { no_cuda(); }
+void DecoderGpu::gather_check_async(int, const StackCheckGrid&, const StackCheckPlan&) { no_cuda(); }
+StackCheckInputs DecoderGpu::wait_check() { no_cuda(); }
+void DecoderGpu::queue_landing(bool, bool) { no_cuda(); }
+void DecoderGpu::download(const DecodeOutputsHost&) { no_cuda(); }
+void DecoderGpu::synchronize() { no_cuda(); }
+const Image32f& DecoderGpu::depth_image() const { no_cuda(); }
+const Image32f& DecoderGpu::confidence_image() const { no_cuda(); }
 
 }  // namespace sls::detail

@@ -151,7 +151,7 @@ struct PinnedStack {
 // camera's shared ray map, as a GPU decoder sets it up.
 struct StackDecodeContext {
   Decoder decoder;
-  detail::CudaDecodeContext context;
+  detail::DecoderGpu context;
   explicit StackDecodeContext(const Stack& stack)
       : decoder(stack.rig.patterns, stack.rig.calibration(), Device::cpu()),
         context(decoder.decode_params(), decoder.triangulation_params(),
@@ -162,7 +162,7 @@ struct StackDecodeContext {
 // The stack resident on the device, decoded and triangulated per iteration (CUDA events).
 void time_resident_decode(benchmark::State& state, const Stack& stack) {
   StackDecodeContext stack_context(stack);
-  detail::CudaDecodeContext& context = stack_context.context;
+  detail::DecoderGpu& context = stack_context.context;
   const std::size_t pixels = stack.images[0].pixel_count();
   const PinnedStack pinned(stack.images);
   DeviceBuffer<std::uint16_t> device_stack(stack.images.size() * pixels);
@@ -246,7 +246,7 @@ void BM_UploadStackPageable(benchmark::State& state) {
   }
   const Stack& stack = paper_stack();
   StackDecodeContext stack_context(stack);
-  detail::CudaDecodeContext& context = stack_context.context;
+  detail::DecoderGpu& context = stack_context.context;
   std::vector<const std::uint16_t*> planes;
   for (const Image16u& image : stack.images) planes.push_back(image.data());
   context.decode_slot(context.upload_async(planes.data()));  // warm-up: slots and staging allocated
@@ -288,7 +288,7 @@ void BM_DecodeCudaHostStacks(benchmark::State& state) {
   const bool overlapped = state.range(0) != 0;
   const Stack& stack = paper_stack();
   StackDecodeContext stack_context(stack);
-  detail::CudaDecodeContext& context = stack_context.context;
+  detail::DecoderGpu& context = stack_context.context;
   const PinnedStack pinned(stack.images);
   std::vector<const std::uint16_t*> planes;
   for (std::size_t k = 0; k < stack.images.size(); ++k) planes.push_back(pinned.data + k * pinned.pixels);

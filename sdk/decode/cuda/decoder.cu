@@ -105,7 +105,7 @@ void launch_decode_cuda(const DecodeParams& decode, const TriangulationParams& t
   SLS_CUDA_CHECK_LAUNCH();
 }
 
-struct CudaDecodeContext::State {
+struct DecoderGpu::State {
   DecodeParams decode;
   TriangulationParams triangulation;
   int width = 0;
@@ -175,7 +175,7 @@ struct CudaDecodeContext::State {
   }
 };
 
-CudaDecodeContext::CudaDecodeContext(const DecodeParams& decode, const TriangulationParams& triangulation,
+DecoderGpu::DecoderGpu(const DecodeParams& decode, const TriangulationParams& triangulation,
                                      std::shared_ptr<const SharedRayMap> rays, const GpuStream& stream,
                                      const GpuStream& upload_stream)
     : state_(new State) {
@@ -209,7 +209,7 @@ CudaDecodeContext::CudaDecodeContext(const DecodeParams& decode, const Triangula
   }
 }
 
-CudaDecodeContext::~CudaDecodeContext() {
+DecoderGpu::~DecoderGpu() {
   if (state_ != nullptr) {
     if (state_->copy_stream != nullptr) (void)cudaStreamSynchronize(state_->copy_stream);
     if (state_->stream != nullptr) (void)cudaStreamSynchronize(state_->stream);
@@ -217,13 +217,13 @@ CudaDecodeContext::~CudaDecodeContext() {
   delete state_;
 }
 
-void CudaDecodeContext::decode_resident(const std::uint16_t* stack_device, std::size_t plane_stride) {
+void DecoderGpu::decode_resident(const std::uint16_t* stack_device, std::size_t plane_stride) {
   State& s = *state_;
   launch_decode_cuda(s.decode, s.triangulation, s.width, s.height, stack_device, plane_stride, s.rays->rays_device,
                      s.rays->valid_device, outputs(), s.stream);
 }
 
-int CudaDecodeContext::claim_slot(bool prefetch, const std::uint16_t* const* planes) {
+int DecoderGpu::claim_slot(bool prefetch, const std::uint16_t* const* planes) {
   State& s = *state_;
   std::lock_guard<std::mutex> lock(s.slot_mutex);
   for (int i = 0; prefetch && i < 2; ++i) {
@@ -241,7 +241,7 @@ int CudaDecodeContext::claim_slot(bool prefetch, const std::uint16_t* const* pla
   throw_error(ErrorCode::kInvalidArgument, "upload_async: both upload slots hold stacks not yet decoded");
 }
 
-void CudaDecodeContext::release_slot(int slot) {
+void DecoderGpu::release_slot(int slot) {
   State& s = *state_;
   {
     std::lock_guard<std::mutex> lock(s.slot_mutex);
@@ -251,7 +251,7 @@ void CudaDecodeContext::release_slot(int slot) {
   s.slot_changed.notify_all();
 }
 
-int CudaDecodeContext::upload_async(const std::uint16_t* const* planes) {
+int DecoderGpu::upload_async(const std::uint16_t* const* planes) {
   const int slot = claim_slot(false, planes);
   try {
     upload_into(slot, planes);
@@ -262,7 +262,7 @@ int CudaDecodeContext::upload_async(const std::uint16_t* const* planes) {
   return slot;
 }
 
-bool CudaDecodeContext::prefetch(const std::uint16_t* const* planes) {
+bool DecoderGpu::prefetch(const std::uint16_t* const* planes) {
   State& s = *state_;
   const int slot = claim_slot(true, planes);
   if (slot < 0) return false;
@@ -280,7 +280,7 @@ bool CudaDecodeContext::prefetch(const std::uint16_t* const* planes) {
   return true;
 }
 
-int CudaDecodeContext::take_prefetched(const std::uint16_t* const* planes) {
+int DecoderGpu::take_prefetched(const std::uint16_t* const* planes) {
   State& s = *state_;
   const std::size_t count = static_cast<std::size_t>(s.decode.layout.pattern_count);
   const auto matches = [&](int slot) {
@@ -299,7 +299,7 @@ int CudaDecodeContext::take_prefetched(const std::uint16_t* const* planes) {
   return -1;
 }
 
-void CudaDecodeContext::upload_into(int slot, const std::uint16_t* const* planes) {
+void DecoderGpu::upload_into(int slot, const std::uint16_t* const* planes) {
   State& s = *state_;
   std::lock_guard<std::mutex> lock(s.upload_mutex);
   const std::size_t count = static_cast<std::size_t>(s.decode.layout.pattern_count);
@@ -347,7 +347,7 @@ void CudaDecodeContext::upload_into(int slot, const std::uint16_t* const* planes
   if (read_in_place) SLS_CUDA_CHECK(cudaEventSynchronize(s.uploaded[slot]));
 }
 
-void CudaDecodeContext::require_uploaded(int slot, const char* caller) {
+void DecoderGpu::require_uploaded(int slot, const char* caller) {
   State& s = *state_;
   bool uploaded = false;
   if (slot >= 0 && slot <= 1) {
@@ -357,7 +357,7 @@ void CudaDecodeContext::require_uploaded(int slot, const char* caller) {
   if (!uploaded) throw_error(ErrorCode::kInvalidArgument, "{}({}): no stack was uploaded to that slot", caller, slot);
 }
 
-void CudaDecodeContext::decode_slot(int slot) {
+void DecoderGpu::decode_slot(int slot) {
   State& s = *state_;
   require_uploaded(slot, "decode_slot");
   SLS_CUDA_CHECK(cudaStreamWaitEvent(s.stream, s.uploaded[slot], 0));
@@ -366,7 +366,7 @@ void CudaDecodeContext::decode_slot(int slot) {
   release_slot(slot);  // after `consumed` is recorded: the next upload into it waits for this decode
 }
 
-void CudaDecodeContext::decode_host(const std::uint16_t* const* planes, const DecodeOutputsHost& host) {
+void DecoderGpu::decode_host(const std::uint16_t* const* planes, const DecodeOutputsHost& host) {
   decode_slot(upload_async(planes));
   download(host);
 }
@@ -378,7 +378,7 @@ __global__ void set_int_kernel(int* target, int value) { *target = value; }
 
 }  // namespace
 
-void CudaDecodeContext::gather_check_async(int slot, const StackCheckGrid& grid, const StackCheckPlan& plan) {
+void DecoderGpu::gather_check_async(int slot, const StackCheckGrid& grid, const StackCheckPlan& plan) {
   State& s = *state_;
   require_uploaded(slot, "gather_check_async");
   const int images = s.decode.layout.pattern_count;
@@ -427,7 +427,7 @@ void CudaDecodeContext::gather_check_async(int slot, const StackCheckGrid& grid,
   SLS_CUDA_CHECK(cudaEventRecord(s.check_ready, s.stream));
 }
 
-StackCheckInputs CudaDecodeContext::wait_check() {
+StackCheckInputs DecoderGpu::wait_check() {
   State& s = *state_;
   if (s.check_ready == nullptr) {
     throw_error(ErrorCode::kInvalidArgument, "wait_check(): no stack check was gathered");
@@ -445,7 +445,7 @@ StackCheckInputs CudaDecodeContext::wait_check() {
   return inputs;
 }
 
-void CudaDecodeContext::queue_landing(bool depth, bool confidence) {
+void DecoderGpu::queue_landing(bool depth, bool confidence) {
   State& s = *state_;
   const bool wanted[2] = {depth, confidence};
   const float* const sources[2] = {s.depth.data(), s.confidence.data()};
@@ -465,7 +465,7 @@ void CudaDecodeContext::queue_landing(bool depth, bool confidence) {
   }
 }
 
-void CudaDecodeContext::download(const DecodeOutputsHost& host) {
+void DecoderGpu::download(const DecodeOutputsHost& host) {
   State& s = *state_;
   if (host.u != nullptr) s.u.download(host.u, s.pixels, s.stream);
   if (host.v != nullptr) s.v.download(host.v, s.pixels, s.stream);
@@ -492,7 +492,7 @@ void CudaDecodeContext::download(const DecodeOutputsHost& host) {
   }
 }
 
-void CudaDecodeContext::synchronize() {
+void DecoderGpu::synchronize() {
   State& s = *state_;
   const cudaError_t status = cudaStreamSynchronize(s.stream);
   // Whatever landed is stale once waited for: the next frame queues its own.
@@ -500,10 +500,10 @@ void CudaDecodeContext::synchronize() {
   SLS_CUDA_CHECK(status);
 }
 
-const Image32f& CudaDecodeContext::depth_image() const { return state_->depth; }
-const Image32f& CudaDecodeContext::confidence_image() const { return state_->confidence; }
+const Image32f& DecoderGpu::depth_image() const { return state_->depth; }
+const Image32f& DecoderGpu::confidence_image() const { return state_->confidence; }
 
-DecodeOutputsDevice CudaDecodeContext::outputs() const {
+DecodeOutputsDevice DecoderGpu::outputs() const {
   State& s = *state_;
   DecodeOutputsDevice out;
   out.u = s.u.data();
@@ -514,8 +514,8 @@ DecodeOutputsDevice CudaDecodeContext::outputs() const {
   return out;
 }
 
-const GpuStream& CudaDecodeContext::stream() const { return state_->decode_stream; }
-int CudaDecodeContext::width() const { return state_->width; }
-int CudaDecodeContext::height() const { return state_->height; }
+const GpuStream& DecoderGpu::stream() const { return state_->decode_stream; }
+int DecoderGpu::width() const { return state_->width; }
+int DecoderGpu::height() const { return state_->height; }
 
 }  // namespace sls::detail

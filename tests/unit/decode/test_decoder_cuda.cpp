@@ -79,7 +79,7 @@ void expect_equal(const DecodedFrame& cpu, const DecodedFrame& gpu, const char* 
 }
 
 // The context's outputs, copied to the host on its stream (waits).
-DecodedFrame download_outputs(const detail::CudaDecodeContext& context) {
+DecodedFrame download_outputs(const detail::DecoderGpu& context) {
   const int width = context.width(), height = context.height();
   const std::size_t pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
   DecodedFrame frame;
@@ -104,9 +104,9 @@ DecodedFrame download_outputs(const detail::CudaDecodeContext& context) {
 
 // A decoder's device state on its own, as a Decoder on the GPU makes it: the camera's shared
 // ray map, a decode and an upload stream.
-std::unique_ptr<detail::CudaDecodeContext> cuda_context(const Decoder& decoder, const CameraIntrinsics& camera) {
+std::unique_ptr<detail::DecoderGpu> cuda_context(const Decoder& decoder, const CameraIntrinsics& camera) {
   const Device gpu = Device::cuda(0);
-  return std::make_unique<detail::CudaDecodeContext>(decoder.decode_params(), decoder.triangulation_params(),
+  return std::make_unique<detail::DecoderGpu>(decoder.decode_params(), decoder.triangulation_params(),
                                                      shared_ray_map(camera, gpu), GpuStream::create(gpu),
                                                      GpuStream::create(gpu));
 }
@@ -137,7 +137,7 @@ TEST(DecoderCuda, DeviceResidentStackEqualsHostPath) {
     std::copy(c.stack[k].data(), c.stack[k].data() + pixels, packed.begin() + static_cast<std::ptrdiff_t>(k * stride));
   }
   const auto context_owner = cuda_context(gpu, c.rig.camera);
-  detail::CudaDecodeContext& context = *context_owner;
+  detail::DecoderGpu& context = *context_owner;
   DeviceBuffer<std::uint16_t> stack(packed.size());
   stack.upload(packed.data(), packed.size(), cuda_stream(context.stream()));
   context.decode_resident(stack.data(), stride);
@@ -175,7 +175,7 @@ TEST(DecoderCuda, PipelinedUploadsGiveEachStacksOwnResult) {
   }
   Decoder cpu(rig.patterns, rig.calibration(), Device::cpu(), options());
   const auto context_owner = cuda_context(cpu, rig.camera);
-  detail::CudaDecodeContext& context = *context_owner;
+  detail::DecoderGpu& context = *context_owner;
   // The same stacks in pageable memory (the images themselves) go through the pinned staging
   // planes: 22 planes through 3, each reused while the copy engine may still read another.
   std::vector<std::vector<const std::uint16_t*>> pageable(3);
@@ -303,7 +303,7 @@ TEST(DecoderCuda, StackCheckHistogramsEqualTheHosts) {
   const int width = c.rig.camera.width, height = c.rig.camera.height;
   const StackCheckGrid grid = make_stack_check_grid(width, height, StackCheckLimits{}.max_samples);
   const auto context_owner = cuda_context(cpu, c.rig.camera);
-  detail::CudaDecodeContext& context = *context_owner;
+  detail::DecoderGpu& context = *context_owner;
   std::vector<Image16u> stuck = c.stack;
   std::fill(stuck[17].data(), stuck[17].data() + stuck[17].pixel_count(), std::uint16_t{2048});
   const std::vector<Image16u>& genuine = c.stack;
@@ -397,7 +397,7 @@ TEST(DecoderCuda, APrefetchedStackIsTakenOnceByItsOwnPlanes) {
   const Case b = render_case("knurled-knob", 400);
   Decoder cpu(a.rig.patterns, a.rig.calibration(), Device::cpu(), options());
   const auto context_owner = cuda_context(cpu, a.rig.camera);
-  detail::CudaDecodeContext& context = *context_owner;
+  detail::DecoderGpu& context = *context_owner;
   std::vector<const std::uint16_t*> planes_a, planes_b;
   for (const Image16u& image : a.stack) planes_a.push_back(image.data());
   for (const Image16u& image : b.stack) planes_b.push_back(image.data());
