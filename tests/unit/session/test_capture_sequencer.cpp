@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -600,9 +601,35 @@ TEST(CaptureSequencer, WithoutATurntableEveryStackIsTakenWhereTheObjectStands) {
   EXPECT_TRUE(reader.load_image(1, 3) == scene_image(0, 3));
 }
 
-// The simulated scanner through the sequencer gives the images of the simulator's own
-// recording path (same rig, same seeds): one capture model for both.
 #if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)  // they need the address space
+// Runs `capture` (which makes its sequencer, and runs it) in a child limited by ulimit -v to 64 MiB
+// more than it uses. Returns its exit status: 0 refused with kOutOfMemory, the message holding
+// every string of `named`, before any device moved; 1 captured beyond the limit; 2 another error,
+// or a device moved; 3 no limit could be set.
+int refused_under_the_memory_limit(const Bench& bench, const std::vector<std::string>& named,
+                                   const std::function<void()>& capture) {
+  const pid_t child = fork();
+  if (child < 0) return -1;
+  if (child == 0) {
+    if (!test::limit_address_space(64ull << 20)) _exit(3);
+    try {
+      capture();
+    } catch (const Error& error) {
+      bool said = error.code() == ErrorCode::kOutOfMemory;
+      for (const std::string& words : named) said = said && std::string(error.what()).find(words) != std::string::npos;
+      const bool untouched = bench.stage.shown == -1 && bench.turntable.homes == 0 && bench.camera.starts == 0;
+      _exit(said && untouched ? 0 : 2);
+    }
+    _exit(1);
+  }
+  int status = 0;
+  if (waitpid(child, &status, 0) != child || !WIFEXITED(status)) return -1;
+  return WEXITSTATUS(status);
+}
+
+constexpr const char* kRefusedStatuses =
+    "0: refused, naming it; 1: captured beyond the limit; 2: another error, or a device moved; 3: no limit";
+
 // A camera of 4000x3000 and 17 patterns: a 389 MiB stack, in a child limited to its size plus
 // 64 MiB (ulimit -v). The capture is refused before anything moves, naming the stack and the
 // limit: no pattern shown, the turntable not homed.
@@ -611,26 +638,15 @@ TEST(CaptureSequencer, AStackBeyondTheMemoryLimitIsRefusedBeforeAnythingMoves) {
   Bench bench;
   bench.camera.width = 4000;
   bench.camera.height = 3000;
-  const pid_t child = fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    if (!test::limit_address_space(64ull << 20)) _exit(3);
-    CaptureSequencer sequencer(bench.projector, {&bench.camera}, &bench.turntable, bench.patterns, bench.options(2));
-    try {
-      sequencer.run({});
-    } catch (const Error& error) {
-      const bool named = std::string(error.what()).find("pattern stack (17 images from 1 camera(s)) needs 389") !=
-                             std::string::npos &&
-                         std::string(error.what()).find("ulimit -v") != std::string::npos;
-      const bool untouched = bench.stage.shown == -1 && bench.turntable.homes == 0 && bench.camera.starts == 0;
-      _exit(error.code() == ErrorCode::kOutOfMemory && named && untouched ? 0 : 2);
-    }
-    _exit(1);
-  }
-  int status = 0;
-  ASSERT_EQ(waitpid(child, &status, 0), child);
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 0) << "1: captured beyond the limit; 2: another error, or a device moved; 3: no limit";
+  EXPECT_EQ(refused_under_the_memory_limit(bench, {"pattern stack (17 images from 1 camera(s)) needs 389", "ulimit -v"},
+                                           [&] {
+                                             CaptureSequencer sequencer(bench.projector, {&bench.camera},
+                                                                        &bench.turntable, bench.patterns,
+                                                                        bench.options(2));
+                                             sequencer.run({});
+                                           }),
+            0)
+      << kRefusedStatuses;
 }
 
 // The stacks the recording's writer thread and the per-frame callback still hold count too: a
@@ -650,35 +666,25 @@ TEST(CaptureSequencer, TheStacksStillBeingWrittenOrFusedAreAdmittedToo) {
     Bench bench;
     bench.camera.width = 1100;
     bench.camera.height = 1000;
-    const pid_t child = fork();
-    ASSERT_GE(child, 0);
-    if (child == 0) {
-      std::optional<RecordingWriter> writer;
-      if (c.record) writer.emplace(bench.writer());
-      CaptureOptions options = bench.options(c.frames);
-      options.callback_holds_frames = c.callback_holds;
-      CaptureSequencer sequencer(bench.projector, {&bench.camera}, &bench.turntable, bench.patterns, options);
-      if (!test::limit_address_space(64ull << 20)) _exit(3);
-      try {
-        sequencer.run(writer ? std::vector<RecordingWriter*>{&*writer} : std::vector<RecordingWriter*>{});
-      } catch (const Error& error) {
-        const bool named = std::string(error.what()).find(c.named) != std::string::npos &&
-                           std::string(error.what()).find("17 images from 1 camera(s)") != std::string::npos;
-        const bool untouched = bench.stage.shown == -1 && bench.turntable.homes == 0 && bench.camera.starts == 0;
-        _exit(error.code() == ErrorCode::kOutOfMemory && named && untouched ? 0 : 2);
-      }
-      _exit(1);
-    }
-    int status = 0;
-    ASSERT_EQ(waitpid(child, &status, 0), child);
-    ASSERT_TRUE(WIFEXITED(status));
-    EXPECT_EQ(WEXITSTATUS(status), 0) << c.named
-                                      << " (1: captured beyond the limit; 2: another error, or a device moved; 3: no "
-                                         "limit)";
+    EXPECT_EQ(refused_under_the_memory_limit(bench, {c.named, "17 images from 1 camera(s)"},
+                                             [&] {
+                                               std::optional<RecordingWriter> writer;
+                                               if (c.record) writer.emplace(bench.writer());
+                                               CaptureOptions options = bench.options(c.frames);
+                                               options.callback_holds_frames = c.callback_holds;
+                                               CaptureSequencer sequencer(bench.projector, {&bench.camera},
+                                                                          &bench.turntable, bench.patterns, options);
+                                               sequencer.run(writer ? std::vector<RecordingWriter*>{&*writer}
+                                                                    : std::vector<RecordingWriter*>{});
+                                             }),
+              0)
+        << c.named << " (" << kRefusedStatuses << ")";
   }
 }
 #endif
 
+// The simulated scanner through the sequencer gives the images of the simulator's own
+// recording path (same rig, same seeds): one capture model for both.
 TEST(CaptureSequencer, SimulatedScannerGivesTheSimulatorsRecording) {
   test::TemporaryDirectory dir;
   sim::SimRecordingOptions sim_options;
