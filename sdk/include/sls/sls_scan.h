@@ -394,7 +394,10 @@ SLS_API void sls_capture_config_init_sized(sls_capture_config* config, size_t st
  * the URI), SLS_ERROR_DEVICE or SLS_ERROR_TIMEOUT for a device that stops answering (the frames
  * recorded before it are fused and kept in the model, as in the recording), and
  * SLS_ERROR_CANCELLED for a cancel (sls_scan_cancel: the capture stops after the stack in
- * progress; the recording keeps the stacks captured and the model what was fused). */
+ * progress; the recording keeps the stacks captured and the model what was fused), and
+ * SLS_ERROR_OUT_OF_MEMORY, before any device moves, when the host's memory (MemAvailable, the
+ * cgroup's limit, ulimit -v) cannot hold the stacks the run may hold at once: the one being
+ * captured and up to three the writer and the scan still hold (~0.5 GB each at 12 MP). */
 SLS_API sls_status sls_scan_run_devices(sls_scan* scan, const sls_capture_config* capture, sls_error** error);
 
 /* Asks the run in progress to stop after its current frame (or its current stack, while
