@@ -59,8 +59,9 @@ struct ActiveVoxel {
 
 // The running-average update of voxel (i, j, k). Returns true when the voxel is active for
 // the anisotropic sweeps (observed this frame and |A| < 1), with A in *average.
-SLS_HOST_DEVICE inline bool integrate_voxel(const VolumeView& v, const IntegrationParams& p,
-                                            const DepthFrameView& frame, int i, int j, int k, float* average) {
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline bool integrate_voxel_as(const VolumeView& v, const IntegrationParams& p,
+                                               const DepthFrameView& frame, int i, int j, int k, float* average) {
   const Vec3f point_camera = transform_point(frame.T_camera_volume, v.voxel_centre(i, j, k));
   Vec2f pixel;
   if (!project(frame.intrinsics, point_camera, &pixel)) return false;
@@ -78,16 +79,25 @@ SLS_HOST_DEVICE inline bool integrate_voxel(const VolumeView& v, const Integrati
   if (d < -p.eta_m) return false;  // hidden behind the surface: no information
   const float f = std::fmax(-1.0f, std::fmin(1.0f, d * p.inverse_truncation_m));
   const std::size_t index = v.index(i, j, k);
-  const float weight = v.w(index);
-  const float previous = weight > 0.0f ? v.average(index) : 0.0f;
+  // W and A read together (A is not needed where W = 0, but a read costs less than waiting
+  // for W before issuing it).
+  const float weight = v.w_as<F>(index);
+  const float stored = v.average_as<F>(index);
+  const float previous = weight > 0.0f ? stored : 0.0f;
   const float a = (weight * previous + f) / (weight + 1.0f);
-  v.set_average(index, a);
-  v.set_w(index, std::fmin(weight + 1.0f, p.weight_max));
+  v.set_average_as<F>(index, a);
+  v.set_w_as<F>(index, std::fmin(weight + 1.0f, p.weight_max));
   *average = a;
   const bool near_surface = std::fabs(a) < 1.0f;
-  v.set_u(index, a);  // GTSDF's sweeps start from A
+  v.set_u_as<F>(index, a);  // GTSDF's sweeps start from A
   if (near_surface) v.mark_surface(i, j, k);
   return near_surface;
+}
+
+SLS_HOST_DEVICE inline bool integrate_voxel(const VolumeView& v, const IntegrationParams& p,
+                                            const DepthFrameView& frame, int i, int j, int k, float* average) {
+  return v.format == VoxelFormat::kFloat32 ? integrate_voxel_as<VoxelFormat::kFloat32>(v, p, frame, i, j, k, average)
+                                           : integrate_voxel_as<VoxelFormat::kCompact>(v, p, frame, i, j, k, average);
 }
 
 SLS_HOST_DEVICE inline float penalty_weight(Penalty penalty, float s, float kappa) {
@@ -107,7 +117,8 @@ SLS_HOST_DEVICE inline float penalty_weight(Penalty penalty, float s, float kapp
 // The voxel's (i, j, k) from its 32-bit index by 32-bit divisions, and its neighbours' indices
 // by the strides: a 64-bit division is a long subroutine on a GPU, and this runs for millions
 // of voxels per half-sweep (the same voxels and the same arithmetic on U as index() gives).
-SLS_HOST_DEVICE inline float relax_voxel(const VolumeView& v, const IntegrationParams& p, ActiveVoxel voxel) {
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline float relax_voxel_as(const VolumeView& v, const IntegrationParams& p, ActiveVoxel voxel) {
   const std::uint32_t nx = static_cast<std::uint32_t>(v.nx);
   const std::uint32_t plane = nx * static_cast<std::uint32_t>(v.ny);  // a volume holds at most 2^32 voxels (volume.cpp)
   const std::uint32_t k = voxel.index / plane;
@@ -115,9 +126,6 @@ SLS_HOST_DEVICE inline float relax_voxel(const VolumeView& v, const IntegrationP
   const std::uint32_t j = rest / nx;
   const std::uint32_t i = rest - j * nx;
   const std::size_t index = voxel.index;
-  const float u = v.u(index);
-  float numerator = voxel.average;
-  float denominator = 1.0f;
   // The 6 axis neighbours in index()'s order: -i, +i, -j, +j, -k, +k, each where the volume has it.
   const bool has[6] = {i > 0u,
                        i + 1u < nx,
@@ -126,16 +134,31 @@ SLS_HOST_DEVICE inline float relax_voxel(const VolumeView& v, const IntegrationP
                        k > 0u,
                        k + 1u < static_cast<std::uint32_t>(v.nz)};
   const std::size_t stride[3] = {1u, nx, plane};
+  // Every read first (the voxel itself stands in for a neighbour the volume lacks), the sums
+  // after in the same order: a GPU thread has the 13 reads in flight together.
+  const float u = v.u_as<F>(index);
+  float neighbour_w[6], neighbour_u[6];
   for (int n = 0; n < 6; ++n) {
-    if (!has[n]) continue;
-    const std::size_t neighbour = (n & 1) != 0 ? index + stride[n >> 1] : index - stride[n >> 1];
-    if (!(v.w(neighbour) > 0.0f)) continue;
-    const float un = v.u(neighbour);
+    const std::size_t neighbour =
+        !has[n] ? index : (n & 1) != 0 ? index + stride[n >> 1] : index - stride[n >> 1];
+    neighbour_w[n] = v.w_as<F>(neighbour);
+    neighbour_u[n] = v.u_as<F>(neighbour);
+  }
+  float numerator = voxel.average;
+  float denominator = 1.0f;
+  for (int n = 0; n < 6; ++n) {
+    if (!has[n] || !(neighbour_w[n] > 0.0f)) continue;
+    const float un = neighbour_u[n];
     const float b = p.alpha * penalty_weight(p.penalty, std::fabs(un - u), p.kappa);
     numerator += b * un;
     denominator += b;
   }
   return numerator / denominator;
+}
+
+SLS_HOST_DEVICE inline float relax_voxel(const VolumeView& v, const IntegrationParams& p, ActiveVoxel voxel) {
+  return v.format == VoxelFormat::kFloat32 ? relax_voxel_as<VoxelFormat::kFloat32>(v, p, voxel)
+                                           : relax_voxel_as<VoxelFormat::kCompact>(v, p, voxel);
 }
 
 // Element n of a half-sweep over one parity's active voxels (both backends' parallel_for).

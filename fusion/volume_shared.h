@@ -150,42 +150,93 @@ struct VolumeView {
   SLS_HOST_DEVICE bool contains(int i, int j, int k) const {
     return i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz;
   }
-  SLS_HOST_DEVICE float u(std::size_t index) const {
-    return format == VoxelFormat::kFloat32 ? u32[index] : half_to_float(u16[index]);
+  // U, W and A with the format known when compiled (the *_as<F> accessors): per-voxel code
+  // that reads a voxel's neighbours or a sample's corners tests the format once, where the
+  // runtime accessors below test it at every read (a branch, and both formats' address
+  // arithmetic, at each of a raycast sample's 16 reads: a third of its instructions, ncu).
+  template <VoxelFormat F>
+  SLS_HOST_DEVICE float u_as(std::size_t index) const {
+    if constexpr (F == VoxelFormat::kFloat32) {
+      return u32[index];
+    } else {
+      return half_to_float(u16[index]);
+    }
   }
-  SLS_HOST_DEVICE float w(std::size_t index) const {
-    return format == VoxelFormat::kFloat32 ? w32[index] : static_cast<float>(w8[index]);
+  template <VoxelFormat F>
+  SLS_HOST_DEVICE float w_as(std::size_t index) const {
+    if constexpr (F == VoxelFormat::kFloat32) {
+      return w32[index];
+    } else {
+      return static_cast<float>(w8[index]);
+    }
   }
-  SLS_HOST_DEVICE void set_u(std::size_t index, float value) const {
-    if (format == VoxelFormat::kFloat32) {
+  template <VoxelFormat F>
+  SLS_HOST_DEVICE void set_u_as(std::size_t index, float value) const {
+    if constexpr (F == VoxelFormat::kFloat32) {
       u32[index] = value;
     } else {
       u16[index] = float_to_half(value);
     }
   }
-  SLS_HOST_DEVICE bool keeps_average() const { return a32 != nullptr || a16 != nullptr; }
-  // Bytes a voxel takes (U, W and A where kept): what reading or writing one moves.
-  SLS_HOST_DEVICE std::size_t bytes_per_voxel() const { return voxel_bytes(format, keeps_average()); }
-  // A: the running average where the volume keeps it, else U (which then is A).
-  SLS_HOST_DEVICE float average(std::size_t index) const {
-    if (a32 != nullptr) return a32[index];
-    if (a16 != nullptr) return half_to_float(a16[index]);
-    return u(index);
-  }
-  // Writes A where the volume keeps it (a TSDF volume's A is its U: nothing to do).
-  SLS_HOST_DEVICE void set_average(std::size_t index, float value) const {
-    if (a32 != nullptr) {
-      a32[index] = value;
-    } else if (a16 != nullptr) {
-      a16[index] = float_to_half(value);
-    }
-  }
   // Weights are whole numbers in both formats (counts of observations, capped).
-  SLS_HOST_DEVICE void set_w(std::size_t index, float weight) const {
-    if (format == VoxelFormat::kFloat32) {
+  template <VoxelFormat F>
+  SLS_HOST_DEVICE void set_w_as(std::size_t index, float weight) const {
+    if constexpr (F == VoxelFormat::kFloat32) {
       w32[index] = weight;
     } else {
       w8[index] = static_cast<std::uint8_t>(weight);
+    }
+  }
+  // A: the running average where the volume keeps it, else U (which then is A).
+  template <VoxelFormat F>
+  SLS_HOST_DEVICE float average_as(std::size_t index) const {
+    if constexpr (F == VoxelFormat::kFloat32) {
+      return a32 != nullptr ? a32[index] : u32[index];
+    } else {
+      return half_to_float(a16 != nullptr ? a16[index] : u16[index]);
+    }
+  }
+  // Writes A where the volume keeps it (a TSDF volume's A is its U: nothing to do).
+  template <VoxelFormat F>
+  SLS_HOST_DEVICE void set_average_as(std::size_t index, float value) const {
+    if constexpr (F == VoxelFormat::kFloat32) {
+      if (a32 != nullptr) a32[index] = value;
+    } else {
+      if (a16 != nullptr) a16[index] = float_to_half(value);
+    }
+  }
+  SLS_HOST_DEVICE float u(std::size_t index) const {
+    return format == VoxelFormat::kFloat32 ? u_as<VoxelFormat::kFloat32>(index) : u_as<VoxelFormat::kCompact>(index);
+  }
+  SLS_HOST_DEVICE float w(std::size_t index) const {
+    return format == VoxelFormat::kFloat32 ? w_as<VoxelFormat::kFloat32>(index) : w_as<VoxelFormat::kCompact>(index);
+  }
+  SLS_HOST_DEVICE void set_u(std::size_t index, float value) const {
+    if (format == VoxelFormat::kFloat32) {
+      set_u_as<VoxelFormat::kFloat32>(index, value);
+    } else {
+      set_u_as<VoxelFormat::kCompact>(index, value);
+    }
+  }
+  SLS_HOST_DEVICE bool keeps_average() const { return a32 != nullptr || a16 != nullptr; }
+  // Bytes a voxel takes (U, W and A where kept): what reading or writing one moves.
+  SLS_HOST_DEVICE std::size_t bytes_per_voxel() const { return voxel_bytes(format, keeps_average()); }
+  SLS_HOST_DEVICE float average(std::size_t index) const {
+    return format == VoxelFormat::kFloat32 ? average_as<VoxelFormat::kFloat32>(index)
+                                           : average_as<VoxelFormat::kCompact>(index);
+  }
+  SLS_HOST_DEVICE void set_average(std::size_t index, float value) const {
+    if (format == VoxelFormat::kFloat32) {
+      set_average_as<VoxelFormat::kFloat32>(index, value);
+    } else {
+      set_average_as<VoxelFormat::kCompact>(index, value);
+    }
+  }
+  SLS_HOST_DEVICE void set_w(std::size_t index, float weight) const {
+    if (format == VoxelFormat::kFloat32) {
+      set_w_as<VoxelFormat::kFloat32>(index, weight);
+    } else {
+      set_w_as<VoxelFormat::kCompact>(index, weight);
     }
   }
   SLS_HOST_DEVICE int bricks_x() const { return (nx + (1 << kBrickShift) - 1) >> kBrickShift; }
@@ -230,7 +281,8 @@ struct VolumeView {
 
 // Trilinear U at a volume-frame point; false when a corner lies outside the volume or has
 // never been observed (W = 0). The surface is where it crosses 0.
-SLS_HOST_DEVICE inline bool sample_u(const VolumeView& v, Vec3f point_volume, float* value) {
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline bool sample_u_as(const VolumeView& v, Vec3f point_volume, float* value) {
   // One reciprocal (hoisted out of a caller's loop) rather than three divisions a sample: an
   // IEEE division is a dozen instructions on a GPU, and a raycast samples ~10 times a ray.
   const float to_grid = 1.0f / v.voxel_size_m;
@@ -247,12 +299,16 @@ SLS_HOST_DEVICE inline bool sample_u(const VolumeView& v, Vec3f point_volume, fl
   const std::size_t slice = row * static_cast<std::size_t>(v.ny);
   const std::size_t base = v.index(i, j, k);
   const std::size_t offsets[8] = {0, 1, row, row + 1, slice, slice + 1, slice + row, slice + row + 1};
+  // All 16 reads first, the test after (the corners lie inside the volume): a GPU thread has
+  // them in flight together instead of waiting for each weight before the next read.
   float corner[8];
+  bool observed = true;
   for (int c = 0; c < 8; ++c) {
     const std::size_t index = base + offsets[c];
-    if (!(v.w(index) > 0.0f)) return false;
-    corner[c] = v.u(index);
+    observed = observed & (v.w_as<F>(index) > 0.0f);  // &, not &&: no branch between the reads
+    corner[c] = v.u_as<F>(index);
   }
+  if (!observed) return false;
   const float x00 = corner[0] + tx * (corner[1] - corner[0]);
   const float x10 = corner[2] + tx * (corner[3] - corner[2]);
   const float x01 = corner[4] + tx * (corner[5] - corner[4]);
@@ -263,9 +319,15 @@ SLS_HOST_DEVICE inline bool sample_u(const VolumeView& v, Vec3f point_volume, fl
   return true;
 }
 
+SLS_HOST_DEVICE inline bool sample_u(const VolumeView& v, Vec3f point_volume, float* value) {
+  return v.format == VoxelFormat::kFloat32 ? sample_u_as<VoxelFormat::kFloat32>(v, point_volume, value)
+                                           : sample_u_as<VoxelFormat::kCompact>(v, point_volume, value);
+}
+
 // Unit gradient of U (the outward surface normal) by central differences of the trilinear
 // field, half a voxel either side; false where a sample is missing or the gradient vanishes.
-SLS_HOST_DEVICE inline bool surface_normal(const VolumeView& v, Vec3f point_volume, Vec3f* normal_volume) {
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline bool surface_normal_as(const VolumeView& v, Vec3f point_volume, Vec3f* normal_volume) {
   const float h = 0.5f * v.voxel_size_m;
   float g[3];
   for (int axis = 0; axis < 3; ++axis) {
@@ -274,13 +336,18 @@ SLS_HOST_DEVICE inline bool surface_normal(const VolumeView& v, Vec3f point_volu
     if (axis == 1) { plus.y += h; minus.y -= h; }
     if (axis == 2) { plus.z += h; minus.z -= h; }
     float up = 0.0f, down = 0.0f;
-    if (!sample_u(v, plus, &up) || !sample_u(v, minus, &down)) return false;
+    if (!sample_u_as<F>(v, plus, &up) || !sample_u_as<F>(v, minus, &down)) return false;
     g[axis] = up - down;
   }
   const float length = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
   if (!(length > 0.0f)) return false;
   *normal_volume = Vec3f{g[0] / length, g[1] / length, g[2] / length};
   return true;
+}
+
+SLS_HOST_DEVICE inline bool surface_normal(const VolumeView& v, Vec3f point_volume, Vec3f* normal_volume) {
+  return v.format == VoxelFormat::kFloat32 ? surface_normal_as<VoxelFormat::kFloat32>(v, point_volume, normal_volume)
+                                           : surface_normal_as<VoxelFormat::kCompact>(v, point_volume, normal_volume);
 }
 
 }  // namespace sls::fusion
