@@ -43,9 +43,10 @@ SLS_HOST_DEVICE inline float snap_to_grid(float g) {
 }
 
 // Resamples voxel (i, j, k) of `to` from `from` (same voxel size); grid_from_to maps `to`'s
-// grid coordinates to `from`'s.
-SLS_HOST_DEVICE inline void resample_voxel(const VolumeView& from, const VolumeView& to, const Rigid3f& grid_from_to,
-                                           int i, int j, int k) {
+// grid coordinates to `from`'s. F is `from`'s format: its 24 reads test none.
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline void resample_voxel_from(const VolumeView& from, const VolumeView& to,
+                                                const Rigid3f& grid_from_to, int i, int j, int k) {
   const std::size_t out = to.index(i, j, k);
   const Vec3f g = transform_point(grid_from_to, Vec3f{static_cast<float>(i), static_cast<float>(j),
                                                       static_cast<float>(k)});
@@ -67,11 +68,11 @@ SLS_HOST_DEVICE inline void resample_voxel(const VolumeView& from, const VolumeV
     const float weight = (dx != 0 ? tx : 1.0f - tx) * (dy != 0 ? ty : 1.0f - ty) * (dz != 0 ? tz : 1.0f - tz);
     if (!(weight > 0.0f) || !from.contains(i0 + dx, j0 + dy, k0 + dz)) continue;
     const std::size_t index = from.index(i0 + dx, j0 + dy, k0 + dz);
-    const float w = from.w(index);
+    const float w = from.w_as<F>(index);
     if (!(w > 0.0f)) continue;
     support += weight;
-    sum_u += weight * from.u(index);
-    sum_a += weight * from.average(index);
+    sum_u += weight * from.u_as<F>(index);
+    sum_a += weight * from.average_as<F>(index);
     sum_w += weight * w;
   }
   if (!(support >= kResampleMinSupport)) {
@@ -87,6 +88,15 @@ SLS_HOST_DEVICE inline void resample_voxel(const VolumeView& from, const VolumeV
   to.set_average(out, std::fmax(-1.0f, std::fmin(1.0f, sum_a * inverse_support)));
   to.set_w(out, w);
   if (std::fabs(u) < 1.0f) to.mark_surface(i, j, k);
+}
+
+SLS_HOST_DEVICE inline void resample_voxel(const VolumeView& from, const VolumeView& to, const Rigid3f& grid_from_to,
+                                           int i, int j, int k) {
+  if (from.format == VoxelFormat::kFloat32) {
+    resample_voxel_from<VoxelFormat::kFloat32>(from, to, grid_from_to, i, j, k);
+  } else {
+    resample_voxel_from<VoxelFormat::kCompact>(from, to, grid_from_to, i, j, k);
+  }
 }
 
 }  // namespace sls::fusion
