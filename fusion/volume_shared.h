@@ -246,10 +246,12 @@ struct VolumeView {
     return static_cast<std::size_t>(bricks_x()) * static_cast<std::size_t>(bricks_y()) *
            static_cast<std::size_t>(bricks_z());
   }
+  // In 32-bit arithmetic, widened, as index(): fewer bricks than voxels (a raycast step and
+  // an integrated voxel near the surface each look one up).
   SLS_HOST_DEVICE std::size_t brick_index(int bi, int bj, int bk) const {
-    return (static_cast<std::size_t>(bk) * static_cast<std::size_t>(bricks_y()) + static_cast<std::size_t>(bj)) *
-               static_cast<std::size_t>(bricks_x()) +
-           static_cast<std::size_t>(bi);
+    return (static_cast<std::uint32_t>(bk) * static_cast<std::uint32_t>(bricks_y()) + static_cast<std::uint32_t>(bj)) *
+               static_cast<std::uint32_t>(bricks_x()) +
+           static_cast<std::uint32_t>(bi);
   }
   // Flags the bricks within one voxel of voxel (i, j, k): trilinear samples near a brick's
   // face read voxels of the next brick. Racing writers all write 1. Code that writes voxels
