@@ -19,6 +19,22 @@ namespace {
 
 using namespace capture_test;
 
+// The recording at `sequenced` holds `frames` frames, each with the timestamp, table angle and
+// images of the same frame of the recording at `direct`.
+void expect_same_frames(const std::string& direct_path, const std::string& sequenced_path, std::size_t frames) {
+  const RecordingReader direct = RecordingReader::open(direct_path);
+  const RecordingReader sequenced = RecordingReader::open(sequenced_path);
+  ASSERT_EQ(sequenced.frame_count(), frames);
+  for (std::size_t f = 0; f < frames; ++f) {
+    EXPECT_EQ(sequenced.frame(f).timestamp_ns, direct.frame(f).timestamp_ns);
+    EXPECT_EQ(sequenced.frame(f).turntable_angle_deg, direct.frame(f).turntable_angle_deg);
+    const std::vector<Image16u> a = direct.load_images(f);
+    const std::vector<Image16u> b = sequenced.load_images(f);
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t k = 0; k < a.size(); ++k) EXPECT_TRUE(a[k] == b[k]) << "frame " << f << " pattern " << k;
+  }
+}
+
 // The simulated scanner through the sequencer gives the images of the simulator's own
 // recording path (same rig, same seeds): one capture model for both.
 TEST(CaptureSequencer, SimulatedScannerGivesTheSimulatorsRecording) {
@@ -42,17 +58,7 @@ TEST(CaptureSequencer, SimulatedScannerGivesTheSimulatorsRecording) {
   CaptureSequencer sequencer(*projector, {camera.get()}, turntable.get(), scanner->rig().patterns, options);
   sequencer.run({&writer});
 
-  const RecordingReader direct = RecordingReader::open(dir.file("direct"));
-  const RecordingReader sequenced = RecordingReader::open(dir.file("sequenced"));
-  ASSERT_EQ(sequenced.frame_count(), 3u);
-  for (std::size_t f = 0; f < 3; ++f) {
-    EXPECT_EQ(sequenced.frame(f).timestamp_ns, direct.frame(f).timestamp_ns);
-    EXPECT_EQ(sequenced.frame(f).turntable_angle_deg, direct.frame(f).turntable_angle_deg);
-    const std::vector<Image16u> a = direct.load_images(f);
-    const std::vector<Image16u> b = sequenced.load_images(f);
-    ASSERT_EQ(a.size(), b.size());
-    for (std::size_t k = 0; k < a.size(); ++k) EXPECT_TRUE(a[k] == b[k]) << "frame " << f << " pattern " << k;
-  }
+  expect_same_frames(dir.file("direct"), dir.file("sequenced"), 3);
 }
 
 // A capture cut off after two frames goes on from the third into the same recording (a
@@ -146,17 +152,7 @@ TEST(CaptureSequencer, ASimulatedCaptureResumedByNewDevicesGivesTheUninterrupted
     }
   }
 
-  const RecordingReader direct = RecordingReader::open(dir.file("direct"));
-  const RecordingReader sequenced = RecordingReader::open(dir.file("sequenced"));
-  ASSERT_EQ(sequenced.frame_count(), 3u);
-  for (std::size_t f = 0; f < 3; ++f) {
-    EXPECT_EQ(sequenced.frame(f).timestamp_ns, direct.frame(f).timestamp_ns);
-    EXPECT_EQ(sequenced.frame(f).turntable_angle_deg, direct.frame(f).turntable_angle_deg);
-    const std::vector<Image16u> a = direct.load_images(f);
-    const std::vector<Image16u> b = sequenced.load_images(f);
-    ASSERT_EQ(a.size(), b.size());
-    for (std::size_t k = 0; k < a.size(); ++k) EXPECT_TRUE(a[k] == b[k]) << "frame " << f << " pattern " << k;
-  }
+  expect_same_frames(dir.file("direct"), dir.file("sequenced"), 3);
 }
 
 }  // namespace
