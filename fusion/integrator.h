@@ -12,6 +12,7 @@
 #include <string>
 #include <utility>
 
+#include "fusion/depth_band_shared.h"
 #include "fusion/integrate_shared.h"
 #include "fusion/volume.h"
 #include "sdk/core/camera_model_shared.h"
@@ -77,8 +78,7 @@ VoxelBox frustum_voxel_box(const VolumeGeometry& geometry, const CameraIntrinsic
 // every kDepthBandStride-th pixel, and s = Q − q (under 1000 samples: [min, max]). A decoder
 // outlier metres off the surface would otherwise make the frame visit the whole frustum and,
 // lying behind the surface, carve free space through it. {0, 0} for a map with no valid depth.
-constexpr std::size_t kDepthBandStride = 127;
-constexpr double kDepthBandQuantile = 1e-3;
+// The constants and the rule: fusion/depth_band_shared.h.
 std::pair<double, double> integration_depth_band(const Image32f& depth_m);
 
 // The depth range a frame is integrated over (near_m, far_m: metres along the optical axis).

@@ -21,23 +21,24 @@ VoxelBox band_box(const VolumeGeometry& geometry, const CameraIntrinsics& camera
                   double min_depth_m, double max_depth_m, const IntegrationOptions& options);
 
 // integration_depth_band's rule on its sample (the valid depths of every kDepthBandStride-th
-// pixel); under 1000 samples the map's whole valid range, which `range()` gives as [lo, hi]
-// (hi 0: nothing valid).
+// pixel); under kDepthBandMinSamples samples the map's whole valid range, which `range()` gives
+// as [lo, hi] (hi 0: nothing valid).
 template <typename Range>
 std::pair<double, double> band_of_sample(std::vector<float>& sample, const Range& range) {
-  if (sample.size() < 1000) {
+  if (sample.size() < kDepthBandMinSamples) {
     const auto [lo, hi] = range();
     if (!(hi > 0.0f)) return {0.0, 0.0};  // nothing measured: nothing to integrate
     return {static_cast<double>(lo), static_cast<double>(hi)};
   }
   const auto quantile = [&sample](double q) {
-    auto at = sample.begin() + static_cast<std::ptrdiff_t>(q * static_cast<double>(sample.size() - 1));
+    auto at = sample.begin() + depth_band_quantile_index(q, sample.size());
     std::nth_element(sample.begin(), at, sample.end());
     return static_cast<double>(*at);
   };
-  const double q_lo = quantile(kDepthBandQuantile), q_hi = quantile(1.0 - kDepthBandQuantile);
-  const double half_span = 0.5 * (q_hi - q_lo);
-  return {std::max(1e-6, q_lo - half_span), q_hi + half_span};
+  std::pair<double, double> band;
+  depth_band_from_quantiles(quantile(kDepthBandQuantile), quantile(1.0 - kDepthBandQuantile), &band.first,
+                            &band.second);
+  return band;
 }
 
 }  // namespace sls::fusion::detail

@@ -7,6 +7,7 @@
 
 #include <cuda_runtime_api.h>
 
+#include "fusion/depth_band_shared.h"
 #include "fusion/integrate_shared.h"
 
 namespace sls::fusion::detail {
@@ -25,12 +26,18 @@ void sort_active_cuda(ActiveVoxel* active, std::uint32_t count, void** scratch, 
 void launch_relax_cuda(const VolumeView& volume, const IntegrationParams& params, const ActiveVoxel* active,
                        std::uint32_t count, cudaStream_t stream);
 
-// A depth map's summary where it lives (Integrator::summarize): into counts[0] the
-// valid pixels (> 0 and finite), into min_max_bits[0] / [1] the smallest / largest valid
-// depth as float bits (positive floats order as their bits do; the caller sets them to
-// UINT_MAX / 0 and counts[0] to 0), and sample[i / stride] = pixel i's depth (0 where not
-// valid) for every stride-th pixel. Asynchronous on `stream`.
-void launch_depth_summary_cuda(const float* depth, std::size_t pixels, std::size_t stride, float* sample,
-                               unsigned long long* counts, unsigned* min_max_bits, cudaStream_t stream);
+// Integrator::summarize's figures of a map on the GPU, computed there.
+struct DepthSummaryDevice {
+  unsigned long long valid_pixels;   // > 0 and finite
+  unsigned long long valid_samples;  // of the every-kDepthBandStride-th pixels sampled
+  unsigned min_bits, max_bits;       // the smallest / largest valid depth, as float bits
+  double near_m, far_m;              // integration_depth_band's band ({0, 0}: nothing valid)
+};
+// Into `out`: the map's valid pixels and integration_depth_band's band to the bit. `sample` and
+// `sorted` hold depth_band_samples(pixels) floats; `scratch` is CUB's temporary storage, grown
+// as needed. Asynchronous on `stream`.
+void launch_depth_summary_cuda(const float* depth, std::size_t pixels, float* sample, float* sorted,
+                               DepthSummaryDevice* out, void** scratch, std::size_t* scratch_bytes,
+                               cudaStream_t stream);
 
 }  // namespace sls::fusion::detail

@@ -2,13 +2,8 @@
 // integrate.cu, built with CUDA only.
 #include "fusion/integrator_gpu.h"
 
-#include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
-#include <tuple>
-#include <utility>
-#include <vector>
 
 #include <cuda_runtime_api.h>
 
@@ -30,10 +25,10 @@ struct IntegratorGpu::State {
   std::size_t sort_scratch_bytes = 0;
   ActiveVoxel* sorted = nullptr;
   std::size_t sorted_capacity = 0;
-  // summarize's sample, valid count and depth bounds (float bits).
+  // summarize's sample, sorted, and its figures.
   DeviceBuffer<float> summary_sample;
-  DeviceBuffer<unsigned long long> summary_counts;
-  DeviceBuffer<unsigned> summary_bounds;
+  DeviceBuffer<float> summary_sorted;
+  DeviceBuffer<DepthSummaryDevice> summary;
 
   ~State() {
     if (sort_scratch != nullptr) {
@@ -69,36 +64,23 @@ const float* IntegratorGpu::on_device(const Image32f& depth_m) {
 DepthMapSummary IntegratorGpu::summarize(const float* depth_device, std::size_t pixels) {
   State& s = *state_;
   require_device(s.device);
-  DepthMapSummary summary;
-  if (pixels == 0) return summary;
-  const std::size_t samples = (pixels + kDepthBandStride - 1) / kDepthBandStride;
-  if (s.summary_sample.size() < samples) s.summary_sample.allocate(samples);
-  if (s.summary_counts.size() == 0) {
-    s.summary_counts.allocate(1);
-    s.summary_bounds.allocate(2);
+  const std::size_t samples = depth_band_samples(pixels);
+  if (s.summary_sample.size() < samples) {
+    s.summary_sample.allocate(samples);
+    s.summary_sorted.allocate(samples);
   }
-  const unsigned bounds_start[2] = {0xffffffffu, 0u};
-  SLS_CUDA_CHECK(cudaMemsetAsync(s.summary_counts.data(), 0, sizeof(unsigned long long), s.stream));
-  s.summary_bounds.upload(bounds_start, 2, s.stream);
-  launch_depth_summary_cuda(depth_device, pixels, kDepthBandStride, s.summary_sample.data(), s.summary_counts.data(),
-                            s.summary_bounds.data(), s.stream);
-  std::vector<float> sample(samples);
-  unsigned long long count = 0;
-  unsigned bounds[2] = {0, 0};
-  s.summary_sample.download(sample.data(), samples, s.stream);
-  s.summary_counts.download(&count, 1, s.stream);
-  s.summary_bounds.download(bounds, 2, s.stream);
+  if (s.summary.size() == 0) s.summary.allocate(1);
+  // Only the figures come down: the band's quantiles are picked on the GPU from the sorted
+  // sample (the host's nth_element over 94 000 samples took ~1 ms a frame).
+  launch_depth_summary_cuda(depth_device, pixels, s.summary_sample.data(), s.summary_sorted.data(), s.summary.data(),
+                            &s.sort_scratch, &s.sort_scratch_bytes, s.stream);
+  DepthSummaryDevice figures{};
+  s.summary.download(&figures, 1, s.stream);
   SLS_CUDA_CHECK(cudaStreamSynchronize(s.stream));
-  summary.valid_pixels = static_cast<std::size_t>(count);
-  sample.erase(std::remove_if(sample.begin(), sample.end(), [](float z) { return !(z > 0.0f); }), sample.end());
-  std::tie(summary.near_m, summary.far_m) = band_of_sample(sample, [&] {
-    float lo = 0.0f, hi = 0.0f;
-    if (count > 0) {
-      std::memcpy(&lo, &bounds[0], sizeof(float));
-      std::memcpy(&hi, &bounds[1], sizeof(float));
-    }
-    return std::pair<float, float>(lo, hi);
-  });
+  DepthMapSummary summary;
+  summary.valid_pixels = static_cast<std::size_t>(figures.valid_pixels);
+  summary.near_m = figures.near_m;
+  summary.far_m = figures.far_m;
   return summary;
 }
 
