@@ -21,7 +21,7 @@ class IntegratorGpu {
   // `depth_m` on the GPU: itself where it lives there, else uploaded into a buffer kept for the
   // next frame.
   const float* on_device(const Image32f& depth_m);
-  // integration_depth_band's figures of a map on the GPU: only the sample comes to the host.
+  // integration_depth_band's figures of a map on the GPU, computed there: only they come to the host.
   DepthMapSummary summarize(const float* depth_device, std::size_t pixels);
   // The frame into `volume` over `band`, GTSDF's sweeps included, before returning. The inputs
   // are checked by the caller (Integrator::integrate).
