@@ -99,8 +99,12 @@ PosePriorTerm pose_prior_term(const PosePrior& prior, const Pose& T_world_model,
   return term;
 }
 
-double surface_sigma_rad(const double* sums, const Vector6d& jacobian, double variance_m2, double min_ratio) {
-  const Eigen::SelfAdjointEigenSolver<Matrix6d> eigen(normal_matrix(sums));
+namespace {
+
+// surface_sigma_rad over A's eigen-decomposition, made once per step (solve_with_pose_prior asks
+// for three rows and solves with the same decomposition).
+double surface_sigma_rad(const Eigen::SelfAdjointEigenSolver<Matrix6d>& eigen, const Vector6d& jacobian,
+                         double variance_m2, double min_ratio) {
   const double largest = eigen.eigenvalues()(5);
   if (!(largest > 0.0) || !std::isfinite(largest)) return std::numeric_limits<double>::infinity();
   double variance = 0.0;
@@ -116,6 +120,13 @@ double surface_sigma_rad(const double* sums, const Vector6d& jacobian, double va
   return std::sqrt(variance_m2 * variance);
 }
 
+}  // namespace
+
+double surface_sigma_rad(const double* sums, const Vector6d& jacobian, double variance_m2, double min_ratio) {
+  return surface_sigma_rad(Eigen::SelfAdjointEigenSolver<Matrix6d>(normal_matrix(sums)), jacobian, variance_m2,
+                           min_ratio);
+}
+
 PriorStep solve_with_pose_prior(const double* sums, const PosePrior& prior, double variance_m2,
                                 const Pose& T_world_model, const Pose& T_model_live, double scale_m,
                                 double degenerate_ratio) {
@@ -127,14 +138,16 @@ PriorStep solve_with_pose_prior(const double* sums, const PosePrior& prior, doub
   const auto row = [&](const Eigen::Vector3d& direction) -> Vector6d {
     return (direction.transpose() * term.jacobian).transpose();
   };
-  step.surface_sigma_rad = surface_sigma_rad(sums, row(prior.axis_world), variance_m2, degenerate_ratio);
-  const double tilt1 = surface_sigma_rad(sums, row(e1), variance_m2, degenerate_ratio);
-  const double tilt2 = surface_sigma_rad(sums, row(e2), variance_m2, degenerate_ratio);
+  // A's eigen-decomposition, once a step: the three σ and the solve's basis read it (on a
+  // paper-size scan this solve runs ~13 times a frame between the GPU's reductions).
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> surface(normal_matrix(sums));
+  step.surface_sigma_rad = surface_sigma_rad(surface, row(prior.axis_world), variance_m2, degenerate_ratio);
+  const double tilt1 = surface_sigma_rad(surface, row(e1), variance_m2, degenerate_ratio);
+  const double tilt2 = surface_sigma_rad(surface, row(e2), variance_m2, degenerate_ratio);
   step.surface_tilt_sigma_rad = std::sqrt(0.5 * (tilt1 * tilt1 + tilt2 * tilt2));
 
   Vector6d b;
   for (int r = 0; r < 6; ++r) b(r) = sums[kTrackJtr + r];
-  const Eigen::SelfAdjointEigenSolver<Matrix6d> surface(normal_matrix(sums));
   const Vector6d& values = surface.eigenvalues();  // ascending
   const double largest = values(5), smallest = values(0);
   step.condition = smallest > 0.0 ? largest / smallest : std::numeric_limits<double>::infinity();
