@@ -87,5 +87,39 @@ TEST(KernelProfileCuda, TimesEachLaunchWhileOnAndSumsByName) {
   set_kernel_profiling(false);
 }
 
+// A scan times thousands of launches: those the GPU has finished are summed as it goes (their
+// events reused), and none is lost or counted twice, also while an outer timer stays open.
+TEST(KernelProfileCuda, SumsFinishedLaunchesAsItGoesWithoutLosingAny) {
+  SLS_REQUIRE_CUDA_DEVICE();
+  const std::size_t count = std::size_t{1} << 16;
+  const GpuStream stream = GpuStream::create(Device::cuda(0));
+  DeviceBuffer<float> values(count);
+  set_kernel_profiling(true);
+  const auto fills = [&](int launches) {
+    for (int n = 0; n < launches; ++n) {
+      timed_fill(values.data(), count, stream);
+      if (n % 50 == 49) stream.synchronize();  // what the frame loop does: the GPU catches up
+    }
+  };
+  fills(700);
+  {
+    const KernelTimer outer("outer", 1.0, stream.native());  // open while the fills below finish
+    fills(300);
+  }
+  fills(10);
+  const std::vector<KernelFigures> figures = kernel_profile();
+  set_kernel_profiling(false);
+  ASSERT_EQ(figures.size(), 2u);
+  const KernelFigures& fill_figures = figures[0].name == "fill" ? figures[0] : figures[1];
+  const KernelFigures& outer_figures = figures[0].name == "fill" ? figures[1] : figures[0];
+  EXPECT_EQ(fill_figures.name, "fill");
+  EXPECT_EQ(fill_figures.launches, 1010u);
+  EXPECT_EQ(fill_figures.bytes, 1010.0 * 4.0 * static_cast<double>(count));
+  EXPECT_GT(fill_figures.gpu_ms, 0.0);
+  EXPECT_EQ(outer_figures.name, "outer");
+  EXPECT_EQ(outer_figures.launches, 1u);
+  EXPECT_GE(outer_figures.gpu_ms, 0.0);
+}
+
 }  // namespace
 }  // namespace sls
