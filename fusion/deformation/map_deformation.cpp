@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "sdk/core/error.h"
+#include "sdk/core/host_memory.h"
 
 namespace sls::fusion::deformation {
 
@@ -28,7 +29,7 @@ void deform_cloud_part(const DeformationGraph& graph, const std::vector<NodeTran
     throw_error(ErrorCode::kInvalidArgument, "map deformation: {} transforms for a graph of {} nodes",
                 transforms.size(), graph.size());
   }
-  if (displacement_m != nullptr) displacement_m->resize(to->size(), 0.0f);
+  if (displacement_m != nullptr) resize_populated(displacement_m, to->size());  // new values 0
   if (graph.size() == 0 || begin == end) {
     if (&from != to || begin != to_begin) {  // nothing to deform, still to be copied
       std::copy(from.positions.begin() + static_cast<std::ptrdiff_t>(begin),

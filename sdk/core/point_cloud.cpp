@@ -33,10 +33,12 @@ void PointCloud::validate() const {
 
 namespace {
 
-// a's values then b's in one array sized once; copied on all threads unless `copy` is false.
+// a's values then b's in one array sized once, its pages mapped on all threads; copied on all
+// threads unless `copy` is false.
 template <typename T>
 std::vector<T> joined(const std::vector<T>& a, const std::vector<T>& b, bool copy = true) {
-  std::vector<T> out(a.size() + b.size());
+  std::vector<T> out;
+  resize_populated(&out, a.size() + b.size());
   if (copy && !a.empty()) copy_bytes_parallel(out.data(), a.data(), a.size() * sizeof(T));
   if (copy && !b.empty()) copy_bytes_parallel(out.data() + a.size(), b.data(), b.size() * sizeof(T));
   return out;

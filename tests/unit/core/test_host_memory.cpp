@@ -1,9 +1,13 @@
 // Host memory admission (host_memory.h): what the process may still allocate, and a refusal
-// that names the size asked, the size available and the limit, before anything is allocated.
+// that names the size asked, the size available and the limit, before anything is allocated;
+// and the pages of a large array mapped on all threads before its first writes.
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <cstring>
+#include <numeric>
 #include <string>
 #include <vector>
 
@@ -22,6 +26,34 @@ TEST(HostMemory, AvailableIsKnownOnLinux) {
   const HostMemoryAvailable available = host_memory_available();
   EXPECT_GT(available.bytes, 16u << 20) << available.limited_by;  // a machine that runs the tests
   EXPECT_NE(available.limited_by, "unknown");
+}
+
+// The pages mapped ahead of the writes: what a vector holds is exactly what resize gives it —
+// old values kept, new ones zero — whatever the start's alignment and however many threads'
+// pieces the range spans; and mapping pages already written changes none of their bytes.
+TEST(HostMemory, ResizePopulatedKeepsTheValuesAndZeroesTheNewOnes) {
+  std::vector<float> values;
+  resize_populated(&values, 3);  // less than a page
+  EXPECT_EQ(values, std::vector<float>(3, 0.0f));
+  values = {1.0f, 2.0f, 3.0f};
+  const std::size_t count = (std::size_t{40} << 20) / sizeof(float) + 7;  // 40 MiB: many 2 MiB pieces
+  resize_populated(&values, count);
+  ASSERT_EQ(values.size(), count);
+  EXPECT_EQ(values[0], 1.0f);
+  EXPECT_EQ(values[1], 2.0f);
+  EXPECT_EQ(values[2], 3.0f);
+  EXPECT_EQ(std::count(values.begin() + 3, values.end(), 0.0f), static_cast<std::ptrdiff_t>(count - 3));
+  resize_populated(&values, 2);
+  EXPECT_EQ(values, (std::vector<float>{1.0f, 2.0f}));
+
+  std::vector<std::uint32_t> written(std::size_t{6} << 20);
+  std::iota(written.begin(), written.end(), 7u);
+  populate_pages_parallel(reinterpret_cast<unsigned char*>(written.data()) + 5, written.size() * 4 - 5);
+  populate_pages_parallel(written.data(), 0);
+  populate_pages_parallel(nullptr, 4096);
+  for (std::size_t i = 0; i < written.size(); ++i) {
+    if (written[i] != static_cast<std::uint32_t>(i + 7)) FAIL() << "value " << i << " changed to " << written[i];
+  }
 }
 
 TEST(HostMemory, AdmitsWhatFitsAndRefusesWhatDoesNotNamingTheSizes) {
