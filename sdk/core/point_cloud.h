@@ -49,8 +49,9 @@ struct TriangleMesh {
 
 // a's points then b's: every per-point array, and each of a's properties followed by b's of that
 // name (an empty a takes b's layout). Sized once, its pages mapped and its values copied on all
-// threads (a scan's model joins ~18 M points at the paper's size: resize_populated). With copy_geometry false, positions and normals are sized
-// but left unwritten, for a caller that writes them in its own pass (the scan's deformed model).
+// threads (a scan's model joins ~18 M points at the paper's size: resize_populated). With
+// copy_geometry false, positions and normals are sized but left unwritten, for a caller that
+// writes them in its own pass (the scan's deformed model).
 // Throws sls::Error(kInvalidArgument) when b lacks one of a's properties.
 PointCloud join_clouds(const PointCloud& a, const PointCloud& b, bool copy_geometry = true);
 // a's vertices and triangles then b's, b's vertex indices moved past a's vertices.
