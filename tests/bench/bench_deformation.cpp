@@ -8,15 +8,23 @@
 //   BM_LoopClosure/N          2000 point-to-point constraints from the last view to the first
 //                             frame's surface, then the steps the session's loop closure runs
 //                             (3), from the analysis to the last step
+//   BM_DeformMap/N            the final model's deformation (eqs. 18-19): N points with normals
+//                             scattered around the nodes, each bound to its 4 nearest of the
+//                             last 8 nodes and moved, on all threads (points/s)
+//   BM_MatchVertices/N        the walk that finds a mesh's vertices among its cloud's N points
+//                             (one thread; every 40th point the cloud's own, every 50th vertex
+//                             the mesh's own), so that they are deformed once (vertices/s)
 // Figures in docs/benchmarks.md with the machine and the date.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include <Eigen/Geometry>
 
 #include "fusion/deformation/deformation_graph.h"
+#include "fusion/deformation/map_deformation.h"
 
 namespace sls::fusion::deformation {
 namespace {
@@ -127,6 +135,56 @@ void BM_LoopClosure(benchmark::State& state) {
   state.counters["nodes"] = nodes;
 }
 BENCHMARK(BM_LoopClosure)->Arg(100)->Arg(500)->Unit(benchmark::kMillisecond);
+
+void BM_DeformMap(benchmark::State& state) {
+  DeformationGraph graph = make_graph(500);
+  add_online_constraints(&graph, 256);
+  graph.solve(2);
+  const std::vector<NodeTransform> transforms = graph.transforms();
+  const auto count = static_cast<std::size_t>(state.range(0));
+  const int last = static_cast<int>(graph.size()) - 1;
+  PointCloud from;
+  from.positions.resize(count);
+  from.normals.resize(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    // Around the last 8 nodes, as a part of the map observed there is.
+    const Eigen::Vector3d p = scatter(graph.node(last - static_cast<int>(i % 8)).position, static_cast<int>(i), 2e-3);
+    from.positions[i] = p.cast<float>();
+    from.normals[i] = Eigen::Vector3d(p.x(), p.y(), 0.0).normalized().cast<float>();
+  }
+  PointCloud to = from;
+  std::vector<float> moved;
+  for (auto _ : state) {
+    deform_cloud_part(graph, transforms, graph.node(last).time, from, 0, count, &to, 0, &moved);
+    benchmark::DoNotOptimize(to.positions.data());
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(count));
+}
+BENCHMARK(BM_DeformMap)->Arg(1 << 20)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_MatchVertices(benchmark::State& state) {
+  const auto count = static_cast<std::size_t>(state.range(0));
+  PointCloud cloud, vertices;
+  for (std::size_t i = 0; i < count; ++i) {
+    const Eigen::Vector3f p = scatter(Eigen::Vector3d::Zero(), static_cast<int>(i), 5e-3).cast<float>();
+    const Eigen::Vector3f n = Eigen::Vector3f(p.x(), p.y(), 1.0f).normalized();
+    if (i % 50 != 7) {
+      cloud.positions.push_back(p);
+      cloud.normals.push_back(n);
+    }
+    if (i % 40 != 3) {
+      vertices.positions.push_back(p);
+      vertices.normals.push_back(n);
+    }
+  }
+  std::vector<std::int64_t> same(vertices.size());
+  for (auto _ : state) {
+    match_vertices_to_points(vertices, 0, vertices.size(), cloud, 0, cloud.size(), 0, same.data());
+    benchmark::DoNotOptimize(same.data());
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(vertices.size()));
+}
+BENCHMARK(BM_MatchVertices)->Arg(1 << 20)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace sls::fusion::deformation

@@ -6,6 +6,7 @@
 // errors a caller can cause (too few nodes, a disconnected graph, a singular system, bad
 // constraints or priors).
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -478,6 +479,95 @@ TEST(DeformationGraph, MapDeformationIntoAnotherCloudEqualsInPlace) {
   PointCloud no_normals;
   no_normals.positions.resize(source.size());
   EXPECT_EQ(test::code_of([&] { deform_cloud_part(graph, transforms, time, source, 10, 60, &no_normals, 0); }),
+            ErrorCode::kInvalidArgument);
+}
+
+// A mesh's vertices are mostly its cloud's points (ScanSession's final model): one walk finds
+// every one, across single gaps and runs of 5 and 50 of either side's own, never pairs two
+// that differ (a normal differing alone), and the vertices deformed through the shared points
+// are, to the bit, what deforming each vertex gives.
+TEST(DeformationGraph, VerticesThatArePointsTakeThePointsDeformedValues) {
+  BentMap map = bent_map();
+  const DeformationGraph& graph = map.graph;
+  const int time = graph.node(11).time;
+  const std::vector<NodeTransform> transforms = graph.transforms();
+  // One extraction's crossings in order: 40 around each node.
+  std::vector<Eigen::Vector3f> crossings;
+  for (int j = 0; j < 16; ++j) {
+    for (const Eigen::Vector3d& p : points_near(graph, j, 40)) crossings.push_back(p.cast<float>());
+  }
+  const auto normal_of = [](std::size_t n) { return Eigen::Vector3f(0.0f, 0.6f, 0.8f + 1e-3f * static_cast<float>(n % 7)).normalized(); };
+  // The cloud's own: a single one, a run of 5, a run of 50; the mesh's own likewise elsewhere;
+  // one crossing in both with a different normal in the mesh.
+  const auto in = [](std::size_t n, std::size_t from, std::size_t count) { return n >= from && n < from + count; };
+  PointCloud cloud, vertices;
+  std::vector<std::size_t> cloud_crossing, vertex_crossing;  // each point's and vertex's crossing
+  const std::size_t odd_normal = 300;
+  for (std::size_t n = 0; n < crossings.size(); ++n) {
+    const bool cloud_only = n == 17 || in(n, 100, 5) || in(n, 200, 50);
+    const bool mesh_only = n == 23 || in(n, 400, 5) || in(n, 500, 50);
+    if (!mesh_only) {
+      cloud.positions.push_back(crossings[n]);
+      cloud.normals.push_back(normal_of(n));
+      cloud_crossing.push_back(n);
+    }
+    if (!cloud_only) {
+      vertices.positions.push_back(crossings[n]);
+      vertices.normals.push_back(n == odd_normal ? Eigen::Vector3f(1.0f, 0.0f, 0.0f) : normal_of(n));
+      vertex_crossing.push_back(n);
+    }
+  }
+  // The parts sit at offsets in their arrays and in the model, as the shipped parts do.
+  const std::size_t cloud_from = 3, cloud_end = cloud.size() - 2, mesh_from = 5, mesh_end = vertices.size() - 4;
+  const std::size_t cloud_to = 11;
+  std::vector<std::int64_t> same(mesh_end - mesh_from, -7);
+  match_vertices_to_points(vertices, mesh_from, mesh_end, cloud, cloud_from, cloud_end, cloud_to, same.data());
+  std::size_t matched = 0;
+  for (std::size_t i = 0; i < same.size(); ++i) {
+    if (same[i] < 0) {
+      EXPECT_EQ(same[i], -1) << i;
+      continue;
+    }
+    ++matched;
+    const auto c = static_cast<std::size_t>(same[i]) - cloud_to + cloud_from;
+    ASSERT_GE(c, cloud_from);
+    ASSERT_LT(c, cloud_end);
+    EXPECT_EQ(vertices.positions[mesh_from + i], cloud.positions[c]) << i;
+    EXPECT_EQ(vertices.normals[mesh_from + i], cloud.normals[c]) << i;
+  }
+  // Every crossing both parts hold is found (but the one whose normal differs).
+  std::size_t shared = 0;
+  for (std::size_t v = mesh_from; v < mesh_end; ++v) {
+    for (std::size_t c = cloud_from; c < cloud_end; ++c) {
+      shared += cloud_crossing[c] == vertex_crossing[v] && vertex_crossing[v] != odd_normal ? 1u : 0u;
+    }
+  }
+  EXPECT_EQ(matched, shared);
+  EXPECT_GT(shared, 500u);
+
+  // Deformed through the shares and deformed one by one: the same bits; a share out of range
+  // only costs the share.
+  PointCloud model;
+  model.positions.assign(cloud.size() + cloud_to, Eigen::Vector3f::Zero());
+  model.normals.assign(cloud.size() + cloud_to, Eigen::Vector3f::Zero());
+  deform_cloud_part(graph, transforms, time, cloud, cloud_from, cloud_end, &model, cloud_to);
+  same[1] = static_cast<std::int64_t>(model.size()) + 5;
+  PointCloud shared_mesh = vertices, each_mesh = vertices;
+  deform_vertices_part(graph, transforms, time, vertices, mesh_from, mesh_end, &shared_mesh, mesh_from, same.data(),
+                       model);
+  deform_cloud_part(graph, transforms, time, vertices, mesh_from, mesh_end, &each_mesh, mesh_from);
+  for (std::size_t v = 0; v < vertices.size(); ++v) {
+    EXPECT_EQ(shared_mesh.positions[v], each_mesh.positions[v]) << v;
+    EXPECT_EQ(shared_mesh.normals[v], each_mesh.normals[v]) << v;
+  }
+  EXPECT_NE(shared_mesh.positions[mesh_from + 10], vertices.positions[mesh_from + 10]);  // moved at all
+
+  PointCloud no_normals;
+  no_normals.positions = model.positions;
+  EXPECT_EQ(test::code_of([&] {
+              deform_vertices_part(graph, transforms, time, vertices, mesh_from, mesh_end, &shared_mesh, mesh_from,
+                                   same.data(), no_normals);
+            }),
             ErrorCode::kInvalidArgument);
 }
 
