@@ -26,9 +26,17 @@ struct SurfaceCrossing {
   float weight = 0.0f;                    // the smaller of the two voxels' weights
 };
 
-SLS_HOST_DEVICE inline bool voxel_usable(const VolumeView& v, std::size_t index, float min_weight) {
-  const float w = v.w(index);
+// Each function below reads the voxels with the format known when compiled (the *_as<F>
+// templates, which the GPU's kernels instantiate once per format: a format test at each of a
+// cell's 16 reads is most of what a ship's search does); the plain names test it once.
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline bool voxel_usable_as(const VolumeView& v, std::size_t index, float min_weight) {
+  const float w = v.w_as<F>(index);
   return w > 0.0f && w >= min_weight;
+}
+SLS_HOST_DEVICE inline bool voxel_usable(const VolumeView& v, std::size_t index, float min_weight) {
+  return v.format == VoxelFormat::kFloat32 ? voxel_usable_as<VoxelFormat::kFloat32>(v, index, min_weight)
+                                           : voxel_usable_as<VoxelFormat::kCompact>(v, index, min_weight);
 }
 
 SLS_HOST_DEVICE inline std::uint64_t grid_edge_id(const VolumeView& v, int i, int j, int k, int axis) {
@@ -39,8 +47,9 @@ SLS_HOST_DEVICE inline std::uint64_t grid_edge_id(const VolumeView& v, int i, in
 // central differences where both are observed, one-sided where one is, 0 along an axis with
 // neither. The fallback normal where the trilinear surface_normal() lacks samples (the
 // volume's border, the rim of the observed band).
-SLS_HOST_DEVICE inline Vec3f voxel_gradient(const VolumeView& v, int i, int j, int k) {
-  const float centre = v.u(v.index(i, j, k));
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline Vec3f voxel_gradient_as(const VolumeView& v, int i, int j, int k) {
+  const float centre = v.u_as<F>(v.index(i, j, k));
   float g[3] = {0.0f, 0.0f, 0.0f};
   for (int axis = 0; axis < 3; ++axis) {
     const int dx = axis == 0 ? 1 : 0, dy = axis == 1 ? 1 : 0, dz = axis == 2 ? 1 : 0;
@@ -48,13 +57,13 @@ SLS_HOST_DEVICE inline Vec3f voxel_gradient(const VolumeView& v, int i, int j, i
     bool has_plus = false, has_minus = false;
     if (v.contains(i + dx, j + dy, k + dz)) {
       const std::size_t index = v.index(i + dx, j + dy, k + dz);
-      has_plus = v.w(index) > 0.0f;
-      if (has_plus) plus = v.u(index);
+      has_plus = v.w_as<F>(index) > 0.0f;
+      if (has_plus) plus = v.u_as<F>(index);
     }
     if (v.contains(i - dx, j - dy, k - dz)) {
       const std::size_t index = v.index(i - dx, j - dy, k - dz);
-      has_minus = v.w(index) > 0.0f;
-      if (has_minus) minus = v.u(index);
+      has_minus = v.w_as<F>(index) > 0.0f;
+      if (has_minus) minus = v.u_as<F>(index);
     }
     if (has_plus && has_minus) {
       g[axis] = 0.5f * (plus - minus);
@@ -71,13 +80,14 @@ SLS_HOST_DEVICE inline Vec3f voxel_gradient(const VolumeView& v, int i, int j, i
 // surface_normal() of the trilinear field where its samples exist, else the voxel gradients
 // of the edge's ends blended at t, else the edge's own direction (U grows along it as
 // `u_rise` says). Always unit length.
-SLS_HOST_DEVICE inline Vec3f crossing_normal(const VolumeView& v, Vec3f point_volume, int i, int j, int k, int axis,
-                                             float t, float u_rise) {
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline Vec3f crossing_normal_as(const VolumeView& v, Vec3f point_volume, int i, int j, int k,
+                                                int axis, float t, float u_rise) {
   Vec3f normal{0.0f, 0.0f, 0.0f};
-  if (surface_normal(v, point_volume, &normal)) return normal;
+  if (surface_normal_as<F>(v, point_volume, &normal)) return normal;
   const int dx = axis == 0 ? 1 : 0, dy = axis == 1 ? 1 : 0, dz = axis == 2 ? 1 : 0;
-  const Vec3f g0 = voxel_gradient(v, i, j, k);
-  const Vec3f g1 = voxel_gradient(v, i + dx, j + dy, k + dz);
+  const Vec3f g0 = voxel_gradient_as<F>(v, i, j, k);
+  const Vec3f g1 = voxel_gradient_as<F>(v, i + dx, j + dy, k + dz);
   const Vec3f g = (1.0f - t) * g0 + t * g1;
   const float length = norm(g);
   if (length > 0.0f) return (1.0f / length) * g;
@@ -96,14 +106,15 @@ struct EdgeZero {
   float weight;  // the smaller of the two voxels' weights
 };
 
-SLS_HOST_DEVICE inline bool edge_zero(const VolumeView& v, int i, int j, int k, int axis, float min_weight,
-                                      EdgeZero* out) {
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline bool edge_zero_as(const VolumeView& v, int i, int j, int k, int axis, float min_weight,
+                                         EdgeZero* out) {
   const int dx = axis == 0 ? 1 : 0, dy = axis == 1 ? 1 : 0, dz = axis == 2 ? 1 : 0;
   if (!v.contains(i + dx, j + dy, k + dz)) return false;
   const std::size_t a = v.index(i, j, k);
   const std::size_t b = v.index(i + dx, j + dy, k + dz);
-  if (!voxel_usable(v, a, min_weight) || !voxel_usable(v, b, min_weight)) return false;
-  const float ua = v.u(a), ub = v.u(b);
+  if (!voxel_usable_as<F>(v, a, min_weight) || !voxel_usable_as<F>(v, b, min_weight)) return false;
+  const float ua = v.u_as<F>(a), ub = v.u_as<F>(b);
   if ((ua < 0.0f) == (ub < 0.0f)) return false;
   const float t = ua / (ua - ub);  // signs differ, so ua - ub != 0 and t is in [0, 1]
   Vec3f point = v.voxel_centre(i, j, k);
@@ -114,42 +125,54 @@ SLS_HOST_DEVICE inline bool edge_zero(const VolumeView& v, int i, int j, int k, 
   out->point_volume = point;
   out->t = t;
   out->u_step = ub - ua;
-  const float wa = v.w(a), wb = v.w(b);
+  const float wa = v.w_as<F>(a), wb = v.w_as<F>(b);
   out->weight = wa < wb ? wa : wb;
   return true;
 }
 
 // The crossing of edge_zero with its normal (the gradient of U there).
-SLS_HOST_DEVICE inline SurfaceCrossing edge_zero_crossing(const VolumeView& v, int i, int j, int k, int axis,
-                                                          const EdgeZero& zero) {
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline SurfaceCrossing edge_zero_crossing_as(const VolumeView& v, int i, int j, int k, int axis,
+                                                             const EdgeZero& zero) {
   SurfaceCrossing crossing;
   crossing.point_volume = zero.point_volume;
-  crossing.normal_volume = crossing_normal(v, zero.point_volume, i, j, k, axis, zero.t, zero.u_step);
+  crossing.normal_volume = crossing_normal_as<F>(v, zero.point_volume, i, j, k, axis, zero.t, zero.u_step);
   crossing.weight = zero.weight;
   return crossing;
 }
 
 // edge_zero and its normal in one.
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline bool edge_crossing_as(const VolumeView& v, int i, int j, int k, int axis, float min_weight,
+                                             SurfaceCrossing* out) {
+  EdgeZero zero;
+  if (!edge_zero_as<F>(v, i, j, k, axis, min_weight, &zero)) return false;
+  *out = edge_zero_crossing_as<F>(v, i, j, k, axis, zero);
+  return true;
+}
 SLS_HOST_DEVICE inline bool edge_crossing(const VolumeView& v, int i, int j, int k, int axis, float min_weight,
                                           SurfaceCrossing* out) {
-  EdgeZero zero;
-  if (!edge_zero(v, i, j, k, axis, min_weight, &zero)) return false;
-  *out = edge_zero_crossing(v, i, j, k, axis, zero);
-  return true;
+  return v.format == VoxelFormat::kFloat32 ? edge_crossing_as<VoxelFormat::kFloat32>(v, i, j, k, axis, min_weight, out)
+                                           : edge_crossing_as<VoxelFormat::kCompact>(v, i, j, k, axis, min_weight, out);
 }
 
 // The marching-cubes case of cell (i, j, k), whose corners are voxels (i..i+1, j..j+1,
 // k..k+1): bit c set when corner c is inside (U < 0). -1 when the cell leaves the volume or
 // a corner is not usable (no surface is guessed across unobserved voxels).
-SLS_HOST_DEVICE inline int cell_case(const VolumeView& v, int i, int j, int k, float min_weight) {
+template <VoxelFormat F>
+SLS_HOST_DEVICE inline int cell_case_as(const VolumeView& v, int i, int j, int k, float min_weight) {
   if (i < 0 || j < 0 || k < 0 || i + 1 >= v.nx || j + 1 >= v.ny || k + 1 >= v.nz) return -1;
   int cube_case = 0;
   for (int c = 0; c < 8; ++c) {
     const std::size_t index = v.index(i + mc::corner_dx(c), j + mc::corner_dy(c), k + mc::corner_dz(c));
-    if (!voxel_usable(v, index, min_weight)) return -1;
-    if (v.u(index) < 0.0f) cube_case |= 1 << c;
+    if (!voxel_usable_as<F>(v, index, min_weight)) return -1;
+    if (v.u_as<F>(index) < 0.0f) cube_case |= 1 << c;
   }
   return cube_case;
+}
+SLS_HOST_DEVICE inline int cell_case(const VolumeView& v, int i, int j, int k, float min_weight) {
+  return v.format == VoxelFormat::kFloat32 ? cell_case_as<VoxelFormat::kFloat32>(v, i, j, k, min_weight)
+                                           : cell_case_as<VoxelFormat::kCompact>(v, i, j, k, min_weight);
 }
 
 // The grid edge under edge e (0..11) of cell (i, j, k): its first voxel and axis.

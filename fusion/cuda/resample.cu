@@ -85,34 +85,37 @@ __device__ bool region_voxel(const VolumeView& volume, const RegionBricks& brick
   return *i < volume.nx && *j < volume.ny && *k < volume.nz;
 }
 
+// The format known when compiled (extract_shared.h's *_as<F>): no test of it at each read.
+template <VoxelFormat F>
 __global__ void region_crossings_kernel(VolumeView volume, RegionFilter region, float min_weight, RegionBricks bricks,
                                         const std::uint32_t* listed, EdgeCrossing* out, std::uint32_t capacity,
                                         std::uint32_t* count) {
   int i = 0, j = 0, k = 0;
   if (!region_voxel(volume, bricks, listed, &i, &j, &k)) return;
-  if (!voxel_usable(volume, volume.index(i, j, k), min_weight)) return;
+  if (!voxel_usable_as<F>(volume, volume.index(i, j, k), min_weight)) return;
   for (int axis = 0; axis < 3; ++axis) {
     // Place first: the normal's gradient only for the crossings the region keeps (most of the
     // volume's surface stays in it; computing every normal first took 24 ms at 960³).
     EdgeZero zero;
-    if (!edge_zero(volume, i, j, k, axis, min_weight, &zero)) continue;
+    if (!edge_zero_as<F>(volume, i, j, k, axis, min_weight, &zero)) continue;
     if (!region_keeps(region, zero.point_volume) && !edge_has_region_cell(volume, region, i, j, k, axis)) continue;
     EdgeCrossing found;
-    found.crossing = edge_zero_crossing(volume, i, j, k, axis, zero);
+    found.crossing = edge_zero_crossing_as<F>(volume, i, j, k, axis, zero);
     found.edge_id = grid_edge_id(volume, i, j, k, axis);
     const std::uint32_t slot = atomicAdd(count, 1u);
     if (slot < capacity) out[slot] = found;
   }
 }
 
+template <VoxelFormat F>
 __global__ void region_cells_kernel(VolumeView volume, RegionFilter region, float min_weight, RegionBricks bricks,
                                     const std::uint32_t* listed, CellCase* out, std::uint32_t capacity,
                                     std::uint32_t* count) {
   int i = 0, j = 0, k = 0;
   if (!region_voxel(volume, bricks, listed, &i, &j, &k)) return;
   if (i + 1 >= volume.nx || j + 1 >= volume.ny || k + 1 >= volume.nz) return;
-  if (!voxel_usable(volume, volume.index(i, j, k), min_weight)) return;  // cheap reject of the unobserved bulk
-  const int cube_case = cell_case(volume, i, j, k, min_weight);
+  if (!voxel_usable_as<F>(volume, volume.index(i, j, k), min_weight)) return;  // cheap reject of the unobserved bulk
+  const int cube_case = cell_case_as<F>(volume, i, j, k, min_weight);
   if (cube_case <= 0 || cube_case == 255) return;
   if (!region_keeps(region, cell_centre(volume, i, j, k))) return;
   const std::uint32_t slot = atomicAdd(count, 1u);
@@ -206,8 +209,10 @@ void launch_region_crossings_cuda(const VolumeView& volume, const RegionFilter& 
                                   std::uint32_t capacity, std::uint32_t* count, cudaStream_t stream) {
   if (brick_count == 0) return;
   const KernelTimer timer("ship_region", region_bytes(volume, brick_count), stream);
-  region_crossings_kernel<<<brick_count, region_block(), 0, stream>>>(volume, region, min_weight, RegionBricks(volume),
-                                                                    bricks, out, capacity, count);
+  const auto kernel = volume.format == VoxelFormat::kFloat32 ? region_crossings_kernel<VoxelFormat::kFloat32>
+                                                             : region_crossings_kernel<VoxelFormat::kCompact>;
+  kernel<<<brick_count, region_block(), 0, stream>>>(volume, region, min_weight, RegionBricks(volume), bricks, out,
+                                                     capacity, count);
   SLS_CUDA_CHECK_LAUNCH();
 }
 
@@ -216,8 +221,10 @@ void launch_region_cells_cuda(const VolumeView& volume, const RegionFilter& regi
                               std::uint32_t capacity, std::uint32_t* count, cudaStream_t stream) {
   if (brick_count == 0) return;
   const KernelTimer timer("ship_region", region_bytes(volume, brick_count), stream);
-  region_cells_kernel<<<brick_count, region_block(), 0, stream>>>(volume, region, min_weight, RegionBricks(volume),
-                                                                bricks, out, capacity, count);
+  const auto kernel = volume.format == VoxelFormat::kFloat32 ? region_cells_kernel<VoxelFormat::kFloat32>
+                                                             : region_cells_kernel<VoxelFormat::kCompact>;
+  kernel<<<brick_count, region_block(), 0, stream>>>(volume, region, min_weight, RegionBricks(volume), bricks, out,
+                                                     capacity, count);
   SLS_CUDA_CHECK_LAUNCH();
 }
 
