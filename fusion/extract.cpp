@@ -282,8 +282,50 @@ std::vector<CellCase> surface_cells(const VolumeView& view, const std::vector<st
   return all;
 }
 
+// The crossings' edge ids (ascending) and where each grid row's begin: a cell's edge is
+// looked for among its row's few crossings, not by a binary search over all of them (a
+// paper-size final surface's faces made ~24 M such searches, most of its host assembly).
+// Row r (k * ny + j) holds edge ids [r, r + 1) * 3 nx.
+class EdgeIndex {
+ public:
+  EdgeIndex(const std::vector<EdgeCrossing>& crossings, int grid_nx, int grid_ny)
+      : nx_(static_cast<std::uint64_t>(grid_nx)), ny_(static_cast<std::uint64_t>(grid_ny)) {
+    ids_.resize(crossings.size());
+    for (std::size_t n = 0; n < crossings.size(); ++n) ids_[n] = crossings[n].edge_id;
+    const std::uint64_t row_edges = 3u * nx_;
+    const std::uint64_t rows = ids_.empty() ? 0u : ids_.back() / row_edges + 1u;
+    row_start_.assign(static_cast<std::size_t>(rows) + 1u, static_cast<std::uint32_t>(ids_.size()));
+    row_start_.front() = 0u;
+    // Sorted ids: each row's end passed once, no division per crossing.
+    std::size_t row = 0;
+    std::uint64_t row_end = row_edges;
+    for (std::size_t n = 0; n < ids_.size(); ++n) {
+      while (ids_[n] >= row_end) {
+        row_start_[++row] = static_cast<std::uint32_t>(n);
+        row_end += row_edges;
+      }
+    }
+  }
+  // The crossing on grid edge (i, j, k, axis), or -1.
+  std::int32_t find(int i, int j, int k, int axis) const {
+    const std::uint64_t row = static_cast<std::uint64_t>(k) * ny_ + static_cast<std::uint64_t>(j);
+    if (row + 1u >= row_start_.size()) return -1;
+    const std::uint64_t id = (row * nx_ + static_cast<std::uint64_t>(i)) * 3u + static_cast<std::uint64_t>(axis);
+    const auto first = ids_.begin() + row_start_[static_cast<std::size_t>(row)];
+    const auto last = ids_.begin() + row_start_[static_cast<std::size_t>(row) + 1u];
+    const auto found = std::lower_bound(first, last, id);
+    return found != last && *found == id ? static_cast<std::int32_t>(found - ids_.begin()) : -1;
+  }
+
+ private:
+  std::uint64_t nx_, ny_;
+  std::vector<std::uint64_t> ids_;
+  std::vector<std::uint32_t> row_start_;  // rows + 1 entries; fewer crossings than 2^31 (assemble_mesh)
+};
+
 // The marching-cubes mesh of the cells over the crossings (in edge-id order, so a cell finds
-// its edge's vertex by binary search and all cells around an edge agree on it). Reads no voxel.
+// its edge's vertex in its row's crossings and all cells around an edge agree on it). Reads no
+// voxel.
 TriangleMesh assemble_mesh(int grid_nx, int grid_ny, const std::vector<EdgeCrossing>& crossings,
                            const std::vector<CellCase>& cells, const Pose& T_world_volume,
                            const ExtractOptions& options) {
@@ -291,11 +333,7 @@ TriangleMesh assemble_mesh(int grid_nx, int grid_ny, const std::vector<EdgeCross
     throw_error(ErrorCode::kUnsupported, "extract_mesh: {} vertices, more than a PLY int index holds",
                 crossings.size());
   }
-  std::vector<std::uint64_t> edge_ids(crossings.size());
-  for (std::size_t n = 0; n < crossings.size(); ++n) edge_ids[n] = crossings[n].edge_id;
-  VolumeView ids;  // grid_edge_id() needs only the counts
-  ids.nx = grid_nx;
-  ids.ny = grid_ny;
+  const EdgeIndex edges(crossings, grid_nx, grid_ny);
 
   // Cells in chunks on threads; faces keep the cells' order.
   constexpr std::size_t kChunk = 4096;
@@ -317,13 +355,12 @@ TriangleMesh assemble_mesh(int grid_nx, int grid_ny, const std::vector<EdgeCross
         for (int corner = 0; corner < 3; ++corner) {
           int gi = 0, gj = 0, gk = 0, axis = 0;
           cell_grid_edge(i, j, k, mc::triangle_edge(cube_case, t + corner), &gi, &gj, &gk, &axis);
-          const std::uint64_t id = grid_edge_id(ids, gi, gj, gk, axis);
-          const auto found = std::lower_bound(edge_ids.begin(), edge_ids.end(), id);
-          if (found == edge_ids.end() || *found != id) {
+          const std::int32_t found = edges.find(gi, gj, gk, axis);
+          if (found < 0) {
             missing_vertex = true;
             continue;
           }
-          face[static_cast<std::size_t>(corner)] = static_cast<std::int32_t>(found - edge_ids.begin());
+          face[static_cast<std::size_t>(corner)] = found;
         }
         faces.push_back(face);
       }

@@ -16,6 +16,7 @@
 #include <gtest/gtest.h>
 
 #include "fusion/extract.h"
+#include "fusion/extract_internal.h"
 #include "fusion/extract_shared.h"
 #include "fusion/marching_cubes_tables.h"
 #include "fusion/volume.h"
@@ -592,6 +593,48 @@ TEST(ExtractErrors, ACudaVolumeMustBeCopiedToTheHostFirst) {
 // The GPU ship searches only bricks a region may keep anything of (region_drops_voxels): for
 // regions that keep their outside, turned and shifted at random, a dropped box of voxels has
 // no crossing point (anywhere on its voxels' edges) and no cell centre around them kept.
+// The host assembly a GPU extraction runs (detail::cell_mesh): a cell finds its edges' crossings
+// among its grid row's, with crossings in rows before, between and after; a cell whose edge
+// has none is an internal error, not a face with a made-up vertex.
+TEST(ExtractAssembly, ACellFindsItsEdgesCrossingsInTheirRowsAndAMissingOneIsAnError) {
+  const int nx = 4, ny = 3;
+  const auto id = [&](int i, int j, int k, int axis) {
+    return (static_cast<std::uint64_t>((k * ny + j) * nx + i)) * 3u + static_cast<std::uint64_t>(axis);
+  };
+  const auto crossing_at = [&](int i, int j, int k, int axis) {
+    EdgeCrossing c;
+    c.edge_id = id(i, j, k, axis);
+    c.crossing.point_volume = Vec3f{static_cast<float>(i) + (axis == 0 ? 0.5f : 0.0f),
+                                    static_cast<float>(j) + (axis == 1 ? 0.5f : 0.0f),
+                                    static_cast<float>(k) + (axis == 2 ? 0.5f : 0.0f)};
+    c.crossing.normal_volume = Vec3f{0.0f, 0.0f, 1.0f};
+    c.crossing.weight = 4.0f;
+    return c;
+  };
+  // Cell (1, 1, 1) with only corner 0 inside: one triangle over the x, y and z edges of voxel
+  // (1, 1, 1), whose rows (j, k) = (1, 1), (1, 1), (1, 1); others in rows 0, 4 and 8.
+  std::vector<EdgeCrossing> crossings = {crossing_at(0, 0, 0, 0), crossing_at(3, 0, 1, 1), crossing_at(1, 1, 1, 0),
+                                         crossing_at(1, 1, 1, 1), crossing_at(1, 1, 1, 2), crossing_at(2, 1, 1, 0),
+                                         crossing_at(3, 2, 2, 2)};
+  const std::vector<CellCase> cells = {CellCase{static_cast<std::uint64_t>((1 * ny + 1) * nx + 1), 1}};
+  const TriangleMesh mesh = detail::cell_mesh(nx, ny, crossings, cells, Pose{}, ExtractOptions{});
+  ASSERT_EQ(mesh.faces.size(), 1u);
+  ASSERT_EQ(mesh.vertices.size(), 3u);  // only the crossings a face uses
+  std::set<std::array<float, 3>> used;
+  for (const std::int32_t v : mesh.faces[0]) {
+    const Eigen::Vector3f& p = mesh.vertices.positions[static_cast<std::size_t>(v)];
+    used.insert({p.x(), p.y(), p.z()});
+  }
+  const std::set<std::array<float, 3>> expected = {{1.5f, 1.0f, 1.0f}, {1.0f, 1.5f, 1.0f}, {1.0f, 1.0f, 1.5f}};
+  EXPECT_EQ(used, expected);
+  crossings.erase(crossings.begin() + 4);  // the z edge's
+  EXPECT_EQ(test::code_of([&] { detail::cell_mesh(nx, ny, crossings, cells, Pose{}, ExtractOptions{}); }),
+            ErrorCode::kInternal);
+  crossings.resize(2);  // the cell's row past the last crossing's
+  EXPECT_EQ(test::code_of([&] { detail::cell_mesh(nx, ny, crossings, cells, Pose{}, ExtractOptions{}); }),
+            ErrorCode::kInternal);
+}
+
 TEST(RegionBricks, ADroppedBoxOfVoxelsHasNothingTheRegionKeeps) {
   std::mt19937 generator(3);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
