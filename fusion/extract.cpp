@@ -335,15 +335,28 @@ TriangleMesh assemble_mesh(int grid_nx, int grid_ny, const std::vector<EdgeCross
   }
   const EdgeIndex edges(crossings, grid_nx, grid_ny);
 
-  // Cells in chunks on threads; faces keep the cells' order.
+  // Cells in chunks on threads, faces in the cells' order: each chunk's triangles counted from
+  // its cases first, so that each chunk writes its faces where they go, in the one array.
   constexpr std::size_t kChunk = 4096;
   const std::size_t chunks = (cells.size() + kChunk - 1) / kChunk;
-  std::vector<std::vector<std::array<std::int32_t, 3>>> per_chunk(chunks);
+  std::vector<std::size_t> chunk_start(chunks + 1, 0);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {
+    const std::size_t end = std::min(cells.size(), (static_cast<std::size_t>(c) + 1) * kChunk);
+    std::size_t triangles = 0;
+    for (std::size_t n = static_cast<std::size_t>(c) * kChunk; n < end; ++n) {
+      for (int t = 0; t < 15 && mc::triangle_edge(cells[n].cube_case, t) >= 0; t += 3) ++triangles;
+    }
+    chunk_start[static_cast<std::size_t>(c) + 1] = triangles;
+  }
+  for (std::size_t c = 0; c < chunks; ++c) chunk_start[c + 1] += chunk_start[c];
+  TriangleMesh mesh;
+  mesh.faces.resize(chunk_start[chunks]);
   const auto nx = static_cast<std::uint64_t>(grid_nx), ny = static_cast<std::uint64_t>(grid_ny);
   bool missing_vertex = false;
 #pragma omp parallel for schedule(dynamic, 1) reduction(|| : missing_vertex)
   for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {
-    std::vector<std::array<std::int32_t, 3>>& faces = per_chunk[static_cast<std::size_t>(c)];
+    std::size_t out = chunk_start[static_cast<std::size_t>(c)];
     const std::size_t end = std::min(cells.size(), (static_cast<std::size_t>(c) + 1) * kChunk);
     for (std::size_t n = static_cast<std::size_t>(c) * kChunk; n < end; ++n) {
       const std::uint64_t cell = cells[n].cell;
@@ -351,18 +364,14 @@ TriangleMesh assemble_mesh(int grid_nx, int grid_ny, const std::vector<EdgeCross
                 k = static_cast<int>(cell / (nx * ny));
       const int cube_case = cells[n].cube_case;
       for (int t = 0; t < 15 && mc::triangle_edge(cube_case, t) >= 0; t += 3) {
-        std::array<std::int32_t, 3> face{};
+        std::array<std::int32_t, 3>& face = mesh.faces[out++];
         for (int corner = 0; corner < 3; ++corner) {
           int gi = 0, gj = 0, gk = 0, axis = 0;
           cell_grid_edge(i, j, k, mc::triangle_edge(cube_case, t + corner), &gi, &gj, &gk, &axis);
           const std::int32_t found = edges.find(gi, gj, gk, axis);
-          if (found < 0) {
-            missing_vertex = true;
-            continue;
-          }
-          face[static_cast<std::size_t>(corner)] = found;
+          missing_vertex = missing_vertex || found < 0;
+          face[static_cast<std::size_t>(corner)] = found < 0 ? 0 : found;
         }
-        faces.push_back(face);
       }
     }
   }
@@ -374,15 +383,9 @@ TriangleMesh assemble_mesh(int grid_nx, int grid_ny, const std::vector<EdgeCross
   // Keep the crossings some face uses (a crossing at the rim of the observed region has no
   // complete cell around it), renumbered in order.
   std::vector<std::int32_t> remap(crossings.size(), -1);
-  std::vector<std::size_t> chunk_start(chunks + 1, 0);  // where each chunk's faces go
-  for (std::size_t c = 0; c < chunks; ++c) {
-    const auto& faces = per_chunk[c];
-    chunk_start[c + 1] = chunk_start[c] + faces.size();
-    for (const auto& face : faces) {
-      for (const std::int32_t v : face) remap[static_cast<std::size_t>(v)] = 0;
-    }
+  for (const auto& face : mesh.faces) {
+    for (const std::int32_t v : face) remap[static_cast<std::size_t>(v)] = 0;
   }
-  TriangleMesh mesh;
   std::int32_t next = 0;
   for (std::int32_t& index : remap) {
     if (index >= 0) index = next++;
@@ -397,14 +400,9 @@ TriangleMesh assemble_mesh(int grid_nx, int grid_ny, const std::vector<EdgeCross
                 to_world, options);
     }
   }
-  mesh.faces.resize(chunk_start[chunks]);
 #pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(chunks); ++c) {
-    std::size_t out = chunk_start[static_cast<std::size_t>(c)];
-    for (const auto& face : per_chunk[static_cast<std::size_t>(c)]) {
-      mesh.faces[out++] = {remap[static_cast<std::size_t>(face[0])], remap[static_cast<std::size_t>(face[1])],
-                           remap[static_cast<std::size_t>(face[2])]};
-    }
+  for (std::ptrdiff_t f = 0; f < static_cast<std::ptrdiff_t>(mesh.faces.size()); ++f) {
+    for (std::int32_t& v : mesh.faces[static_cast<std::size_t>(f)]) v = remap[static_cast<std::size_t>(v)];
   }
   return mesh;
 }
