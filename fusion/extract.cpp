@@ -191,7 +191,7 @@ struct Region {
 };
 
 // The cloud of the crossings the region keeps.
-PointCloud make_cloud(const std::vector<EdgeCrossing>& crossings, const Pose& T_world_volume, const Region& region,
+PointCloud make_cloud(detail::ConstSpan<EdgeCrossing> crossings, const Pose& T_world_volume, const Region& region,
                       const ExtractOptions& options) {
   const ToWorld to_world(T_world_volume);
   // In chunks on threads: which crossings the region keeps and how many per chunk, then each
@@ -288,7 +288,7 @@ std::vector<CellCase> surface_cells(const VolumeView& view, const std::vector<st
 // Row r (k * ny + j) holds edge ids [r, r + 1) * 3 nx.
 class EdgeIndex {
  public:
-  EdgeIndex(const std::vector<EdgeCrossing>& crossings, int grid_nx, int grid_ny)
+  EdgeIndex(detail::ConstSpan<EdgeCrossing> crossings, int grid_nx, int grid_ny)
       : nx_(static_cast<std::uint64_t>(grid_nx)), ny_(static_cast<std::uint64_t>(grid_ny)) {
     ids_.resize(crossings.size());
     for (std::size_t n = 0; n < crossings.size(); ++n) ids_[n] = crossings[n].edge_id;
@@ -326,8 +326,8 @@ class EdgeIndex {
 // The marching-cubes mesh of the cells over the crossings (in edge-id order, so a cell finds
 // its edge's vertex in its row's crossings and all cells around an edge agree on it). Reads no
 // voxel.
-TriangleMesh assemble_mesh(int grid_nx, int grid_ny, const std::vector<EdgeCrossing>& crossings,
-                           const std::vector<CellCase>& cells, const Pose& T_world_volume,
+TriangleMesh assemble_mesh(int grid_nx, int grid_ny, detail::ConstSpan<EdgeCrossing> crossings,
+                           detail::ConstSpan<CellCase> cells, const Pose& T_world_volume,
                            const ExtractOptions& options) {
   if (crossings.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
     throw_error(ErrorCode::kUnsupported, "extract_mesh: {} vertices, more than a PLY int index holds",
@@ -432,14 +432,14 @@ RegionFilter region_filter(const OrientedRegion& region, const Pose& T_world_vol
   return filter;
 }
 
-PointCloud crossing_cloud(const std::vector<EdgeCrossing>& crossings, const Pose& T_world_volume,
+PointCloud crossing_cloud(ConstSpan<EdgeCrossing> crossings, const Pose& T_world_volume,
                           const RegionFilter* filter, const ExtractOptions& options) {
   Region region;
   region.filter = filter;
   return make_cloud(crossings, T_world_volume, region, options);
 }
 
-TriangleMesh cell_mesh(int nx, int ny, const std::vector<EdgeCrossing>& crossings, const std::vector<CellCase>& cells,
+TriangleMesh cell_mesh(int nx, int ny, ConstSpan<EdgeCrossing> crossings, ConstSpan<CellCase> cells,
                        const Pose& T_world_volume, const ExtractOptions& options) {
   return assemble_mesh(nx, ny, crossings, cells, T_world_volume, options);
 }

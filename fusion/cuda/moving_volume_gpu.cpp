@@ -10,6 +10,7 @@
 #include "fusion/cuda/resample_cuda.h"
 #include "fusion/extract_internal.h"
 #include "sdk/core/cuda/cuda_stream.h"
+#include "sdk/core/buffer.h"
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/stopwatch.h"
 
@@ -24,7 +25,21 @@ struct MovingVolumeGpu::State {
   DeviceBuffer<std::uint32_t> counters;       // crossings, cells, listed bricks
   DeviceBuffer<std::uint32_t> region_bricks;  // the bricks a ship searches
   RegionSortScratch sort_scratch;
+  // Where the found crossings and cells are downloaded: page-locked and kept from ship to ship
+  // (grown by half when too small), so a download is a DMA into memory already mapped. Fresh
+  // pageable arrays were zeroed on one thread at page-fault speed first, ~30 ms a ship.
+  Buffer<EdgeCrossing> host_crossings;
+  Buffer<CellCase> host_cells;
 };
+
+namespace {
+
+template <typename T>
+void reserve_pinned(Buffer<T>& buffer, std::size_t count) {
+  if (buffer.size() < count) buffer.resize_uninitialized(count + count / 2, MemoryType::kPinned);
+}
+
+}  // namespace
 
 MovingVolumeGpu::MovingVolumeGpu(const Device& device, const GpuStream& resample_stream, const GpuStream& ship_stream)
     : state_(std::make_unique<State>()) {
@@ -82,11 +97,13 @@ ExtractedSurface MovingVolumeGpu::extract_part(const Volume& volume, const Orien
   // Ordered on the GPU, then downloaded.
   sort_region_parts_cuda(s.crossings.data(), counts[0], s.cells.data(), counts[1],
                          static_cast<std::uint64_t>(volume.geometry().voxel_count()), &s.sort_scratch, ship_stream);
-  std::vector<EdgeCrossing> found(counts[0]);
-  std::vector<CellCase> found_cells(counts[1]);
-  s.crossings.download(found.data(), found.size(), ship_stream);
-  s.cells.download(found_cells.data(), found_cells.size(), ship_stream);
+  reserve_pinned(s.host_crossings, counts[0]);
+  reserve_pinned(s.host_cells, counts[1]);
+  s.crossings.download(s.host_crossings.data(), counts[0], ship_stream);
+  s.cells.download(s.host_cells.data(), counts[1], ship_stream);
   SLS_CUDA_CHECK(cudaStreamSynchronize(ship_stream));
+  const ConstSpan<EdgeCrossing> found(s.host_crossings.data(), counts[0]);
+  const ConstSpan<CellCase> found_cells(s.host_cells.data(), counts[1]);
   const auto assemble_start = SteadyClock::now();
   ExtractedSurface part;
   part.cloud = crossing_cloud(found, T_world_volume, &filter, options);
