@@ -37,8 +37,8 @@ void deform_cloud_part(const DeformationGraph& graph, const std::vector<NodeTran
 // (position, and normal when both have them), or -1. One walk over both: a part's cloud (the
 // crossings its region keeps) and its mesh's vertices (those its cells use) are the same
 // crossings in the same order, each with a few of its own (the region's rim); runs of
-// either's own up to a few dozen long are passed over, longer ones cost matches, never a wrong
-// one.
+// either's own up to 1 024 long are passed over, longer ones (or a walk's comparisons past 16
+// a vertex) cost matches, never a wrong one.
 void match_vertices_to_points(const PointCloud& vertices, std::size_t begin, std::size_t end,
                               const PointCloud& cloud, std::size_t cloud_begin, std::size_t cloud_end,
                               std::size_t cloud_to_begin, std::int64_t* same_point);
