@@ -26,8 +26,8 @@ struct MovingVolumeGpu::State {
   DeviceBuffer<std::uint32_t> region_bricks;  // the bricks a ship searches
   RegionSortScratch sort_scratch;
   // Where the found crossings and cells are downloaded: page-locked and kept from ship to ship
-  // (grown by half when too small), so a download is a DMA into memory already mapped. Fresh
-  // pageable arrays were zeroed on one thread at page-fault speed first, ~30 ms a ship.
+  // (grown by half when too small), so a download is a DMA into memory already mapped; fresh
+  // pageable arrays were zeroed on one thread, at page-fault speed, before each download.
   Buffer<EdgeCrossing> host_crossings;
   Buffer<CellCase> host_cells;
 };

@@ -206,7 +206,8 @@ fusion::ExtractedSurface ScanSession::Impl::surface(bool deformed, ModelTimes* t
   add_part(last->index, pieces.live.cloud, 0, result.cloud.size(), pieces.live.mesh.vertices, 0,
            result.mesh.vertices.size());
   // Each vertex that is one of its part's points takes that point's deformed values (the same
-  // bits): the mesh's ~17 M vertices at the paper's size were most of the deformation's time.
+  // bits): the mesh has about as many vertices as the cloud has points, and deforming them took
+  // about half of the deformation's time (0.51-0.54 -> 0.29-0.31 s at the paper's size, H200).
   std::vector<std::int64_t> same_point;
   resize_populated(&same_point, result.mesh.vertices.size());
 #if defined(_OPENMP)
