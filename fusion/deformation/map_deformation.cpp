@@ -124,8 +124,8 @@ void match_vertices_to_points(const PointCloud& vertices, std::size_t begin, std
            (!normals || same_bits(vertices.normals[v], cloud.normals[c]));
   };
   const auto record = [&](std::size_t v, std::size_t c) {
-    same_point[v - begin] =
-        static_cast<std::int64_t>(cloud_to_begin) + static_cast<std::int64_t>(c) - static_cast<std::int64_t>(cloud_begin);
+    same_point[v - begin] = static_cast<std::int64_t>(cloud_to_begin) + static_cast<std::int64_t>(c) -
+                            static_cast<std::int64_t>(cloud_begin);
   };
   // A miss is resolved by the nearest of the vertex further on in the cloud (the points before
   // it are the cloud's own) and the point further on among the vertices (the vertices before

@@ -192,7 +192,8 @@ fusion::ExtractedSurface ScanSession::Impl::surface(bool deformed, ModelTimes* t
   std::size_t cloud_begin = 0, mesh_begin = 0;
   const auto add_part = [&](int time, const PointCloud& cloud, std::size_t cloud_from, std::size_t cloud_end,
                             const PointCloud& vertices, std::size_t mesh_from, std::size_t mesh_end) {
-    model_parts.push_back({time, &cloud, cloud_from, cloud_begin, cloud_end, &vertices, mesh_from, mesh_begin, mesh_end});
+    model_parts.push_back(
+        {time, &cloud, cloud_from, cloud_begin, cloud_end, &vertices, mesh_from, mesh_begin, mesh_end});
     cloud_begin = cloud_end;
     mesh_begin = mesh_end;
   };
@@ -208,6 +209,17 @@ fusion::ExtractedSurface ScanSession::Impl::surface(bool deformed, ModelTimes* t
   // Each vertex that is one of its part's points takes that point's deformed values (the same
   // bits): the mesh has about as many vertices as the cloud has points, and deforming them took
   // about half of the deformation's time (0.51-0.54 -> 0.29-0.31 s at the paper's size, H200).
+  // The parts' ranges checked first: the matches run on threads, where an error cannot be thrown.
+  for (const Part& part : model_parts) {
+    if (part.cloud_end < part.cloud_begin || part.mesh_end < part.mesh_begin ||
+        part.cloud_end > result.cloud.size() || part.mesh_end > result.mesh.vertices.size() ||
+        part.cloud_from + (part.cloud_end - part.cloud_begin) > part.cloud->size() ||
+        part.mesh_from + (part.mesh_end - part.mesh_begin) > part.vertices->size()) {
+      throw_error(ErrorCode::kInternal,
+                  "map deformation: a part's points [{}, {}) or vertices [{}, {}) lie outside the model",
+                  part.cloud_begin, part.cloud_end, part.mesh_begin, part.mesh_end);
+    }
+  }
   std::vector<std::int64_t> same_point;
   resize_populated(&same_point, result.mesh.vertices.size());
 #if defined(_OPENMP)

@@ -56,7 +56,8 @@ const SphereSurface& sphere(int n) {
           crossing.crossing.point_volume =
               Vec3f{static_cast<float>((i + 0.5 + t * di) * voxel_m), static_cast<float>((j + 0.5 + t * dj) * voxel_m),
                     static_cast<float>((k + 0.5 + t * dk) * voxel_m)};
-          const double length = std::sqrt((i - centre) * (i - centre) + (j - centre) * (j - centre) + (k - centre) * (k - centre));
+          const double length =
+              std::sqrt((i - centre) * (i - centre) + (j - centre) * (j - centre) + (k - centre) * (k - centre));
           crossing.crossing.normal_volume =
               Vec3f{static_cast<float>((i - centre) / length), static_cast<float>((j - centre) / length),
                     static_cast<float>((k - centre) / length)};

@@ -496,7 +496,9 @@ TEST(DeformationGraph, VerticesThatArePointsTakeThePointsDeformedValues) {
   for (int j = 0; j < 16; ++j) {
     for (const Eigen::Vector3d& p : points_near(graph, j, 40)) crossings.push_back(p.cast<float>());
   }
-  const auto normal_of = [](std::size_t n) { return Eigen::Vector3f(0.0f, 0.6f, 0.8f + 1e-3f * static_cast<float>(n % 7)).normalized(); };
+  const auto normal_of = [](std::size_t n) {
+    return Eigen::Vector3f(0.0f, 0.6f, 0.8f + 1e-3f * static_cast<float>(n % 7)).normalized();
+  };
   // The cloud's own: a single one, a run of 5, a run of 50; the mesh's own likewise elsewhere;
   // one crossing in both with a different normal in the mesh.
   const auto in = [](std::size_t n, std::size_t from, std::size_t count) { return n >= from && n < from + count; };
