@@ -9,8 +9,8 @@
 
 #include "fusion/cuda/resample_cuda.h"
 #include "fusion/extract_internal.h"
-#include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/buffer.h"
+#include "sdk/core/cuda/cuda_stream.h"
 #include "sdk/core/cuda/device_buffer.h"
 #include "sdk/core/stopwatch.h"
 

@@ -564,6 +564,15 @@ TEST(DeformationGraph, VerticesThatArePointsTakeThePointsDeformedValues) {
   }
   EXPECT_NE(shared_mesh.positions[mesh_from + 10], vertices.positions[mesh_from + 10]);  // moved at all
 
+  EXPECT_EQ(test::code_of([&] {
+              match_vertices_to_points(vertices, mesh_from, vertices.size() + 1, cloud, cloud_from, cloud_end, 0,
+                                       same.data());
+            }),
+            ErrorCode::kInvalidArgument);
+  EXPECT_EQ(test::code_of([&] {
+              match_vertices_to_points(vertices, mesh_from, mesh_end, cloud, cloud_end, cloud_from, 0, same.data());
+            }),
+            ErrorCode::kInvalidArgument);
   PointCloud no_normals;
   no_normals.positions = model.positions;
   EXPECT_EQ(test::code_of([&] {
