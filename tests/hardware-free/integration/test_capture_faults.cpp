@@ -318,7 +318,7 @@ class CaptureFaults : public UsbDevicesTest {
     ASSERT_EQ(scanned.frame_count(), static_cast<std::size_t>(kFrames));
     for (std::size_t f = 0; f < scanned.frame_count(); ++f) {
       EXPECT_EQ(scanned.frame(f).index, static_cast<int>(f));
-      EXPECT_TRUE(scanned.frame(f).complete) << "frame " << f;
+      EXPECT_TRUE(scanned.frame(f).complete) << "frame " << f << ": " << scanned.frame(f).note;
       EXPECT_EQ(scanned.frame(f).turntable_angle_deg, direct.frame(f).turntable_angle_deg) << "frame " << f;
       const std::vector<Image16u> ours = scanned.load_images(f);
       const std::vector<Image16u> theirs = direct.load_images(f);
