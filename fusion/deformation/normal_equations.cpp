@@ -20,21 +20,65 @@ void couple(const int* nodes, int count, int pinned, std::vector<std::pair<int, 
   }
 }
 
-// H += Σ_rows J_iᵀ J_k over a block's rows (12 x 12, row-major), vectorisable: the products
-// go to a local array first, so the compiler knows nothing aliases.
-void add_outer_products(const ResidualBlock& block, int i, int k, double* H) {
-  double local[144] = {};
+// H += Σ_rows J_iᵀ J_k over a block's rows (12 x 12, row-major), vectorisable. Within a
+// block the Jacobians are sparse: E_rot, the rotation priors and E_reg's region part leave t
+// alone, so the rows (J_i) and columns (J_k) of t are skipped where a Jacobian is zero there
+// over every row (their products are zeros), and so is any other row of J_i that is zero.
+// A one-row block (a point-to-plane constraint) adds its products to H directly; one of
+// several rows sums them in a local array first (the compiler then knows nothing aliases) and
+// adds the sum, as the rows' sum is rounded.
+template <int kRows, int kColumns>
+void add_outer_products_to(const ResidualBlock& block, int i, int k, double* __restrict H) {
+  if (block.rows == 1) {
+    const double* __restrict Ji = block.J[i][0];
+    const double* __restrict Jk = block.J[k][0];
+    for (int r = 0; r < kRows; ++r) {
+      const double a = Ji[r];
+      if (a == 0.0) continue;
+      double* __restrict line = H + 12 * r;
+      for (int c = 0; c < kColumns; ++c) line[c] += a * Jk[c];
+    }
+    return;
+  }
+  double local[static_cast<std::size_t>(kRows * kColumns)] = {};
   for (int row = 0; row < block.rows; ++row) {
     const double* __restrict Ji = block.J[i][row];
     const double* __restrict Jk = block.J[k][row];
-    for (int r = 0; r < 12; ++r) {
+    for (int r = 0; r < kRows; ++r) {
       const double a = Ji[r];
-      if (a == 0.0) continue;  // the Jacobians are sparse within a block (E_reg, point-to-point E_con)
-      double* __restrict line = local + 12 * r;
-      for (int c = 0; c < 12; ++c) line[c] += a * Jk[c];
+      if (a == 0.0) continue;
+      double* __restrict line = local + kColumns * r;
+      for (int c = 0; c < kColumns; ++c) line[c] += a * Jk[c];
     }
   }
-  for (int e = 0; e < 144; ++e) H[e] += local[e];
+  for (int r = 0; r < kRows; ++r) {
+    for (int c = 0; c < kColumns; ++c) H[12 * r + c] += local[kColumns * r + c];
+  }
+}
+
+// Whether a node's Jacobian in the block is zero in t (columns 9-11) over every row.
+bool leaves_t_alone(const ResidualBlock& block, int slot) {
+  for (int row = 0; row < block.rows; ++row) {
+    const double* J = block.J[slot][row];
+    if (J[9] != 0.0 || J[10] != 0.0 || J[11] != 0.0) return false;
+  }
+  return true;
+}
+
+void add_outer_products(const ResidualBlock& block, int i, int k, double* H) {
+  const bool rows_t_free = leaves_t_alone(block, i);
+  const bool columns_t_free = i == k ? rows_t_free : leaves_t_alone(block, k);
+  if (rows_t_free) {
+    if (columns_t_free) {
+      add_outer_products_to<9, 9>(block, i, k, H);
+    } else {
+      add_outer_products_to<9, 12>(block, i, k, H);
+    }
+  } else if (columns_t_free) {
+    add_outer_products_to<12, 9>(block, i, k, H);
+  } else {
+    add_outer_products_to<12, 12>(block, i, k, H);
+  }
 }
 
 }  // namespace
@@ -139,7 +183,6 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
       column_starts_.push_back(static_cast<int>(scalar_rows_.size()));
     }
   }
-  values_.assign(scalar_rows_.size(), 0.0);
   const auto start = std::chrono::steady_clock::now();
   solver_.analyze(12 * blocks, column_starts_, scalar_rows_);
   *analyze_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -205,6 +248,7 @@ void NormalEquations::assemble(const ResidualModel& model) {
 }
 
 int NormalEquations::factorize(double damping) {
+  double* values = solver_.values();
   std::size_t k = 0;
   for (int P = 0; P < blocks_; ++P) {
     for (int c = 0; c < 12; ++c) {
@@ -213,12 +257,12 @@ int NormalEquations::factorize(double damping) {
         const bool diagonal = block.row == P;
         const int last = diagonal ? c : 11;
         for (int r = 0; r <= last; ++r) {
-          values_[k++] = (block.transposed ? H[12 * c + r] : H[12 * r + c]) + (diagonal && r == c ? damping : 0.0);
+          values[k++] = (block.transposed ? H[12 * c + r] : H[12 * r + c]) + (diagonal && r == c ? damping : 0.0);
         }
       }
     }
   }
-  const int singular = solver_.factorize(values_);
+  const int singular = solver_.factorize();
   if (singular < 0) return -1;
   return 12 * order_[static_cast<std::size_t>(singular / 12)] + singular % 12;
 }

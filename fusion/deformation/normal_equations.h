@@ -57,7 +57,6 @@ class NormalEquations {
   std::vector<int> order_;
   std::vector<std::vector<OrderedBlock>> ordered_;
   std::vector<int> column_starts_, scalar_rows_;
-  std::vector<double> values_;
   SparseCholesky solver_;
 };
 

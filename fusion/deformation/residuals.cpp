@@ -125,7 +125,21 @@ void region_block(const ResidualModel& model, int from, int to, ResidualBlock* b
   }
 }
 
-void constraint_block(const ResidualModel& model, const Constraint& constraint, ResidualBlock* block) {
+const Eigen::Matrix3d& NodeInverses::of(const ResidualModel& model, int node) {
+  const auto index = static_cast<std::size_t>(node);
+  if (known_.size() <= index) {
+    known_.resize(model.nodes->size(), 0);
+    inverses_.resize(model.nodes->size());
+  }
+  if (!known_[index]) {
+    inverses_[index] = node_of(model, node).A.inverse();
+    known_[index] = 1;
+  }
+  return inverses_[index];
+}
+
+void constraint_block(const ResidualModel& model, const Constraint& constraint, ResidualBlock* block,
+                      NodeInverses* inverses) {
   const bool plane = constraint.normal.squaredNorm() > 0.0;
   reset(block, Term::kConstraint, plane ? 1 : 3);
   const double L = model.options->length_scale_m;
@@ -136,8 +150,8 @@ void constraint_block(const ResidualModel& model, const Constraint& constraint, 
   if (plane && constraint.target_binding.count > 0) {
     Eigen::Vector3d turned = Eigen::Vector3d::Zero();
     for (int i = 0; i < constraint.target_binding.count; ++i) {
-      const Node& n = node_of(model, constraint.target_binding.nodes[i]);
-      turned += constraint.target_binding.weights[i] * (n.A.inverse().transpose() * constraint.normal);
+      const Eigen::Matrix3d& A_inverse = inverses->of(model, constraint.target_binding.nodes[i]);
+      turned += constraint.target_binding.weights[i] * (A_inverse.transpose() * constraint.normal);
     }
     if (turned.norm() > 0.0) normal = turned.normalized();
   }

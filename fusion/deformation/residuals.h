@@ -67,7 +67,18 @@ void rotation_block(const ResidualModel& model, int node, ResidualBlock* block);
 void regularization_block(const ResidualModel& model, int from, int to, ResidualBlock* block);
 // E_reg's agreement over the ball of radius ρ (GraphOptions::region_radius_m): ρ/√3 (A_j − A_k).
 void region_block(const ResidualModel& model, int from, int to, ResidualBlock* block);
-void constraint_block(const ResidualModel& model, const Constraint& constraint, ResidualBlock* block);
+// Nodes' A⁻¹ as a walk needs them (a point-to-plane constraint turns its normal by its
+// target's nodes): each computed once a walk, where many constraints share a node.
+class NodeInverses {
+ public:
+  const Eigen::Matrix3d& of(const ResidualModel& model, int node);
+
+ private:
+  std::vector<Eigen::Matrix3d> inverses_;
+  std::vector<char> known_;
+};
+void constraint_block(const ResidualModel& model, const Constraint& constraint, ResidualBlock* block,
+                      NodeInverses* inverses);
 void rotation_prior_block(const PoseRotationPrior& prior, const ResidualModel& model, ResidualBlock* block);
 
 // Which blocks a walk visits: E_reg (with its region part) is linear in the parameters with
@@ -103,8 +114,9 @@ void for_each_residual_block(const ResidualModel& model, Visit&& visit, Terms te
     }
   }
   if (terms != Terms::kLinks) {
+    NodeInverses inverses;
     for (const Constraint& constraint : *model.constraints) {
-      constraint_block(model, constraint, &block);
+      constraint_block(model, constraint, &block, &inverses);
       visit(block);
     }
     if (model.rotation_priors != nullptr) {

@@ -123,15 +123,24 @@ void SparseCholesky::analyze(int n, const std::vector<int>& column_starts, const
 bool SparseCholesky::analyzed() const { return impl_->factor != nullptr; }
 int SparseCholesky::size() const { return impl_->n; }
 
+double* SparseCholesky::values() { return impl_->matrix != nullptr ? static_cast<double*>(impl_->matrix->x) : nullptr; }
+
 int SparseCholesky::factorize(const std::vector<double>& values) {
   Impl& s = *impl_;
   if (s.factor == nullptr) throw_error(ErrorCode::kInternal, "sparse Cholesky: factorize before analyze");
   if (values.size() != s.matrix->nzmax) {
     throw_error(ErrorCode::kInternal, "sparse Cholesky: {} values for a pattern of {}", values.size(), s.matrix->nzmax);
   }
-  s.factored = false;
   double* x = static_cast<double*>(s.matrix->x);
   for (std::size_t k = 0; k < values.size(); ++k) x[k] = values[k];
+  return factorize();
+}
+
+int SparseCholesky::factorize() {
+  Impl& s = *impl_;
+  if (s.factor == nullptr) throw_error(ErrorCode::kInternal, "sparse Cholesky: factorize before analyze");
+  s.factored = false;
+  const double* x = static_cast<const double*>(s.matrix->x);
   cholmod_factorize(s.matrix, s.factor, &s.common);
   ++s.factorizations;
   const int* perm = static_cast<const int*>(s.factor->Perm);  // the identity (natural order)

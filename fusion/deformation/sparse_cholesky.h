@@ -45,6 +45,11 @@ class SparseCholesky {
   // one at most 1e-12 of its diagonal entry, zero, negative or not finite. The factor is then
   // unusable until a factorisation succeeds.
   int factorize(const std::vector<double>& values);
+  // The same, with the values written in place first: values() is the analysed pattern's
+  // array (one per entry, in its order), kept between factorisations, so a caller that fills
+  // it skips a copy. Null before analyze().
+  double* values();
+  int factorize();
   // x = A⁻¹ b with the last factorisation.
   std::vector<double> solve(const std::vector<double>& b) const;
 

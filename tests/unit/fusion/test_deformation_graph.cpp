@@ -692,5 +692,28 @@ TEST(SparseCholesky, SolvesAndRefusesMalformedPatterns) {
   EXPECT_THROW(solver.analyze(2, {0, 2, 3}, {1, 0, 1}), Error);
 }
 
+// The values written in place (what the normal equations do) factor as the copied ones, bit
+// for bit, and are kept between factorisations of the pattern.
+TEST(SparseCholesky, ValuesWrittenInPlaceFactorAsTheCopiedOnes) {
+  SparseCholesky unanalysed;
+  EXPECT_EQ(unanalysed.values(), nullptr);
+  EXPECT_THROW(unanalysed.factorize(), Error);
+  const std::vector<double> values = {4, 1, 3, 1, 2};
+  SparseCholesky copied, in_place;
+  copied.analyze(3, {0, 1, 3, 5}, {0, 0, 1, 1, 2});
+  in_place.analyze(3, {0, 1, 3, 5}, {0, 0, 1, 1, 2});
+  ASSERT_EQ(copied.factorize(values), -1);
+  double* entries = in_place.values();
+  ASSERT_NE(entries, nullptr);
+  for (std::size_t k = 0; k < values.size(); ++k) entries[k] = values[k];
+  ASSERT_EQ(in_place.factorize(), -1);
+  EXPECT_EQ(in_place.solve({1, 2, 3}), copied.solve({1, 2, 3}));
+  ASSERT_EQ(in_place.factorize(), -1);  // the values stay: the same factor again
+  EXPECT_EQ(in_place.solve({1, 2, 3}), copied.solve({1, 2, 3}));
+  entries[4] = 0.25;  // [[4 1 0] [1 3 1] [0 1 0.25]]: not positive definite
+  EXPECT_EQ(in_place.factorize(), 2);
+  EXPECT_THROW(in_place.solve({1, 2, 3}), Error);
+}
+
 }  // namespace
 }  // namespace sls::fusion::deformation
