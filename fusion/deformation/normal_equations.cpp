@@ -211,7 +211,7 @@ void NormalEquations::accumulate(const ResidualBlock& block, int pinned, std::ve
   }
 }
 
-void NormalEquations::assemble(const ResidualModel& model) {
+void NormalEquations::assemble(const ResidualModel& model, EnergyTerms* energy) {
   std::fill(gradient_.begin(), gradient_.end(), 0.0);
   // The links' residuals are affine in the parameters x with a constant Jacobian, so their
   // share of JᵀJ is constant while the pattern (and so the nodes) stays, and their share of
@@ -243,8 +243,10 @@ void NormalEquations::assemble(const ResidualModel& model) {
     }
   }
   block_values_ = link_values_;
-  for_each_residual_block(model, [&](const ResidualBlock& block) { accumulate(block, model.pinned, &block_values_, true); },
-                          Terms::kRotationAndConstraints);
+  for_each_residual_block(model, [&](const ResidualBlock& block) {
+    accumulate(block, model.pinned, &block_values_, true);
+    if (energy != nullptr) add_block_energy(block, energy);
+  }, Terms::kRotationAndConstraints);
 }
 
 int NormalEquations::factorize(double damping) {

@@ -22,8 +22,9 @@ class NormalEquations {
   // Makes the pattern hold every block the model needs; true when it was analysed again
   // (adding the analysis' milliseconds to *analyze_ms).
   bool prepare(const ResidualModel& model, double* analyze_ms);
-  // JᵀJ and Jᵀr from every residual block.
-  void assemble(const ResidualModel& model);
+  // JᵀJ and Jᵀr from every residual block. With `energy`, the blocks' energies it walks are
+  // added to it as evaluate_energy adds them: every term but E_reg, whose share is kept.
+  void assemble(const ResidualModel& model, EnergyTerms* energy = nullptr);
   // Factors JᵀJ + damping·I: -1, or the unknown whose pivot vanished (singular).
   int factorize(double damping);
   // −(JᵀJ + μI)⁻¹ Jᵀr.

@@ -217,18 +217,21 @@ void rotation_prior_block(const PoseRotationPrior& prior, const ResidualModel& m
   }
 }
 
-EnergyTerms evaluate_energy(const ResidualModel& model) {
+void add_block_energy(const ResidualBlock& block, EnergyTerms* energy) {
+  double sum = 0.0;
+  for (int row = 0; row < block.rows; ++row) sum += block.r[row] * block.r[row];
+  switch (block.term) {
+    case Term::kRotation: energy->rotation += sum; break;
+    case Term::kRegularization: energy->regularization += sum; break;
+    case Term::kConstraint: energy->constraints += sum; break;
+    case Term::kRotationPrior: energy->rotation_priors += sum; break;
+  }
+}
+
+EnergyTerms evaluate_energy(const ResidualModel& model, Terms terms) {
   EnergyTerms energy;
-  for_each_residual_block(model, [&energy](const ResidualBlock& block) {
-    double sum = 0.0;
-    for (int row = 0; row < block.rows; ++row) sum += block.r[row] * block.r[row];
-    switch (block.term) {
-      case Term::kRotation: energy.rotation += sum; break;
-      case Term::kRegularization: energy.regularization += sum; break;
-      case Term::kConstraint: energy.constraints += sum; break;
-      case Term::kRotationPrior: energy.rotation_priors += sum; break;
-    }
-  }, Terms::kAll, /*jacobian=*/false);
+  for_each_residual_block(model, [&energy](const ResidualBlock& block) { add_block_energy(block, &energy); }, terms,
+                          /*jacobian=*/false);
   return energy;
 }
 

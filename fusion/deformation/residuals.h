@@ -128,7 +128,10 @@ void for_each_residual_block(const ResidualModel& model, Visit&& visit, Terms te
   }
 }
 
-EnergyTerms evaluate_energy(const ResidualModel& model);
+// A block's Σ r² added to its term (what evaluate_energy sums, block by block in walk order).
+void add_block_energy(const ResidualBlock& block, EnergyTerms* energy);
+// The energy of the blocks `terms` selects (the others' terms stay 0).
+EnergyTerms evaluate_energy(const ResidualModel& model, Terms terms = Terms::kAll);
 
 Eigen::VectorXd pack_parameters(const std::vector<Node>& nodes, int pinned, double length_scale_m);
 void unpack_parameters(const Eigen::VectorXd& parameters, std::vector<Node>* nodes, int pinned, double length_scale_m);

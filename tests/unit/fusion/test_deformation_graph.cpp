@@ -294,6 +294,42 @@ TEST(DeformationGraph, RotationPriorsTurnThePosesToTheirRotations) {
   }
 }
 
+// A solve's energy before its first step comes from two walks (E_reg's alone, and the first
+// assembly's of the other terms): it is the graph's energy, term by term and bit for bit, for
+// every term at once (point-to-plane constraints with deformed targets, rotation priors), and
+// after a step as before it.
+TEST(DeformationGraph, TheEnergyBeforeAStepIsTheGraphsToTheLastBit) {
+  constexpr int kNodes = 16;
+  DeformationGraph graph = arc_graph(kNodes, options_for_tests());
+  RotationPrior prior;
+  prior.information = Eigen::Matrix3d::Identity() * 1e6;
+  for (int j = 0; j < kNodes; ++j) {
+    prior.rotation = Eigen::AngleAxisd(1e-4 * j, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    graph.add_rotation_prior(graph.node(j).position, graph.node(j).time, prior);
+  }
+  for (int i = 0; i < 40; ++i) {
+    const double a = 0.7 * i, b = 1.3 * i;
+    Constraint c;
+    c.source = graph.node(kNodes - 1).position + 3e-3 * Eigen::Vector3d(std::sin(a), std::cos(b), 0.3 * std::sin(a + b));
+    c.source_binding = graph.bind_before(c.source, graph.node(kNodes - 1).time);
+    c.target = c.source + Eigen::Vector3d(20e-6, -10e-6, 5e-6);
+    c.target_binding = graph.bind_around(c.target, graph.node(kNodes / 2).time);
+    c.normal = Eigen::Vector3d(std::cos(a), std::sin(a), 0.2).normalized();
+    graph.add_constraint(c);
+  }
+  for (int solve = 0; solve < 2; ++solve) {
+    const EnergyTerms expected = graph.energy();
+    const SolveStats stats = graph.solve(1);
+    EXPECT_EQ(stats.before.rotation, expected.rotation) << "solve " << solve;
+    EXPECT_EQ(stats.before.regularization, expected.regularization) << "solve " << solve;
+    EXPECT_EQ(stats.before.constraints, expected.constraints) << "solve " << solve;
+    EXPECT_EQ(stats.before.rotation_priors, expected.rotation_priors) << "solve " << solve;
+    EXPECT_GT(expected.constraints, 0.0);
+    EXPECT_GT(expected.rotation_priors, 0.0);
+    EXPECT_LT(stats.after.total(), stats.before.total());
+  }
+}
+
 TEST(DeformationGraph, RefusesBadRotationPriors) {
   DeformationGraph empty(options_for_tests());
   RotationPrior good;
