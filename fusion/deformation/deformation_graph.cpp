@@ -324,7 +324,7 @@ SolveStats DeformationGraph::solve(int iterations) {
   }
   const ResidualModel model = s.model();
   // The energy before the first step: E_reg walked on its own, the other terms summed by the
-  // first assembly, which walks their blocks at the same parameters (a walk saved a step).
+  // first assembly, which walks their blocks at the same parameters: one walk fewer a solve.
   stats.before = evaluate_energy(model, iterations > 0 ? Terms::kLinks : Terms::kAll);
   stats.unknowns = 12 * free_nodes;
   const std::vector<Node> initial = s.nodes;
