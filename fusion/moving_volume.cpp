@@ -129,13 +129,27 @@ struct MovingVolume::Impl {
   std::future<void> ship_job;
   MoveStats ship_stats;
   bool ship_pending = false;
+  // The current volume's surface found beside the caller (prepare_final_surface()): the job,
+  // and what it fills for final_surface_parts() to take.
+  std::future<void> prepared_job;
+  ExtractedSurface prepared_surface;
+  FinalSurfaceTimes prepared_times;
 
   ~Impl() {
-    if (ship_job.valid()) ship_job.wait();  // it reads the buffers, the GPU half and the streams
+    // Both read the buffers, the GPU half and the streams.
+    if (prepared_job.valid()) prepared_job.wait();
+    if (ship_job.valid()) ship_job.wait();
   }
   // Waits for a ship in the background; rethrows what it threw.
   void wait_shipping() {
     if (ship_job.valid()) ship_job.get();
+  }
+  // Waits for a surface being prepared and drops it (what it threw too): the volume may change.
+  void drop_prepared() {
+    if (!prepared_job.valid()) return;
+    prepared_job.wait();
+    prepared_job = {};
+    prepared_surface = ExtractedSurface{};
   }
   // Extracts the leaving region of `from`, filters revisits, appends to the shipped surface,
   // and fills `stats`' ship figures.
@@ -165,6 +179,30 @@ struct MovingVolume::Impl {
       return extract_surface(volume.view(), volume.geometry().T_world_volume, region, options.extract);
     }
     return gpu->extract_part(volume, region, options.extract, assemble_ms);
+  }
+
+  // The current volume's whole surface, where it lives: on a GPU as a move ships its surface
+  // (the crossings and cells found there, only they downloaded, not the 4.4 GB of a 960^3
+  // volume, assembled on the host), everything kept: the outside of an empty box (the same
+  // surface as extract_surface's, in the same order:
+  // MovingVolumeCuda.MovingEverythingOutShipsTheSameWholeSurface). Fills spent's extract_ms
+  // and assemble_ms.
+  ExtractedSurface whole_surface(FinalSurfaceTimes* spent) {
+    const SteadyClock::time_point start = SteadyClock::now();
+    const Volume& volume = buffers[static_cast<std::size_t>(current)];
+    ExtractedSurface surface;
+    if (volume.device().is_cuda()) {
+      OrientedRegion everything;
+      everything.T_world_box = volume.geometry().T_world_volume;
+      everything.min = Eigen::Vector3d::Ones();
+      everything.max = -Eigen::Vector3d::Ones();
+      everything.keep_outside = true;
+      surface = extract_part(volume, everything, &spent->assemble_ms);
+    } else {
+      surface = extract_surface(volume, options.extract);
+    }
+    spent->extract_ms = ms_since(start);
+    return surface;
   }
 
   void resample(const Volume& from, Volume& to) {
@@ -223,6 +261,7 @@ Pose MovingVolume::placement(const Pose& T_world_camera) const {
 
 void MovingVolume::place(const Pose& T_world_camera) {
   Impl& s = *impl_;
+  s.drop_prepared();
   s.wait_shipping();
   s.ship_pending = false;
   s.now().clear();
@@ -246,7 +285,10 @@ void MovingVolume::start_merging_revisits() {
 
 bool MovingVolume::merging_revisits() const { return impl_->merging; }
 
-Volume& MovingVolume::volume() { return impl_->now(); }
+Volume& MovingVolume::volume() {
+  impl_->drop_prepared();
+  return impl_->now();
+}
 const Volume& MovingVolume::volume() const { return impl_->buffers[static_cast<std::size_t>(impl_->current)]; }
 
 MoveStats MovingVolume::follow(const Pose& T_world_camera) {
@@ -274,7 +316,9 @@ bool MovingVolume::needs_move(const Pose& T_world_camera) const {
 
 MoveStats MovingVolume::move_to(const Pose& T_world_volume) {
   Impl& s = *impl_;
-  // The last move's ship reads the buffer this one resamples into.
+  // The last move's ship reads the buffer this one resamples into; a prepared surface, the
+  // one it moves from.
+  s.drop_prepared();
   s.wait_shipping();
   Volume& from = s.now();
   Volume& to = s.other();
@@ -346,31 +390,41 @@ const TriangleMesh& MovingVolume::shipped_mesh() const {
 }
 std::size_t MovingVolume::moves() const { return impl_->moves; }
 
+void MovingVolume::prepare_final_surface() {
+  Impl& s = *impl_;
+  if (s.prepared_job.valid()) return;
+  s.prepared_times = FinalSurfaceTimes{};
+  Impl* impl = &s;
+  // After a ship in the background on the same worker, which it then need not wait for: that
+  // ship reads the buffer the last move left, this one the current buffer.
+  s.prepared_job = ship_worker().submit([impl] {
+    require_device(impl->device);  // the worker thread's current device
+    impl->prepared_surface = impl->whole_surface(&impl->prepared_times);
+  });
+}
+
 MovingVolume::SurfaceParts MovingVolume::final_surface_parts(FinalSurfaceTimes* times) const {
+  Impl& s = *impl_;
   FinalSurfaceTimes spent;
   SteadyClock::time_point start = SteadyClock::now();
-  impl_->wait_shipping();
+  s.wait_shipping();
   spent.wait_ship_ms = ms_since(start);
-  start = SteadyClock::now();
-  const Volume& current = volume();
   ExtractedSurface live;
-  if (current.device().is_cuda()) {
-    // Where the volume lives, as a move ships its surface: the crossings and cells found on
-    // the GPU, only they downloaded (not the 4.4 GB of a 960^3 volume), assembled on the host.
-    // Everything is kept: the outside of an empty box (the same surface as extract_surface's,
-    // in the same order: MovingVolumeCuda.MovingEverythingOutShipsTheSameWholeSurface).
-    OrientedRegion everything;
-    everything.T_world_box = current.geometry().T_world_volume;
-    everything.min = Eigen::Vector3d::Ones();
-    everything.max = -Eigen::Vector3d::Ones();
-    everything.keep_outside = true;
-    live = impl_->extract_part(current, everything, &spent.assemble_ms);
+  if (s.prepared_job.valid()) {
+    start = SteadyClock::now();
+    std::future<void> job = std::move(s.prepared_job);
+    job.get();  // rethrows what finding it threw
+    spent.extract_ms = s.prepared_times.extract_ms;
+    spent.assemble_ms = s.prepared_times.assemble_ms;
+    spent.prepared = true;
+    spent.wait_prepared_ms = ms_since(start);
+    live = std::move(s.prepared_surface);
+    s.prepared_surface = ExtractedSurface{};
   } else {
-    live = extract_surface(current, impl_->options.extract);
+    live = s.whole_surface(&spent);
   }
-  spent.extract_ms = ms_since(start);
   if (times != nullptr) *times = spent;
-  return {&impl_->shipped_cloud, &impl_->shipped_mesh, std::move(live)};
+  return {&s.shipped_cloud, &s.shipped_mesh, std::move(live)};
 }
 
 ExtractedSurface MovingVolume::final_surface(FinalSurfaceTimes* times) const {

@@ -75,11 +75,16 @@ struct MoveStats {
 // Where MovingVolume::final_surface() spent its time (ms, wall): waiting for a ship still running
 // in the background; finding the current volume's surface and bringing it to the host (of it, the
 // host's assembly of its points and triangles); copying the shipped parts and it into one model.
+// A surface found beforehand (prepare_final_surface()) was found beside the caller's work:
+// extract_ms and assemble_ms are then its figures, and wait_prepared_ms what final_surface()
+// still waited for it.
 struct FinalSurfaceTimes {
   double wait_ship_ms = 0.0;
   double extract_ms = 0.0;
   double assemble_ms = 0.0;
   double join_ms = 0.0;
+  bool prepared = false;
+  double wait_prepared_ms = 0.0;
 };
 
 class MovingVolume {
@@ -103,6 +108,8 @@ class MovingVolume {
   // places the volume for this camera pose (the first frame).
   void place(const Pose& T_world_camera);
 
+  // The mutable volume waits for a surface being prepared (prepare_final_surface()) and drops
+  // it: the caller may change the volume.
   Volume& volume();
   const Volume& volume() const;
 
@@ -149,6 +156,13 @@ class MovingVolume {
     ExtractedSurface live;
   };
   SurfaceParts final_surface_parts(FinalSurfaceTimes* times = nullptr) const;
+  // Starts finding the current volume's surface on the ship worker (after a ship in the
+  // background; on a GPU on the ship stream), while the caller goes on: the scan session
+  // calls it as its loop closure starts, whose registrations and solve do not change the
+  // volume. The next final_surface() or final_surface_parts() takes it (the same surface, bit
+  // for bit) instead of finding it, and rethrows what finding it threw. volume() (mutable),
+  // move_to() and place() wait for it and drop it. Nothing when one is prepared already.
+  void prepare_final_surface();
 
  private:
   struct Impl;

@@ -454,13 +454,13 @@ std::size_t ScanSession::fused_count() const {
 }
 
 const fusion::VolumeGeometry& ScanSession::volume_geometry() const {
-  const fusion::Volume* volume = impl_->volume();
+  const fusion::Volume* volume = std::as_const(*impl_).volume();  // const: a surface being prepared stays
   if (volume == nullptr) throw_error(ErrorCode::kInvalidArgument, "the scan has no volume yet: no frame was fused");
   return volume->geometry();
 }
 
 std::size_t ScanSession::volume_bytes() const {
-  const fusion::Volume* volume = impl_->volume();
+  const fusion::Volume* volume = std::as_const(*impl_).volume();
   if (volume == nullptr) return 0;
   return impl_->moving ? 2 * volume->bytes() : volume->bytes();
 }
@@ -468,7 +468,7 @@ std::size_t ScanSession::volume_bytes() const {
 std::size_t ScanSession::moves() const { return impl_->moving ? impl_->moving->moves() : 0; }
 
 Image8u ScanSession::render(const Pose& T_world_camera) const {
-  const fusion::Volume* volume = impl_->volume();
+  const fusion::Volume* volume = std::as_const(*impl_).volume();
   if (volume == nullptr) throw_error(ErrorCode::kInvalidArgument, "nothing to render: no frame was fused");
   // Its own raycaster: the session's holds the tracker's model on the GPU.
   fusion::Raycaster raycaster(impl_->options.device, impl_->calibration.camera, Impl::raycast_options(impl_->options),

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -325,6 +326,9 @@ LoopClosureReport ScanSession::close_loop() {
     throw_error(ErrorCode::kInvalidArgument, "loop closure needs more than one fused frame (only frame {})",
                 s.first->index);
   }
+  // The model's surface still in the volume is found beside the registrations and the solve,
+  // which do not change the volume (as ships are, where they are: on a GPU).
+  if (s.moving && s.moving->options().ship_in_background) s.moving->prepare_final_surface();
   s.collect_ship();
   s.deformation->drain();
   fusion::deformation::DeformationGraph& graph = s.deformation->graph();
@@ -334,7 +338,7 @@ LoopClosureReport ScanSession::close_loop() {
                 "for a loop",
                 graph.size(), graph.pinned_count());
   }
-  if (!s.reference_taken) s.capture_reference(s.moving->volume());  // the volume never moved
+  if (!s.reference_taken) s.capture_reference(std::as_const(*s.moving).volume());  // the volume never moved
 
   // Register the kept last frames (newest first) to the first frame's surface, each from the
   // best guess of its pose in the first frame's world: the turntable's angle when it is known
@@ -397,7 +401,7 @@ LoopClosureReport ScanSession::close_loop() {
   // Their points: where tracking put them (deformed by the nodes of their time) should be
   // where the registration puts them. Each point is where one rigid registration puts it: as
   // certain as that registration's residual, not as a surface point's noise (σ_con).
-  const double voxel_m = s.moving->volume().geometry().voxel_size_m;
+  const double voxel_m = std::as_const(*s.moving).volume().geometry().voxel_size_m;
   for (const Registered& r : registered) {
     const SurfaceSamples samples = sample_depth_map(r.depth, s.calibration.camera, s.options.deformation.keyframe_samples,
                                                     edge_step_m(s.calibration.camera, s.focus_distance_m));

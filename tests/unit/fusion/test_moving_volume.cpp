@@ -489,6 +489,63 @@ TEST_P(MovingVolumeTest, ShippingInTheBackgroundShipsTheSameSurface) {
   EXPECT_TRUE(background.move_to(background.placement(partial)).shipping);
 }
 
+// The final surface prepared beside the caller (prepare_final_surface(): the scan session's
+// loop closure on a GPU): final_surface() takes it, the same model bit for bit as one found
+// when asked; a volume changed, moved or placed after preparing drops it, and the model is the
+// changed volume's.
+TEST_P(MovingVolumeTest, AFinalSurfacePreparedBesideTheCallerIsTheSameModelUnlessTheVolumeChanges) {
+  const VoxelFormat format = GetParam();
+  MovingVolumeOptions background_options = test::scene_options();
+  background_options.ship_in_background = true;
+  MovingVolume now(64, 56, 48, kVoxel, format, Device::cpu(), test::scene_options());
+  MovingVolume background(64, 56, 48, kVoxel, format, Device::cpu(), background_options);
+  test::place_random_field(&now, {&background});
+  const auto expect_same_model = [&](bool prepared) {
+    FinalSurfaceTimes times;
+    const ExtractedSurface a = now.final_surface();
+    const ExtractedSurface b = background.final_surface(&times);
+    EXPECT_EQ(times.prepared, prepared);
+    if (!prepared) {
+      EXPECT_EQ(times.wait_prepared_ms, 0.0);
+    }
+    EXPECT_GT(times.extract_ms, 0.0);
+    EXPECT_GT(a.cloud.size(), 10000u);
+    EXPECT_EQ(a.cloud.positions, b.cloud.positions);
+    EXPECT_EQ(a.cloud.normals, b.cloud.normals);
+    EXPECT_EQ(a.mesh.vertices.positions, b.mesh.vertices.positions);
+    EXPECT_EQ(a.mesh.faces, b.mesh.faces);
+  };
+
+  // Prepared while a move's ship still runs (it waits behind it on the worker): taken once.
+  const Pose partial = test::partial_move_camera();
+  now.move_to(now.placement(partial));
+  EXPECT_TRUE(background.move_to(background.placement(partial)).shipping);
+  background.prepare_final_surface();
+  background.prepare_final_surface();  // one is prepared already: nothing
+  expect_same_model(true);
+  expect_same_model(false);  // taken: found again when asked again
+
+  // The volume written after preparing: dropped, the model is the written volume's.
+  background.prepare_final_surface();
+  test::fill_random_field(background.volume().view(), 77u);
+  test::fill_random_field(now.volume().view(), 77u);
+  expect_same_model(false);
+
+  // Moved after preparing: dropped.
+  background.prepare_final_surface();
+  const Pose away =
+      now.volume().geometry().T_world_volume * Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.0, 0.01, 0.0));
+  now.move_to(away);
+  background.move_to(away);
+  expect_same_model(false);
+
+  // Placed anew, or destroyed, with one being prepared: waited for and dropped.
+  background.prepare_final_surface();
+  background.place(test::first_camera());
+  EXPECT_TRUE(background.shipped_cloud().empty());
+  background.prepare_final_surface();
+}
+
 INSTANTIATE_TEST_SUITE_P(Formats, MovingVolumeTest, ::testing::Values(VoxelFormat::kFloat32, VoxelFormat::kCompact),
                          [](const ::testing::TestParamInfo<VoxelFormat>& format) {
                            return std::string(voxel_format_name(format.param));

@@ -248,7 +248,18 @@ TEST(ScanSessionCuda, LoopClosureEqualsTheCpuSession) {
   EXPECT_EQ(a.constraints > 0, b.constraints > 0);
   EXPECT_LT(registered_difference.translation().norm(), 5e-6);
   EXPECT_LT(closed_difference.translation().norm(), 0.1 * a.correction_m);
-  EXPECT_NE(cuda.final_surface().cloud.find_property("correction"), nullptr);
+  // The volume's own surface was found beside the loop closure (MovingVolume::
+  // prepare_final_surface): the model is the one found when asked again, bit for bit.
+  ModelTimes beside, asked_times;
+  const fusion::ExtractedSurface prepared = cuda.final_surface(&beside);
+  const fusion::ExtractedSurface asked = cuda.final_surface(&asked_times);
+  EXPECT_TRUE(beside.volume.prepared);
+  EXPECT_FALSE(asked_times.volume.prepared);
+  EXPECT_NE(prepared.cloud.find_property("correction"), nullptr);
+  EXPECT_GT(prepared.cloud.size(), 1000u);
+  EXPECT_EQ(prepared.cloud.positions, asked.cloud.positions);
+  EXPECT_EQ(prepared.cloud.normals, asked.cloud.normals);
+  EXPECT_EQ(prepared.mesh.faces, asked.mesh.faces);
 }
 
 }  // namespace
