@@ -254,7 +254,7 @@ nlohmann::json run_bench(const Context& context, const BenchOptions& options, co
   if (session.deformation_enabled()) {
     try {
       const session::LoopClosureReport closed = session.close_loop();
-      loop = {{"closed", true}, {"ms", closed.ms}, {"constraints", closed.constraints}};
+      loop = {{"closed", true}, {"ms", closed.ms}, {"solve_ms", closed.solve.ms}, {"constraints", closed.constraints}};
     } catch (const Error& error) {
       if (error.code() != ErrorCode::kInvalidArgument) throw;
       loop = {{"closed", false}, {"reason", error.what()}};

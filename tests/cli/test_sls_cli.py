@@ -173,6 +173,8 @@ class SlsCli(unittest.TestCase):
         self.assertEqual(bench["images_per_frame"], 22)
         self.assertGreater(bench["stages"]["decode"]["total_s"], 0.0)  # the stacks decoded in the timed part
         self.assertIsNotNone(bench["loop_closure"])
+        if bench["loop_closure"]["closed"]:  # the loop closure's time holds its solve's
+            self.assertLessEqual(bench["loop_closure"]["solve_ms"], bench["loop_closure"]["ms"])
         human = run("bench", "--preset", "ci", "--frames", "2", "--input", "depth", "--device", "cpu")
         self.assertEqual(human.returncode, 0, human.stderr)
         self.assertIn("end to end", human.stdout)
