@@ -430,18 +430,30 @@ TEST_P(MovingVolumeTest, BrickFlagsAfterMovesLetRaycastsSeeTheSurface) {
   EXPECT_LE(max_moved, max_fresh + bias + 0.01);
 }
 
+// The random field in two moving volumes: one ships before move_to() returns, the other in
+// the background (MovingVolumeOptions::ship_in_background).
+struct ShippingTwins {
+  MovingVolume now;
+  MovingVolume background;
+};
+ShippingTwins shipping_twins(VoxelFormat format) {
+  MovingVolumeOptions background_options = test::scene_options();
+  background_options.ship_in_background = true;
+  ShippingTwins twins{MovingVolume(64, 56, 48, kVoxel, format, Device::cpu(), test::scene_options()),
+                      MovingVolume(64, 56, 48, kVoxel, format, Device::cpu(), background_options)};
+  test::place_random_field(&twins.now, {&twins.background});
+  return twins;
+}
+
 // Shipping in the background (MovingVolumeOptions::ship_in_background; the scan session's
 // mode on a GPU, where MovingVolumeCuda tests it too): move_to() returns before the surface is
 // shipped, finish_shipping() gives the ship's figures once, and what reads the shipped surface
 // and the next move wait for it. The surface is the one shipped before returning, point for
 // point, in the same order.
 TEST_P(MovingVolumeTest, ShippingInTheBackgroundShipsTheSameSurface) {
-  const VoxelFormat format = GetParam();
-  MovingVolumeOptions background_options = test::scene_options();
-  background_options.ship_in_background = true;
-  MovingVolume now(64, 56, 48, kVoxel, format, Device::cpu(), test::scene_options());
-  MovingVolume background(64, 56, 48, kVoxel, format, Device::cpu(), background_options);
-  test::place_random_field(&now, {&background});
+  ShippingTwins twins = shipping_twins(GetParam());
+  MovingVolume& now = twins.now;
+  MovingVolume& background = twins.background;
 
   const Pose partial = test::partial_move_camera();
   const MoveStats shipped_now = now.move_to(now.placement(partial));
@@ -494,12 +506,9 @@ TEST_P(MovingVolumeTest, ShippingInTheBackgroundShipsTheSameSurface) {
 // when asked; a volume changed, moved or placed after preparing drops it, and the model is the
 // changed volume's.
 TEST_P(MovingVolumeTest, AFinalSurfacePreparedBesideTheCallerIsTheSameModelUnlessTheVolumeChanges) {
-  const VoxelFormat format = GetParam();
-  MovingVolumeOptions background_options = test::scene_options();
-  background_options.ship_in_background = true;
-  MovingVolume now(64, 56, 48, kVoxel, format, Device::cpu(), test::scene_options());
-  MovingVolume background(64, 56, 48, kVoxel, format, Device::cpu(), background_options);
-  test::place_random_field(&now, {&background});
+  ShippingTwins twins = shipping_twins(GetParam());
+  MovingVolume& now = twins.now;
+  MovingVolume& background = twins.background;
   const auto expect_same_model = [&](bool prepared) {
     FinalSurfaceTimes times;
     const ExtractedSurface a = now.final_surface();
