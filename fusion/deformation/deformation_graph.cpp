@@ -323,9 +323,10 @@ SolveStats DeformationGraph::solve(int iterations) {
                 unreachable);
   }
   const ResidualModel model = s.model();
-  // The energy before the first step: E_reg walked on its own, the other terms summed by the
-  // first assembly, which walks their blocks at the same parameters: one walk fewer a solve.
-  stats.before = evaluate_energy(model, iterations > 0 ? Terms::kLinks : Terms::kAll);
+  // The energy before the first step: the linear terms walked on their own, E_rot and the
+  // constraints summed by the first assembly, which walks their blocks at the same
+  // parameters: one walk fewer a solve.
+  stats.before = evaluate_energy(model, iterations > 0 ? Terms::kLinear : Terms::kAll);
   stats.unknowns = 12 * free_nodes;
   const std::vector<Node> initial = s.nodes;
   EnergyTerms current = stats.before;

@@ -94,6 +94,9 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
   const int blocks = static_cast<int>(model.nodes->size()) - model.pinned;
   if (solver_.analyzed() && blocks == blocks_ && model.structure_version == prepared_version_) return false;
   prepared_version_ = model.structure_version;
+  // A structure changed (a rotation prior added, or rebound to a new node) changes the linear
+  // terms' share, also where the pattern stays.
+  linear_valid_ = false;
   std::vector<std::pair<int, int>> needed;
   for (int b = 0; b < blocks; ++b) needed.emplace_back(b, b);
   // The blocks each residual couples (as for_each_residual_block makes them, without
@@ -138,8 +141,7 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
   rows_ = std::move(rows);
   blocks_ = blocks;
   block_values_.assign(static_cast<std::size_t>(count) * 144, 0.0);
-  link_values_.assign(block_values_.size(), 0.0);
-  links_valid_ = false;
+  linear_values_.assign(block_values_.size(), 0.0);
   gradient_.assign(static_cast<std::size_t>(blocks) * 12, 0.0);
 
   // The order the blocks are factored in: AMD on the block pattern (one entry per block), so
@@ -213,24 +215,25 @@ void NormalEquations::accumulate(const ResidualBlock& block, int pinned, std::ve
 
 void NormalEquations::assemble(const ResidualModel& model, EnergyTerms* energy) {
   std::fill(gradient_.begin(), gradient_.end(), 0.0);
-  // The links' residuals are affine in the parameters x with a constant Jacobian, so their
-  // share of JᵀJ is constant while the pattern (and so the nodes) stays, and their share of
-  // Jᵀr is g₀ + JᵀJ (x − x₀) from one walk at x₀.
+  // The linear terms' residuals (E_reg, the rotation priors) are affine in the parameters x
+  // with a constant Jacobian, so their share of JᵀJ is constant while the graph's structure
+  // stays, and their share of Jᵀr is g₀ + JᵀJ (x − x₀) from one walk at x₀.
   const Eigen::VectorXd x = pack_parameters(*model.nodes, model.pinned, model.options->length_scale_m);
-  if (!links_valid_) {
-    std::fill(link_values_.begin(), link_values_.end(), 0.0);
-    for_each_residual_block(model, [&](const ResidualBlock& block) { accumulate(block, model.pinned, &link_values_, true); },
-                            Terms::kLinks);
-    link_gradient_ = gradient_;
-    link_parameters_ = x;
-    links_valid_ = true;
+  if (!linear_valid_) {
+    std::fill(linear_values_.begin(), linear_values_.end(), 0.0);
+    for_each_residual_block(
+        model, [&](const ResidualBlock& block) { accumulate(block, model.pinned, &linear_values_, true); },
+        Terms::kLinear);
+    linear_gradient_ = gradient_;
+    linear_parameters_ = x;
+    linear_valid_ = true;
   } else {
-    gradient_ = link_gradient_;
-    const Eigen::VectorXd change = x - link_parameters_;
+    gradient_ = linear_gradient_;
+    const Eigen::VectorXd change = x - linear_parameters_;
     for (int b = 0; b < blocks_; ++b) {
       for (std::size_t i = 0; i < rows_[static_cast<std::size_t>(b)].size(); ++i) {
         const int a = rows_[static_cast<std::size_t>(b)][i];
-        const double* H = &link_values_[static_cast<std::size_t>(offsets_[static_cast<std::size_t>(b)][i]) * 144];
+        const double* H = &linear_values_[static_cast<std::size_t>(offsets_[static_cast<std::size_t>(b)][i]) * 144];
         for (int r = 0; r < 12; ++r) {
           for (int c = 0; c < 12; ++c) {
             const double h = H[12 * r + c];
@@ -242,11 +245,11 @@ void NormalEquations::assemble(const ResidualModel& model, EnergyTerms* energy) 
       }
     }
   }
-  block_values_ = link_values_;
+  block_values_ = linear_values_;
   for_each_residual_block(model, [&](const ResidualBlock& block) {
     accumulate(block, model.pinned, &block_values_, true);
     if (energy != nullptr) add_block_energy(block, energy);
-  }, Terms::kRotationAndConstraints);
+  }, Terms::kNonlinear);
 }
 
 int NormalEquations::factorize(double damping) {

@@ -23,7 +23,8 @@ class NormalEquations {
   // (adding the analysis' milliseconds to *analyze_ms).
   bool prepare(const ResidualModel& model, double* analyze_ms);
   // JᵀJ and Jᵀr from every residual block. With `energy`, the blocks' energies it walks are
-  // added to it as evaluate_energy adds them: every term but E_reg, whose share is kept.
+  // added to it as evaluate_energy adds them: E_rot's and the constraints' (Terms::kNonlinear);
+  // the linear terms' share is kept from a walk at the last change of the graph's structure.
   void assemble(const ResidualModel& model, EnergyTerms* energy = nullptr);
   // Factors JᵀJ + damping·I: -1, or the unknown whose pivot vanished (singular).
   int factorize(double damping);
@@ -44,10 +45,10 @@ class NormalEquations {
   std::vector<std::vector<int>> rows_;        // per block column, its row blocks (<= it), ascending
   std::vector<std::vector<int>> offsets_;     // each block's index into block_values_ (/ 144)
   std::vector<double> block_values_;          // 144 per block, row-major
-  std::vector<double> link_values_;           // E_reg's share of them (constant while the pattern is)
-  std::vector<double> link_gradient_;         // their Jᵀr at link_parameters_
-  Eigen::VectorXd link_parameters_;
-  bool links_valid_ = false;
+  std::vector<double> linear_values_;         // the linear terms' share (constant while the structure is)
+  std::vector<double> linear_gradient_;       // their Jᵀr at linear_parameters_
+  Eigen::VectorXd linear_parameters_;
+  bool linear_valid_ = false;
   std::vector<double> gradient_;              // Jᵀr
   // The factored order: order_[P] is the block placed P-th; ordered_[P] its row blocks.
   struct OrderedBlock {

@@ -81,9 +81,11 @@ void constraint_block(const ResidualModel& model, const Constraint& constraint, 
                       NodeInverses* inverses);
 void rotation_prior_block(const PoseRotationPrior& prior, const ResidualModel& model, ResidualBlock* block);
 
-// Which blocks a walk visits: E_reg (with its region part) is linear in the parameters with
-// a Jacobian fixed by the node positions, so its share of JᵀJ changes only when links do.
-enum class Terms { kAll, kLinks, kRotationAndConstraints };  // the last with the rotation priors
+// Which blocks a walk visits. E_reg (with its region part) and the rotation priors are
+// linear in the parameters with a Jacobian fixed by the node positions, the priors' rotations
+// and their bindings, so their share of JᵀJ changes only with the graph's structure; E_rot and
+// the constraints (whose normals turn with A⁻¹) are not.
+enum class Terms { kAll, kLinear, kNonlinear };
 
 // Every block once, in a fixed order: E_rot of each unpinned node, E_reg of each directed
 // link with an unpinned end (and its region part when ρ > 0), every constraint, then every
@@ -94,13 +96,13 @@ void for_each_residual_block(const ResidualModel& model, Visit&& visit, Terms te
   ResidualBlock block;
   block.jacobian = jacobian;
   const int size = static_cast<int>(model.nodes->size());
-  if (terms != Terms::kLinks) {
+  if (terms != Terms::kLinear) {
     for (int j = model.pinned; j < size; ++j) {
       rotation_block(model, j, &block);
       visit(block);
     }
   }
-  if (terms != Terms::kRotationAndConstraints) {
+  if (terms != Terms::kNonlinear) {
     for (int j = 0; j < size; ++j) {
       for (int k : (*model.neighbours)[static_cast<std::size_t>(j)]) {
         if (j < model.pinned && k < model.pinned) continue;
@@ -113,12 +115,14 @@ void for_each_residual_block(const ResidualModel& model, Visit&& visit, Terms te
       }
     }
   }
-  if (terms != Terms::kLinks) {
+  if (terms != Terms::kLinear) {
     NodeInverses inverses;
     for (const Constraint& constraint : *model.constraints) {
       constraint_block(model, constraint, &block, &inverses);
       visit(block);
     }
+  }
+  if (terms != Terms::kNonlinear) {
     if (model.rotation_priors != nullptr) {
       for (const PoseRotationPrior& prior : *model.rotation_priors) {
         rotation_prior_block(prior, model, &block);
