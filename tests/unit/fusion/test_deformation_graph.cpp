@@ -294,7 +294,34 @@ TEST(DeformationGraph, RotationPriorsTurnThePosesToTheirRotations) {
   }
 }
 
-// A solve's energy before its first step comes from two walks (E_reg's alone, and the first
+// The linear terms' share of the normal equations (E_reg's and the rotation priors') is kept
+// while the graph's structure stays: priors added between solves, the nodes and the pattern
+// unchanged, count in the next solve as if they had been there from the start.
+TEST(DeformationGraph, RotationPriorsAddedBetweenSolvesCountInTheNext) {
+  constexpr int kNodes = 12;
+  RotationPrior prior;
+  prior.information = Eigen::Vector3d::UnitZ() * Eigen::Vector3d::UnitZ().transpose() / (3.5e-5 * 3.5e-5);
+  const auto add_priors = [&](DeformationGraph* graph) {
+    for (int j = 0; j < kNodes; ++j) {
+      prior.rotation = Eigen::AngleAxisd(2e-4 * j, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      graph->add_rotation_prior(graph->node(j).position, graph->node(j).time, prior);
+    }
+  };
+  DeformationGraph graph = arc_graph(kNodes, options_for_tests());
+  const Eigen::VectorXd rest = graph.parameters();
+  graph.solve(2);  // nothing to correct: analysed, and the linear share kept, at rest
+  EXPECT_EQ(graph.parameters(), rest);
+  add_priors(&graph);
+  const SolveStats stats = graph.solve(4);
+  EXPECT_GT(stats.before.rotation_priors, 1e3);
+  EXPECT_LT(stats.after.rotation_priors, 1e-2 * stats.before.rotation_priors);
+  DeformationGraph from_the_start = arc_graph(kNodes, options_for_tests());
+  add_priors(&from_the_start);
+  from_the_start.solve(4);
+  EXPECT_EQ(graph.parameters(), from_the_start.parameters());
+}
+
+// A solve's energy before its first step comes from two walks (the linear terms' alone, and the first
 // assembly's of the other terms): it is the graph's energy, term by term and bit for bit, for
 // every term at once (point-to-plane constraints with deformed targets, rotation priors), and
 // after a step as before it.
