@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstddef>
+#include <cstring>
 
 #include "sdk/core/error.h"
 
@@ -97,7 +99,9 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
   // A structure changed (a rotation prior added, or rebound to a new node) changes the linear
   // terms' share, also where the pattern stays.
   linear_valid_ = false;
-  std::vector<std::pair<int, int>> needed;
+  // E_rot's blocks (the diagonal) and the constraints' are assembled every step; the others
+  // are the linear terms' alone.
+  std::vector<std::pair<int, int>> needed, nonlinear;
   for (int b = 0; b < blocks; ++b) needed.emplace_back(b, b);
   // The blocks each residual couples (as for_each_residual_block makes them, without
   // computing them).
@@ -113,8 +117,17 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
     for (const NodeBinding* binding : {&constraint.source_binding, &constraint.target_binding}) {
       for (int i = 0; i < binding->count; ++i) nodes[count++] = binding->nodes[i];
     }
-    couple(nodes, count, model.pinned, &needed);
+    couple(nodes, count, model.pinned, &nonlinear);
   }
+  needed.insert(needed.end(), nonlinear.begin(), nonlinear.end());
+  for (int b = 0; b < blocks; ++b) nonlinear.emplace_back(b, b);
+  const auto find_nonlinear_offsets = [&] {
+    nonlinear_offsets_.clear();
+    for (const auto& [a, b] : nonlinear) nonlinear_offsets_.push_back(block_offset(a, b));
+    std::sort(nonlinear_offsets_.begin(), nonlinear_offsets_.end());
+    nonlinear_offsets_.erase(std::unique(nonlinear_offsets_.begin(), nonlinear_offsets_.end()),
+                             nonlinear_offsets_.end());
+  };
   if (model.rotation_priors != nullptr) {
     for (const PoseRotationPrior& prior : *model.rotation_priors) {
       couple(prior.binding.nodes, prior.binding.count, model.pinned, &needed);
@@ -124,7 +137,10 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
   needed.erase(std::unique(needed.begin(), needed.end()), needed.end());
   bool inside = blocks == blocks_ && solver_.analyzed();
   for (std::size_t i = 0; inside && i < needed.size(); ++i) inside = block_offset(needed[i].first, needed[i].second) >= 0;
-  if (inside) return false;
+  if (inside) {
+    find_nonlinear_offsets();
+    return false;
+  }
 
   // Grow: the union of the kept pattern (same unknowns only) and the needed one.
   std::vector<std::vector<int>> rows(static_cast<std::size_t>(blocks));
@@ -140,6 +156,7 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
   }
   rows_ = std::move(rows);
   blocks_ = blocks;
+  find_nonlinear_offsets();
   block_values_.assign(static_cast<std::size_t>(count) * 144, 0.0);
   linear_values_.assign(block_values_.size(), 0.0);
   gradient_.assign(static_cast<std::size_t>(blocks) * 12, 0.0);
@@ -169,8 +186,14 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
       }
     }
   }
-  for (auto& column : ordered_) {
+  placements_.assign(static_cast<std::size_t>(count), {});
+  for (int P = 0; P < blocks; ++P) {
+    auto& column = ordered_[static_cast<std::size_t>(P)];
     std::sort(column.begin(), column.end(), [](const OrderedBlock& x, const OrderedBlock& y) { return x.row < y.row; });
+    for (std::size_t i = 0; i < column.size(); ++i) {
+      placements_[static_cast<std::size_t>(column[i].offset)] = {P, static_cast<int>(i), column[i].transposed,
+                                                                  column[i].row == P};
+    }
   }
   // Scalar compressed columns of the ordered upper triangle: column 12P + c holds rows
   // 12Q + r of each row block Q (ascending), r <= c in the diagonal block.
@@ -224,6 +247,10 @@ void NormalEquations::assemble(const ResidualModel& model, EnergyTerms* energy) 
     for_each_residual_block(
         model, [&](const ResidualBlock& block) { accumulate(block, model.pinned, &linear_values_, true); },
         Terms::kLinear);
+    linear_scalar_.assign(scalar_rows_.size(), 0.0);
+    for (std::size_t offset = 0; offset < placements_.size(); ++offset) {
+      place_block(static_cast<int>(offset), &linear_values_[offset * 144], linear_scalar_.data());
+    }
     linear_gradient_ = gradient_;
     linear_parameters_ = x;
     linear_valid_ = true;
@@ -245,27 +272,40 @@ void NormalEquations::assemble(const ResidualModel& model, EnergyTerms* energy) 
       }
     }
   }
-  block_values_ = linear_values_;
+  // The nonlinear terms start from the linear share in the blocks they touch; the other blocks
+  // are the linear share alone, placed by factorize as it is.
+  for (const int offset : nonlinear_offsets_) {
+    const auto start = static_cast<std::size_t>(offset) * 144;
+    std::memcpy(&block_values_[start], &linear_values_[start], 144 * sizeof(double));
+  }
   for_each_residual_block(model, [&](const ResidualBlock& block) {
     accumulate(block, model.pinned, &block_values_, true);
     if (energy != nullptr) add_block_energy(block, energy);
   }, Terms::kNonlinear);
 }
 
+void NormalEquations::place_block(int offset, const double* H, double* values) const {
+  const Placement& place = placements_[static_cast<std::size_t>(offset)];
+  for (int c = 0; c < 12; ++c) {
+    double* column = values + column_starts_[static_cast<std::size_t>(12 * place.column + c)] + 12 * place.index;
+    const int last = place.diagonal ? c : 11;
+    if (place.transposed) {
+      for (int r = 0; r <= last; ++r) column[r] = H[12 * c + r];
+    } else {
+      for (int r = 0; r <= last; ++r) column[r] = H[12 * r + c];
+    }
+  }
+}
+
 int NormalEquations::factorize(double damping) {
   double* values = solver_.values();
-  std::size_t k = 0;
-  for (int P = 0; P < blocks_; ++P) {
-    for (int c = 0; c < 12; ++c) {
-      for (const OrderedBlock& block : ordered_[static_cast<std::size_t>(P)]) {
-        const double* H = &block_values_[static_cast<std::size_t>(block.offset) * 144];
-        const bool diagonal = block.row == P;
-        const int last = diagonal ? c : 11;
-        for (int r = 0; r <= last; ++r) {
-          values[k++] = (block.transposed ? H[12 * c + r] : H[12 * r + c]) + (diagonal && r == c ? damping : 0.0);
-        }
-      }
-    }
+  std::memcpy(values, linear_scalar_.data(), linear_scalar_.size() * sizeof(double));
+  for (const int offset : nonlinear_offsets_) {
+    place_block(offset, &block_values_[static_cast<std::size_t>(offset) * 144], values);
+  }
+  // Each column's last entry is its diagonal.
+  for (std::size_t column = 1; column < column_starts_.size(); ++column) {
+    values[column_starts_[column] - 1] += damping;
   }
   const int singular = solver_.factorize();
   if (singular < 0) return -1;

@@ -44,8 +44,12 @@ class NormalEquations {
   std::size_t prepared_version_ = 0;          // the model's structure_version last prepared for
   std::vector<std::vector<int>> rows_;        // per block column, its row blocks (<= it), ascending
   std::vector<std::vector<int>> offsets_;     // each block's index into block_values_ (/ 144)
-  std::vector<double> block_values_;          // 144 per block, row-major
+  // 144 per block, row-major: the linear share plus the nonlinear terms', written only in the
+  // blocks the nonlinear terms touch (nonlinear_offsets_); factorize reads no other.
+  std::vector<double> block_values_;
   std::vector<double> linear_values_;         // the linear terms' share (constant while the structure is)
+  std::vector<double> linear_scalar_;         // the same in the factored pattern's order
+  std::vector<int> nonlinear_offsets_;        // the blocks E_rot and the constraints touch, ascending
   std::vector<double> linear_gradient_;       // their Jᵀr at linear_parameters_
   Eigen::VectorXd linear_parameters_;
   bool linear_valid_ = false;
@@ -58,6 +62,18 @@ class NormalEquations {
   };
   std::vector<int> order_;
   std::vector<std::vector<OrderedBlock>> ordered_;
+  // Where each stored block lies in the factored pattern: in ordered block column `column`,
+  // the `index`-th row block; its column c's entries start at column_starts_[12 column + c]
+  // + 12 index (only the diagonal block, the last, is shorter: r <= c).
+  struct Placement {
+    int column = 0;
+    int index = 0;
+    bool transposed = false;
+    bool diagonal = false;
+  };
+  std::vector<Placement> placements_;
+  // Writes a stored block's values (H, row-major) to their places in the factored pattern.
+  void place_block(int offset, const double* H, double* values) const;
   std::vector<int> column_starts_, scalar_rows_;
   SparseCholesky solver_;
 };

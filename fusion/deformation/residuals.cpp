@@ -46,11 +46,11 @@ Eigen::Vector3d deform_with(const ResidualModel& model, const Eigen::Vector3d& p
   return out;
 }
 
+// Every block writes each of its rows' residual, so r is not cleared.
 void reset(ResidualBlock* block, Term term, int rows) {
   block->term = term;
   block->rows = rows;
   block->count = 0;
-  for (double& r : block->r) r = 0.0;
 }
 
 }  // namespace
@@ -76,7 +76,7 @@ void rotation_block(const ResidualModel& model, int node, ResidualBlock* block) 
   const double s = std::sqrt(model.options->rotation_weight);
   static constexpr int kA[6] = {0, 1, 2, 0, 0, 1};
   static constexpr int kB[6] = {0, 1, 2, 1, 2, 2};
-  const int slot = block->slot(node);
+  const int slot = block->jacobian ? block->slot(node) : 0;
   for (int row = 0; row < 6; ++row) {
     const int a = kA[row], b = kB[row];
     const double f = s * (a == b ? 1.0 : kSqrt2);
@@ -99,9 +99,9 @@ void regularization_block(const ResidualModel& model, int from, int to, Residual
   const Eigen::Vector3d d = k.position - j.position;
   const Eigen::Vector3d r = s * (j.A * d + j.position + j.t - k.position - k.t);
   for (int i = 0; i < 3; ++i) block->r[i] = r[i];
+  if (!block->jacobian) return;  // the energy: no slots either
   const int a = block->slot(from);
   const int b = block->slot(to);
-  if (!block->jacobian) return;
   for (int i = 0; i < 3; ++i) {
     for (int c = 0; c < 3; ++c) block->J[a][i][3 * i + c] = s * d[c];
     block->J[a][i][9 + i] = s * L;
@@ -115,11 +115,11 @@ void region_block(const ResidualModel& model, int from, int to, ResidualBlock* b
       node_of(model, from).A - node_of(model, to).A;
   const double s = std::sqrt(model.options->regularization_weight / 3.0) * model.options->region_radius_m /
                    model.options->length_scale_m;
+  for (int i = 0; i < 9; ++i) block->r[i] = s * difference(i / 3, i % 3);
+  if (!block->jacobian) return;
   const int a = block->slot(from);
   const int b = block->slot(to);
   for (int i = 0; i < 9; ++i) {
-    block->r[i] = s * difference(i / 3, i % 3);
-    if (!block->jacobian) continue;
     block->J[a][i][i] = s;
     block->J[b][i][i] = -s;
   }
@@ -195,9 +195,9 @@ void rotation_prior_block(const PoseRotationPrior& prior, const ResidualModel& m
   const Eigen::Vector3d phi(0.5 * (M(2, 1) - M(1, 2)), 0.5 * (M(0, 2) - M(2, 0)), 0.5 * (M(1, 0) - M(0, 1)));
   const Eigen::Vector3d r = prior.sqrt_information * phi;
   for (int i = 0; i < 3; ++i) block->r[i] = r[i];
+  if (!block->jacobian) return;
   int slots[kMaxBoundNodes];
   for (int i = 0; i < prior.binding.count; ++i) slots[i] = block->slot(prior.binding.nodes[i]);
-  if (!block->jacobian) return;
   // dM_ab/dA_ic = w δ_ai C_bc (A of a node of weight w), so dφ_p/dA_ic over the pairs (a, b)
   // of φ_p = ½(M_ab − M_ba), times w.
   static constexpr int kA[3] = {2, 0, 1};

@@ -57,7 +57,8 @@ struct ResidualBlock {
   int nodes[kMaxBlockNodes] = {};
   double J[kMaxBlockNodes][kMaxBlockRows][12];   // d r / d parameters of each node (pinned ones too)
 
-  bool jacobian = true;  // false: residuals only (the energy), J left alone
+  // false: residuals only (the energy): J, nodes and count are left alone (count 0).
+  bool jacobian = true;
 
   // The slot of a node in the block (appended, its rows' Jacobian zeroed, when new).
   int slot(int node);

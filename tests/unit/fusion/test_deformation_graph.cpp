@@ -4,7 +4,7 @@
 // CHOLMOD's analysis reused while the pattern holds, map deformation equal to the graph's own
 // per-point deformation, poses turned to their rotation priors (a turntable's angles), and the
 // errors a caller can cause (too few nodes, a disconnected graph, a singular system, bad
-// constraints or priors).
+// constraints or priors). CHOLMOD's wrapper: test_sparse_cholesky.cpp.
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -15,7 +15,6 @@
 
 #include "fusion/deformation/deformation_graph.h"
 #include "fusion/deformation/map_deformation.h"
-#include "fusion/deformation/sparse_cholesky.h"
 #include "sdk/core/error.h"
 #include "tests/support/test_support.h"
 
@@ -440,6 +439,39 @@ TEST(DeformationGraph, ReusesTheAnalysisWhileThePatternHolds) {
   EXPECT_EQ(graph.analyses(), 3u);
 }
 
+// Constraints replaced by others whose blocks lie inside the kept pattern (no new analysis)
+// count in full: the blocks a step assembles follow the constraints of that step, not those of
+// the step that analysed the pattern.
+TEST(DeformationGraph, ConstraintsReplacedWithinThePatternCountInFull) {
+  const auto constraints_near = [](DeformationGraph* graph, int j) {
+    graph->clear_constraints();
+    for (const Eigen::Vector3d& p : points_near(*graph, j, 12)) {
+      Constraint c;
+      c.source = p;
+      c.source_binding = graph->bind_before(p, graph->node(j).time);
+      c.target = p + Eigen::Vector3d(12e-6, -6e-6, 3e-6);
+      graph->add_constraint(c);
+    }
+  };
+  DeformationGraph graph = arc_graph(20, options_for_tests());
+  constraints_near(&graph, 10);  // the pattern holds node 10's neighbourhood's blocks...
+  graph.solve(1);
+  constraints_near(&graph, 19);  // ...and then node 19's
+  graph.solve(1);
+  constraints_near(&graph, 10);  // node 10's again: inside the pattern
+  DeformationGraph fresh = arc_graph(20, options_for_tests());
+  constraints_near(&fresh, 10);
+  fresh.set_parameters(graph.parameters());
+  const SolveStats stats = graph.solve(1);
+  EXPECT_FALSE(stats.analyzed);
+  EXPECT_EQ(stats.iterations, 1);
+  fresh.solve(1);
+  const Eigen::VectorXd a = graph.parameters(), b = fresh.parameters();
+  ASSERT_EQ(a.size(), b.size());
+  // The same step up to the rounding of another pattern's order.
+  for (Eigen::Index i = 0; i < a.size(); ++i) EXPECT_NEAR(a[i], b[i], 1e-10) << "parameter " << i;
+}
+
 TEST(DeformationGraph, LinksFollowTimeAndSpace) {
   GraphOptions options = options_for_tests();
   DeformationGraph graph(options);
@@ -735,47 +767,6 @@ TEST(DeformationGraph, RefusesBadInput) {
   EXPECT_THROW(graph.add_constraint(c), Error);
   c.source_binding.count = 0;
   EXPECT_THROW(graph.add_constraint(c), Error);  // bound to nothing
-}
-
-TEST(SparseCholesky, SolvesAndRefusesMalformedPatterns) {
-  // [[4 1 0] [1 3 1] [0 1 2]] x = b.
-  SparseCholesky solver;
-  solver.analyze(3, {0, 1, 3, 5}, {0, 0, 1, 1, 2});
-  ASSERT_EQ(solver.factorize({4, 1, 3, 1, 2}), -1);
-  const std::vector<double> x = solver.solve({1, 2, 3});
-  EXPECT_NEAR(4 * x[0] + x[1], 1.0, 1e-12);
-  EXPECT_NEAR(x[0] + 3 * x[1] + x[2], 2.0, 1e-12);
-  EXPECT_NEAR(x[1] + 2 * x[2], 3.0, 1e-12);
-  // Singular: [[1 1] [1 1]].
-  SparseCholesky singular;
-  singular.analyze(2, {0, 1, 3}, {0, 0, 1});
-  EXPECT_GE(singular.factorize({1, 1, 1}), 0);
-  EXPECT_THROW(singular.solve({1, 1}), Error);
-  EXPECT_THROW(solver.analyze(2, {0, 1, 2}, {0, 0}), Error);  // column 1 lacks its diagonal
-  EXPECT_THROW(solver.analyze(2, {0, 2, 3}, {1, 0, 1}), Error);
-}
-
-// The values written in place (what the normal equations do) factor as the copied ones, bit
-// for bit, and are kept between factorisations of the pattern.
-TEST(SparseCholesky, ValuesWrittenInPlaceFactorAsTheCopiedOnes) {
-  SparseCholesky unanalysed;
-  EXPECT_EQ(unanalysed.values(), nullptr);
-  EXPECT_THROW(unanalysed.factorize(), Error);
-  const std::vector<double> values = {4, 1, 3, 1, 2};
-  SparseCholesky copied, in_place;
-  copied.analyze(3, {0, 1, 3, 5}, {0, 0, 1, 1, 2});
-  in_place.analyze(3, {0, 1, 3, 5}, {0, 0, 1, 1, 2});
-  ASSERT_EQ(copied.factorize(values), -1);
-  double* entries = in_place.values();
-  ASSERT_NE(entries, nullptr);
-  for (std::size_t k = 0; k < values.size(); ++k) entries[k] = values[k];
-  ASSERT_EQ(in_place.factorize(), -1);
-  EXPECT_EQ(in_place.solve({1, 2, 3}), copied.solve({1, 2, 3}));
-  ASSERT_EQ(in_place.factorize(), -1);  // the values stay: the same factor again
-  EXPECT_EQ(in_place.solve({1, 2, 3}), copied.solve({1, 2, 3}));
-  entries[4] = 0.25;  // [[4 1 0] [1 3 1] [0 1 0.25]]: not positive definite
-  EXPECT_EQ(in_place.factorize(), 2);
-  EXPECT_THROW(in_place.solve({1, 2, 3}), Error);
 }
 
 }  // namespace
