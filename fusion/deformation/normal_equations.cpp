@@ -99,9 +99,7 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
   // A structure changed (a rotation prior added, or rebound to a new node) changes the linear
   // terms' share, also where the pattern stays.
   linear_valid_ = false;
-  // E_rot's blocks (the diagonal) and the constraints' are assembled every step; the others
-  // are the linear terms' alone.
-  std::vector<std::pair<int, int>> needed, nonlinear;
+  std::vector<std::pair<int, int>> needed;
   for (int b = 0; b < blocks; ++b) needed.emplace_back(b, b);
   // The blocks each residual couples (as for_each_residual_block makes them, without
   // computing them).
@@ -111,22 +109,27 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
       couple(link, 2, model.pinned, &needed);
     }
   }
+  const std::size_t constraints_begin = needed.size();
   for (const Constraint& constraint : *model.constraints) {
     int nodes[kMaxBlockNodes];
     int count = 0;
     for (const NodeBinding* binding : {&constraint.source_binding, &constraint.target_binding}) {
       for (int i = 0; i < binding->count; ++i) nodes[count++] = binding->nodes[i];
     }
-    couple(nodes, count, model.pinned, &nonlinear);
+    couple(nodes, count, model.pinned, &needed);
   }
-  needed.insert(needed.end(), nonlinear.begin(), nonlinear.end());
-  for (int b = 0; b < blocks; ++b) nonlinear.emplace_back(b, b);
+  // E_rot's blocks (the diagonal) and the constraints' (their pairs, many repeated, kept before
+  // the pattern's sort) are assembled every step; the others are the linear terms' alone.
+  const std::vector<std::pair<int, int>> constraint_pairs(needed.begin() + static_cast<std::ptrdiff_t>(constraints_begin),
+                                                          needed.end());
   const auto find_nonlinear_offsets = [&] {
+    std::vector<char> touched(block_values_.size() / 144, 0);  // one per stored block
+    for (int b = 0; b < blocks; ++b) touched[static_cast<std::size_t>(block_offset(b, b))] = 1;
+    for (const auto& [a, b] : constraint_pairs) touched[static_cast<std::size_t>(block_offset(a, b))] = 1;
     nonlinear_offsets_.clear();
-    for (const auto& [a, b] : nonlinear) nonlinear_offsets_.push_back(block_offset(a, b));
-    std::sort(nonlinear_offsets_.begin(), nonlinear_offsets_.end());
-    nonlinear_offsets_.erase(std::unique(nonlinear_offsets_.begin(), nonlinear_offsets_.end()),
-                             nonlinear_offsets_.end());
+    for (std::size_t offset = 0; offset < touched.size(); ++offset) {
+      if (touched[offset]) nonlinear_offsets_.push_back(static_cast<int>(offset));
+    }
   };
   if (model.rotation_priors != nullptr) {
     for (const PoseRotationPrior& prior : *model.rotation_priors) {
@@ -156,8 +159,8 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
   }
   rows_ = std::move(rows);
   blocks_ = blocks;
-  find_nonlinear_offsets();
   block_values_.assign(static_cast<std::size_t>(count) * 144, 0.0);
+  find_nonlinear_offsets();
   linear_values_.assign(block_values_.size(), 0.0);
   gradient_.assign(static_cast<std::size_t>(blocks) * 12, 0.0);
 
@@ -247,9 +250,10 @@ void NormalEquations::assemble(const ResidualModel& model, EnergyTerms* energy) 
     for_each_residual_block(
         model, [&](const ResidualBlock& block) { accumulate(block, model.pinned, &linear_values_, true); },
         Terms::kLinear);
-    linear_scalar_.assign(scalar_rows_.size(), 0.0);
+    // CHOLMOD reads its matrix and does not write it: the blocks no step rebuilds keep the
+    // linear share placed here until the structure changes.
     for (std::size_t offset = 0; offset < placements_.size(); ++offset) {
-      place_block(static_cast<int>(offset), &linear_values_[offset * 144], linear_scalar_.data());
+      place_block(static_cast<int>(offset), &linear_values_[offset * 144], solver_.values());
     }
     linear_gradient_ = gradient_;
     linear_parameters_ = x;
@@ -273,7 +277,7 @@ void NormalEquations::assemble(const ResidualModel& model, EnergyTerms* energy) 
     }
   }
   // The nonlinear terms start from the linear share in the blocks they touch; the other blocks
-  // are the linear share alone, placed by factorize as it is.
+  // are the linear share alone, left in place in the factored pattern.
   for (const int offset : nonlinear_offsets_) {
     const auto start = static_cast<std::size_t>(offset) * 144;
     std::memcpy(&block_values_[start], &linear_values_[start], 144 * sizeof(double));
@@ -298,8 +302,9 @@ void NormalEquations::place_block(int offset, const double* H, double* values) c
 }
 
 int NormalEquations::factorize(double damping) {
+  // The other blocks hold the linear share, placed by assemble. The diagonal blocks are among
+  // those placed again here, so the damping is added to fresh values each time.
   double* values = solver_.values();
-  std::memcpy(values, linear_scalar_.data(), linear_scalar_.size() * sizeof(double));
   for (const int offset : nonlinear_offsets_) {
     place_block(offset, &block_values_[static_cast<std::size_t>(offset) * 144], values);
   }

@@ -48,7 +48,6 @@ class NormalEquations {
   // blocks the nonlinear terms touch (nonlinear_offsets_); factorize reads no other.
   std::vector<double> block_values_;
   std::vector<double> linear_values_;         // the linear terms' share (constant while the structure is)
-  std::vector<double> linear_scalar_;         // the same in the factored pattern's order
   std::vector<int> nonlinear_offsets_;        // the blocks E_rot and the constraints touch, ascending
   std::vector<double> linear_gradient_;       // their Jᵀr at linear_parameters_
   Eigen::VectorXd linear_parameters_;
