@@ -92,6 +92,15 @@ int NormalEquations::block_offset(int row_block, int column_block) const {
   return offsets_[static_cast<std::size_t>(column_block)][static_cast<std::size_t>(found - rows.begin())];
 }
 
+int NormalEquations::pattern_offset(int row_block, int column_block) const {
+  const int offset = block_offset(row_block, column_block);
+  if (offset < 0) {
+    throw_error(ErrorCode::kInternal, "deformation normal equations: block ({}, {}) not in the pattern", row_block,
+                column_block);
+  }
+  return offset;
+}
+
 bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
   const int blocks = static_cast<int>(model.nodes->size()) - model.pinned;
   if (solver_.analyzed() && blocks == blocks_ && model.structure_version == prepared_version_) return false;
@@ -124,8 +133,8 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
                                                           needed.end());
   const auto find_nonlinear_offsets = [&] {
     std::vector<char> touched(block_values_.size() / 144, 0);  // one per stored block
-    for (int b = 0; b < blocks; ++b) touched[static_cast<std::size_t>(block_offset(b, b))] = 1;
-    for (const auto& [a, b] : constraint_pairs) touched[static_cast<std::size_t>(block_offset(a, b))] = 1;
+    for (int b = 0; b < blocks; ++b) touched[static_cast<std::size_t>(pattern_offset(b, b))] = 1;
+    for (const auto& [a, b] : constraint_pairs) touched[static_cast<std::size_t>(pattern_offset(a, b))] = 1;
     nonlinear_offsets_.clear();
     for (std::size_t offset = 0; offset < touched.size(); ++offset) {
       if (touched[offset]) nonlinear_offsets_.push_back(static_cast<int>(offset));
@@ -232,8 +241,7 @@ void NormalEquations::accumulate(const ResidualBlock& block, int pinned, std::ve
     for (int k = 0; k < block.count; ++k) {
       const int b = block.nodes[k] - pinned;
       if (b < a) continue;
-      const int offset = block_offset(a, b);
-      if (offset < 0) throw_error(ErrorCode::kInternal, "deformation normal equations: block ({}, {}) not in the pattern", a, b);
+      const int offset = pattern_offset(a, b);
       add_outer_products(block, i, k, &(*hessian)[static_cast<std::size_t>(offset) * 144]);
     }
   }

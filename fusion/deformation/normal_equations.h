@@ -36,7 +36,8 @@ class NormalEquations {
   std::size_t factorizations() const { return solver_.factorizations(); }
 
  private:
-  int block_offset(int row_block, int column_block) const;
+  int block_offset(int row_block, int column_block) const;   // -1: not in the pattern
+  int pattern_offset(int row_block, int column_block) const; // the same; not in it: an internal error
   // Adds a block's JᵀJ to `hessian` (when given) and its Jᵀr to the gradient (when asked).
   void accumulate(const ResidualBlock& block, int pinned, std::vector<double>* hessian, bool gradient);
 
