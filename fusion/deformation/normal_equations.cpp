@@ -22,13 +22,6 @@ void couple(const int* nodes, int count, int pinned, std::vector<std::pair<int, 
   }
 }
 
-// H += Σ_rows J_iᵀ J_k over a block's rows (12 x 12, row-major), vectorisable. Within a
-// block the Jacobians are sparse: E_rot, the rotation priors and E_reg's region part leave t
-// alone, so the rows (J_i) and columns (J_k) of t are skipped where a Jacobian is zero there
-// over every row (their products are zeros), and so is any other row of J_i that is zero.
-// A one-row block (a point-to-plane constraint) adds its products to H directly; one of
-// several rows sums them in a local array first (the compiler then knows nothing aliases) and
-// adds the sum, as the rows' sum is rounded.
 // The outer products are most of a step's own work (CHOLMOD's factorisation aside): on
 // x86-64 a clone built for AVX2, twice SSE2's lanes, is chosen at load time where the CPU has
 // it. AVX2 alone, without FMA: every product and sum rounds as in the default clone.
@@ -38,6 +31,13 @@ void couple(const int* nodes, int count, int pinned, std::vector<std::pair<int, 
 #define SLS_OUTER_PRODUCT_CLONES
 #endif
 
+// H += Σ_rows J_iᵀ J_k over a block's rows (12 x 12, row-major), vectorisable. Within a
+// block the Jacobians are sparse: E_rot, the rotation priors and E_reg's region part leave t
+// alone, so the rows (J_i) and columns (J_k) of t are skipped where a Jacobian is zero there
+// over every row (their products are zeros), and so is any other row of J_i that is zero.
+// A one-row block (a point-to-plane constraint) adds its products to H directly; one of
+// several rows sums them in a local array first (the compiler then knows nothing aliases) and
+// adds the sum, as the rows' sum is rounded.
 template <int kRows, int kColumns>
 SLS_OUTER_PRODUCT_CLONES void add_outer_products_to(const ResidualBlock& block, int i, int k, double* __restrict H) {
   if (block.rows == 1) {
@@ -194,22 +194,27 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
   for (int p = 0; p < blocks; ++p) position[static_cast<std::size_t>(order_[static_cast<std::size_t>(p)])] = p;
   // Per ordered block column P: its ordered row blocks Q <= P, with the stored block (a <= b)
   // each comes from and whether it is read transposed.
-  ordered_.assign(static_cast<std::size_t>(blocks), {});
+  struct OrderedBlock {
+    int row = 0;             // ordered row block, <= its column
+    int offset = 0;          // into block_values_ (/ 144)
+    bool transposed = false; // the stored block (a <= b) is read as its transpose
+  };
+  std::vector<std::vector<OrderedBlock>> ordered(static_cast<std::size_t>(blocks));
   for (int b = 0; b < blocks; ++b) {
     for (std::size_t i = 0; i < rows_[static_cast<std::size_t>(b)].size(); ++i) {
       const int a = rows_[static_cast<std::size_t>(b)][i];
       const int offset = offsets_[static_cast<std::size_t>(b)][i];
       const int pa = position[static_cast<std::size_t>(a)], pb = position[static_cast<std::size_t>(b)];
       if (pa <= pb) {
-        ordered_[static_cast<std::size_t>(pb)].push_back({pa, offset, false});
+        ordered[static_cast<std::size_t>(pb)].push_back({pa, offset, false});
       } else {
-        ordered_[static_cast<std::size_t>(pa)].push_back({pb, offset, true});
+        ordered[static_cast<std::size_t>(pa)].push_back({pb, offset, true});
       }
     }
   }
   placements_.assign(static_cast<std::size_t>(count), {});
   for (int P = 0; P < blocks; ++P) {
-    auto& column = ordered_[static_cast<std::size_t>(P)];
+    auto& column = ordered[static_cast<std::size_t>(P)];
     std::sort(column.begin(), column.end(), [](const OrderedBlock& x, const OrderedBlock& y) { return x.row < y.row; });
     for (std::size_t i = 0; i < column.size(); ++i) {
       placements_[static_cast<std::size_t>(column[i].offset)] = {P, static_cast<int>(i), column[i].transposed,
@@ -222,7 +227,7 @@ bool NormalEquations::prepare(const ResidualModel& model, double* analyze_ms) {
   scalar_rows_.clear();
   for (int P = 0; P < blocks; ++P) {
     for (int c = 0; c < 12; ++c) {
-      for (const OrderedBlock& block : ordered_[static_cast<std::size_t>(P)]) {
+      for (const OrderedBlock& block : ordered[static_cast<std::size_t>(P)]) {
         const int last = block.row == P ? c : 11;
         for (int r = 0; r <= last; ++r) scalar_rows_.push_back(12 * block.row + r);
       }

@@ -54,14 +54,7 @@ class NormalEquations {
   Eigen::VectorXd linear_parameters_;
   bool linear_valid_ = false;
   std::vector<double> gradient_;              // Jᵀr
-  // The factored order: order_[P] is the block placed P-th; ordered_[P] its row blocks.
-  struct OrderedBlock {
-    int row = 0;             // ordered row block, <= its column
-    int offset = 0;          // into block_values_ (/ 144)
-    bool transposed = false; // the stored block (a <= b) is read as its transpose
-  };
-  std::vector<int> order_;
-  std::vector<std::vector<OrderedBlock>> ordered_;
+  std::vector<int> order_;  // the factored order: order_[P] is the block placed P-th
   // Where each stored block lies in the factored pattern: in ordered block column `column`,
   // the `index`-th row block; its column c's entries start at column_starts_[12 column + c]
   // + 12 index (only the diagonal block, the last, is shorter: r <= c).
