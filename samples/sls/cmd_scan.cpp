@@ -278,6 +278,9 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
   start = Clock::now();
   const fusion::ExtractedSurface surface = session.final_surface();
   const double extract_ms = ms_since(start);
+  // When the final model was in host memory, on the frames' clock: a live scan's wait after
+  // its last capture is this less the last frame's captured_s.
+  const double model_s = std::chrono::duration<double>(Clock::now() - outcome.started).count();
   const std::vector<StampedPose> trajectory = session.trajectory();
   // Each output written whole or not at all, the reports after the model they describe, an
   // earlier run's reports removed first (output_files.h): a kill, a full disk or a fault while
@@ -345,6 +348,7 @@ nlohmann::json scan_recording(const Context& context, const std::string& folder,
   report["interrupted"] = outcome.interrupted;
   if (outcome.interrupted) report["interruption"] = outcome.interruption;
   report["pipeline"] = pipeline_json(outcome, live != nullptr);
+  report["pipeline"]["model_s"] = model_s;
   // The recording's writer thread beside the capture (none with --no-record: nothing written).
   std::map<int, double> written_s;
   if (live != nullptr) {

@@ -572,6 +572,8 @@ class SlsCli(unittest.TestCase):
             self.assertLessEqual(before["fused_s"], after["fused_s"])
         for frame in report["per_frame"]:
             self.assertLessEqual(frame["captured_s"], frame["fused_s"])
+        # The final model comes after the last frame fused, on the same clock.
+        self.assertLessEqual(report["per_frame"][-1]["fused_s"], report["pipeline"]["model_s"])
         again = run("--json", "scan", "--input", str(out / "recording"), "--device", "cpu", "--out", str(self.dir / "again"))
         self.assertEqual(again.returncode, 0, again.stderr)
         again_report = json.loads(again.stdout)
