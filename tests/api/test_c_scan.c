@@ -15,6 +15,8 @@
  *    bad struct, during a run);
  *  - sim:// devices captured into a recording and scanned (sls_scan_run_devices), to SLS_OK
  *    (the camera never moves: no loop to close, said clearly, the model kept);
+ *  - sim:// devices with a turntable, fused while they capture and cancelled from the callback:
+ *    the model fused so far is written, the recording keeps every frame captured and scans again;
  *  - the mistakes: NULL handles, bad configs, a missing or corrupt recording, a recording of
  *    which no frame can be fused, a run or a query on a running scan (from the callback).
  * Exit status 0 when every check holds; each failed check prints its line. */
@@ -476,6 +478,62 @@ static int truncate_file(const char* path, size_t bytes) {
   return fclose(file) == 0 && got == bytes;
 }
 
+
+/* A live scan cancelled: sim:// devices with a turntable, fused while they capture
+ * (sls_scan_run_devices), cancelled from the callback after the second frame. The run says so;
+ * the model fused so far is kept and written; the recording keeps every frame captured and
+ * scans again on its own. */
+static void check_live_scan_cancelled(sls_context* context, const char* recording, const char* scratch) {
+  enum { kCancelAfter = 1, kPlanned = 36 };
+  static frame_log log;
+  const char* uri = "sim://knurled-knob?preset=ci";
+  char* calibration = path_join(recording, "calibration.yml");
+  char* captured = path_join(scratch, "captured_cancelled");
+  char* cloud = path_join(scratch, "captured_cancelled_cloud.ply");
+  char* mesh = path_join(scratch, "captured_cancelled_mesh.ply");
+  sls_capture_config capture;
+  sls_scan_summary summary;
+  int fused;
+  sls_scan* scan = make_scan(context, 1);
+  if (scan == NULL) return;
+  frame_log_init(&log, scan, kCancelAfter);
+  CHECK_OK(sls_scan_set_frame_callback(scan, on_frame, &log, &error_));
+  sls_capture_config_init(&capture);
+  capture.camera_uri = uri;
+  capture.projector_uri = uri;
+  capture.turntable_uri = uri;
+  capture.calibration_path = calibration;
+  capture.recording_path = captured;
+  capture.frames = kPlanned;
+  CHECK_ERROR(sls_scan_run_devices(scan, &capture, &error_), SLS_ERROR_CANCELLED, "cancelled");
+  /* Fused while captured: the frames up to the cancel, in order; the capture stopped soon after. */
+  CHECK(log.count == kCancelAfter + 1 && !log.out_of_order && log.index[log.count - 1] == kCancelAfter);
+  CHECK(log.status[0] == SLS_FRAME_FUSED && log.sane[0] && log.sane[1]);
+  sls_scan_summary_init(&summary);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK(summary.cancelled == 1 && summary.fused >= 1 && summary.frames == kCancelAfter + 1);
+  fused = (int)summary.fused;
+  CHECK_OK(sls_scan_write_cloud(scan, cloud, &error_));
+  CHECK_OK(sls_scan_write_mesh(scan, mesh, &error_));
+  check_cloud_file(cloud);
+  check_mesh_file(mesh);
+  sls_scan_destroy(scan);
+
+  /* The recording is whole: a new scan reads every frame it holds, the fused ones among them. */
+  scan = make_scan(context, 1);
+  if (scan == NULL) return;
+  frame_log_init(&log, scan, -1);
+  CHECK_OK(sls_scan_set_frame_callback(scan, on_frame, &log, &error_));
+  CHECK_OK(sls_scan_run_recording(scan, captured, &error_));
+  CHECK(log.count >= kCancelAfter + 1 && log.count < kPlanned && !log.out_of_order);
+  CHECK_OK(sls_scan_get_summary(scan, &summary, &error_));
+  CHECK((int)summary.fused >= fused);
+  printf("live scan cancelled after frame %d: %d frame(s) fused, %d recorded of %d planned\n", kCancelAfter, fused,
+         log.count, kPlanned);
+  sls_scan_destroy(scan);
+  free(calibration), free(captured), free(cloud), free(mesh);
+}
+
 /* sim:// devices: two stacks at one position (no turntable) captured into a recording, decoded
  * and fused: the run completes with SLS_OK; the camera did not move, so neither do the poses.
  * Then the same recording's stacks made unreadable, one and then both, and its manifest
@@ -657,6 +715,7 @@ int main(int argc, char** argv) {
   check_loop_closure_refused(context, argv[1], argv[2]);
   check_loop_closure(context, argv[1], argv[2]);
   check_devices_scan(context, argv[1], argv[2]);
+  check_live_scan_cancelled(context, argv[1], argv[2]);
   sls_context_destroy(context);
   if (failures != 0) fprintf(stderr, "%d check(s) failed\n", failures);
   else printf("all checks passed\n");
