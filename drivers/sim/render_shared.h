@@ -372,19 +372,36 @@ SLS_HOST_DEVICE inline float pattern_electrons(const PixelGeometry& g, const Pat
 // kernel up to sigma = 8 px: beyond that a surface is outside any usable depth of field).
 constexpr int kMaxBlurRadius = 24;
 
-SLS_HOST_DEVICE inline float blur_gather_1d(const float* line, int n, int stride, int i, float sigma) {
-  if (!(sigma > 0.05f)) return line[i * stride];
-  int radius = static_cast<int>(std::ceil(3.0f * sigma));
-  if (radius > kMaxBlurRadius) radius = kMaxBlurRadius;
-  // Double arithmetic, rounded once to float: glibc's and CUDA's float exp differ in the last
-  // bit, and the shot-noise sampler (rejection sampling between 10 and 1000 e-) turns a
-  // last-bit difference of the mean into a different draw. Rounded from double, the CPU and
-  // GPU means agree except when they straddle a float rounding boundary (odds ~1e-8).
-  // The weights w_k = exp(-k^2 a) by recurrence, w_k = w_{k-1} q_k with q_k = q_{k-1} exp(-2a):
-  // two exps a pixel, not one a tap (a third of a CPU render), a few ulps of double off.
+// The taps of the blur at a pixel of blur sigma `sigma`: 0 for none (a sigma of at most 0.05 px).
+SLS_HOST_DEVICE inline int blur_radius(float sigma) {
+  if (!(sigma > 0.05f)) return 0;
+  const int radius = static_cast<int>(std::ceil(3.0f * sigma));
+  return radius > kMaxBlurRadius ? kMaxBlurRadius : radius;
+}
+
+// The weights w_k = exp(-k^2 a), a = 1 / (2 sigma^2), by recurrence: w_k = w_{k-1} q_k with
+// q_k = q_{k-1} exp(-2a), from q_1 = exp(-a): two exps a pixel, not one a tap (a third of a CPU
+// render), a few ulps of double off. The same for every image of a frame (sigma is the
+// pixel's), so the CPU renderer makes them once a frame.
+struct BlurRecurrence {
+  double q_first = 0.0;  // exp(-a)
+  double q_step = 0.0;   // exp(-2a)
+};
+
+SLS_HOST_DEVICE inline BlurRecurrence blur_recurrence(float sigma) {
   const double a = 0.5 / (static_cast<double>(sigma) * static_cast<double>(sigma));
-  const double q_step = std::exp(-2.0 * a);
-  double q = std::exp(-a), w = 1.0;
+  return {std::exp(-a), std::exp(-2.0 * a)};
+}
+
+// Double arithmetic, rounded once to float: glibc's and CUDA's float exp differ in the last
+// bit, and the shot-noise sampler (rejection sampling between 10 and 1000 e-) turns a last-bit
+// difference of the mean into a different draw. Rounded from double, the CPU and GPU means
+// agree except when they straddle a float rounding boundary (odds ~1e-8).
+SLS_HOST_DEVICE inline float blur_gather_1d(const float* line, int n, int stride, int i, int radius,
+                                            const BlurRecurrence& recurrence) {
+  if (radius == 0) return line[i * stride];
+  const double q_step = recurrence.q_step;
+  double q = recurrence.q_first, w = 1.0;
   double sum = static_cast<double>(line[i * stride]), weights = 1.0;
   for (int k = 1; k <= radius; ++k) {
     w *= q;
@@ -400,6 +417,11 @@ SLS_HOST_DEVICE inline float blur_gather_1d(const float* line, int n, int stride
     }
   }
   return static_cast<float>(sum / weights);
+}
+
+SLS_HOST_DEVICE inline float blur_gather_1d(const float* line, int n, int stride, int i, float sigma) {
+  const int radius = blur_radius(sigma);
+  return radius == 0 ? line[i * stride] : blur_gather_1d(line, n, stride, i, radius, blur_recurrence(sigma));
 }
 
 // Step 3b: the digital number.

@@ -19,6 +19,7 @@ class CpuRenderBackend final : public RenderBackend {
         width_(rays.width),
         height_(rays.height),
         geometry_(rays.rays.size()),
+        blur_(rays.rays.size()),
         electrons_(rays.rays.size()),
         blurred_rows_(rays.rays.size()) {}
 
@@ -28,6 +29,8 @@ class CpuRenderBackend final : public RenderBackend {
     for (long i = 0; i < count; ++i) {
       const auto index = static_cast<std::size_t>(i);
       geometry_[index] = trace_pixel(params, rays_.rays[index], rays_.valid[index] != 0);
+      const float sigma = geometry_[index].camera_sigma_px;
+      blur_[index] = blur_radius(sigma) > 0 ? blur_recurrence(sigma) : BlurRecurrence{};
     }
   }
 
@@ -46,7 +49,8 @@ class CpuRenderBackend final : public RenderBackend {
       const float* line = electrons_.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width_);
       for (int x = 0; x < width_; ++x) {
         const std::size_t index = pixel_index(x, y);
-        blurred_rows_[index] = blur_gather_1d(line, width_, 1, x, geometry_[index].camera_sigma_px);
+        blurred_rows_[index] =
+            blur_gather_1d(line, width_, 1, x, blur_radius(geometry_[index].camera_sigma_px), blur_[index]);
       }
     }
     image_.resize(geometry_.size());
@@ -54,8 +58,8 @@ class CpuRenderBackend final : public RenderBackend {
     for (int y = 0; y < height_; ++y) {
       for (int x = 0; x < width_; ++x) {
         const std::size_t index = pixel_index(x, y);
-        const float electrons =
-            blur_gather_1d(blurred_rows_.data() + x, height_, width_, y, geometry_[index].camera_sigma_px);
+        const float electrons = blur_gather_1d(blurred_rows_.data() + x, height_, width_, y,
+                                               blur_radius(geometry_[index].camera_sigma_px), blur_[index]);
         NoiseKey key = params.key;
         key.pixel = static_cast<std::uint32_t>(index);
         image_[index] = pixel_digital_number(params.sensor, exposed_electrons(params, electrons), key, params.noise);
@@ -87,6 +91,8 @@ class CpuRenderBackend final : public RenderBackend {
   int width_;
   int height_;
   std::vector<PixelGeometry> geometry_;
+  // Each pixel's blur weights, made with its geometry: the same for every image of the frame.
+  std::vector<BlurRecurrence> blur_;
   std::vector<std::uint8_t> levels_;
   std::vector<float> electrons_;
   std::vector<float> blurred_rows_;
