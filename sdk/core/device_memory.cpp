@@ -69,4 +69,24 @@ void copy_memory(void* to, const void* from, std::size_t bytes, bool device_invo
 #endif
 }
 
+void copy_memory_2d(void* to, std::size_t to_pitch, const void* from, std::size_t from_pitch, std::size_t width_bytes,
+                    std::size_t rows, bool device_involved, const GpuStream& stream) {
+  if (width_bytes == 0 || rows == 0) return;
+  if (!device_involved) {
+    for (std::size_t row = 0; row < rows; ++row) {
+      std::memcpy(static_cast<unsigned char*>(to) + row * to_pitch,
+                  static_cast<const unsigned char*>(from) + row * from_pitch, width_bytes);
+    }
+    return;
+  }
+#if defined(SLS_HAVE_CUDA)
+  SLS_CUDA_CHECK(cudaMemcpy2DAsync(to, to_pitch, from, from_pitch, width_bytes, rows, cudaMemcpyDefault,
+                                   cuda_stream(stream)));
+  if (!stream.valid()) SLS_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+#else
+  (void)to_pitch, (void)from_pitch, (void)stream;
+  throw_error(ErrorCode::kUnsupported, "GPU memory in a build without CUDA");
+#endif
+}
+
 }  // namespace sls

@@ -23,5 +23,9 @@ void zero_device(void* block, std::size_t bytes, const GpuStream& stream = {});
 // Copies `bytes` between any two of host, page-locked and device memory (the driver tells them
 // apart), on `stream` (asynchronous) or, with none, before returning. Host to host is memcpy.
 void copy_memory(void* to, const void* from, std::size_t bytes, bool device_involved, const GpuStream& stream = {});
+// `rows` runs of `width_bytes`, the k-th from `from` + k `from_pitch` to `to` + k `to_pitch`
+// (every n-th row of an image: the pitch is n rows), as copy_memory.
+void copy_memory_2d(void* to, std::size_t to_pitch, const void* from, std::size_t from_pitch, std::size_t width_bytes,
+                    std::size_t rows, bool device_involved, const GpuStream& stream = {});
 
 }  // namespace sls

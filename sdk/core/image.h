@@ -18,6 +18,13 @@
 
 namespace sls {
 
+// Rows first, first + step, ..., count of them (a grid's rows of an image).
+struct RowSet {
+  int first = 0;
+  int step = 1;
+  int count = 0;
+};
+
 template <typename T>
 struct ImageView {
   T* data = nullptr;
@@ -123,6 +130,32 @@ class Image {
     height_ = source.height_;
     copy_memory(data(), source.data(), size_bytes(),
                 memory_type() == MemoryType::kDevice || source.memory_type() == MemoryType::kDevice, stream);
+  }
+
+  // Only `rows` of `source` into the same rows of this image (made `source`'s size, without a
+  // fill, when it is not), the others left as they are: on `stream` as copy_from. What reads a
+  // few rows of a GPU's image brings down those alone. sls::Error(kInvalidArgument) for a row
+  // outside the image or a step below 1.
+  void copy_rows_from(const Image& source, const std::vector<RowSet>& rows, const GpuStream& stream = {}) {
+    for (const RowSet& set : rows) {
+      if (set.count < 0 || set.step < 1 || set.first < 0 ||
+          (set.count > 0 && static_cast<long long>(set.first) + static_cast<long long>(set.count - 1) * set.step >=
+                                source.height_)) {
+        throw_error(ErrorCode::kInvalidArgument, "rows {} + k * {} (k < {}) of an image of {} rows", set.first,
+                    set.step, set.count, source.height_);
+      }
+    }
+    if (&source == this) return;
+    if (width_ != source.width_ || height_ != source.height_) resize_uninitialized(source.width_, source.height_);
+    const bool device = memory_type() == MemoryType::kDevice || source.memory_type() == MemoryType::kDevice;
+    for (const RowSet& set : rows) {
+      if (set.count == 0) continue;
+      const std::size_t pitch = static_cast<std::size_t>(set.step) * stride_bytes();
+      const std::size_t offset = static_cast<std::size_t>(set.first) * stride_bytes();
+      copy_memory_2d(reinterpret_cast<unsigned char*>(data()) + offset, pitch,
+                     reinterpret_cast<const unsigned char*>(source.data()) + offset, pitch, stride_bytes(),
+                     static_cast<std::size_t>(set.count), device, stream);
+    }
   }
 
   bool operator==(const Image& other) const {

@@ -112,14 +112,48 @@ void DeformationOptions::validate() const {
   checked.validate();
 }
 
+namespace {
+
+// sample_depth_map's grid: every `stride`-th pixel from `first` on each axis, each with a cross
+// of arm `arm` that stays inside the map. No rows or columns for a map too small or no samples.
+struct SampleGrid {
+  int stride = 0;
+  int arm = 2;  // pixels
+  int first = 0;
+  int columns = 0, rows = 0;
+};
+
+SampleGrid sample_grid(int width, int height, int count) {
+  SampleGrid grid;
+  if (width < 5 || height < 5 || count <= 0) return grid;
+  const double stride_f = std::sqrt(static_cast<double>(width) * height / count);
+  grid.stride = std::max(3, static_cast<int>(stride_f));
+  // The first grid position at or past the arm, and those whose arm ends inside the map.
+  grid.first = grid.stride / 2;
+  while (grid.first < grid.arm) grid.first += grid.stride;
+  const auto positions = [&](int size) {
+    return grid.first + grid.arm < size ? (size - grid.arm - 1 - grid.first) / grid.stride + 1 : 0;
+  };
+  grid.columns = positions(width);
+  grid.rows = positions(height);
+  return grid;
+}
+
+}  // namespace
+
+std::vector<RowSet> sample_depth_map_rows(int width, int height, int count) {
+  const SampleGrid grid = sample_grid(width, height, count);
+  if (grid.rows == 0 || grid.columns == 0) return {};
+  return {{grid.first - grid.arm, grid.stride, grid.rows},
+          {grid.first, grid.stride, grid.rows},
+          {grid.first + grid.arm, grid.stride, grid.rows}};
+}
+
 SurfaceSamples sample_depth_map(const Image32f& depth_m, const CameraIntrinsics& camera, int count,
                                 double max_step_m) {
   SurfaceSamples samples;
-  const int width = depth_m.width(), height = depth_m.height();
-  if (width < 5 || height < 5 || count <= 0) return samples;
-  const double stride_f = std::sqrt(static_cast<double>(width) * height / count);
-  const int stride = std::max(3, static_cast<int>(stride_f));
-  const int h = 2;  // the cross's arm, in pixels
+  const SampleGrid grid = sample_grid(depth_m.width(), depth_m.height(), count);
+  const int h = grid.arm;
   const auto point_at = [&](int x, int y, Eigen::Vector3d* p) {
     const float z = depth_m(x, y);
     if (!(z > 0.0f) || !std::isfinite(z)) return false;
@@ -128,10 +162,10 @@ SurfaceSamples sample_depth_map(const Image32f& depth_m, const CameraIntrinsics&
     *p = Eigen::Vector3d(ray.x, ray.y, ray.z) * static_cast<double>(z);
     return true;
   };
-  for (int y = stride / 2; y + h < height; y += stride) {
-    if (y < h) continue;
-    for (int x = stride / 2; x + h < width; x += stride) {
-      if (x < h) continue;
+  for (int row = 0; row < grid.rows; ++row) {
+    const int y = grid.first + row * grid.stride;
+    for (int column = 0; column < grid.columns; ++column) {
+      const int x = grid.first + column * grid.stride;
       Eigen::Vector3d p, left, right, up, down;
       if (!point_at(x, y, &p) || !point_at(x - h, y, &left) || !point_at(x + h, y, &right) || !point_at(x, y - h, &up) ||
           !point_at(x, y + h, &down)) {

@@ -244,10 +244,22 @@ struct FrameMaps {
   const Image32f* depth_on_device = nullptr;  // on a CUDA device (MemoryType::kDevice): the GPU copies, else null
   const Image32f* confidence_on_device = nullptr;
   std::function<void()> fetch;           // brings the depth map to the host; empty once done (or never needed)
+  // Brings only these rows of it (with fetch, or empty).
+  std::function<void(const std::vector<RowSet>&)> fetch_rows;
 
   const Image32f* host_depth() {
     if (fetch) std::exchange(fetch, nullptr)();
     return depth;
+  }
+  // The depth map on the host with at least `rows` as the GPU holds them (a keyframe's
+  // samples read ~2 % of a 12 MP map: 48 MB came down for them, ~2 ms a keyframe); the other
+  // rows hold what they held. The whole map when it is on the host already.
+  const Image32f* host_depth_rows(const std::vector<RowSet>& rows) {
+    if (fetch && fetch_rows) {
+      fetch_rows(rows);
+      return depth;
+    }
+    return host_depth();
   }
   // Where the stages read them: the GPU's copies when there are, else the host's.
   const Image32f* depth_where_it_lives() const { return depth_on_device != nullptr ? depth_on_device : depth; }

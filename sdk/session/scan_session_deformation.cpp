@@ -147,10 +147,14 @@ void ScanSession::Impl::add_to_graph(int frame, const Pose& T_world_camera, std:
   std::optional<fusion::deformation::RotationPrior> prior = turntable_rotation_prior(T_world_camera, angle_deg);
   if (deformation->wants_keyframe(T_world_camera, focus)) {
     out->keyframe = true;
-    deformation->add_keyframe(frame, T_world_camera, focus,
-                              sample_depth_map(*maps.host_depth(), calibration.camera, options.deformation.keyframe_samples,
-                                               edge_step_m(calibration.camera, focus_distance_m)),
-                              std::move(prior));
+    // Only the rows the samples read come down from a GPU.
+    const int samples = options.deformation.keyframe_samples;
+    const Image32f& depth =
+        *maps.host_depth_rows(sample_depth_map_rows(calibration.camera.width, calibration.camera.height, samples));
+    deformation->add_keyframe(
+        frame, T_world_camera, focus,
+        sample_depth_map(depth, calibration.camera, samples, edge_step_m(calibration.camera, focus_distance_m)),
+        std::move(prior));
   } else if (prior) {
     // Every frame's angle, not the keyframes' alone: each is off by the table's σ on its own,
     // and the more of them a node's blend weighs, the less of that is left.

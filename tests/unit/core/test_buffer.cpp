@@ -126,6 +126,34 @@ TEST(Image, DeviceImageCopiesBackToTheSamePixels) {
   EXPECT_EQ(copy, host);
 }
 
+// Only the rows asked for are copied (every n-th row, as a GPU's map comes down for a grid of
+// samples), the others keep their pixels; host to host, and from a GPU when there is one.
+TEST(Image, CopiesTheRowsAskedForAndNoOther) {
+  Image32f source(13, 11, 0.0f);
+  for (int y = 0; y < source.height(); ++y) {
+    for (int x = 0; x < source.width(); ++x) source(x, y) = static_cast<float>(x * 100 + y);
+  }
+  const std::vector<RowSet> rows = {{1, 4, 3}, {2, 4, 3}, {10, 1, 1}, {0, 1, 0}};  // rows 1, 5, 9, 2, 6, 10
+  const auto check = [&](const Image32f& copy) {
+    for (int y = 0; y < source.height(); ++y) {
+      const bool asked = y == 1 || y == 5 || y == 9 || y == 2 || y == 6 || y == 10;
+      for (int x = 0; x < source.width(); ++x) EXPECT_EQ(copy(x, y), asked ? source(x, y) : -1.0f) << x << ", " << y;
+    }
+  };
+  Image32f copy(13, 11, -1.0f);
+  copy.copy_rows_from(source, rows);
+  check(copy);
+  // Rows outside the image, or a step below 1, are refused before anything is copied.
+  EXPECT_THROW(copy.copy_rows_from(source, {{1, 5, 3}}), Error);
+  EXPECT_THROW(copy.copy_rows_from(source, {{-1, 1, 1}}), Error);
+  EXPECT_THROW(copy.copy_rows_from(source, {{0, 0, 2}}), Error);
+  if (!gpu_present()) return;
+  const Image32f device = source.copy_to(MemoryType::kDevice);
+  Image32f from_device(13, 11, -1.0f);
+  from_device.copy_rows_from(device, rows);
+  check(from_device);
+}
+
 TEST(Image, KeepsTheMemoryItWasMadeFor) {
   Image16u plain(8, 4, 3);
   EXPECT_EQ(plain.memory_type(), MemoryType::kHost);

@@ -4,7 +4,9 @@
 // tracked with the turntable prior) closes to a fraction of its drift, the map and poses are
 // deformed by the nodes of their own time, and the errors a caller can cause are clear.
 #include <cmath>
+#include <limits>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -275,6 +277,44 @@ TEST(ScanDeformation, SamplesADepthMapWithNormalsTowardsTheCamera) {
     EXPECT_GT(samples.normals[i].dot(expected), 0.9999f) << i;
   }
   EXPECT_TRUE(sample_depth_map(Image32f(3, 3, 0.1f), camera, 100, 1e-2).points.empty());
+}
+
+// A GPU's map comes to the host only in the rows the samples read: a map holding those rows
+// alone (the others NaN) gives the same samples, bit for bit, whatever the size and count.
+TEST(ScanDeformation, SamplesReadOnlyTheRowsTheyName) {
+  for (const auto& [width, height, count] :
+       {std::tuple{64, 48, 100}, std::tuple{64, 48, 5000}, std::tuple{97, 61, 37}, std::tuple{5, 5, 1},
+        std::tuple{400, 300, 2048}, std::tuple{7, 200, 64}}) {
+    CameraIntrinsics camera;
+    camera.width = width;
+    camera.height = height;
+    camera.fx = camera.fy = 100.0;
+    camera.cx = 0.5 * (width - 1);
+    camera.cy = 0.5 * (height - 1);
+    // A bumpy surface, so that every row and column differs.
+    Image32f depth(width, height, 0.0f);
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        depth(x, y) = static_cast<float>(0.1 + 1e-3 * std::sin(0.3 * x) * std::cos(0.2 * y) + 1e-4 * x);
+      }
+    }
+    const std::vector<RowSet> rows = sample_depth_map_rows(width, height, count);
+    Image32f only_rows(width, height, std::numeric_limits<float>::quiet_NaN());
+    only_rows.copy_rows_from(depth, rows);
+    int copied = 0;
+    for (const RowSet& set : rows) copied += set.count;
+    EXPECT_LE(copied, 3 * (height / 3 + 1)) << width << "x" << height;
+    const SurfaceSamples all = sample_depth_map(depth, camera, count, 1e-2);
+    const SurfaceSamples some = sample_depth_map(only_rows, camera, count, 1e-2);
+    EXPECT_FALSE(all.points.empty()) << width << "x" << height << ", " << count;
+    ASSERT_EQ(all.points.size(), some.points.size()) << width << "x" << height << ", " << count;
+    for (std::size_t i = 0; i < all.points.size(); ++i) {
+      EXPECT_EQ(all.points[i], some.points[i]);
+      EXPECT_EQ(all.normals[i], some.normals[i]);
+    }
+  }
+  EXPECT_TRUE(sample_depth_map_rows(4, 48, 100).empty());
+  EXPECT_TRUE(sample_depth_map_rows(64, 48, 0).empty());
 }
 
 }  // namespace
