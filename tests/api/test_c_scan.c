@@ -116,6 +116,18 @@ static sls_scan* make_scan(sls_context* context, int turntable_prior) {
   return scan;
 }
 
+/* A capture from `uri` as camera and projector (and turntable, unless NULL) into `recording`. */
+static void sim_capture(sls_capture_config* capture, const char* uri, const char* turntable, const char* calibration,
+                        const char* recording, int frames) {
+  sls_capture_config_init(capture);
+  capture->camera_uri = uri;
+  capture->projector_uri = uri;
+  capture->turntable_uri = turntable;
+  capture->calibration_path = calibration;
+  capture->recording_path = recording;
+  capture->frames = frames;
+}
+
 /* A turntable scan of the recording (10 degree steps, the turntable prior), cancelled from the
  * callback after frame `cancel_after`. */
 static void check_cancelled_turntable_scan(sls_context* context, const char* recording, const char* scratch) {
@@ -498,13 +510,7 @@ static void check_live_scan_cancelled(sls_context* context, const char* recordin
   if (scan == NULL) return;
   frame_log_init(&log, scan, kCancelAfter);
   CHECK_OK(sls_scan_set_frame_callback(scan, on_frame, &log, &error_));
-  sls_capture_config_init(&capture);
-  capture.camera_uri = uri;
-  capture.projector_uri = uri;
-  capture.turntable_uri = uri;
-  capture.calibration_path = calibration;
-  capture.recording_path = captured;
-  capture.frames = kPlanned;
+  sim_capture(&capture, uri, uri, calibration, captured, kPlanned);
   CHECK_ERROR(sls_scan_run_devices(scan, &capture, &error_), SLS_ERROR_CANCELLED, "cancelled");
   /* Fused while captured: the frames up to the cancel, in order; the capture stopped soon after. */
   CHECK(log.count == kCancelAfter + 1 && !log.out_of_order && log.index[log.count - 1] == kCancelAfter);
@@ -555,12 +561,7 @@ static void check_devices_scan(sls_context* context, const char* recording, cons
   if (scan == NULL) return;
   frame_log_init(&log, scan, -1);
   CHECK_OK(sls_scan_set_frame_callback(scan, on_frame, &log, &error_));
-  sls_capture_config_init(&capture);
-  capture.camera_uri = uri;
-  capture.projector_uri = uri;
-  capture.calibration_path = calibration;
-  capture.recording_path = captured;
-  capture.frames = 2;
+  sim_capture(&capture, uri, NULL, calibration, captured, 2);
   CHECK_OK(sls_scan_run_devices(scan, &capture, &error_));
   CHECK(log.count == 2 && !log.out_of_order && log.index[0] == 0);
   for (i = 0; i < log.count; ++i) {
