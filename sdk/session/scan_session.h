@@ -236,8 +236,9 @@ struct LoopClosureReport {
 
 // A frame's depth map and the decoder's confidence beside it, as add_frame() holds them. On a
 // GPU a decoded frame's maps stay on the device (a 12-megapixel frame's are 96 MB); the depth
-// map comes to the host only for what needs it there (a keyframe's samples, the first frame's
-// focus, a frame observer that asks): host_depth() downloads it the first time it is called.
+// map comes to the host only for what needs it there (the first frame's focus, a frame observer
+// that asks): host_depth() downloads it the first time it is called; a keyframe's samples need
+// only some of its rows (host_depth_rows).
 struct FrameMaps {
   const Image32f* depth = nullptr;       // on the host once fetched; null: the frame has none
   const Image32f* confidence = nullptr;  // on the host; null: none there (a depth-map frame, a GPU decode)
