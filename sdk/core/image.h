@@ -132,11 +132,12 @@ class Image {
                 memory_type() == MemoryType::kDevice || source.memory_type() == MemoryType::kDevice, stream);
   }
 
-  // Only `rows` of `source` into the same rows of this image (made `source`'s size, without a
-  // fill, when it is not), the others left as they are: on `stream` as copy_from. What reads a
-  // few rows of a GPU's image brings down those alone. sls::Error(kInvalidArgument) for a row
-  // outside the image or a step below 1.
-  void copy_rows_from(const Image& source, const std::vector<RowSet>& rows, const GpuStream& stream = {}) {
+  // Only `rows` of `source`, one set after another, into this image (made `source`'s width and
+  // as many rows as the sets name, without a fill, in the memory it was made for): on `stream`
+  // as copy_from. What reads a few rows of a GPU's image brings down those alone, into a buffer
+  // of their size. sls::Error(kInvalidArgument) for a row outside `source` or a step below 1.
+  void gather_rows_from(const Image& source, const std::vector<RowSet>& rows, const GpuStream& stream = {}) {
+    long long total = 0;
     for (const RowSet& set : rows) {
       if (set.count < 0 || set.step < 1 || set.first < 0 ||
           (set.count > 0 && static_cast<long long>(set.first) + static_cast<long long>(set.count - 1) * set.step >=
@@ -144,17 +145,20 @@ class Image {
         throw_error(ErrorCode::kInvalidArgument, "rows {} + k * {} (k < {}) of an image of {} rows", set.first,
                     set.step, set.count, source.height_);
       }
+      total += set.count;
     }
-    if (&source == this) return;
-    if (width_ != source.width_ || height_ != source.height_) resize_uninitialized(source.width_, source.height_);
+    if (&source == this) throw_error(ErrorCode::kInvalidArgument, "gather_rows_from: an image into itself");
+    if (width_ != source.width_ || height_ != total) resize_uninitialized(source.width_, static_cast<int>(total));
     const bool device = memory_type() == MemoryType::kDevice || source.memory_type() == MemoryType::kDevice;
+    std::size_t to = 0;  // this image's next row
     for (const RowSet& set : rows) {
       if (set.count == 0) continue;
-      const std::size_t pitch = static_cast<std::size_t>(set.step) * stride_bytes();
       const std::size_t offset = static_cast<std::size_t>(set.first) * stride_bytes();
-      copy_memory_2d(reinterpret_cast<unsigned char*>(data()) + offset, pitch,
-                     reinterpret_cast<const unsigned char*>(source.data()) + offset, pitch, stride_bytes(),
+      copy_memory_2d(reinterpret_cast<unsigned char*>(data()) + to * stride_bytes(), stride_bytes(),
+                     reinterpret_cast<const unsigned char*>(source.data()) + offset,
+                     static_cast<std::size_t>(set.step) * stride_bytes(), stride_bytes(),
                      static_cast<std::size_t>(set.count), device, stream);
+      to += static_cast<std::size_t>(set.count);
     }
   }
 

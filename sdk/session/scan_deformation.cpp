@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <limits>
 #include <mutex>
 #include <thread>
 #include <unordered_map>
@@ -112,63 +113,58 @@ void DeformationOptions::validate() const {
   checked.validate();
 }
 
-namespace {
-
-// sample_depth_map's grid: every `stride`-th pixel from `first` on each axis, each with a cross
-// of arm `arm` that stays inside the map. No rows or columns for a map too small or no samples.
-struct SampleGrid {
-  int stride = 0;
-  int arm = 2;  // pixels
-  int first = 0;
-  int columns = 0, rows = 0;
-};
-
-SampleGrid sample_grid(int width, int height, int count) {
-  SampleGrid grid;
-  if (width < 5 || height < 5 || count <= 0) return grid;
-  const double stride_f = std::sqrt(static_cast<double>(width) * height / count);
-  grid.stride = std::max(3, static_cast<int>(stride_f));
-  // The first grid position at or past the arm, and those whose arm ends inside the map.
-  grid.first = grid.stride / 2;
-  while (grid.first < grid.arm) grid.first += grid.stride;
-  const auto positions = [&](int size) {
-    return grid.first + grid.arm < size ? (size - grid.arm - 1 - grid.first) / grid.stride + 1 : 0;
-  };
-  grid.columns = positions(width);
-  grid.rows = positions(height);
-  return grid;
-}
-
-}  // namespace
-
-std::vector<RowSet> sample_depth_map_rows(int width, int height, int count) {
-  const SampleGrid grid = sample_grid(width, height, count);
-  if (grid.rows == 0 || grid.columns == 0) return {};
-  return {{grid.first - grid.arm, grid.stride, grid.rows},
-          {grid.first, grid.stride, grid.rows},
-          {grid.first + grid.arm, grid.stride, grid.rows}};
-}
-
-SurfaceSamples sample_depth_map(const Image32f& depth_m, const CameraIntrinsics& camera, int count,
-                                double max_step_m) {
-  SurfaceSamples samples;
-  const SampleGrid grid = sample_grid(depth_m.width(), depth_m.height(), count);
-  const int h = grid.arm;
-  const auto point_at = [&](int x, int y, Eigen::Vector3d* p) {
-    const float z = depth_m(x, y);
-    if (!(z > 0.0f) || !std::isfinite(z)) return false;
+DepthMapSampler::DepthMapSampler(const CameraIntrinsics& camera, int count)
+    : width_(camera.width), height_(camera.height) {
+  if (width_ < 5 || height_ < 5 || count <= 0) return;
+  // Every stride-th pixel from `first_` on each axis, each with a cross of arm `arm_` that stays
+  // inside the map.
+  const double stride_f = std::sqrt(static_cast<double>(width_) * height_ / count);
+  stride_ = std::max(3, static_cast<int>(stride_f));
+  first_ = stride_ / 2;
+  while (first_ < arm_) first_ += stride_;
+  const auto positions = [&](int size) { return first_ + arm_ < size ? (size - arm_ - 1 - first_) / stride_ + 1 : 0; };
+  columns_ = positions(width_);
+  grid_rows_ = positions(height_);
+  if (columns_ == 0 || grid_rows_ == 0) return;
+  rows_ = {{first_ - arm_, stride_, grid_rows_}, {first_, stride_, grid_rows_}, {first_ + arm_, stride_, grid_rows_}};
+  rays_.reserve(5 * static_cast<std::size_t>(columns_) * static_cast<std::size_t>(grid_rows_));
+  const auto ray_at = [&](int x, int y) -> Eigen::Vector3d {
     Vec3T<double> ray;
-    if (!unproject(camera, Vec2T<double>{static_cast<double>(x), static_cast<double>(y)}, &ray)) return false;
-    *p = Eigen::Vector3d(ray.x, ray.y, ray.z) * static_cast<double>(z);
+    if (!unproject(camera, Vec2T<double>{static_cast<double>(x), static_cast<double>(y)}, &ray)) {
+      return Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+    }
+    return Eigen::Vector3d(ray.x, ray.y, ray.z);
+  };
+  for (int row = 0; row < grid_rows_; ++row) {
+    const int y = first_ + row * stride_;
+    for (int column = 0; column < columns_; ++column) {
+      const int x = first_ + column * stride_;
+      for (const auto& [dx, dy] : {std::pair{0, 0}, {-arm_, 0}, {arm_, 0}, {0, -arm_}, {0, arm_}}) {
+        rays_.push_back(ray_at(x + dx, y + dy));
+      }
+    }
+  }
+}
+
+template <typename RowOf>
+SurfaceSamples DepthMapSampler::sample_rows(const RowOf& row_of, double max_step_m) const {
+  SurfaceSamples samples;
+  const auto point_at = [](float z, const Eigen::Vector3d& ray, Eigen::Vector3d* p) {
+    if (!(z > 0.0f) || !std::isfinite(z) || std::isnan(ray.x())) return false;
+    *p = ray * static_cast<double>(z);
     return true;
   };
-  for (int row = 0; row < grid.rows; ++row) {
-    const int y = grid.first + row * grid.stride;
-    for (int column = 0; column < grid.columns; ++column) {
-      const int x = grid.first + column * grid.stride;
+  const Eigen::Vector3d* rays = rays_.data();
+  for (int row = 0; row < grid_rows_; ++row) {
+    const float* above = row_of(0, row);
+    const float* centre = row_of(1, row);
+    const float* below = row_of(2, row);
+    for (int column = 0; column < columns_; ++column, rays += 5) {
+      const int x = first_ + column * stride_;
       Eigen::Vector3d p, left, right, up, down;
-      if (!point_at(x, y, &p) || !point_at(x - h, y, &left) || !point_at(x + h, y, &right) || !point_at(x, y - h, &up) ||
-          !point_at(x, y + h, &down)) {
+      if (!point_at(centre[x], rays[0], &p) || !point_at(centre[x - arm_], rays[1], &left) ||
+          !point_at(centre[x + arm_], rays[2], &right) || !point_at(above[x], rays[3], &up) ||
+          !point_at(below[x], rays[4], &down)) {
         continue;
       }
       if ((left - p).norm() > max_step_m || (right - p).norm() > max_step_m || (up - p).norm() > max_step_m ||
@@ -184,6 +180,34 @@ SurfaceSamples sample_depth_map(const Image32f& depth_m, const CameraIntrinsics&
     }
   }
   return samples;
+}
+
+SurfaceSamples DepthMapSampler::sample(const Image32f& depth_m, double max_step_m) const {
+  if (depth_m.width() != width_ || depth_m.height() != height_) {
+    throw_error(ErrorCode::kInvalidArgument, "depth map sampler: a map of {}x{} for a camera of {}x{}",
+                depth_m.width(), depth_m.height(), width_, height_);
+  }
+  return sample_rows(
+      [&](int set, int k) { return &depth_m(0, rows_[static_cast<std::size_t>(set)].first + k * stride_); },
+      max_step_m);
+}
+
+SurfaceSamples DepthMapSampler::sample_gathered(const Image32f& rows_m, double max_step_m) const {
+  if (rows_.empty()) return {};
+  if (rows_m.width() != width_ || rows_m.height() != 3 * grid_rows_) {
+    throw_error(ErrorCode::kInvalidArgument,
+                "depth map sampler: {}x{} gathered rows for {} rows of a camera {} pixels wide", rows_m.width(),
+                rows_m.height(), 3 * grid_rows_, width_);
+  }
+  return sample_rows([&](int set, int k) { return &rows_m(0, set * grid_rows_ + k); }, max_step_m);
+}
+
+SurfaceSamples sample_depth_map(const Image32f& depth_m, const CameraIntrinsics& camera, int count,
+                                double max_step_m) {
+  CameraIntrinsics sized = camera;
+  sized.width = depth_m.width();
+  sized.height = depth_m.height();
+  return DepthMapSampler(sized, count).sample(depth_m, max_step_m);
 }
 
 struct ScanDeformation::Impl {

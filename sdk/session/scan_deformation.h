@@ -105,13 +105,41 @@ struct SurfaceSamples {
 
 // About `count` samples of a depth map (camera-frame z, 0 = none) on a regular grid of pixels,
 // in the camera frame, each with the normal of its 5-pixel cross (a sample whose neighbours
-// lack depth or lie more than `max_step_m` away along the ray is skipped).
+// lack depth or lie more than `max_step_m` away along the ray is skipped). Made for one camera
+// and count, it samples every keyframe's map at the same pixels: their rays are unprojected
+// once (through the lens model: ~0.6 ms a keyframe at the default count when made each time).
+class DepthMapSampler {
+ public:
+  // For maps of camera.width x camera.height.
+  DepthMapSampler(const CameraIntrinsics& camera, int count);
+
+  // The rows it reads (each grid row and the rows of its crosses' arms): a map on a GPU needs
+  // only these on the host (~2 % of a 12 MP map at the default count). Empty for a map too
+  // small, or no samples.
+  const std::vector<RowSet>& rows() const { return rows_; }
+  // From the whole map (the camera's size; sls::Error(kInvalidArgument) for another).
+  SurfaceSamples sample(const Image32f& depth_m, double max_step_m) const;
+  // From rows() alone, one set after another (Image::gather_rows_from): the same samples, bit
+  // for bit. sls::Error(kInvalidArgument) for an image of another size.
+  SurfaceSamples sample_gathered(const Image32f& rows_m, double max_step_m) const;
+
+ private:
+  // row_of(set, k): the k-th grid row of rows()[set] (0: the arms above, 1: the centres, 2: the
+  // arms below).
+  template <typename RowOf>
+  SurfaceSamples sample_rows(const RowOf& row_of, double max_step_m) const;
+
+  int width_ = 0, height_ = 0;
+  int stride_ = 0, arm_ = 2, first_ = 0, columns_ = 0, grid_rows_ = 0;
+  std::vector<RowSet> rows_;
+  // Per grid position (row-major), its own and its cross's rays (centre, left, right, up, down);
+  // NaN where the lens model has none.
+  std::vector<Eigen::Vector3d> rays_;
+};
+
+// DepthMapSampler(camera of depth_m's size, count).sample(depth_m, max_step_m).
 SurfaceSamples sample_depth_map(const Image32f& depth_m, const CameraIntrinsics& camera, int count,
                                 double max_step_m);
-// The rows of a width x height map that sample_depth_map(…, count, …) reads (each grid row and
-// the rows of its crosses' arms): a map on a GPU needs only these on the host (~2 % of a 12 MP
-// map at the default count).
-std::vector<RowSet> sample_depth_map_rows(int width, int height, int count);
 
 // What the worker did for one keyframe.
 struct KeyframeSolve {

@@ -226,10 +226,11 @@ FrameReport ScanSession::add_frame(const ScanFrame& frame) {
     if (on_gpu) {
       maps.confidence = nullptr;  // on the GPU only: nothing on the host reads it
       maps.fetch = [&s] { s.decoder->download_depth(&s.decoded.depth_m); };
-      maps.fetch_rows = [&s](const std::vector<RowSet>& rows) {
+      maps.gather_rows = [&s](const std::vector<RowSet>& rows) {
         // After the decode on the same stream.
-        s.decoded.depth_m.copy_rows_from(*s.decoder->depth_on_device(), rows, s.streams.frame);
+        s.depth_rows.gather_rows_from(*s.decoder->depth_on_device(), rows, s.streams.frame);
         s.streams.frame.synchronize();
+        return &s.depth_rows;
       };
     }
   } else if (frame.depth_m) {

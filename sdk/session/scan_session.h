@@ -238,29 +238,26 @@ struct LoopClosureReport {
 // GPU a decoded frame's maps stay on the device (a 12-megapixel frame's are 96 MB); the depth
 // map comes to the host only for what needs it there (the first frame's focus, a frame observer
 // that asks): host_depth() downloads it the first time it is called; a keyframe's samples need
-// only some of its rows (host_depth_rows).
+// only some of its rows (gathered_depth_rows).
 struct FrameMaps {
   const Image32f* depth = nullptr;       // on the host once fetched; null: the frame has none
   const Image32f* confidence = nullptr;  // on the host; null: none there (a depth-map frame, a GPU decode)
   const Image32f* depth_on_device = nullptr;  // on a CUDA device (MemoryType::kDevice): the GPU copies, else null
   const Image32f* confidence_on_device = nullptr;
   std::function<void()> fetch;           // brings the depth map to the host; empty once done (or never needed)
-  // Brings only these rows of it (with fetch, or empty).
-  std::function<void(const std::vector<RowSet>&)> fetch_rows;
+  // Brings only these rows of it, one set after another (Image::gather_rows_from), and gives
+  // where they landed (with fetch, or empty).
+  std::function<const Image32f*(const std::vector<RowSet>&)> gather_rows;
 
   const Image32f* host_depth() {
     if (fetch) std::exchange(fetch, nullptr)();
     return depth;
   }
-  // The depth map on the host with at least `rows` as the GPU holds them (a keyframe's
-  // samples read ~2 % of a 12 MP map: 48 MB came down for them, ~2 ms a keyframe); the other
-  // rows hold what they held. The whole map when it is on the host already.
-  const Image32f* host_depth_rows(const std::vector<RowSet>& rows) {
-    if (fetch && fetch_rows) {
-      fetch_rows(rows);
-      return depth;
-    }
-    return host_depth();
+  // Only `rows` of the depth map on the host, one set after another, when it is on a GPU: a
+  // keyframe's samples read ~2 % of a 12 MP map (the whole 48 MB came down for them, ~2 ms a
+  // keyframe). Null when the map is on the host, or comes there whole: read host_depth().
+  const Image32f* gathered_depth_rows(const std::vector<RowSet>& rows) {
+    return fetch && gather_rows ? gather_rows(rows) : nullptr;
   }
   // Where the stages read them: the GPU's copies when there are, else the host's.
   const Image32f* depth_where_it_lives() const { return depth_on_device != nullptr ? depth_on_device : depth; }

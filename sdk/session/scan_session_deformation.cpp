@@ -148,13 +148,13 @@ void ScanSession::Impl::add_to_graph(int frame, const Pose& T_world_camera, std:
   if (deformation->wants_keyframe(T_world_camera, focus)) {
     out->keyframe = true;
     // Only the rows the samples read come down from a GPU.
-    const int samples = options.deformation.keyframe_samples;
-    const Image32f& depth =
-        *maps.host_depth_rows(sample_depth_map_rows(calibration.camera.width, calibration.camera.height, samples));
-    deformation->add_keyframe(
-        frame, T_world_camera, focus,
-        sample_depth_map(depth, calibration.camera, samples, edge_step_m(calibration.camera, focus_distance_m)),
-        std::move(prior));
+    const DepthMapSampler& sampler = keyframe_sampler();
+    const double max_step_m = edge_step_m(calibration.camera, focus_distance_m);
+    const Image32f* rows = maps.gathered_depth_rows(sampler.rows());
+    deformation->add_keyframe(frame, T_world_camera, focus,
+                              rows != nullptr ? sampler.sample_gathered(*rows, max_step_m)
+                                              : sampler.sample(*maps.host_depth(), max_step_m),
+                              std::move(prior));
   } else if (prior) {
     // Every frame's angle, not the keyframes' alone: each is off by the table's σ on its own,
     // and the more of them a node's blend weighs, the less of that is left.
@@ -407,8 +407,8 @@ LoopClosureReport ScanSession::close_loop() {
   // certain as that registration's residual, not as a surface point's noise (σ_con).
   const double voxel_m = std::as_const(*s.moving).volume().geometry().voxel_size_m;
   for (const Registered& r : registered) {
-    const SurfaceSamples samples = sample_depth_map(r.depth, s.calibration.camera, s.options.deformation.keyframe_samples,
-                                                    edge_step_m(s.calibration.camera, s.focus_distance_m));
+    const SurfaceSamples samples =
+        s.keyframe_sampler().sample(r.depth, edge_step_m(s.calibration.camera, s.focus_distance_m));
     const double sigma_registration = std::max(r.residual_rms_m, 0.1 * voxel_m);
     const double weight = std::pow(s.deformation->constraint_sigma_m() / sigma_registration, 2.0);
     for (const Eigen::Vector3f& p_camera : samples.points) {

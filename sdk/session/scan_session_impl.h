@@ -41,6 +41,9 @@ struct ScanSession::Impl {
   // are 96 MB: fresh memory every frame costs page faults and zeroing). Valid for the frame
   // being processed; nothing keeps a pointer into them past it.
   DecodedFrame decoded;
+  // The rows of a GPU's depth map a keyframe's samples read, page-locked (~2 MB at 12 MP; the
+  // whole map page-locked took 16 ms to allocate, at the first keyframe).
+  Image32f depth_rows{MemoryType::kPinned};
   fusion::Integrator integrator;
   fusion::Tracker tracker;
   fusion::Raycaster raycaster;
@@ -302,6 +305,13 @@ struct ScanSession::Impl {
                     FrameDeformation* out);
   // The model (shipped parts and the current volume), deformed or not.
   fusion::ExtractedSurface surface(bool deformed, ModelTimes* times = nullptr) const;
+
+  // A keyframe's samples of its depth map (and the loop closure's), made at the first keyframe.
+  std::optional<DepthMapSampler> depth_sampler;
+  const DepthMapSampler& keyframe_sampler() {
+    if (!depth_sampler) depth_sampler.emplace(calibration.camera, options.deformation.keyframe_samples);
+    return *depth_sampler;
+  }
 
   Eigen::Vector3d focus_point(const Pose& T_world_camera) const {
     return T_world_camera * Eigen::Vector3d(0.0, 0.0, focus_distance_m);

@@ -126,32 +126,43 @@ TEST(Image, DeviceImageCopiesBackToTheSamePixels) {
   EXPECT_EQ(copy, host);
 }
 
-// Only the rows asked for are copied (every n-th row, as a GPU's map comes down for a grid of
-// samples), the others keep their pixels; host to host, and from a GPU when there is one.
-TEST(Image, CopiesTheRowsAskedForAndNoOther) {
+// Only the rows asked for are copied, one set after another (every n-th row, as a GPU's map
+// comes down for a grid of samples); host to host, and from a GPU when there is one.
+TEST(Image, GathersTheRowsAskedForAndNoOther) {
   Image32f source(13, 11, 0.0f);
   for (int y = 0; y < source.height(); ++y) {
     for (int x = 0; x < source.width(); ++x) source(x, y) = static_cast<float>(x * 100 + y);
   }
-  const std::vector<RowSet> rows = {{1, 4, 3}, {2, 4, 3}, {10, 1, 1}, {0, 1, 0}};  // rows 1, 5, 9, 2, 6, 10
-  const auto check = [&](const Image32f& copy) {
-    for (int y = 0; y < source.height(); ++y) {
-      const bool asked = y == 1 || y == 5 || y == 9 || y == 2 || y == 6 || y == 10;
-      for (int x = 0; x < source.width(); ++x) EXPECT_EQ(copy(x, y), asked ? source(x, y) : -1.0f) << x << ", " << y;
+  const std::vector<RowSet> rows = {{1, 4, 3}, {2, 4, 3}, {10, 1, 1}, {0, 1, 0}};  // rows 1, 5, 9, 2, 6, 10, 10
+  const auto check = [&](const Image32f& gathered) {
+    const std::vector<int> expected = {1, 5, 9, 2, 6, 10, 10};
+    ASSERT_EQ(gathered.width(), source.width());
+    ASSERT_EQ(gathered.height(), 7);
+    for (int row = 0; row < 7; ++row) {
+      for (int x = 0; x < source.width(); ++x) {
+        EXPECT_EQ(gathered(x, row), source(x, expected[static_cast<std::size_t>(row)])) << x << ", " << row;
+      }
     }
   };
-  Image32f copy(13, 11, -1.0f);
-  copy.copy_rows_from(source, rows);
-  check(copy);
+  Image32f gathered(MemoryType::kPinned);
+  gathered.gather_rows_from(source, rows);
+  check(gathered);
   // Rows outside the image, or a step below 1, are refused before anything is copied.
-  EXPECT_THROW(copy.copy_rows_from(source, {{1, 5, 3}}), Error);
-  EXPECT_THROW(copy.copy_rows_from(source, {{-1, 1, 1}}), Error);
-  EXPECT_THROW(copy.copy_rows_from(source, {{0, 0, 2}}), Error);
+  EXPECT_THROW(gathered.gather_rows_from(source, {{1, 5, 3}}), Error);
+  EXPECT_THROW(gathered.gather_rows_from(source, {{-1, 1, 1}}), Error);
+  EXPECT_THROW(gathered.gather_rows_from(source, {{0, 0, 2}}), Error);
+  check(gathered);
+  Image32f none;
+  none.gather_rows_from(source, {});
+  EXPECT_EQ(none.height(), 0);
   if (!gpu_present()) return;
   const Image32f device = source.copy_to(MemoryType::kDevice);
-  Image32f from_device(13, 11, -1.0f);
-  from_device.copy_rows_from(device, rows);
+  Image32f from_device;
+  from_device.gather_rows_from(device, rows);
   check(from_device);
+  Image32f pinned_from_device(MemoryType::kPinned);
+  pinned_from_device.gather_rows_from(device, rows);
+  check(pinned_from_device);
 }
 
 TEST(Image, KeepsTheMemoryItWasMadeFor) {

@@ -251,36 +251,44 @@ TEST(ScanDeformation, RefusesAnOpenPathAndKeepsTheModel) {
   EXPECT_EQ(session.final_surface().cloud.size(), points);
 }
 
+// Samples of a tilted plane lie on it with its normal, through a lens without distortion and
+// with it (the sampler's rays are the lens model's).
 TEST(ScanDeformation, SamplesADepthMapWithNormalsTowardsTheCamera) {
-  CameraIntrinsics camera;
-  camera.width = 64;
-  camera.height = 48;
-  camera.fx = camera.fy = 100.0;
-  camera.cx = 31.5;
-  camera.cy = 23.5;
-  // A plane tilted about y: z = 0.1 + 0.5 x.
-  Image32f depth(64, 48, 0.0f);
-  for (int y = 0; y < 48; ++y) {
-    for (int x = 0; x < 64; ++x) {
-      const double u = (x - camera.cx) / camera.fx;
-      depth(x, y) = static_cast<float>(0.1 / (1.0 - 0.5 * u));
+  for (const double k1 : {0.0, -0.2}) {
+    CameraIntrinsics camera;
+    camera.width = 64;
+    camera.height = 48;
+    camera.fx = camera.fy = 100.0;
+    camera.cx = 31.5;
+    camera.cy = 23.5;
+    camera.k1 = k1;
+    // A plane tilted about y: z = 0.1 + 0.5 x, seen along each pixel's ray.
+    Image32f depth(64, 48, 0.0f);
+    for (int y = 0; y < 48; ++y) {
+      for (int x = 0; x < 64; ++x) {
+        Vec3T<double> ray;
+        ASSERT_TRUE(unproject(camera, Vec2T<double>{static_cast<double>(x), static_cast<double>(y)}, &ray));
+        depth(x, y) = static_cast<float>(0.1 / (1.0 - 0.5 * ray.x / ray.z));
+      }
     }
+    for (int y = 0; y < 48; ++y) depth(40, y) = 0.0f;  // a column without depth
+    const SurfaceSamples samples = sample_depth_map(depth, camera, 100, 1e-2);  // 1 mm pixels
+    ASSERT_GT(samples.points.size(), 40u) << k1;
+    ASSERT_EQ(samples.points.size(), samples.normals.size());
+    const Eigen::Vector3f expected = Eigen::Vector3f(0.5f, 0.0f, -1.0f).normalized();
+    for (std::size_t i = 0; i < samples.points.size(); ++i) {
+      const Eigen::Vector3f& p = samples.points[i];
+      EXPECT_NEAR(p.z(), 0.1f + 0.5f * p.x(), 1e-6f) << k1;
+      EXPECT_GT(samples.normals[i].dot(expected), 0.9999f) << i << ", " << k1;
+    }
+    EXPECT_TRUE(sample_depth_map(Image32f(3, 3, 0.1f), camera, 100, 1e-2).points.empty());
   }
-  for (int y = 0; y < 48; ++y) depth(40, y) = 0.0f;  // a column without depth
-  const SurfaceSamples samples = sample_depth_map(depth, camera, 100, 1e-2);  // 1 mm pixels
-  ASSERT_GT(samples.points.size(), 40u);
-  ASSERT_EQ(samples.points.size(), samples.normals.size());
-  const Eigen::Vector3f expected = Eigen::Vector3f(0.5f, 0.0f, -1.0f).normalized();
-  for (std::size_t i = 0; i < samples.points.size(); ++i) {
-    const Eigen::Vector3f& p = samples.points[i];
-    EXPECT_NEAR(p.z(), 0.1f + 0.5f * p.x(), 1e-6f);
-    EXPECT_GT(samples.normals[i].dot(expected), 0.9999f) << i;
-  }
-  EXPECT_TRUE(sample_depth_map(Image32f(3, 3, 0.1f), camera, 100, 1e-2).points.empty());
 }
 
-// A GPU's map comes to the host only in the rows the samples read: a map holding those rows
-// alone (the others NaN) gives the same samples, bit for bit, whatever the size and count.
+// A GPU's map comes to the host only in the rows the samples read, gathered one set after
+// another: those rows alone give the same samples as the whole map, bit for bit, whatever the
+// size and count; and a map with only those rows (the others NaN) gives them too, so the
+// sampler reads no other row.
 TEST(ScanDeformation, SamplesReadOnlyTheRowsTheyName) {
   for (const auto& [width, height, count] :
        {std::tuple{64, 48, 100}, std::tuple{64, 48, 5000}, std::tuple{97, 61, 37}, std::tuple{5, 5, 1},
@@ -291,6 +299,7 @@ TEST(ScanDeformation, SamplesReadOnlyTheRowsTheyName) {
     camera.fx = camera.fy = 100.0;
     camera.cx = 0.5 * (width - 1);
     camera.cy = 0.5 * (height - 1);
+    camera.k1 = -0.1;  // rays through the lens model, as a real camera's
     // A bumpy surface, so that every row and column differs.
     Image32f depth(width, height, 0.0f);
     for (int y = 0; y < height; ++y) {
@@ -298,23 +307,45 @@ TEST(ScanDeformation, SamplesReadOnlyTheRowsTheyName) {
         depth(x, y) = static_cast<float>(0.1 + 1e-3 * std::sin(0.3 * x) * std::cos(0.2 * y) + 1e-4 * x);
       }
     }
-    const std::vector<RowSet> rows = sample_depth_map_rows(width, height, count);
-    Image32f only_rows(width, height, std::numeric_limits<float>::quiet_NaN());
-    only_rows.copy_rows_from(depth, rows);
+    const DepthMapSampler sampler(camera, count);
+    const std::vector<RowSet>& rows = sampler.rows();
+    Image32f gathered;
+    gathered.gather_rows_from(depth, rows);
     int copied = 0;
     for (const RowSet& set : rows) copied += set.count;
+    EXPECT_EQ(gathered.height(), copied);
     EXPECT_LE(copied, 3 * (height / 3 + 1)) << width << "x" << height;
-    const SurfaceSamples all = sample_depth_map(depth, camera, count, 1e-2);
-    const SurfaceSamples some = sample_depth_map(only_rows, camera, count, 1e-2);
-    EXPECT_FALSE(all.points.empty()) << width << "x" << height << ", " << count;
-    ASSERT_EQ(all.points.size(), some.points.size()) << width << "x" << height << ", " << count;
-    for (std::size_t i = 0; i < all.points.size(); ++i) {
-      EXPECT_EQ(all.points[i], some.points[i]);
-      EXPECT_EQ(all.normals[i], some.normals[i]);
+    // Only those rows in place in a map of NaN.
+    Image32f only_rows(width, height, std::numeric_limits<float>::quiet_NaN());
+    int row = 0;
+    for (const RowSet& set : rows) {
+      for (int k = 0; k < set.count; ++k, ++row) {
+        for (int x = 0; x < width; ++x) only_rows(x, set.first + k * set.step) = gathered(x, row);
+      }
     }
+    const SurfaceSamples all = sample_depth_map(depth, camera, count, 1e-2);
+    EXPECT_FALSE(all.points.empty()) << width << "x" << height << ", " << count;
+    for (const SurfaceSamples& some :
+         {sampler.sample(depth, 1e-2), sampler.sample_gathered(gathered, 1e-2), sampler.sample(only_rows, 1e-2)}) {
+      ASSERT_EQ(all.points.size(), some.points.size()) << width << "x" << height << ", " << count;
+      for (std::size_t i = 0; i < all.points.size(); ++i) {
+        EXPECT_EQ(all.points[i], some.points[i]);
+        EXPECT_EQ(all.normals[i], some.normals[i]);
+      }
+    }
+    // A map or rows of another size are refused, naming it.
+    EXPECT_THROW(sampler.sample(Image32f(width + 1, height, 0.1f), 1e-2), Error);
+    EXPECT_THROW(sampler.sample_gathered(depth, 1e-2), Error);
   }
-  EXPECT_TRUE(sample_depth_map_rows(4, 48, 100).empty());
-  EXPECT_TRUE(sample_depth_map_rows(64, 48, 0).empty());
+  const auto rows_of = [](int width, int height, int count) {
+    CameraIntrinsics camera;
+    camera.width = width;
+    camera.height = height;
+    camera.fx = camera.fy = 100.0;
+    return DepthMapSampler(camera, count).rows();
+  };
+  EXPECT_TRUE(rows_of(4, 48, 100).empty());
+  EXPECT_TRUE(rows_of(64, 48, 0).empty());
 }
 
 }  // namespace
