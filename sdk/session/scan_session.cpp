@@ -157,7 +157,8 @@ ScanSession::ScanSession(const ScannerCalibration& calibration, const PatternSet
     impl_->decoder.emplace(*patterns, calibration, options.device, options.decode, impl_->streams.frame,
                            impl_->streams.upload);
   }
-  // A GPU decode's depth map comes down at keyframes only; page-locked, it comes straight.
+  // A GPU decode's depth map comes down whole only where the host reads it all (the first frame's
+  // focus, a frame observer that asks; keyframes take their rows alone); page-locked, it comes straight.
   if (options.device.is_cuda()) impl_->decoded.depth_m = Image32f(MemoryType::kPinned);
 }
 
